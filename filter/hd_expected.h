@@ -1,0 +1,39 @@
+/*
+ * hd_expected: the paper's crude expected-torque model (section IV), extended.
+ *
+ *   T_exp = J * acc_out + b * vel_out + Fc * vel_out / (|vel_out| + v_eps) + T_ff
+ *
+ * J: load inertia at the output; b: viscous; Fc: Coulomb friction with its
+ * sign function smoothed over v_eps so T_exp stays continuous through
+ * reversals; T_ff: optional feed-forward from the controller.  All
+ * coefficients default to zero (T_exp = T_ff).  The filter needs only a rough
+ * T_exp: what it misses enters R (or the offset state), not the ripple.
+ */
+#ifndef HD_EXPECTED_H
+#define HD_EXPECTED_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    float inertia_kgm2;          /* J [kg m^2] at the output */
+    float viscous_nm_s_rad;      /* b [N m s / rad] */
+    float coulomb_nm;            /* Fc [N m] */
+    float coulomb_vel_eps_rad_s; /* v_eps [rad/s], > 0; default 0.01 */
+} hd_expected_config_t;
+
+void hd_expected_config_default(hd_expected_config_t *cfg);
+
+/* Returns 0 if every field is finite, J, b, Fc >= 0 and v_eps > 0; else -1. */
+int hd_expected_config_check(const hd_expected_config_t *cfg);
+
+float hd_expected_torque_nm(const hd_expected_config_t *cfg,
+                            float vel_out_rad_s, float acc_out_rad_s2,
+                            float feedforward_nm);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* HD_EXPECTED_H */

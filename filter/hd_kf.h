@@ -1,0 +1,195 @@
+/*
+ * hd_kf: the ripple-cancelling Kalman filter of Taghirad, Helmy & Belanger
+ * (1997), equations 5-10, as a float32, allocation-free library.
+ *
+ * Model.  The torque ripple y = T_meas - T_exp is the sum of the first
+ * states of a bank of 2-state harmonic oscillators (equation 6), plus, if
+ * enabled, one random-walk offset state:
+ *
+ *   x(k+1) = Phi(k) x(k) + w(k),   y(k) = C x(k) + v(k),
+ *   Phi = blockdiag(R(theta_1), ..., R(theta_B), 1),
+ *   R(t) = [cos t  sin t; -sin t  cos t],   C = [1 0 1 0 ... 1 0 (1)].
+ *
+ * Each block is locked to one reference.  Its phase advance theta over the
+ * step is taken from the encoder, never from a differentiated velocity:
+ *   HD_KF_LOCK_MOTOR   theta = order * (motor angle increment)   [order: cycles per motor rev]
+ *   HD_KF_LOCK_OUTPUT  theta = order * (output angle increment)  [order: cycles per output rev]
+ *   HD_KF_LOCK_FIXED   theta = 2 pi f ts_s                       [order field holds f in Hz]
+ * The paper's model is motor orders 2 and 4 plus output order 1
+ * (misalignment; omega_3 = motor velocity / gear ratio).
+ *
+ * Update (prediction type, equations 8-10; scalar innovation, no inverse):
+ *   e = y - C x,  S = R + C P C',  g = P C',
+ *   x <- Phi (x + g e / S)                               (8 with K = Phi g / S)
+ *   P <- Phi (P - g g' / S) Phi' + Q                     (10, same algebra)
+ * Phi is block diagonal, so one step costs O(n^2) for n states.
+ *
+ * Outputs, per step (x is the prediction made before this sample arrived):
+ *   ripple_nm          = sum of the oscillator first states (C x without offset)
+ *   torque_filtered_nm = T_meas - ripple_nm  (- offset if it is a sensor error)
+ *
+ * Invariants kept every step (float32 safe for long runs):
+ *   - P is exactly symmetric (only the upper triangle is computed, then mirrored);
+ *   - diagonal entries stay in [0, p_max_nm2]; a diagonal above p_max is
+ *     brought down by scaling its row and column (a congruence, keeps PSD);
+ *   - a non-finite measurement skips the correction (prediction only) and is
+ *     flagged; a non-finite state or covariance resets the filter, flagged.
+ *
+ * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
+ * cannot be observed without aliasing.  It is frozen: dropped from C and from
+ * the ripple estimate, its state zeroed and its covariance reset to p0 and
+ * decorrelated, until theta is back under the limit, when it restarts from zero.
+ *
+ * No heap, no VLAs, no libm in hd_kf_step (sine/cosine come from hd_trig.h,
+ * one sqrtf per block for the amplitude compiles to VSQRT on Cortex-M4F).
+ * The library keeps no globals: all state is in hd_kf_t.
+ */
+#ifndef HD_KF_H
+#define HD_KF_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Compile-time capacity.  hd_kf_t's size follows from these. */
+#ifndef HD_KF_MAX_BLOCKS
+#define HD_KF_MAX_BLOCKS 8
+#endif
+#define HD_KF_MAX_STATES (2 * HD_KF_MAX_BLOCKS + 1)
+
+typedef enum {
+    HD_KF_LOCK_MOTOR = 0,
+    HD_KF_LOCK_OUTPUT = 1,
+    HD_KF_LOCK_FIXED = 2,
+} hd_kf_lock_t;
+
+typedef struct {
+    uint8_t lock;    /* hd_kf_lock_t */
+    uint8_t enabled; /* 0: the block is configured but not part of the model */
+    float order;     /* cycles per rev (MOTOR, OUTPUT) or frequency in Hz (FIXED) */
+    float q_nm2;     /* process noise added per step to each of its 2 states [Nm^2] */
+} hd_kf_block_config_t;
+
+typedef struct {
+    hd_kf_block_config_t blocks[HD_KF_MAX_BLOCKS];
+    uint8_t block_count;           /* blocks[0, block_count) are configured */
+    uint8_t offset_enabled;        /* add the random-walk offset state */
+    uint8_t offset_is_sensor_error; /* 1: subtract the offset from the filtered torque
+                                      (sensor drift); 0: it is real torque the
+                                      expected-torque model misses, keep it */
+    float offset_q_nm2;            /* offset random-walk variance per step [Nm^2] */
+    float r_nm2;                   /* measurement noise variance R [Nm^2] */
+    float ts_s;                    /* sample period [s] */
+    float p0_nm2;                  /* initial / reset covariance diagonal [Nm^2] */
+    float p_max_nm2;               /* ceiling on covariance diagonal [Nm^2] */
+    float nyquist_fraction;        /* freeze a block when |theta| > this * pi, in (0, 1] */
+} hd_kf_config_t;
+
+/* Per-step input. */
+typedef struct {
+    float torque_meas_nm;       /* calibrated measured torque */
+    float torque_expected_nm;   /* T_exp from hd_expected.h (or 0) */
+    float d_motor_angle_rad;    /* motor (wave generator) angle increment over the step */
+    float d_output_angle_rad;   /* output angle increment over the step */
+} hd_kf_input_t;
+
+/* Status bits in hd_kf_output_t.status and hd_kf_t.status_sticky. */
+#define HD_KF_STATUS_FROZEN      (1u << 0) /* at least one block over Nyquist this step */
+#define HD_KF_STATUS_BAD_INPUT   (1u << 1) /* non-finite input: correction skipped */
+#define HD_KF_STATUS_RESET       (1u << 2) /* non-finite state or covariance: filter reset */
+#define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* a covariance diagonal hit p_max */
+
+typedef struct {
+    float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */
+    float ripple_nm;           /* estimated ripple, all active unfrozen blocks */
+    float offset_nm;           /* offset state (0 if disabled) */
+    float innovation_nm;       /* e = y - C x (prior) */
+    float innovation_var_nm2;  /* S = R + C P C' (prior) */
+    float amplitude_nm[HD_KF_MAX_BLOCKS]; /* per configured block; 0 if disabled/frozen */
+    uint32_t frozen_mask;      /* bit i: block i frozen this step */
+    uint32_t status;           /* HD_KF_STATUS_* for this step */
+} hd_kf_output_t;
+
+/* Filter state.  Treat as opaque; it is public only so it can be allocated
+ * statically. */
+typedef struct {
+    hd_kf_config_t cfg;
+    uint8_t n_states;                         /* active states */
+    uint8_t active_blocks;                    /* number of enabled blocks */
+    uint8_t block_index[HD_KF_MAX_BLOCKS];    /* active slot -> configured block */
+    uint8_t offset_slot;                      /* state index of the offset, if enabled */
+    uint32_t frozen_mask;                     /* by configured block index */
+    float x[HD_KF_MAX_STATES];
+    float p[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
+    uint32_t status_sticky;                   /* OR of all step statuses since init */
+    uint32_t reset_count;
+    uint32_t bad_input_count;
+} hd_kf_t;
+
+/* Errors from hd_kf_config_check / hd_kf_init. */
+typedef enum {
+    HD_KF_OK = 0,
+    HD_KF_ERR_NULL = -1,
+    HD_KF_ERR_BLOCK_COUNT = -2,   /* block_count > HD_KF_MAX_BLOCKS */
+    HD_KF_ERR_LOCK = -3,          /* unknown lock kind */
+    HD_KF_ERR_ORDER = -4,         /* order / frequency not finite or <= 0 */
+    HD_KF_ERR_NOISE = -5,         /* q, r, p0, p_max not finite, negative, or r <= 0 */
+    HD_KF_ERR_TS = -6,            /* ts_s not finite or <= 0 */
+    HD_KF_ERR_NYQUIST = -7,       /* nyquist_fraction outside (0, 1] */
+    HD_KF_ERR_FIXED_OVER_NYQUIST = -8, /* fixed-frequency block at or above fs/2 */
+} hd_kf_err_t;
+
+/* A configuration with no blocks and sensible noise/covariance defaults:
+ * R = 1 Nm^2, p0 = 1e3... callers add blocks with hd_kf_config_add_block. */
+void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s);
+
+/* The paper's tuning: Q = 1e3 I, R = 1, motor orders 2 and 4, plus output
+ * order 1 when with_misalignment (the sixth-order model of section V). */
+void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment);
+
+/* Appends an enabled block; returns its index or a negative hd_kf_err_t. */
+int hd_kf_config_add_block(hd_kf_config_t *cfg, hd_kf_lock_t lock, float order,
+                           float q_nm2);
+
+/* Validates every field; returns HD_KF_OK or the first error found. */
+hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg);
+
+/* Human-readable name of an error code (static string). */
+const char *hd_kf_err_str(int err);
+
+/* Copies and checks cfg, zeroes the state, sets P = p0 I.  On error the
+ * filter is left unchanged. */
+hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg);
+
+/* Zeroes the state and resets P = p0 I (configuration kept). */
+void hd_kf_reset(hd_kf_t *kf);
+
+/* Enables or disables configured block i at run time.  The block restarts
+ * from zero with covariance p0; other blocks keep their estimates. */
+hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled);
+
+/* One filter step: bounded time, O(n^2), never blocks, never allocates. */
+void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out);
+
+/* Amplitude [Nm] and phase [rad] of configured block i from the current
+ * state (phase of the first state's oscillation: ripple_i = A cos(phase) ).
+ * Uses libm atan2f: call it outside the 1 kHz path. */
+void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
+                                 float *amplitude_nm, float *phase_rad);
+
+/* Number of active states (2 per enabled block, +1 for the offset). */
+unsigned hd_kf_state_count(const hd_kf_t *kf);
+
+/* Read access for tests and tools: state vector and covariance entry in the
+ * active ordering (block slots in configuration order, offset last). */
+float hd_kf_state(const hd_kf_t *kf, unsigned i);
+float hd_kf_cov(const hd_kf_t *kf, unsigned i, unsigned j);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* HD_KF_H */

@@ -1,0 +1,52 @@
+"""Locate (and if needed build) the project's C libraries for ctypes.
+
+The tools never re-implement the filter: they load the same C code the
+firmware runs, built as shared libraries by CMake.  The build directory is
+$HD_BUILD_DIR if set (CTest sets it), else build/host-release, which is
+configured and built on first use.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def build_dir() -> Path:
+    env = os.environ.get("HD_BUILD_DIR")
+    return Path(env) if env else ROOT / "build" / "host-release"
+
+
+def ensure_built(target: str | None = None) -> Path:
+    """Configures/builds build_dir() if it is the default and not built yet."""
+    bdir = build_dir()
+    if not (bdir / "build.ninja").exists() and not os.environ.get("HD_BUILD_DIR"):
+        subprocess.run(["cmake", "--preset", "host-release"], cwd=ROOT, check=True,
+                       stdout=subprocess.DEVNULL)
+    if not os.environ.get("HD_BUILD_DIR"):
+        cmd = ["cmake", "--build", str(bdir)]
+        if target:
+            cmd += ["--target", target]
+        subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    return bdir
+
+
+def find_file(name: str, target: str | None = None) -> Path:
+    """Path of a built artefact (library or executable) by file name."""
+    bdir = ensure_built(target)
+    hits = sorted(bdir.rglob(name))
+    if not hits:
+        raise FileNotFoundError(f"{name} not found under {bdir}; build the project first")
+    return hits[0]
+
+
+def load_library(stem: str) -> ctypes.CDLL:
+    """Loads lib<stem>.so from the build tree (target name = stem)."""
+    return ctypes.CDLL(str(find_file(f"lib{stem}.so", target=stem)))
+
+
+def executable(name: str) -> Path:
+    return find_file(name, target=name)
