@@ -1,13 +1,13 @@
 /*
  * hal: everything the 1 kHz ISR touches, as one small interface.
  *
- * A backend fills an hal_t with its context and function pointers.  Backends
- * live in their own folders (hal/mock, hal/sim, hal/replay, hal/socketcan,
- * and the MCU ports).  A backend may leave CAN or NVM pointers NULL when it
- * does not provide them; firmware checks before calling.
+ * A backend fills one or more parts of an hal_t (sensors, can, nvm, clock)
+ * with its context and function pointers.  Backends live in their own
+ * folders (hal/mock, hal/sim, hal/replay, hal/socketcan, and the MCU ports).
+ * Firmware checks for NULL before calling a part.
  *
- * Rules for every function called from the ISR (adc_read, encoder_read,
- * can_send, can_recv, time_us): non-blocking, bounded time, no allocation.
+ * Rules for every function called from the ISR (sensors, can, clock):
+ * non-blocking, bounded time, no allocation.
  * Return codes: 0 = ok, negative = hal_err_t.
  */
 #ifndef HAL_H
@@ -64,33 +64,49 @@ typedef struct {
     uint32_t can_bus_off;
 } hal_counters_t;
 
-typedef struct hal hal_t;
-struct hal {
-    void *ctx;
-    const char *name;
+/* The HAL is four independent parts, each with its own context, so a
+ * runner can compose them: e.g. sensors from the simulated joint, CAN from
+ * SocketCAN, NVM from a file.  A part whose functions are NULL is absent. */
 
-    /* Sensors: called once per tick. */
+typedef struct {
+    void *ctx;
+    /* Called once per tick. */
     int (*adc_read)(void *ctx, hal_adc_sample_t *out);
     int (*encoder_read)(void *ctx, hal_encoder_sample_t *out);
+} hal_sensors_t;
 
-    /* CAN: non-blocking.  can_recv returns HAL_ERR_NO_DATA when empty. */
-    int (*can_send)(void *ctx, const hal_can_frame_t *frame);
-    int (*can_recv)(void *ctx, hal_can_frame_t *frame);
+typedef struct {
+    void *ctx;
+    /* Non-blocking.  send returns HAL_ERR_BUSY when the queue is full;
+     * recv returns HAL_ERR_NO_DATA when nothing is waiting. */
+    int (*send)(void *ctx, const hal_can_frame_t *frame);
+    int (*recv)(void *ctx, hal_can_frame_t *frame);
+    void (*counters)(void *ctx, hal_counters_t *out); /* may be NULL */
+} hal_can_t;
 
-    /* Monotonic microseconds since an arbitrary origin. */
-    uint64_t (*time_us)(void *ctx);
+typedef struct {
+    void *ctx;
+    /* Byte-addressed region of `size` bytes for the calibration record.
+     * erase sets a range to 0xFF (flash semantics); a write may be
+     * interrupted at any byte by power loss. */
+    size_t size;
+    int (*read)(void *ctx, size_t offset, void *buf, size_t len);
+    int (*write)(void *ctx, size_t offset, const void *buf, size_t len);
+    int (*erase)(void *ctx, size_t offset, size_t len);
+} hal_nvm_t;
 
-    /* Non-volatile storage for the calibration record: byte-addressed region
-     * of nvm_size bytes.  nvm_erase sets a range to 0xFF (flash semantics); a
-     * write may be interrupted at any byte by power loss. */
-    size_t nvm_size;
-    int (*nvm_read)(void *ctx, size_t offset, void *buf, size_t len);
-    int (*nvm_write)(void *ctx, size_t offset, const void *buf, size_t len);
-    int (*nvm_erase)(void *ctx, size_t offset, size_t len);
+typedef struct {
+    void *ctx;
+    uint64_t (*time_us)(void *ctx); /* monotonic microseconds */
+} hal_clock_t;
 
-    /* Backend counters (may be NULL). */
-    void (*counters)(void *ctx, hal_counters_t *out);
-};
+typedef struct {
+    const char *name;
+    hal_sensors_t sensors;
+    hal_can_t can;
+    hal_nvm_t nvm;
+    hal_clock_t clock;
+} hal_t;
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,67 @@
+/*
+ * hd_pipeline: one sample of the torque path, shared by the firmware ISR and
+ * the offline tools so both run the same code:
+ *
+ *   output angle increment -> hd_track (velocity, acceleration)
+ *   -> hd_expected (T_exp) -> hd_kf_step -> filtered torque
+ *
+ * hd_pipeline_run processes whole arrays (the tools call it once through
+ * ctypes instead of once per sample).  Pure: no I/O, no heap, no globals.
+ */
+#ifndef HD_PIPELINE_H
+#define HD_PIPELINE_H
+
+#include <stddef.h>
+
+#include "hd_expected.h"
+#include "hd_kf.h"
+#include "hd_track.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    hd_kf_t kf;
+    hd_track_t output_track;        /* tracks the output angle */
+    hd_expected_config_t expected;
+    float torque_expected_nm;       /* last T_exp */
+} hd_pipeline_t;
+
+/* Initialises all three parts; returns 0 or a negative error (hd_kf_err_t,
+ * or -100 for a bad tracker bandwidth, -101 for a bad expected-torque config). */
+int hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
+                     const hd_expected_config_t *expected_cfg,
+                     float track_bandwidth_hz);
+
+void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
+                      float d_motor_angle_rad, float d_output_angle_rad,
+                      float feedforward_nm, hd_kf_output_t *out);
+
+/* Array form.  Inputs of length n (feedforward may be NULL = 0); every output
+ * pointer may be NULL; amplitude_nm, if given, is n x HD_KF_MAX_BLOCKS,
+ * row-major.  status, if given, receives hd_kf_output_t.status per sample. */
+typedef struct {
+    size_t n;
+    const float *torque_meas_nm;
+    const float *d_motor_angle_rad;
+    const float *d_output_angle_rad;
+    const float *feedforward_nm;
+    float *torque_filtered_nm;
+    float *ripple_nm;
+    float *offset_nm;
+    float *innovation_nm;
+    float *innovation_var_nm2;
+    float *torque_expected_nm;
+    float *output_velocity_rad_s;
+    float *amplitude_nm;
+    unsigned *status;
+} hd_pipeline_io_t;
+
+void hd_pipeline_run(hd_pipeline_t *p, const hd_pipeline_io_t *io);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* HD_PIPELINE_H */
