@@ -1,0 +1,205 @@
+/* Dense double-precision reference of equations 8-10 (see ref_kf_dense.h). */
+#include "ref_kf_dense.h"
+
+#include <math.h>
+#include <string.h>
+
+#define N REF_KF_MAX_N
+#define REF_PI 3.14159265358979323846
+
+typedef double mat_t[N][N];
+
+static void mat_mul(int n, mat_t a, mat_t b, mat_t out) /* out = a b */
+{
+    mat_t t;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            double s = 0.0;
+            for (int k = 0; k < n; k++)
+                s += a[i][k] * b[k][j];
+            t[i][j] = s;
+        }
+    memcpy(out, t, sizeof(t));
+}
+
+static void mat_transpose(int n, mat_t a, mat_t out)
+{
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            out[j][i] = a[i][j];
+}
+
+/* Phase advance of configured block b over this step (header: "Each block is
+ * locked to one reference"). */
+static double block_theta(const hd_kf_config_t *cfg, int b, const hd_kf_input_t *in)
+{
+    const hd_kf_block_config_t *bc = &cfg->blocks[b];
+    double inc_m = isfinite(in->d_motor_angle_rad) ? (double)in->d_motor_angle_rad : 0.0;
+    double inc_o = isfinite(in->d_output_angle_rad) ? (double)in->d_output_angle_rad : 0.0;
+    switch (bc->lock) {
+    case HD_KF_LOCK_MOTOR:
+        return (double)bc->order * inc_m;
+    case HD_KF_LOCK_OUTPUT:
+        return (double)bc->order * inc_o;
+    default:
+        return 2.0 * REF_PI * (double)bc->order * (double)cfg->ts_s;
+    }
+}
+
+/* Holds slot s's block at x = 0, P = p0 on its diagonal, no correlation. */
+static void hold_block(ref_kf_t *r, int s)
+{
+    for (int i = 2 * s; i < 2 * s + 2; i++) {
+        r->x[i] = 0.0;
+        for (int j = 0; j < r->n; j++) {
+            r->P[i][j] = 0.0;
+            r->P[j][i] = 0.0;
+        }
+        r->P[i][i] = (double)r->cfg.p0_nm2;
+    }
+}
+
+void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg)
+{
+    memset(r, 0, sizeof(*r));
+    r->cfg = *cfg;
+    for (int b = 0; b < cfg->block_count; b++)
+        if (cfg->blocks[b].enabled)
+            r->block_of_slot[r->nb++] = b;
+    r->n = 2 * r->nb;
+    r->offset_slot = -1;
+    if (cfg->offset_enabled)
+        r->offset_slot = r->n++;
+    for (int i = 0; i < r->n; i++)
+        r->P[i][i] = (double)cfg->p0_nm2;
+}
+
+void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
+{
+    const int n = r->n;
+    mat_t phi, phit, q, tmp, a;
+    double c[N] = {0}, k_e[N], px[N];
+    int frozen[HD_KF_MAX_BLOCKS] = {0};
+
+    memset(out, 0, sizeof(*out));
+    memset(phi, 0, sizeof(phi));
+    memset(q, 0, sizeof(q));
+
+    /* Phi(k), Q, C(k) and the Nyquist freeze for this step. */
+    for (int s = 0; s < r->nb; s++) {
+        int b = r->block_of_slot[s];
+        double th = block_theta(&r->cfg, b, in);
+        int i = 2 * s;
+        phi[i][i] = cos(th);
+        phi[i][i + 1] = sin(th);
+        phi[i + 1][i] = -sin(th);
+        phi[i + 1][i + 1] = cos(th);
+        q[i][i] = q[i + 1][i + 1] = (double)r->cfg.blocks[b].q_nm2;
+        frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
+        if (frozen[s]) {
+            out->frozen_mask |= 1u << b;
+            hold_block(r, s);
+        } else {
+            c[i] = 1.0;
+        }
+    }
+    if (r->offset_slot >= 0) {
+        int o = r->offset_slot;
+        phi[o][o] = 1.0;
+        q[o][o] = (double)r->cfg.offset_q_nm2;
+        c[o] = 1.0;
+    }
+    if (out->frozen_mask)
+        out->status |= HD_KF_STATUS_FROZEN;
+
+    /* Outputs from the prior x(k|k-1). */
+    double ripple = 0.0;
+    for (int s = 0; s < r->nb; s++)
+        if (!frozen[s])
+            ripple += r->x[2 * s];
+    double offset = r->offset_slot >= 0 ? r->x[r->offset_slot] : 0.0;
+    double cx = ripple + offset;
+    double y = (double)in->torque_meas_nm - (double)in->torque_expected_nm;
+    double cpc = 0.0;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            cpc += c[i] * r->P[i][j] * c[j];
+    double s_var = (double)r->cfg.r_nm2 + cpc;
+
+    out->ripple_nm = ripple;
+    out->offset_nm = offset;
+    out->innovation_var_nm2 = s_var;
+    out->torque_filtered_nm = (double)in->torque_meas_nm - ripple -
+                              (r->cfg.offset_is_sensor_error ? offset : 0.0);
+    mat_transpose(n, phi, phit);
+
+    if (!isfinite(y)) {
+        /* Prediction only: x = Phi x, P = Phi P Phi' + Q. */
+        out->status |= HD_KF_STATUS_BAD_INPUT;
+        for (int i = 0; i < n; i++) {
+            px[i] = 0.0;
+            for (int j = 0; j < n; j++)
+                px[i] += phi[i][j] * r->x[j];
+        }
+        memcpy(r->x, px, sizeof(px));
+        mat_mul(n, phi, r->P, tmp);
+        mat_mul(n, tmp, phit, r->P);
+        for (int i = 0; i < n; i++)
+            r->P[i][i] += q[i][i];
+    } else {
+        double e = y - cx;
+        out->innovation_nm = e;
+        /* (9) K_e = Phi P C' (R + C P C')^-1 */
+        double pc[N];
+        for (int i = 0; i < n; i++) {
+            pc[i] = 0.0;
+            for (int j = 0; j < n; j++)
+                pc[i] += r->P[i][j] * c[j];
+        }
+        for (int i = 0; i < n; i++) {
+            k_e[i] = 0.0;
+            for (int j = 0; j < n; j++)
+                k_e[i] += phi[i][j] * pc[j];
+            k_e[i] /= s_var;
+        }
+        /* (8) x(k+1) = Phi x + K_e (y - C x) */
+        for (int i = 0; i < n; i++) {
+            px[i] = 0.0;
+            for (int j = 0; j < n; j++)
+                px[i] += phi[i][j] * r->x[j];
+            px[i] += k_e[i] * e;
+        }
+        memcpy(r->x, px, sizeof(px));
+        /* (10) P(k+1) = Q + (Phi - K_e C) P Phi' */
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                a[i][j] = phi[i][j] - k_e[i] * c[j];
+        mat_mul(n, a, r->P, tmp);
+        mat_mul(n, tmp, phit, r->P);
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                r->P[i][j] += q[i][j];
+    }
+
+    /* Ceiling on the diagonal: P <- D P D with D_ii = sqrt(p_max / P_ii). */
+    double d[N];
+    int clamped = 0;
+    for (int i = 0; i < n; i++) {
+        d[i] = 1.0;
+        if (r->P[i][i] > (double)r->cfg.p_max_nm2) {
+            d[i] = sqrt((double)r->cfg.p_max_nm2 / r->P[i][i]);
+            clamped = 1;
+        }
+    }
+    if (clamped) {
+        out->status |= HD_KF_STATUS_P_CLAMPED;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++)
+                r->P[i][j] *= d[i] * d[j];
+    }
+
+    /* A frozen block stays held at zero / p0 until theta is back in range. */
+    for (int s = 0; s < r->nb; s++)
+        if (frozen[s])
+            hold_block(r, s);
+}

@@ -1,0 +1,54 @@
+/*
+ * ref_kf_dense: an independent double-precision DENSE reference of the
+ * paper's prediction-type Kalman filter (Taghirad, Helmy & Belanger 1997,
+ * equations 8-10), written for clarity rather than speed.  Test-only code:
+ * uses double and libm, never the code under test (only its public types).
+ *
+ * It implements the behaviour documented in filter/hd_kf.h:
+ *   - blocks locked to the motor angle, the output angle or a fixed frequency,
+ *     theta = order * increment (or 2 pi f ts), rotation R(theta) per block;
+ *   - optional random-walk offset state (Phi = 1, C = 1);
+ *   - the prediction x is the one made before the sample arrived; outputs
+ *     (ripple, filtered torque, innovation, S) come from that prior;
+ *   - Nyquist freeze: a block with |theta| > nyquist_fraction * pi is dropped
+ *     from C and from the ripple, and its state is held at zero with
+ *     covariance p0 I, decorrelated from the rest, until theta drops back;
+ *   - covariance diagonal ceiling p_max by congruence scaling of row/column;
+ *   - a non-finite measurement skips the correction (prediction only).
+ */
+#ifndef REF_KF_DENSE_H
+#define REF_KF_DENSE_H
+
+#include <stdint.h>
+
+#include "hd_kf.h"
+
+#define REF_KF_MAX_N HD_KF_MAX_STATES
+
+typedef struct {
+    hd_kf_config_t cfg;
+    int n;                            /* active states */
+    int nb;                           /* active (enabled) blocks */
+    int block_of_slot[HD_KF_MAX_BLOCKS]; /* active slot -> configured block */
+    int offset_slot;                  /* -1 if no offset state */
+    double x[REF_KF_MAX_N];
+    double P[REF_KF_MAX_N][REF_KF_MAX_N];
+} ref_kf_t;
+
+typedef struct {
+    double torque_filtered_nm;
+    double ripple_nm;
+    double offset_nm;
+    double innovation_nm;
+    double innovation_var_nm2;
+    uint32_t frozen_mask; /* by configured block index */
+    uint32_t status;      /* HD_KF_STATUS_* bits this reference can raise */
+} ref_kf_output_t;
+
+/* Copies cfg (assumed valid), x = 0, P = p0 I. */
+void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg);
+
+/* One step of equations 8-10 with a full dense Phi. */
+void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out);
+
+#endif /* REF_KF_DENSE_H */

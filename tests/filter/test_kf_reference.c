@@ -1,0 +1,188 @@
+/*
+ * The float32 filter (filter/hd_kf.c) against the independent dense
+ * double-precision reference of equations 8-10 (ref_kf_dense.c), over a
+ * 60 s, 1 kHz varying-speed run: ramps, hold, direction reversal, standstill
+ * (covariance ceiling active), over-Nyquist speed for the highest order
+ * (freeze and restart) and a sinusoidal speed wobble.
+ *
+ * Tolerance.  Both filters see the same float inputs; they differ only by
+ * rounding.  float32 has a unit roundoff of 2^-24 = 6e-8.  The filter is
+ * exponentially stable, so per-step rounding does not accumulate without
+ * bound: each step adds O(n eps) relative error in the torque-sized
+ * quantities and the closed loop forgets it.  We allow 1e-4 of the signal
+ * scale (max |T_meas| + max |T_exp|, ~50 Nm here): ~1700 units of roundoff,
+ * room for the gain amplification of the covariance recursion, while a
+ * genuine algebra error (wrong sign, wrong order of update, a missing Q)
+ * produces differences of the order of the ripple itself (0.1 - 2 Nm,
+ * i.e. 1e-3 to 4e-2 of the scale).  The innovation variance S is compared
+ * relative to itself (1e-3): S runs from ~R to p_max and a relative error in
+ * P is what float32 can keep.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "hd_kf.h"
+#include "ref_kf_dense.h"
+#include "test_util.h"
+#include "unity.h"
+
+#define TS_S 1e-3
+#define GEAR_RATIO 100.0
+#define RUN_S 60.0
+#define TOL_REL_SCALE 1e-4
+#define TOL_REL_S 1e-3
+
+void setUp(void) {}
+void tearDown(void) {}
+
+/* 60 s speed profile [s, rad/s]. */
+static const double k_t[] = {0, 1, 4, 12, 16, 22, 25, 30, 36, 40, 46, 52, 56, 60};
+static const double k_w[] = {0, 0, 156, 156, -156, -156, 0, 0, 450, 450, -200, -200, 0, 0};
+
+typedef struct {
+    double max_filtered, max_ripple, max_innov, max_s_rel, max_state;
+    double scale;
+    unsigned long frozen_steps, clamped_steps;
+} dev_t_;
+
+static void compare_run(const char *name, const hd_kf_config_t *cfg)
+{
+    static hd_kf_t kf;
+    static ref_kf_t ref;
+    tu_profile_t prof = {k_t, k_w, sizeof(k_t) / sizeof(k_t[0])};
+    tu_motion_t mo;
+    tu_rng_t rng;
+    dev_t_ d;
+    memset(&d, 0, sizeof(d));
+
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, cfg));
+    ref_kf_init(&ref, cfg);
+    TEST_ASSERT_EQUAL_UINT((unsigned)ref.n, hd_kf_state_count(&kf));
+    tu_motion_init(&mo, &prof, TS_S);
+    tu_rng_seed(&rng, 12345u);
+
+    long steps = (long)(RUN_S / TS_S);
+    double max_meas = 0.0, max_exp = 0.0;
+    for (long k = 0; k < steps; k++) {
+        tu_motion_next(&mo);
+        double t = (double)mo.k * TS_S;
+        double am = mo.angle_rad, ao = am / GEAR_RATIO;
+        double t_true = 5.0 + 20.0 * sin(2.0 * TU_PI * 0.2 * t);
+        double ripple = 1.0 * cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am + 1.1) +
+                        2.0 * cos(ao + 0.5) + 0.3 * cos(2.0 * TU_PI * 50.0 * t);
+        hd_kf_input_t in;
+        in.torque_meas_nm = (float)(t_true + ripple + 0.05 * tu_gauss(&rng));
+        in.torque_expected_nm = (float)(0.8 * t_true);
+        in.d_motor_angle_rad = (float)mo.d_angle_rad;
+        in.d_output_angle_rad = (float)(mo.d_angle_rad / GEAR_RATIO);
+        if (fabs((double)in.torque_meas_nm) > max_meas)
+            max_meas = fabs((double)in.torque_meas_nm);
+        if (fabs((double)in.torque_expected_nm) > max_exp)
+            max_exp = fabs((double)in.torque_expected_nm);
+
+        hd_kf_output_t o;
+        ref_kf_output_t r;
+        hd_kf_step(&kf, &in, &o);
+        ref_kf_step(&ref, &in, &r);
+
+        if (o.frozen_mask != r.frozen_mask) {
+            char msg[160];
+            snprintf(msg, sizeof(msg), "%s: frozen_mask 0x%x, reference 0x%x at t=%.3f s",
+                     name, (unsigned)o.frozen_mask, (unsigned)r.frozen_mask, t);
+            TEST_FAIL_MESSAGE(msg);
+        }
+        d.frozen_steps += r.frozen_mask != 0;
+        d.clamped_steps += (r.status & HD_KF_STATUS_P_CLAMPED) != 0;
+        TEST_ASSERT_EQUAL_UINT32(0u, o.status & (HD_KF_STATUS_RESET | HD_KF_STATUS_BAD_INPUT));
+#define TRACK_MAX(field, v) do { double v_ = (v); if (!(v_ <= d.field)) d.field = v_; } while (0)
+        TRACK_MAX(max_filtered, fabs((double)o.torque_filtered_nm - r.torque_filtered_nm));
+        TRACK_MAX(max_ripple, fabs((double)o.ripple_nm - r.ripple_nm));
+        TRACK_MAX(max_innov, fabs((double)o.innovation_nm - r.innovation_nm));
+        TRACK_MAX(max_s_rel, fabs((double)o.innovation_var_nm2 - r.innovation_var_nm2) /
+                                 r.innovation_var_nm2);
+        for (int i = 0; i < ref.n; i++)
+            TRACK_MAX(max_state, fabs((double)hd_kf_state(&kf, (unsigned)i) - ref.x[i]));
+    }
+    d.scale = max_meas + max_exp;
+    char msg[400];
+    snprintf(msg, sizeof(msg),
+             "%s (%d states): max |dev| filtered %.3g Nm, ripple %.3g Nm, innovation %.3g Nm, "
+             "state %.3g Nm; S rel %.3g; scale %.1f Nm -> tol %.3g Nm; frozen steps %lu, "
+             "P-clamped steps %lu",
+             name, ref.n, d.max_filtered, d.max_ripple, d.max_innov, d.max_state, d.max_s_rel,
+             d.scale, TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps);
+    TEST_MESSAGE(msg);
+    double tol = TOL_REL_SCALE * d.scale;
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_filtered, "filtered torque vs reference");
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_ripple, "ripple vs reference");
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_innov, "innovation vs reference");
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_state, "state vs reference");
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(TOL_REL_S, d.max_s_rel,
+                                            "innovation variance vs reference");
+}
+
+/* 4 states: the paper's fourth-order model (Q = 1e3 I, R = 1). */
+static void test_reference_4_states_paper(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_paper(&cfg, (float)TS_S, false);
+    compare_run("paper 4th order", &cfg);
+}
+
+/* 6 states: the paper's sixth-order model with the misalignment block. */
+static void test_reference_6_states_paper(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_paper(&cfg, (float)TS_S, true);
+    compare_run("paper 6th order", &cfg);
+}
+
+/* 8 states: narrow-band tuning, motor orders 2, 4, 6 and output order 1. */
+static void test_reference_8_states_narrowband(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_default(&cfg, (float)TS_S);
+    cfg.r_nm2 = 0.01f;
+    TEST_ASSERT_EQUAL_INT(0, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 2.0f, 1e-4f));
+    TEST_ASSERT_EQUAL_INT(1, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 4.0f, 1e-4f));
+    TEST_ASSERT_EQUAL_INT(2, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 6.0f, 1e-4f));
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, 1.0f, 1e-4f));
+    compare_run("narrow-band 8 states", &cfg);
+}
+
+/* Maximum: HD_KF_MAX_BLOCKS blocks of every lock kind + offset (sensor error).
+ * Motor order 8 exceeds 0.9 pi per step above 353 rad/s: frozen at 450 rad/s. */
+static void test_reference_max_states(void)
+{
+    static const float motor_orders[] = {1.0f, 2.0f, 3.0f, 4.0f, 8.0f};
+    hd_kf_config_t cfg;
+    hd_kf_config_default(&cfg, (float)TS_S);
+    cfg.r_nm2 = 0.1f;
+    cfg.offset_enabled = 1;
+    cfg.offset_is_sensor_error = 1;
+    cfg.offset_q_nm2 = 1e-6f;
+    cfg.nyquist_fraction = 0.9f;
+    int nb = 0;
+    for (unsigned i = 0; i < sizeof(motor_orders) / sizeof(motor_orders[0]) && nb < HD_KF_MAX_BLOCKS; i++)
+        nb = 1 + hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, motor_orders[i], 1e-2f);
+    if (nb < HD_KF_MAX_BLOCKS)
+        nb = 1 + hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, 1.0f, 1e-2f);
+    if (nb < HD_KF_MAX_BLOCKS)
+        nb = 1 + hd_kf_config_add_block(&cfg, HD_KF_LOCK_FIXED, 50.0f, 1e-2f);
+    while (nb < HD_KF_MAX_BLOCKS)
+        nb = 1 + hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, (float)(nb - 4), 1e-2f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_MAX_BLOCKS, cfg.block_count);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    compare_run("max blocks + offset", &cfg);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_reference_4_states_paper);
+    RUN_TEST(test_reference_6_states_paper);
+    RUN_TEST(test_reference_8_states_narrowband);
+    RUN_TEST(test_reference_max_states);
+    return UNITY_END();
+}
