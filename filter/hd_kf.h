@@ -142,13 +142,28 @@ typedef enum {
     HD_KF_ERR_FIXED_OVER_NYQUIST = -8, /* fixed-frequency block at or above fs/2 */
 } hd_kf_err_t;
 
-/* A configuration with no blocks and sensible noise/covariance defaults:
- * R = 1 Nm^2, p0 = 1e3... callers add blocks with hd_kf_config_add_block. */
+/* A configuration with no blocks and these defaults: R = 1 Nm^2,
+ * p0 = 10 Nm^2, p_max = 1e6 Nm^2, nyquist_fraction = 0.9, offset disabled
+ * (offset q 1e-6 Nm^2 if enabled).  Add blocks with hd_kf_config_add_block. */
 void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s);
 
 /* The paper's tuning: Q = 1e3 I, R = 1, motor orders 2 and 4, plus output
  * order 1 when with_misalignment (the sixth-order model of section V). */
 void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment);
+
+/* The project's recommended tuning (see README, "Tuning"): motor orders 2
+ * and 4 and output order 1, plus the offset state (kept as real torque).
+ *   R = noise_nm^2 (white sensor noise only: the offset state, not R, takes
+ *       what T_exp misses, so the filter need not follow T_exp);
+ *   q (each motor-locked state) = R (ts / ripple_settle_s)^2, so a block's
+ *       amplitude/phase estimate settles in ~ripple_settle_s;
+ *   q (output-locked) as above with a 20x longer settle time: output lines
+ *       are slow enough to compete with the offset for a load step, and
+ *       their amplitude (misalignment geometry) does not change;
+ *   q (offset) = R (ts / offset_settle_s)^2.
+ * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.005 s. */
+void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
+                              float ripple_settle_s, float offset_settle_s);
 
 /* Appends an enabled block; returns its index or a negative hd_kf_err_t. */
 int hd_kf_config_add_block(hd_kf_config_t *cfg, hd_kf_lock_t lock, float order,

@@ -1,0 +1,38 @@
+/* hd_expected: see hd_expected.h. */
+#include "hd_expected.h"
+
+#define DEFAULT_VEL_EPS_RAD_S 0.01f
+
+static int is_finite(float x)
+{
+    return (x - x) == 0.0f;
+}
+
+void hd_expected_config_default(hd_expected_config_t *cfg)
+{
+    cfg->inertia_kgm2 = 0.0f;
+    cfg->viscous_nm_s_rad = 0.0f;
+    cfg->coulomb_nm = 0.0f;
+    cfg->coulomb_vel_eps_rad_s = DEFAULT_VEL_EPS_RAD_S;
+}
+
+int hd_expected_config_check(const hd_expected_config_t *cfg)
+{
+    if (!is_finite(cfg->inertia_kgm2) || cfg->inertia_kgm2 < 0.0f ||
+        !is_finite(cfg->viscous_nm_s_rad) || cfg->viscous_nm_s_rad < 0.0f ||
+        !is_finite(cfg->coulomb_nm) || cfg->coulomb_nm < 0.0f ||
+        !is_finite(cfg->coulomb_vel_eps_rad_s) || cfg->coulomb_vel_eps_rad_s <= 0.0f) {
+        return -1;
+    }
+    return 0;
+}
+
+float hd_expected_torque_nm(const hd_expected_config_t *cfg,
+                            float vel_out_rad_s, float acc_out_rad_s2,
+                            float feedforward_nm)
+{
+    const float abs_vel = vel_out_rad_s < 0.0f ? -vel_out_rad_s : vel_out_rad_s;
+    const float smooth_sign = vel_out_rad_s / (abs_vel + cfg->coulomb_vel_eps_rad_s);
+    return cfg->inertia_kgm2 * acc_out_rad_s2 + cfg->viscous_nm_s_rad * vel_out_rad_s +
+           cfg->coulomb_nm * smooth_sign + feedforward_nm;
+}

@@ -1,0 +1,571 @@
+/* hd_kf: see hd_kf.h for the model, the update and the invariants. */
+#include "hd_kf.h"
+
+#include <math.h> /* sqrtf (VSQRT on Cortex-M4F), atan2f (outside the 1 kHz path) */
+#include <stddef.h>
+
+#include "hd_trig.h"
+
+#define DEFAULT_R_NM2 1.0f
+#define DEFAULT_P0_NM2 10.0f
+#define DEFAULT_P_MAX_NM2 1.0e6f
+#define DEFAULT_NYQUIST_FRACTION 0.9f
+#define DEFAULT_OFFSET_Q_NM2 1.0e-6f
+#define PAPER_Q_NM2 1.0e3f
+#define PAPER_R_NM2 1.0f
+#define OUTPUT_SETTLE_FACTOR 20.0f
+
+/* isfinite without libm calls; x - x is 0 only for finite x. */
+static bool is_finite(float x)
+{
+    return (x - x) == 0.0f;
+}
+
+void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s)
+{
+    *cfg = (hd_kf_config_t){0};
+    cfg->r_nm2 = DEFAULT_R_NM2;
+    cfg->ts_s = ts_s;
+    cfg->p0_nm2 = DEFAULT_P0_NM2;
+    cfg->p_max_nm2 = DEFAULT_P_MAX_NM2;
+    cfg->nyquist_fraction = DEFAULT_NYQUIST_FRACTION;
+    cfg->offset_q_nm2 = DEFAULT_OFFSET_Q_NM2;
+}
+
+void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
+{
+    hd_kf_config_default(cfg, ts_s);
+    cfg->r_nm2 = PAPER_R_NM2;
+    cfg->p0_nm2 = PAPER_Q_NM2;
+    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, PAPER_Q_NM2);
+    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, PAPER_Q_NM2);
+    if (with_misalignment) {
+        (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, PAPER_Q_NM2);
+    }
+}
+
+void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
+                              float ripple_settle_s, float offset_settle_s)
+{
+    hd_kf_config_default(cfg, ts_s);
+    /* R: white sensor noise.  For a scalar random-walk observed in noise the
+     * steady-state gain is ~sqrt(q/r), i.e. a time constant ~ ts/sqrt(q/r);
+     * choose q so each state settles in the requested time. */
+    const float r = noise_nm * noise_nm;
+    const float ripple_ratio = ts_s / ripple_settle_s;
+    const float offset_ratio = ts_s / offset_settle_s;
+    const float q_ripple = r * ripple_ratio * ripple_ratio;
+    /* Output-locked lines are slow (output order 1 at 1.5 rad/s is 0.25 Hz)
+     * and so look like the offset; their amplitude is geometry and does not
+     * change.  A settle time OUTPUT_SETTLE_FACTOR times longer makes a load
+     * step go into the offset (kept) and not into the misalignment block
+     * (subtracted). */
+    const float out_ratio = ripple_ratio / OUTPUT_SETTLE_FACTOR;
+    const float q_output = r * out_ratio * out_ratio;
+    cfg->r_nm2 = r;
+    cfg->p0_nm2 = DEFAULT_P0_NM2;
+    cfg->offset_enabled = 1u;
+    cfg->offset_q_nm2 = r * offset_ratio * offset_ratio;
+    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, q_ripple);
+    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, q_ripple);
+    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_output);
+}
+
+int hd_kf_config_add_block(hd_kf_config_t *cfg, hd_kf_lock_t lock, float order,
+                           float q_nm2)
+{
+    if (cfg == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    if (cfg->block_count >= HD_KF_MAX_BLOCKS) {
+        return HD_KF_ERR_BLOCK_COUNT;
+    }
+    hd_kf_block_config_t *b = &cfg->blocks[cfg->block_count];
+    b->lock = (uint8_t)lock;
+    b->enabled = 1u;
+    b->order = order;
+    b->q_nm2 = q_nm2;
+    return cfg->block_count++;
+}
+
+static bool is_nonneg(float x)
+{
+    return is_finite(x) && x >= 0.0f;
+}
+
+static hd_kf_err_t check_block(const hd_kf_block_config_t *b, float ts_s)
+{
+    if (b->lock > HD_KF_LOCK_FIXED) {
+        return HD_KF_ERR_LOCK;
+    }
+    if (!is_finite(b->order) || b->order <= 0.0f) {
+        return HD_KF_ERR_ORDER;
+    }
+    if (!is_nonneg(b->q_nm2)) {
+        return HD_KF_ERR_NOISE;
+    }
+    if (b->lock == HD_KF_LOCK_FIXED && b->order * ts_s >= 0.5f) {
+        return HD_KF_ERR_FIXED_OVER_NYQUIST;
+    }
+    return HD_KF_OK;
+}
+
+hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
+{
+    if (cfg == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    if (cfg->block_count > HD_KF_MAX_BLOCKS) {
+        return HD_KF_ERR_BLOCK_COUNT;
+    }
+    if (!is_finite(cfg->ts_s) || cfg->ts_s <= 0.0f) {
+        return HD_KF_ERR_TS;
+    }
+    if (!is_finite(cfg->r_nm2) || cfg->r_nm2 <= 0.0f || !is_nonneg(cfg->p0_nm2) ||
+        !is_finite(cfg->p_max_nm2) || cfg->p_max_nm2 <= 0.0f ||
+        cfg->p0_nm2 > cfg->p_max_nm2 ||
+        (cfg->offset_enabled && !is_nonneg(cfg->offset_q_nm2))) {
+        return HD_KF_ERR_NOISE;
+    }
+    if (!is_finite(cfg->nyquist_fraction) || cfg->nyquist_fraction <= 0.0f ||
+        cfg->nyquist_fraction > 1.0f) {
+        return HD_KF_ERR_NYQUIST;
+    }
+    for (unsigned i = 0; i < cfg->block_count; i++) {
+        const hd_kf_err_t err = check_block(&cfg->blocks[i], cfg->ts_s);
+        if (err != HD_KF_OK) {
+            return err;
+        }
+    }
+    return HD_KF_OK;
+}
+
+const char *hd_kf_err_str(int err)
+{
+    switch (err) {
+    case HD_KF_OK: return "ok";
+    case HD_KF_ERR_NULL: return "null pointer";
+    case HD_KF_ERR_BLOCK_COUNT: return "too many blocks (HD_KF_MAX_BLOCKS)";
+    case HD_KF_ERR_LOCK: return "unknown block lock kind";
+    case HD_KF_ERR_ORDER: return "block order/frequency must be finite and > 0";
+    case HD_KF_ERR_NOISE: return "q, r, p0, p_max must be finite, q >= 0, r > 0, p0 <= p_max";
+    case HD_KF_ERR_TS: return "sample period must be finite and > 0";
+    case HD_KF_ERR_NYQUIST: return "nyquist_fraction must be in (0, 1]";
+    case HD_KF_ERR_FIXED_OVER_NYQUIST: return "fixed-frequency block at or above fs/2";
+    default: return "unknown error";
+    }
+}
+
+/* Zeroes row and column i of P and sets the diagonal to p0: the state
+ * restarts with no correlation to the others (keeps P PSD). */
+static void reset_state_cov(hd_kf_t *kf, unsigned i)
+{
+    for (unsigned j = 0; j < kf->n_states; j++) {
+        kf->p[i][j] = 0.0f;
+        kf->p[j][i] = 0.0f;
+    }
+    kf->p[i][i] = kf->cfg.p0_nm2;
+    kf->x[i] = 0.0f;
+}
+
+/* Rebuilds the active-slot tables from cfg (enabled blocks in configuration
+ * order, offset last). */
+static void build_layout(hd_kf_t *kf)
+{
+    unsigned slots = 0;
+    for (unsigned i = 0; i < kf->cfg.block_count; i++) {
+        if (kf->cfg.blocks[i].enabled) {
+            kf->block_index[slots++] = (uint8_t)i;
+        }
+    }
+    kf->active_blocks = (uint8_t)slots;
+    kf->offset_slot = (uint8_t)(2u * slots);
+    kf->n_states = (uint8_t)(2u * slots + (kf->cfg.offset_enabled ? 1u : 0u));
+}
+
+void hd_kf_reset(hd_kf_t *kf)
+{
+    for (unsigned i = 0; i < HD_KF_MAX_STATES; i++) {
+        kf->x[i] = 0.0f;
+        for (unsigned j = 0; j < HD_KF_MAX_STATES; j++) {
+            kf->p[i][j] = 0.0f;
+        }
+    }
+    for (unsigned i = 0; i < kf->n_states; i++) {
+        kf->p[i][i] = kf->cfg.p0_nm2;
+    }
+    kf->frozen_mask = 0u;
+}
+
+hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
+{
+    if (kf == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    const hd_kf_err_t err = hd_kf_config_check(cfg);
+    if (err != HD_KF_OK) {
+        return err;
+    }
+    kf->cfg = *cfg;
+    build_layout(kf);
+    hd_kf_reset(kf);
+    kf->status_sticky = 0u;
+    kf->reset_count = 0u;
+    kf->bad_input_count = 0u;
+    return HD_KF_OK;
+}
+
+hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
+{
+    if (kf == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    if (block >= kf->cfg.block_count) {
+        return HD_KF_ERR_BLOCK_COUNT;
+    }
+    if ((kf->cfg.blocks[block].enabled != 0u) == enabled) {
+        return HD_KF_OK;
+    }
+    /* Remember the estimates of the other blocks by configured index, then
+     * rebuild the compact layout and put them back. */
+    float x_old[HD_KF_MAX_STATES];
+    float p_old[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
+    int old_slot_of[HD_KF_MAX_BLOCKS + 1];
+    for (unsigned i = 0; i <= HD_KF_MAX_BLOCKS; i++) {
+        old_slot_of[i] = -1;
+    }
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        old_slot_of[kf->block_index[s]] = (int)s;
+    }
+    const bool had_offset = kf->cfg.offset_enabled != 0u;
+    const unsigned old_offset = kf->offset_slot;
+    for (unsigned i = 0; i < HD_KF_MAX_STATES; i++) {
+        x_old[i] = kf->x[i];
+        for (unsigned j = 0; j < HD_KF_MAX_STATES; j++) {
+            p_old[i][j] = kf->p[i][j];
+        }
+    }
+    kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
+    build_layout(kf);
+    hd_kf_reset(kf);
+
+    /* old state index of each new state, or -1 for the re-enabled block */
+    int src[HD_KF_MAX_STATES];
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        const int old = old_slot_of[kf->block_index[s]];
+        src[2u * s] = old < 0 ? -1 : 2 * old;
+        src[2u * s + 1u] = old < 0 ? -1 : 2 * old + 1;
+    }
+    if (had_offset) {
+        src[kf->offset_slot] = (int)old_offset;
+    }
+    for (unsigned i = 0; i < kf->n_states; i++) {
+        if (src[i] < 0) {
+            continue;
+        }
+        kf->x[i] = x_old[src[i]];
+        for (unsigned j = 0; j < kf->n_states; j++) {
+            if (src[j] >= 0) {
+                kf->p[i][j] = p_old[src[i]][src[j]];
+            }
+        }
+    }
+    return HD_KF_OK;
+}
+
+/* Phase advance of a block over this step [rad]. */
+static float block_theta(const hd_kf_block_config_t *b, const hd_kf_input_t *in,
+                         float ts_s)
+{
+    switch (b->lock) {
+    case HD_KF_LOCK_MOTOR: return b->order * in->d_motor_angle_rad;
+    case HD_KF_LOCK_OUTPUT: return b->order * in->d_output_angle_rad;
+    default: return HD_TWO_PI_F * b->order * ts_s;
+    }
+}
+
+/* Per-step rotation of every active slot; decides which blocks are frozen. */
+typedef struct {
+    float c[HD_KF_MAX_BLOCKS];
+    float s[HD_KF_MAX_BLOCKS];
+    bool frozen[HD_KF_MAX_BLOCKS]; /* by slot */
+} step_rotation_t;
+
+static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
+                              step_rotation_t *rot)
+{
+    const float limit = kf->cfg.nyquist_fraction * HD_PI_F;
+    uint32_t frozen_now = 0u;
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        const unsigned b = kf->block_index[s];
+        const float theta = block_theta(&kf->cfg.blocks[b], in, kf->cfg.ts_s);
+        const bool frozen = !(theta <= limit && theta >= -limit);
+        rot->frozen[s] = frozen;
+        if (frozen) {
+            frozen_now |= 1u << b;
+            rot->c[s] = 1.0f;
+            rot->s[s] = 0.0f;
+            if ((kf->frozen_mask & (1u << b)) == 0u) {
+                /* Entering the frozen state: the estimate is stale from now
+                 * on, so drop it rather than let it alias. */
+                reset_state_cov(kf, 2u * s);
+                reset_state_cov(kf, 2u * s + 1u);
+            }
+        } else {
+            hd_sincosf(theta, &rot->s[s], &rot->c[s]);
+        }
+    }
+    kf->frozen_mask = frozen_now;
+}
+
+/* Symmetric rank-1 downdate P -= g g' / S on the upper triangle, then the
+ * block rotation P <- Phi P Phi', then Q; mirrors to keep P symmetric. */
+static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
+                              bool correct, const step_rotation_t *rot)
+{
+    const unsigned n = kf->n_states;
+    float(*p)[HD_KF_MAX_STATES] = kf->p;
+    if (correct) {
+        for (unsigned i = 0; i < n; i++) {
+            const float gi = g[i] * inv_s;
+            for (unsigned j = i; j < n; j++) {
+                p[i][j] -= gi * g[j];
+            }
+        }
+        for (unsigned i = 0; i < n; i++) {
+            for (unsigned j = 0; j < i; j++) {
+                p[i][j] = p[j][i];
+            }
+        }
+    }
+    /* Rows: P <- Phi P */
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (rot->frozen[s]) {
+            continue;
+        }
+        const unsigned a = 2u * s, b = a + 1u;
+        const float c = rot->c[s], sn = rot->s[s];
+        for (unsigned j = 0; j < n; j++) {
+            const float pa = p[a][j], pb = p[b][j];
+            p[a][j] = c * pa + sn * pb;
+            p[b][j] = c * pb - sn * pa;
+        }
+    }
+    /* Columns: P <- P Phi' */
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (rot->frozen[s]) {
+            continue;
+        }
+        const unsigned a = 2u * s, b = a + 1u;
+        const float c = rot->c[s], sn = rot->s[s];
+        for (unsigned i = 0; i < n; i++) {
+            const float pa = p[i][a], pb = p[i][b];
+            p[i][a] = c * pa + sn * pb;
+            p[i][b] = c * pb - sn * pa;
+        }
+    }
+    /* Exact symmetry: the upper triangle is the reference. */
+    for (unsigned i = 0; i < n; i++) {
+        for (unsigned j = 0; j < i; j++) {
+            p[i][j] = p[j][i];
+        }
+    }
+    /* + Q (frozen blocks are held: no process noise) */
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (!rot->frozen[s]) {
+            const float q = kf->cfg.blocks[kf->block_index[s]].q_nm2;
+            p[2u * s][2u * s] += q;
+            p[2u * s + 1u][2u * s + 1u] += q;
+        }
+    }
+    if (kf->cfg.offset_enabled) {
+        p[kf->offset_slot][kf->offset_slot] += kf->cfg.offset_q_nm2;
+    }
+}
+
+/* Keeps every diagonal in [0, p_max] with congruence scalings (PSD kept);
+ * returns true if anything was clamped. */
+static bool clamp_covariance(hd_kf_t *kf)
+{
+    const unsigned n = kf->n_states;
+    const float p_max = kf->cfg.p_max_nm2;
+    bool clamped = false;
+    for (unsigned i = 0; i < n; i++) {
+        const float d = kf->p[i][i];
+        if (d < 0.0f) {
+            /* Rounding pushed a variance below zero: drop the state's
+             * correlations; zero variance is the closest PSD choice. */
+            for (unsigned j = 0; j < n; j++) {
+                kf->p[i][j] = 0.0f;
+                kf->p[j][i] = 0.0f;
+            }
+            clamped = true;
+        } else if (d > p_max) {
+            const float scale = sqrtf(p_max / d);
+            for (unsigned j = 0; j < n; j++) {
+                kf->p[i][j] *= scale;
+                kf->p[j][i] *= scale;
+            }
+            kf->p[i][i] = p_max;
+            clamped = true;
+        }
+    }
+    return clamped;
+}
+
+static bool state_is_finite(const hd_kf_t *kf)
+{
+    for (unsigned i = 0; i < kf->n_states; i++) {
+        /* Off-diagonals are bounded by the diagonals while P is PSD; a
+         * non-finite entry anywhere shows up in x, the diagonal or g. */
+        if (!is_finite(kf->x[i]) || !is_finite(kf->p[i][i])) {
+            return false;
+        }
+    }
+    return true;
+}
+
+void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
+{
+    uint32_t status = 0u;
+    hd_kf_input_t in = *in_raw;
+    if (!is_finite(in.d_motor_angle_rad)) {
+        in.d_motor_angle_rad = 0.0f;
+        status |= HD_KF_STATUS_BAD_INPUT;
+    }
+    if (!is_finite(in.d_output_angle_rad)) {
+        in.d_output_angle_rad = 0.0f;
+        status |= HD_KF_STATUS_BAD_INPUT;
+    }
+    const float y = in.torque_meas_nm - in.torque_expected_nm;
+    const bool correct = is_finite(y);
+    if (!correct) {
+        status |= HD_KF_STATUS_BAD_INPUT;
+    }
+
+    step_rotation_t rot;
+    compute_rotations(kf, &in, &rot);
+    const unsigned n = kf->n_states;
+
+    /* Prior outputs: ripple = C x without the offset; C skips frozen blocks. */
+    float ripple = 0.0f;
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (!rot.frozen[s]) {
+            ripple += kf->x[2u * s];
+        }
+    }
+    const float offset = kf->cfg.offset_enabled ? kf->x[kf->offset_slot] : 0.0f;
+
+    /* g = P C' and S = R + C P C' */
+    float g[HD_KF_MAX_STATES];
+    for (unsigned i = 0; i < n; i++) {
+        float sum = 0.0f;
+        for (unsigned s = 0; s < kf->active_blocks; s++) {
+            if (!rot.frozen[s]) {
+                sum += kf->p[i][2u * s];
+            }
+        }
+        if (kf->cfg.offset_enabled) {
+            sum += kf->p[i][kf->offset_slot];
+        }
+        g[i] = sum;
+    }
+    float cpc = 0.0f;
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (!rot.frozen[s]) {
+            cpc += g[2u * s];
+        }
+    }
+    if (kf->cfg.offset_enabled) {
+        cpc += g[kf->offset_slot];
+    }
+    const float s_var = kf->cfg.r_nm2 + cpc;
+    const float inv_s = 1.0f / s_var;
+    const float innovation = y - ripple - offset;
+
+    out->ripple_nm = ripple;
+    out->offset_nm = offset;
+    out->innovation_nm = correct ? innovation : 0.0f;
+    out->innovation_var_nm2 = s_var;
+    out->torque_filtered_nm = in.torque_meas_nm - ripple -
+                              (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
+        out->amplitude_nm[b] = 0.0f;
+    }
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (!rot.frozen[s]) {
+            const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
+            out->amplitude_nm[kf->block_index[s]] = sqrtf(a * a + b * b);
+        }
+    }
+
+    /* State: x <- Phi (x + g e / S)   (equation 8) */
+    if (correct) {
+        const float k = innovation * inv_s;
+        for (unsigned i = 0; i < n; i++) {
+            kf->x[i] += g[i] * k;
+        }
+    }
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (!rot.frozen[s]) {
+            const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
+            kf->x[2u * s] = rot.c[s] * a + rot.s[s] * b;
+            kf->x[2u * s + 1u] = rot.c[s] * b - rot.s[s] * a;
+        }
+    }
+    /* Covariance: equations 9-10 in the same factored form */
+    covariance_update(kf, g, inv_s, correct, &rot);
+    if (clamp_covariance(kf)) {
+        status |= HD_KF_STATUS_P_CLAMPED;
+    }
+    if (!state_is_finite(kf) || !is_finite(s_var)) {
+        hd_kf_reset(kf);
+        kf->reset_count++;
+        status |= HD_KF_STATUS_RESET;
+    }
+    if (kf->frozen_mask != 0u) {
+        status |= HD_KF_STATUS_FROZEN;
+    }
+    if (status & HD_KF_STATUS_BAD_INPUT) {
+        kf->bad_input_count++;
+    }
+    out->frozen_mask = kf->frozen_mask;
+    out->status = status;
+    kf->status_sticky |= status;
+    if (!is_finite(out->torque_filtered_nm)) {
+        /* Never publish a non-finite estimate: fall back to the measurement
+         * (or 0 if that is not finite either). */
+        out->torque_filtered_nm = is_finite(in.torque_meas_nm) ? in.torque_meas_nm : 0.0f;
+        out->ripple_nm = 0.0f;
+    }
+}
+
+void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
+                                 float *amplitude_nm, float *phase_rad)
+{
+    *amplitude_nm = 0.0f;
+    *phase_rad = 0.0f;
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        if (kf->block_index[s] == block && (kf->frozen_mask & (1u << block)) == 0u) {
+            const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
+            *amplitude_nm = sqrtf(a * a + b * b);
+            /* ripple = A cos(phase): x1 = A cos(phase), x2 = -A sin(phase) */
+            *phase_rad = atan2f(-b, a);
+        }
+    }
+}
+
+unsigned hd_kf_state_count(const hd_kf_t *kf)
+{
+    return kf->n_states;
+}
+
+float hd_kf_state(const hd_kf_t *kf, unsigned i)
+{
+    return i < kf->n_states ? kf->x[i] : 0.0f;
+}
+
+float hd_kf_cov(const hd_kf_t *kf, unsigned i, unsigned j)
+{
+    return (i < kf->n_states && j < kf->n_states) ? kf->p[i][j] : 0.0f;
+}

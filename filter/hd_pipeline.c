@@ -1,0 +1,70 @@
+/* hd_pipeline: see hd_pipeline.h. */
+#include "hd_pipeline.h"
+
+int hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
+                     const hd_expected_config_t *expected_cfg,
+                     float track_bandwidth_hz)
+{
+    const hd_kf_err_t err = hd_kf_init(&p->kf, kf_cfg);
+    if (err != HD_KF_OK) {
+        return err;
+    }
+    if (hd_track_init(&p->output_track, kf_cfg->ts_s, track_bandwidth_hz) != 0) {
+        return -100;
+    }
+    if (hd_expected_config_check(expected_cfg) != 0) {
+        return -101;
+    }
+    p->expected = *expected_cfg;
+    p->torque_expected_nm = 0.0f;
+    return 0;
+}
+
+void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
+                      float d_motor_angle_rad, float d_output_angle_rad,
+                      float feedforward_nm, hd_kf_output_t *out)
+{
+    (void)hd_track_update(&p->output_track, d_output_angle_rad);
+    p->torque_expected_nm = hd_expected_torque_nm(
+        &p->expected, p->output_track.vel_rad_s, p->output_track.acc_rad_s2,
+        feedforward_nm);
+    const hd_kf_input_t in = {
+        .torque_meas_nm = torque_meas_nm,
+        .torque_expected_nm = p->torque_expected_nm,
+        .d_motor_angle_rad = d_motor_angle_rad,
+        .d_output_angle_rad = d_output_angle_rad,
+    };
+    hd_kf_step(&p->kf, &in, out);
+}
+
+static void store(float *dst, size_t i, float v)
+{
+    if (dst != NULL) {
+        dst[i] = v;
+    }
+}
+
+void hd_pipeline_run(hd_pipeline_t *p, const hd_pipeline_io_t *io)
+{
+    hd_kf_output_t out;
+    for (size_t i = 0; i < io->n; i++) {
+        const float ff = io->feedforward_nm != NULL ? io->feedforward_nm[i] : 0.0f;
+        hd_pipeline_step(p, io->torque_meas_nm[i], io->d_motor_angle_rad[i],
+                         io->d_output_angle_rad[i], ff, &out);
+        store(io->torque_filtered_nm, i, out.torque_filtered_nm);
+        store(io->ripple_nm, i, out.ripple_nm);
+        store(io->offset_nm, i, out.offset_nm);
+        store(io->innovation_nm, i, out.innovation_nm);
+        store(io->innovation_var_nm2, i, out.innovation_var_nm2);
+        store(io->torque_expected_nm, i, p->torque_expected_nm);
+        store(io->output_velocity_rad_s, i, p->output_track.vel_rad_s);
+        if (io->amplitude_nm != NULL) {
+            for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
+                io->amplitude_nm[i * HD_KF_MAX_BLOCKS + b] = out.amplitude_nm[b];
+            }
+        }
+        if (io->status != NULL) {
+            io->status[i] = out.status;
+        }
+    }
+}
