@@ -1,0 +1,62 @@
+/*
+ * hd_config_text: the firmware configuration text file (docs/firmware.md).
+ *
+ *   # comment
+ *   gear_ratio = 100
+ *   r_nm2 = 1
+ *   offset = on
+ *   block = motor 2 1000       # kind order_or_hz q_nm2 [off]
+ *   block = output 1 1000
+ *
+ * One `key = value` per line ('=' optional), '#' starts a comment.  The
+ * first `block` line drops the blocks inherited from the base configuration;
+ * each further one appends.  Parsing is all or nothing: on any error the
+ * configuration is unchanged and the error names the line.
+ *
+ * Pure C: parses from a caller-provided buffer, no heap, no stdio, no libm
+ * (a small decimal parser replaces strtod, which allocates in newlib).
+ */
+#ifndef HD_CONFIG_TEXT_H
+#define HD_CONFIG_TEXT_H
+
+#include <stddef.h>
+
+#include "hd_fw.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    HD_CFGTXT_OK = 0,
+    HD_CFGTXT_ERR_NULL = -1,
+    HD_CFGTXT_ERR_SYNTAX = -2,      /* line cannot be read (missing value, too long, bad number) */
+    HD_CFGTXT_ERR_UNKNOWN_KEY = -3,
+    HD_CFGTXT_ERR_RANGE = -4,       /* value outside the key's range */
+    HD_CFGTXT_ERR_TOO_MANY_BLOCKS = -5,
+    HD_CFGTXT_ERR_CONFIG = -6,      /* the whole configuration failed hd_fw_config_check */
+} hd_cfgtxt_err_t;
+
+typedef struct {
+    int code;             /* hd_cfgtxt_err_t */
+    unsigned line;        /* 1-based line of the error; 0 for whole-file errors */
+    const char *message;  /* static string */
+    int fw_err;           /* hd_fw_err_t when code == HD_CFGTXT_ERR_CONFIG */
+} hd_cfgtxt_error_t;
+
+#define HD_CFGTXT_MAX_LINE 200u
+
+/* Applies the text (len bytes, need not be NUL-terminated) on top of *cfg.
+ * Returns HD_CFGTXT_OK, or an error with *cfg unchanged; err may be NULL. */
+int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
+                         hd_cfgtxt_error_t *err);
+
+/* Decimal number parser used above (exposed for tests): the whole of
+ * [s, s+n) must be one number such as "-1.5e-3".  Returns 0 or -1. */
+int hd_config_parse_float(const char *s, size_t n, float *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* HD_CONFIG_TEXT_H */

@@ -1,0 +1,655 @@
+/*
+ * hdjoint-host: runs the firmware ISR on a PC.
+ *
+ *   hdjoint-host --sensors sim:SCENARIO.ini | replay:FILE.hdraw | mock
+ *                [--can log:FILE.log | socketcan:IFNAME | none]
+ *                [--config FILE] [--realtime] [--duration S] [--csv OUT.csv]
+ *                [--calib GAIN_NM_PER_V,OFFSET_V] [--nvm FILE] [--cmd ID#HEX]...
+ *
+ * Fast mode (default) runs ticks back to back; --realtime runs them at 1 kHz
+ * on CLOCK_MONOTONIC with clock_nanosleep(TIMER_ABSTIME) and reports wake-up
+ * jitter and overruns.  Prints a summary (key = value lines) at the end.
+ *
+ * Host only: uses stdio, the heap, libm and double.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "hal_mock.h"
+#include "hal_replay.h"
+#include "hd_config_text.h"
+#include "hd_fw.h"
+#ifdef HD_HAVE_SIM
+#include "hal_sim.h"
+#endif
+#ifdef HD_HAVE_SOCKETCAN
+#include "hal_socketcan.h"
+#endif
+
+#define MAX_CMDS 64
+#define HOST_PI 3.14159265358979323846
+
+typedef struct {
+    const char *sensors;
+    const char *can;
+    const char *config;
+    const char *csv;
+    const char *nvm_file;
+    bool realtime;
+    double duration_s;
+    bool have_calib;
+    float calib_gain;
+    float calib_offset;
+    const char *cmds[MAX_CMDS];
+    int n_cmds;
+    bool quiet;
+} options_t;
+
+static void usage(FILE *f)
+{
+    fputs("usage: hdjoint-host --sensors sim:SCENARIO | replay:FILE.hdraw | mock\n"
+          "                    [--can log:FILE | socketcan:IFNAME | none] [--config FILE]\n"
+          "                    [--realtime] [--duration S] [--csv OUT.csv]\n"
+          "                    [--calib GAIN_NM_PER_V,OFFSET_V] [--nvm FILE] [--cmd ID#HEX]...\n"
+          "  --sensors   sample source: the simulated joint, a recorded raw stream, or a\n"
+          "              built-in synthetic joint (mock)\n"
+          "  --can       log: write every frame as a candump -l log; socketcan: use IFNAME\n"
+          "  --config    firmware configuration text file (docs/firmware.md)\n"
+          "  --realtime  run at a real 1 kHz (default: as fast as possible)\n"
+          "  --duration  stop after S seconds of samples (default: end of the source; mock 10 s)\n"
+          "  --csv       per-sample output\n"
+          "  --calib     store this calibration record in NVM before start\n"
+          "              (sim: the scenario's nominal calibration is stored by default)\n"
+          "  --nvm       NVM image file: loaded at start (if it exists), saved at exit\n"
+          "  --cmd       command frame received before the first tick, e.g. 601#2001000000000000\n",
+          f);
+}
+
+static int parse_args(int argc, char **argv, options_t *o)
+{
+    memset(o, 0, sizeof *o);
+    o->can = "none";
+    o->duration_s = -1.0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
+        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+            usage(stdout);
+            exit(0);
+        } else if (strcmp(a, "--realtime") == 0) {
+            o->realtime = true;
+        } else if (strcmp(a, "--quiet") == 0) {
+            o->quiet = true;
+        } else if (v == NULL) {
+            fprintf(stderr, "hdjoint-host: %s needs a value (or is unknown)\n", a);
+            return -1;
+        } else if (strcmp(a, "--sensors") == 0) {
+            o->sensors = v, i++;
+        } else if (strcmp(a, "--can") == 0) {
+            o->can = v, i++;
+        } else if (strcmp(a, "--config") == 0) {
+            o->config = v, i++;
+        } else if (strcmp(a, "--csv") == 0) {
+            o->csv = v, i++;
+        } else if (strcmp(a, "--nvm") == 0) {
+            o->nvm_file = v, i++;
+        } else if (strcmp(a, "--duration") == 0) {
+            char *end;
+            o->duration_s = strtod(v, &end);
+            if (*end != '\0' || !(o->duration_s > 0.0) || !isfinite(o->duration_s)) {
+                fprintf(stderr, "hdjoint-host: --duration must be a positive number of seconds\n");
+                return -1;
+            }
+            i++;
+        } else if (strcmp(a, "--calib") == 0) {
+            if (sscanf(v, "%f,%f", &o->calib_gain, &o->calib_offset) != 2 ||
+                !(o->calib_gain > 0.0f) || !isfinite(o->calib_offset)) {
+                fprintf(stderr, "hdjoint-host: --calib wants GAIN,OFFSET with GAIN > 0\n");
+                return -1;
+            }
+            o->have_calib = true;
+            i++;
+        } else if (strcmp(a, "--cmd") == 0) {
+            if (o->n_cmds >= MAX_CMDS) {
+                fprintf(stderr, "hdjoint-host: at most %d --cmd\n", MAX_CMDS);
+                return -1;
+            }
+            o->cmds[o->n_cmds++] = v;
+            i++;
+        } else {
+            fprintf(stderr, "hdjoint-host: unknown option %s\n", a);
+            return -1;
+        }
+    }
+    if (o->sensors == NULL) {
+        fprintf(stderr, "hdjoint-host: --sensors is required\n");
+        return -1;
+    }
+    return 0;
+}
+
+/* "123#0011AA" -> frame (classic CAN, up to 8 bytes). */
+static int parse_frame(const char *s, hal_can_frame_t *f)
+{
+    memset(f, 0, sizeof *f);
+    char *end;
+    unsigned long id = strtoul(s, &end, 16);
+    if (end == s || *end != '#' || id > 0x7FFu) {
+        return -1;
+    }
+    const char *p = end + 1;
+    size_t n = strlen(p);
+    if (n % 2u != 0u || n / 2u > 8u) {
+        return -1;
+    }
+    for (size_t i = 0; i < n / 2u; i++) {
+        unsigned byte;
+        if (sscanf(p + 2 * i, "%2x", &byte) != 1) {
+            return -1;
+        }
+        f->data[i] = (uint8_t)byte;
+    }
+    f->id = (uint32_t)id;
+    f->len = (uint8_t)(n / 2u);
+    return 0;
+}
+
+static char *read_text_file(const char *path, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (f == NULL) {
+        return NULL;
+    }
+    size_t cap = 4096, n = 0;
+    char *buf = malloc(cap);
+    for (;;) {
+        if (buf == NULL) {
+            fclose(f);
+            return NULL;
+        }
+        n += fread(buf + n, 1, cap - n, f);
+        if (n < cap) {
+            break;
+        }
+        cap *= 2;
+        char *nb = realloc(buf, cap);
+        if (nb == NULL) {
+            free(buf);
+            fclose(f);
+            return NULL;
+        }
+        buf = nb;
+    }
+    fclose(f);
+    *len = n;
+    return buf;
+}
+
+/* ------------------------------------------------------------ CAN logging */
+
+typedef struct {
+    FILE *f;
+    uint64_t frames;
+} canlog_t;
+
+static void log_frame(void *ctx, const hal_can_frame_t *frame, uint64_t t_us)
+{
+    canlog_t *l = ctx;
+    char line[200];
+    if (l->f != NULL && hal_candump_format(frame, t_us, "vcan0", line, sizeof line) > 0) {
+        fputs(line, l->f);
+        l->frames++;
+    }
+}
+
+/* ------------------------------------------------- synthetic joint (mock) */
+
+/* A small deterministic joint for --sensors mock: motor at 156 rad/s,
+ * true torque 5 sin(2 pi 0.5 t) Nm, ripple 1 Nm at motor order 2 and
+ * 0.5 Nm at order 4, the paper's 6.60 Nm/V, 16-bit ADC over +-10 V. */
+typedef struct {
+    uint64_t k;
+    double motor_angle_rad;
+    double torque_true_nm;
+} synth_t;
+
+#define SYNTH_GAIN 6.60
+#define SYNTH_VPC (10.0 / 32768.0)
+#define SYNTH_CPR 4096u
+
+static void synth_push(synth_t *s, hal_mock_t *m, hd_fw_config_t *cfg)
+{
+    double t = (double)s->k * 1e-3;
+    double speed = 156.0;
+    s->torque_true_nm = 5.0 * sin(2.0 * HOST_PI * 0.5 * t);
+    double th = s->motor_angle_rad;
+    double meas = s->torque_true_nm + 1.0 * sin(2.0 * th) + 0.5 * sin(4.0 * th + 0.3);
+    double counts = meas / SYNTH_GAIN / SYNTH_VPC;
+    uint32_t enc = (uint32_t)(int64_t)floor(th / (2.0 * HOST_PI) * SYNTH_CPR);
+    hal_mock_sample_t smp;
+    memset(&smp, 0, sizeof smp);
+    smp.adc.bridge_counts = (int32_t)lround(counts);
+    smp.enc.motor_counts = enc;
+    hal_mock_push_sample(m, &smp);
+    s->motor_angle_rad += speed * 1e-3;
+    s->k++;
+    (void)cfg;
+}
+
+/* ---------------------------------------------------------------- timing */
+
+static uint64_t now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000000ull + (uint64_t)ts.tv_nsec;
+}
+
+typedef struct {
+    uint64_t ticks;
+    double jitter_max_us;
+    double jitter_sum_us;
+    uint64_t overruns;     /* ticks whose deadline had already passed */
+    uint64_t missed_ticks; /* whole periods skipped to catch up */
+    double isr_max_us;
+    double isr_sum_us;
+} timing_t;
+
+/* ---------------------------------------------------------------- errors */
+
+typedef struct {
+    uint64_t n;
+    double sum_raw2;
+    double sum_filt2;
+    uint64_t n_settled;      /* after the first second */
+    double sum_raw2_settled;
+    double sum_filt2_settled;
+} err_t;
+
+static void err_add(err_t *e, double t_s, double raw, double filt, double truth)
+{
+    if (!isfinite(raw) || !isfinite(filt) || !isfinite(truth)) {
+        return;
+    }
+    double dr = raw - truth, df = filt - truth;
+    e->n++;
+    e->sum_raw2 += dr * dr;
+    e->sum_filt2 += df * df;
+    if (t_s >= 1.0) {
+        e->n_settled++;
+        e->sum_raw2_settled += dr * dr;
+        e->sum_filt2_settled += df * df;
+    }
+}
+
+/* ------------------------------------------------------------------ NVM */
+
+static void provision_calibration(hal_t *hal, float gain, float offset)
+{
+    hd_calib_record_t rec;
+    hd_calib_record_default(&rec);
+    rec.gain_nm_per_v = gain;
+    rec.offset_v = offset;
+    hd_calib_storage_t s;
+    memset(&s, 0, sizeof s);
+    s.ctx = hal->nvm.ctx;
+    s.size = hal->nvm.size;
+    s.read = hal->nvm.read;
+    s.write = hal->nvm.write;
+    s.erase = hal->nvm.erase;
+    if (hd_calib_store_save(&s, &rec) != 0) {
+        fprintf(stderr, "hdjoint-host: warning: could not store the calibration record\n");
+    }
+}
+
+static const char *FAULT_NAMES[HD_FAULT_COUNT] = {
+    "adc_error", "adc_saturated", "open_bridge", "torque_range", "enc_glitch",
+    "enc_fault", "kf_frozen", "kf_reset", "can_tx_full", "can_bus_off",
+    "calib_missing", "calib_corrupt", "deadline_miss", "cmd_error", "calib_one_copy"};
+
+/* ------------------------------------------------------------------ main */
+
+static hal_mock_t g_mock;  /* large: static storage, as on the MCU */
+static hd_fw_t g_fw;
+
+int main(int argc, char **argv)
+{
+    options_t o;
+    if (parse_args(argc, argv, &o) != 0) {
+        usage(stderr);
+        return 2;
+    }
+    char err[512] = "";
+    hal_t hal;
+    hal_mock_init(&g_mock);
+    hal_mock_bind(&g_mock, &hal); /* NVM, clock, CAN (log) from the mock by default */
+    g_mock.auto_advance_us = 0u;  /* the loop sets the time of each tick */
+    hal.name = "host";
+
+    hd_fw_config_t cfg;
+    hd_fw_config_default(&cfg);
+
+    /* sensors */
+    enum { SRC_MOCK, SRC_SIM, SRC_REPLAY } src;
+    hal_replay_t *replay = NULL;
+    synth_t synth = {0};
+#ifdef HD_HAVE_SIM
+    hal_sim_t *sim = NULL;
+    static hal_sim_t g_sim;
+#endif
+    bool have_truth = false;
+    float default_gain = NAN, default_offset = NAN;
+    if (strcmp(o.sensors, "mock") == 0) {
+        src = SRC_MOCK;
+        have_truth = true;
+        default_gain = (float)SYNTH_GAIN;
+        default_offset = 0.0f;
+        cfg.motor_cpr = SYNTH_CPR;
+        cfg.adc_volts_per_count = (float)SYNTH_VPC;
+        if (o.duration_s < 0.0) {
+            o.duration_s = 10.0;
+        }
+    } else if (strncmp(o.sensors, "replay:", 7) == 0) {
+        src = SRC_REPLAY;
+        replay = hal_replay_open(o.sensors + 7, err, sizeof err);
+        if (replay == NULL) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            return 1;
+        }
+        if (hal_replay_ts_us(replay) != HD_FW_TS_US) {
+            fprintf(stderr, "hdjoint-host: %s: sample period %u us, the firmware runs at %u us\n",
+                    o.sensors + 7, hal_replay_ts_us(replay), HD_FW_TS_US);
+            hal_replay_close(replay);
+            return 1;
+        }
+        hal_replay_bind(replay, &hal);
+    } else if (strncmp(o.sensors, "sim:", 4) == 0) {
+#ifdef HD_HAVE_SIM
+        src = SRC_SIM;
+        sim = &g_sim;
+        if (hal_sim_open(sim, o.sensors + 4, err, sizeof err) != 0) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            return 1;
+        }
+        hal_sim_bind(sim, &hal);
+        have_truth = true;
+        hd_sim_nominal_t nom;
+        hal_sim_nominal(sim, &nom);
+        if (nom.ts_s != 1e-3) {
+            fprintf(stderr, "hdjoint-host: scenario sample period %g s, the firmware runs at 1 ms\n",
+                    nom.ts_s);
+            return 1;
+        }
+        default_gain = (float)nom.gain_nm_per_v;
+        default_offset = (float)nom.offset_v;
+        cfg.adc_volts_per_count = (float)nom.adc_v_per_count;
+        cfg.motor_cpr = nom.motor_cpr;
+        if (nom.output_cpr != 0u) {
+            cfg.output_cpr = nom.output_cpr;
+        }
+        cfg.gear_ratio = (float)nom.gear_ratio;
+        /* the expected-torque model the scenario's plant follows (nominal) */
+        cfg.expected.inertia_kgm2 = (float)nom.load_inertia_kgm2;
+        cfg.expected.viscous_nm_s_rad = (float)nom.viscous_nm_s_rad;
+        cfg.expected.coulomb_nm = (float)nom.coulomb_nm;
+#else
+        fprintf(stderr, "hdjoint-host: built without the simulated joint (hal/sim)\n");
+        return 1;
+#endif
+    } else {
+        fprintf(stderr, "hdjoint-host: unknown --sensors %s\n", o.sensors);
+        return 2;
+    }
+    (void)src;
+
+    /* configuration file on top of the defaults and the sensor's constants */
+    if (o.config != NULL) {
+        size_t len = 0;
+        char *text = read_text_file(o.config, &len);
+        if (text == NULL) {
+            fprintf(stderr, "hdjoint-host: cannot read %s: %s\n", o.config, strerror(errno));
+            return 1;
+        }
+        hd_cfgtxt_error_t ce;
+        int rc = hd_config_text_parse(text, len, &cfg, &ce);
+        free(text);
+        if (rc != HD_CFGTXT_OK) {
+            if (ce.line > 0u) {
+                fprintf(stderr, "%s:%u: %s\n", o.config, ce.line, ce.message);
+            } else {
+                fprintf(stderr, "%s: %s\n", o.config, ce.message);
+            }
+            return 1;
+        }
+    }
+
+    /* CAN */
+    canlog_t canlog = {0};
+#ifdef HD_HAVE_SOCKETCAN
+    hal_socketcan_t *sock = NULL;
+#endif
+    if (strncmp(o.can, "log:", 4) == 0) {
+        canlog.f = fopen(o.can + 4, "w");
+        if (canlog.f == NULL) {
+            fprintf(stderr, "hdjoint-host: cannot write %s: %s\n", o.can + 4, strerror(errno));
+            return 1;
+        }
+        g_mock.tx_store = false; /* the log keeps them */
+        g_mock.tx_hook = log_frame;
+        g_mock.tx_hook_ctx = &canlog;
+    } else if (strncmp(o.can, "socketcan:", 10) == 0) {
+#ifdef HD_HAVE_SOCKETCAN
+        uint32_t rx_id = HD_CAN_ID_CMD + cfg.node_id;
+        sock = hal_socketcan_open(o.can + 10, &rx_id, 1, false, err, sizeof err);
+        if (sock == NULL) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            return 1;
+        }
+        memset(&hal.can, 0, sizeof hal.can);
+        hal_socketcan_bind(sock, &hal.can);
+#else
+        fprintf(stderr, "hdjoint-host: built without SocketCAN support\n");
+        return 1;
+#endif
+    } else if (strcmp(o.can, "none") == 0) {
+        g_mock.tx_store = false;
+    } else {
+        fprintf(stderr, "hdjoint-host: unknown --can %s\n", o.can);
+        return 2;
+    }
+    for (int i = 0; i < o.n_cmds; i++) {
+        hal_can_frame_t f;
+        if (parse_frame(o.cmds[i], &f) != 0) {
+            fprintf(stderr, "hdjoint-host: bad --cmd %s (want ID#HEX, up to 8 bytes)\n", o.cmds[i]);
+            return 2;
+        }
+        hal_mock_push_rx(&g_mock, &f);
+        log_frame(&canlog, &f, 0u);
+    }
+
+    /* NVM: file image, then the requested or nominal calibration */
+    if (o.nvm_file != NULL) {
+        FILE *nf = fopen(o.nvm_file, "rb");
+        if (nf != NULL) {
+            size_t n = fread(g_mock.nvm, 1, sizeof g_mock.nvm, nf);
+            fclose(nf);
+            (void)n;
+        }
+    }
+    if (o.have_calib) {
+        provision_calibration(&hal, o.calib_gain, o.calib_offset);
+    } else if (o.nvm_file == NULL && isfinite(default_gain)) {
+        provision_calibration(&hal, default_gain, default_offset);
+    }
+
+    int rc = hd_fw_init(&g_fw, &hal, &cfg);
+    if (rc != HD_FW_OK) {
+        fprintf(stderr, "hdjoint-host: firmware init failed: %s\n", hd_fw_err_str(rc));
+        return 1;
+    }
+
+    FILE *csv = NULL;
+    if (o.csv != NULL) {
+        csv = fopen(o.csv, "w");
+        if (csv == NULL) {
+            fprintf(stderr, "hdjoint-host: cannot write %s: %s\n", o.csv, strerror(errno));
+            return 1;
+        }
+        fputs("t_s,bridge_counts,torque_raw_nm,torque_filtered_nm,ripple_nm,torque_expected_nm,"
+              "motor_velocity_rad_s,motor_angle_rad,faults,kf_status,torque_true_nm\n",
+              csv);
+    }
+
+    uint64_t max_ticks = (o.duration_s > 0.0) ? (uint64_t)llround(o.duration_s * 1000.0) : UINT64_MAX;
+    timing_t tm = {0};
+    err_t er = {0};
+    double motor_angle = 0.0;
+    uint64_t period_ns = (uint64_t)HD_FW_TS_US * 1000u;
+    uint64_t next_ns = now_ns() + period_ns;
+    uint64_t wall_start_ns = now_ns();
+    uint64_t k = 0;
+    for (; k < max_ticks; k++) {
+        if (o.realtime) {
+            struct timespec ts = {(time_t)(next_ns / 1000000000ull), (long)(next_ns % 1000000000ull)};
+            while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+            }
+            uint64_t woke = now_ns();
+            double late_us = (double)(woke - next_ns) / 1000.0;
+            tm.jitter_sum_us += late_us;
+            if (late_us > tm.jitter_max_us) {
+                tm.jitter_max_us = late_us;
+            }
+        }
+        if (src == SRC_MOCK) {
+            synth_push(&synth, &g_mock, &cfg);
+        }
+        g_mock.now_us = k * HD_FW_TS_US; /* time stamps of the CAN log: sample time */
+        uint64_t t0 = now_ns();
+        hd_fw_isr(&g_fw);
+        uint64_t t1 = now_ns();
+        if (g_fw.ended) {
+            break;
+        }
+        double isr_us = (double)(t1 - t0) / 1000.0;
+        tm.isr_sum_us += isr_us;
+        if (isr_us > tm.isr_max_us) {
+            tm.isr_max_us = isr_us;
+        }
+        tm.ticks++;
+        hd_fw_background(&g_fw);
+
+        const hd_fw_sample_t *s = hd_fw_last_sample(&g_fw);
+        double truth = NAN;
+        if (src == SRC_MOCK) {
+            truth = synth.torque_true_nm;
+        }
+#ifdef HD_HAVE_SIM
+        if (src == SRC_SIM) {
+            const hd_sim_sample_t *cur = hal_sim_current(sim);
+            truth = (cur != NULL) ? cur->torque_true_nm : (double)NAN;
+        }
+#endif
+        motor_angle += (double)s->d_motor_angle_rad;
+        double t_s = (double)k * 1e-3;
+        err_add(&er, t_s, (double)s->torque_raw_nm, (double)s->torque_filtered_nm, truth);
+        if (csv != NULL) {
+            fprintf(csv, "%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%u,%u,%.6g\n", t_s,
+                    (int)s->bridge_counts, (double)s->torque_raw_nm,
+                    (double)s->torque_filtered_nm, (double)s->ripple_nm,
+                    (double)s->torque_expected_nm, (double)s->motor_velocity_rad_s, motor_angle,
+                    (unsigned)s->faults, (unsigned)s->kf_status, truth);
+        }
+        if (o.realtime) {
+            next_ns += period_ns;
+            uint64_t now = now_ns();
+            if (now > next_ns) {
+                /* the deadline of the next tick has passed: skip whole periods */
+                uint64_t behind = (now - next_ns) / period_ns + 1u;
+                tm.overruns++;
+                tm.missed_ticks += behind;
+                next_ns += behind * period_ns;
+                hd_fw_note_deadline_miss(&g_fw, (uint32_t)behind);
+            }
+        }
+    }
+    double wall_s = (double)(now_ns() - wall_start_ns) / 1e9;
+
+    if (o.nvm_file != NULL) {
+        FILE *nf = fopen(o.nvm_file, "wb");
+        if (nf == NULL || fwrite(g_mock.nvm, 1, sizeof g_mock.nvm, nf) != sizeof g_mock.nvm) {
+            fprintf(stderr, "hdjoint-host: cannot write NVM image %s\n", o.nvm_file);
+        }
+        if (nf != NULL) {
+            fclose(nf);
+        }
+    }
+    if (csv != NULL) {
+        fclose(csv);
+    }
+    if (canlog.f != NULL) {
+        fclose(canlog.f);
+    }
+
+    /* summary */
+    const hd_fw_counters_t *c = hd_fw_counters(&g_fw);
+    hal_counters_t hc = {0};
+    if (hal.can.counters != NULL) {
+        hal.can.counters(hal.can.ctx, &hc);
+    }
+    printf("samples = %llu\n", (unsigned long long)c->ticks);
+    printf("valid_samples = %llu\n", (unsigned long long)c->valid_samples);
+    printf("mode = %s\n", o.realtime ? "realtime" : "fast");
+    printf("wall_time_s = %.3f\n", wall_s);
+    printf("isr_mean_us = %.3f\n", tm.ticks ? tm.isr_sum_us / (double)tm.ticks : 0.0);
+    printf("isr_max_us = %.3f\n", tm.isr_max_us);
+    if (o.realtime) {
+        printf("jitter_mean_us = %.3f\n", tm.ticks ? tm.jitter_sum_us / (double)tm.ticks : 0.0);
+        printf("jitter_max_us = %.3f\n", tm.jitter_max_us);
+        printf("overruns = %llu\n", (unsigned long long)tm.overruns);
+        printf("missed_ticks = %llu\n", (unsigned long long)tm.missed_ticks);
+    }
+    printf("deadline_misses = %u\n", (unsigned)c->deadline_misses);
+    printf("fault_ticks = %u\n", (unsigned)c->fault_ticks);
+    for (unsigned b = 0; b < HD_FAULT_COUNT; b++) {
+        if (c->by_fault[b] != 0u) {
+            printf("fault_%s = %u\n", FAULT_NAMES[b], (unsigned)c->by_fault[b]);
+        }
+    }
+    printf("calib_status = %d\n", g_fw.calib_load_result);
+    printf("truth = %s\n", have_truth ? "yes" : "no");
+    printf("telemetry_periods = %u\n", (unsigned)c->telemetry_frames);
+    printf("commands = %u\n", (unsigned)c->commands);
+    printf("command_errors = %u\n", (unsigned)c->command_errors);
+    printf("can_tx_ok = %u\n", (unsigned)hc.can_tx_ok);
+    printf("can_tx_dropped = %u\n", (unsigned)hc.can_tx_dropped);
+    if (canlog.f != NULL) {
+        printf("can_log = %s\n", o.can + 4);
+        printf("can_log_frames = %llu\n", (unsigned long long)canlog.frames);
+    }
+    if (er.n > 0u) {
+        printf("rms_error_raw_nm = %.4f\n", sqrt(er.sum_raw2 / (double)er.n));
+        printf("rms_error_filtered_nm = %.4f\n", sqrt(er.sum_filt2 / (double)er.n));
+    }
+    if (er.n_settled > 0u) {
+        printf("rms_error_raw_after_1s_nm = %.4f\n", sqrt(er.sum_raw2_settled / (double)er.n_settled));
+        printf("rms_error_filtered_after_1s_nm = %.4f\n",
+               sqrt(er.sum_filt2_settled / (double)er.n_settled));
+    }
+    if (replay != NULL) {
+        if (hal_replay_trailing_bytes(replay) != 0u) {
+            printf("replay_trailing_bytes = %u\n", hal_replay_trailing_bytes(replay));
+        }
+        hal_replay_close(replay);
+    }
+#ifdef HD_HAVE_SOCKETCAN
+    hal_socketcan_close(sock);
+#endif
+    (void)o.quiet;
+    return 0;
+}
