@@ -1,0 +1,222 @@
+/* CAN protocol: byte layouts checked against hand-computed bytes from the
+ * tables in docs/firmware.md, round trips, saturation, malformed frames. */
+#include <math.h>
+#include <string.h>
+
+#include "hal_mock.h"
+#include "hd_can_proto.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static void test_telem_bytes_match_the_documented_layout(void)
+{
+    hd_can_telem_t t = {0};
+    t.torque_filtered_nm = 12.34f;   /* 1234 = 0x04D2 */
+    t.torque_raw_nm = -1.5f;         /* -150 = 0xFF6A */
+    t.ripple_nm = 0.25f;             /* 250 = 0x00FA at 1 mNm */
+    t.torque_valid = true;
+    t.motor_velocity_rad_s = 156.0f; /* 156000 = 0x00026160 */
+    t.faults = 0x0410u;
+    t.kf_status = 0x05u;
+    t.seq = 0x7Fu;
+    hal_can_frame_t a, b;
+    hd_can_encode_telem(3, &t, &a, &b);
+    const uint8_t ea[8] = {0xD2, 0x04, 0x6A, 0xFF, 0xFA, 0x00, 0x7F, 0x00};
+    const uint8_t eb[8] = {0x60, 0x61, 0x02, 0x00, 0x10, 0x04, 0x05, 0x7F};
+    TEST_ASSERT_EQUAL_HEX32(0x103u, a.id);
+    TEST_ASSERT_EQUAL_HEX32(0x183u, b.id);
+    TEST_ASSERT_EQUAL_UINT8(8, a.len);
+    TEST_ASSERT_EQUAL_MEMORY(ea, a.data, 8);
+    TEST_ASSERT_EQUAL_MEMORY(eb, b.data, 8);
+
+    hd_can_telem_t d;
+    TEST_ASSERT_EQUAL_INT(0, hd_can_decode_telem(&a, &b, &d));
+    TEST_ASSERT_TRUE(d.torque_valid);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5, 12.34, d.torque_filtered_nm);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5, -1.5, d.torque_raw_nm);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.25, d.ripple_nm);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3, 156.0, d.motor_velocity_rad_s);
+    TEST_ASSERT_EQUAL_UINT16(0x0410u, d.faults);
+    TEST_ASSERT_EQUAL_UINT8(0x7Fu, d.seq);
+}
+
+static void test_telem_saturates_and_marks_not_available(void)
+{
+    TEST_ASSERT_EQUAL_INT(32767, hd_can_scale_i16(400.0f, 0.01f));
+    TEST_ASSERT_EQUAL_INT(-32767, hd_can_scale_i16(-400.0f, 0.01f));
+    TEST_ASSERT_EQUAL_INT(-32768, hd_can_scale_i16(NAN, 0.01f));
+    TEST_ASSERT_EQUAL_INT(-32768, hd_can_scale_i16(INFINITY, 0.01f));
+    TEST_ASSERT_EQUAL_INT(-2, hd_can_scale_i16(-0.015f, 0.01f)); /* rounds half away */
+    hd_can_telem_t t = {0};
+    t.torque_filtered_nm = 1.0f;
+    t.torque_raw_nm = 1.0f;
+    t.torque_valid = false;
+    hal_can_frame_t a, b;
+    hd_can_encode_telem(1, &t, &a, &b);
+    TEST_ASSERT_EQUAL_HEX8(0x00, a.data[0]);
+    TEST_ASSERT_EQUAL_HEX8(0x80, a.data[1]);
+    hd_can_telem_t d;
+    TEST_ASSERT_EQUAL_INT(0, hd_can_decode_telem(&a, &b, &d));
+    TEST_ASSERT_FALSE(d.torque_valid);
+    b.data[7] ^= 1u; /* sequence mismatch: not a pair */
+    TEST_ASSERT_EQUAL_INT(-1, hd_can_decode_telem(&a, &b, &d));
+}
+
+static void test_command_bytes_match_the_documented_example(void)
+{
+    /* docs/firmware.md: 601#1007C80000007A44 adds motor order 2, q = 1000 */
+    hd_can_cmd_t c = {0};
+    c.opcode = HD_CMD_ADD_MOTOR;
+    c.token = 7;
+    c.order = 2.0f;
+    c.value = 1000.0f;
+    hal_can_frame_t f;
+    hd_can_encode_cmd(1, &c, &f);
+    const uint8_t e[8] = {0x10, 0x07, 0xC8, 0x00, 0x00, 0x00, 0x7A, 0x44};
+    TEST_ASSERT_EQUAL_HEX32(0x601u, f.id);
+    TEST_ASSERT_EQUAL_MEMORY(e, f.data, 8);
+    hd_can_cmd_t d;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT8(HD_CMD_ADD_MOTOR, d.opcode);
+    TEST_ASSERT_EQUAL_UINT8(7, d.token);
+    TEST_ASSERT_EQUAL_FLOAT(2.0f, d.order);
+    TEST_ASSERT_EQUAL_FLOAT(1000.0f, d.value);
+}
+
+static void test_command_round_trips(void)
+{
+    const uint8_t ops[] = {HD_CMD_FILTER_ENABLE, HD_CMD_BLOCK_ENABLE, HD_CMD_BLOCKS_CLEAR,
+                           HD_CMD_SET_PARAM, HD_CMD_GET_PARAM, HD_CMD_TARE,
+                           HD_CMD_CALIB_LOAD, HD_CMD_FILTER_RESET};
+    for (unsigned i = 0; i < sizeof ops; i++) {
+        hd_can_cmd_t c = {0};
+        c.opcode = ops[i];
+        c.token = (uint8_t)(i * 37u);
+        c.arg_u8[0] = 2;
+        c.arg_u8[1] = 1;
+        c.value = -0.125f;
+        hal_can_frame_t f;
+        hd_can_encode_cmd(9, &c, &f);
+        hd_can_cmd_t d;
+        TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
+        TEST_ASSERT_EQUAL_UINT8(c.opcode, d.opcode);
+        TEST_ASSERT_EQUAL_UINT8(c.token, d.token);
+        TEST_ASSERT_EQUAL_UINT8(2, d.arg_u8[0]);
+        TEST_ASSERT_EQUAL_UINT8(1, d.arg_u8[1]);
+    }
+    hd_can_cmd_t c = {0};
+    c.opcode = HD_CMD_CALIB_SAVE;
+    c.arg_u32 = 1700000000u;
+    hal_can_frame_t f;
+    hd_can_encode_cmd(1, &c, &f);
+    TEST_ASSERT_EQUAL_HEX8(0x00, f.data[4]); /* 1700000000 = 0x6553F100 */
+    TEST_ASSERT_EQUAL_HEX8(0xF1, f.data[5]);
+    TEST_ASSERT_EQUAL_HEX8(0x53, f.data[6]);
+    TEST_ASSERT_EQUAL_HEX8(0x65, f.data[7]);
+    hd_can_cmd_t d;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT32(1700000000u, d.arg_u32);
+}
+
+static void test_malformed_commands_are_classified(void)
+{
+    hd_can_cmd_t c = {0};
+    c.opcode = HD_CMD_SET_PARAM;
+    c.token = 42;
+    c.arg_u8[0] = HD_PARAM_R_NM2;
+    c.value = 1.0f;
+    hal_can_frame_t good;
+    hd_can_encode_cmd(1, &c, &good);
+    hd_can_cmd_t d;
+
+    hal_can_frame_t f = good;
+    f.len = 5;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_LENGTH, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT8(42, d.token); /* still echoed */
+    f = good;
+    f.len = 0;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_LENGTH, hd_can_decode_cmd(&f, &d));
+    f = good;
+    f.flags = HAL_CAN_FLAG_RTR;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
+    f = good;
+    f.flags = HAL_CAN_FLAG_EXT;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
+    f = good;
+    f.flags = HAL_CAN_FLAG_FD;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
+    f = good;
+    f.data[0] = 0x99;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_UNKNOWN_OPCODE, hd_can_decode_cmd(&f, &d));
+    f = good;
+    hd_can_put_f32(&f.data[4], NAN);
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_NOT_FINITE, hd_can_decode_cmd(&f, &d));
+    f = good;
+    f.data[0] = HD_CMD_ADD_OUTPUT;
+    hd_can_put_f32(&f.data[4], -INFINITY);
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_NOT_FINITE, hd_can_decode_cmd(&f, &d));
+}
+
+static void test_ack_and_heartbeat_layouts(void)
+{
+    hd_can_ack_t a = {HD_CMD_GET_PARAM, 9, HD_CAN_RES_OK, HD_PARAM_R_NM2, 0.5f};
+    hal_can_frame_t f;
+    hd_can_encode_ack(1, &a, &f);
+    const uint8_t e[8] = {0x21, 0x09, 0x00, 0x01, 0x00, 0x00, 0x00, 0x3F}; /* 0.5f = 0x3F000000 */
+    TEST_ASSERT_EQUAL_HEX32(0x581u, f.id);
+    TEST_ASSERT_EQUAL_MEMORY(e, f.data, 8);
+    hd_can_ack_t d;
+    TEST_ASSERT_EQUAL_INT(0, hd_can_decode_ack(&f, &d));
+    TEST_ASSERT_EQUAL_FLOAT(0.5f, d.value);
+
+    hd_can_heartbeat_t h = {HD_STATE_DEGRADED, 0x0401u, 3u, 0x1234u, 2u};
+    hd_can_encode_heartbeat(127, &h, &f);
+    const uint8_t eh[8] = {0x02, 0x01, 0x04, 0x03, 0x00, 0x34, 0x12, 0x02};
+    TEST_ASSERT_EQUAL_HEX32(0x77Fu, f.id);
+    TEST_ASSERT_EQUAL_MEMORY(eh, f.data, 8);
+    hd_can_heartbeat_t hd;
+    TEST_ASSERT_EQUAL_INT(0, hd_can_decode_heartbeat(&f, &hd));
+    TEST_ASSERT_EQUAL_UINT16(0x1234u, hd.fault_ticks);
+}
+
+static void test_candump_line_format(void)
+{
+    hal_can_frame_t f = {0};
+    f.id = 0x101;
+    f.len = 3;
+    f.data[0] = 0xDE;
+    f.data[1] = 0xAD;
+    f.data[2] = 0x01;
+    char buf[128];
+    int n = hal_candump_format(&f, 12345678ull, "vcan0", buf, sizeof buf);
+    TEST_ASSERT_EQUAL_STRING("(0000000012.345678) vcan0 101#DEAD01\n", buf);
+    TEST_ASSERT_EQUAL_INT((int)strlen(buf), n);
+    f.flags = HAL_CAN_FLAG_EXT;
+    f.id = 0x1ABCDEF;
+    hal_candump_format(&f, 0, "can0", buf, sizeof buf);
+    TEST_ASSERT_EQUAL_STRING("(0000000000.000000) can0 01ABCDEF#DEAD01\n", buf);
+    f.flags = HAL_CAN_FLAG_RTR;
+    f.id = 0x7FF;
+    hal_candump_format(&f, 0, "can0", buf, sizeof buf);
+    TEST_ASSERT_EQUAL_STRING("(0000000000.000000) can0 7FF#R\n", buf);
+    f.flags = HAL_CAN_FLAG_FD;
+    f.id = 0x10;
+    hal_candump_format(&f, 0, "can0", buf, sizeof buf);
+    TEST_ASSERT_EQUAL_STRING("(0000000000.000000) can0 010##0DEAD01\n", buf);
+    TEST_ASSERT_EQUAL_INT(-1, hal_candump_format(&f, 0, "can0", buf, 10)); /* too small */
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_telem_bytes_match_the_documented_layout);
+    RUN_TEST(test_telem_saturates_and_marks_not_available);
+    RUN_TEST(test_command_bytes_match_the_documented_example);
+    RUN_TEST(test_command_round_trips);
+    RUN_TEST(test_malformed_commands_are_classified);
+    RUN_TEST(test_ack_and_heartbeat_layouts);
+    RUN_TEST(test_candump_line_format);
+    return UNITY_END();
+}

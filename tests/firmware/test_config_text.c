@@ -1,0 +1,166 @@
+/* Configuration text parser: good files, malformed files (error + line,
+ * configuration unchanged), number parsing against strtod. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "hd_config_text.h"
+#include "unity.h"
+
+static hd_fw_config_t base;
+
+void setUp(void)
+{
+    hd_fw_config_default(&base);
+}
+void tearDown(void) {}
+
+static int parse(const char *text, hd_fw_config_t *cfg, hd_cfgtxt_error_t *err)
+{
+    return hd_config_text_parse(text, strlen(text), cfg, err);
+}
+
+static void test_good_file_sets_every_key(void)
+{
+    const char *text =
+        "# the paper's model\n"
+        "gear_ratio = 80\n"
+        "r_nm2=0.5\n"
+        "p0_nm2 = 100   # trailing comment\n"
+        "\n"
+        "offset = on\n"
+        "offset_q_nm2 = 1e-6\n"
+        "block = motor 2 1000\n"
+        "block = output 1 1e3\n"
+        "block = fixed 50 0.25 off\n"
+        "inertia_kgm2 = 0.01\n"
+        "viscous_nm_s_rad 0.2\n"
+        "coulomb_nm = 1.5\n"
+        "track_bandwidth_hz = 30\n"
+        "telemetry_rate_hz = 250\n"
+        "node_id = 12\n"
+        "filter = off\n"
+        "motor_cpr = 8192\r\n";
+    hd_fw_config_t cfg = base;
+    hd_cfgtxt_error_t err;
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_OK, parse(text, &cfg, &err));
+    TEST_ASSERT_EQUAL_FLOAT(80.0f, cfg.gear_ratio);
+    TEST_ASSERT_EQUAL_FLOAT(0.5f, cfg.kf.r_nm2);
+    TEST_ASSERT_EQUAL_FLOAT(100.0f, cfg.kf.p0_nm2);
+    TEST_ASSERT_EQUAL_UINT8(1, cfg.kf.offset_enabled);
+    TEST_ASSERT_EQUAL_FLOAT(1e-6f, cfg.kf.offset_q_nm2);
+    TEST_ASSERT_EQUAL_UINT8(3, cfg.kf.block_count); /* the defaults' blocks were replaced */
+    TEST_ASSERT_EQUAL_UINT8(HD_KF_LOCK_MOTOR, cfg.kf.blocks[0].lock);
+    TEST_ASSERT_EQUAL_FLOAT(2.0f, cfg.kf.blocks[0].order);
+    TEST_ASSERT_EQUAL_FLOAT(1000.0f, cfg.kf.blocks[0].q_nm2);
+    TEST_ASSERT_EQUAL_UINT8(HD_KF_LOCK_OUTPUT, cfg.kf.blocks[1].lock);
+    TEST_ASSERT_EQUAL_UINT8(HD_KF_LOCK_FIXED, cfg.kf.blocks[2].lock);
+    TEST_ASSERT_EQUAL_FLOAT(50.0f, cfg.kf.blocks[2].order);
+    TEST_ASSERT_EQUAL_UINT8(0, cfg.kf.blocks[2].enabled);
+    TEST_ASSERT_EQUAL_FLOAT(0.01f, cfg.expected.inertia_kgm2);
+    TEST_ASSERT_EQUAL_FLOAT(0.2f, cfg.expected.viscous_nm_s_rad);
+    TEST_ASSERT_EQUAL_FLOAT(1.5f, cfg.expected.coulomb_nm);
+    TEST_ASSERT_EQUAL_FLOAT(30.0f, cfg.track_bandwidth_hz);
+    TEST_ASSERT_EQUAL_UINT16(250, cfg.telemetry_rate_hz);
+    TEST_ASSERT_EQUAL_UINT8(12, cfg.node_id);
+    TEST_ASSERT_EQUAL_UINT8(0, cfg.filter_enabled);
+    TEST_ASSERT_EQUAL_UINT32(8192, cfg.motor_cpr);
+}
+
+static void test_empty_file_keeps_the_base(void)
+{
+    hd_fw_config_t cfg = base;
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_OK, parse("# nothing\n\n   \n", &cfg, NULL));
+    TEST_ASSERT_EQUAL_MEMORY(&base, &cfg, sizeof cfg);
+}
+
+typedef struct {
+    const char *text;
+    int code;
+    unsigned line;
+} bad_case_t;
+
+static void test_malformed_files_report_the_line_and_change_nothing(void)
+{
+    const bad_case_t cases[] = {
+        {"gear_ratio = 50\nbogus = 1\n", HD_CFGTXT_ERR_UNKNOWN_KEY, 2},
+        {"r_nm2 = 1.2.3\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"r_nm2 =\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"r_nm2 = 1 2\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"\n\nr_nm2 = -1\n", HD_CFGTXT_ERR_RANGE, 3},
+        {"r_nm2 = 0\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"r_nm2 = nan\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"r_nm2 = 1e999\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"node_id = 200\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"node_id = 0\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"node_id = -3\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"telemetry_rate_hz = 2000\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"offset = maybe\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"block = motor 2\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"block = wobble 2 1\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"block = fixed 600 1\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"block = motor 0 1\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"block = motor 2 -1\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"block = motor 1 1\nblock = motor 2 1\nblock = motor 3 1\nblock = motor 4 1\n"
+         "block = motor 5 1\nblock = motor 6 1\nblock = motor 7 1\nblock = motor 8 1\n"
+         "block = motor 9 1\n",
+         HD_CFGTXT_ERR_TOO_MANY_BLOCKS, 9},
+        /* parses, but the whole configuration is invalid */
+        {"gear_ratio = 0.5\n", HD_CFGTXT_ERR_CONFIG, 0},
+        {"track_bandwidth_hz = 200\n", HD_CFGTXT_ERR_CONFIG, 0},
+        {"nyquist_fraction = 1.5\n", HD_CFGTXT_ERR_CONFIG, 0},
+    };
+    for (unsigned i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        hd_fw_config_t cfg = base;
+        hd_cfgtxt_error_t err;
+        int rc = parse(cases[i].text, &cfg, &err);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(cases[i].code, rc, cases[i].text);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(cases[i].code, err.code, cases[i].text);
+        TEST_ASSERT_EQUAL_UINT_MESSAGE(cases[i].line, err.line, cases[i].text);
+        TEST_ASSERT_NOT_NULL(err.message);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&base, &cfg, sizeof cfg, cases[i].text);
+    }
+}
+
+static void test_long_line_and_null_are_rejected(void)
+{
+    char text[400];
+    memset(text, 'x', sizeof text);
+    text[sizeof text - 1] = '\n';
+    hd_fw_config_t cfg = base;
+    hd_cfgtxt_error_t err;
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_SYNTAX, hd_config_text_parse(text, sizeof text, &cfg, &err));
+    TEST_ASSERT_EQUAL_UINT(1, err.line);
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_NULL, hd_config_text_parse("x", 1, NULL, &err));
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_NULL, hd_config_text_parse(NULL, 3, &cfg, &err));
+}
+
+static void test_number_parser_agrees_with_strtod(void)
+{
+    const char *good[] = {"0", "1", "-1", "+2.5", "1000", "1e3", "1E3", "-2.5e-3", ".5", "5.",
+                          "0.1", "3.14159265358979", "6.60", "1e-30", "3.4e38", "123456789012345678901234",
+                          "0.000000000000000000000123", "-0"};
+    for (unsigned i = 0; i < sizeof good / sizeof good[0]; i++) {
+        float v = -99.0f;
+        TEST_ASSERT_EQUAL_INT_MESSAGE(0, hd_config_parse_float(good[i], strlen(good[i]), &v), good[i]);
+        double ref = strtod(good[i], NULL); /* independent reference */
+        double tol = 1e-6 * (ref < 0 ? -ref : ref) + 1e-45;
+        TEST_ASSERT_DOUBLE_WITHIN_MESSAGE(tol, ref, (double)v, good[i]);
+    }
+    const char *bad[] = {"", "-", ".", "e3", "1e", "1e+", "abc", "1.0x", "1..0", "nan", "inf",
+                         "0x10", "1e39", "1e-60", " 1"};
+    for (unsigned i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        float v;
+        TEST_ASSERT_EQUAL_INT_MESSAGE(-1, hd_config_parse_float(bad[i], strlen(bad[i]), &v), bad[i]);
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_good_file_sets_every_key);
+    RUN_TEST(test_empty_file_keeps_the_base);
+    RUN_TEST(test_malformed_files_report_the_line_and_change_nothing);
+    RUN_TEST(test_long_line_and_null_are_rejected);
+    RUN_TEST(test_number_parser_agrees_with_strtod);
+    return UNITY_END();
+}
