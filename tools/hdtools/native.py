@@ -48,5 +48,14 @@ def load_library(stem: str) -> ctypes.CDLL:
     return ctypes.CDLL(str(find_file(f"lib{stem}.so", target=stem)))
 
 
+# Executables whose CMake target name differs from the file name.
+_TARGET_OF = {"hdsim": "hdsim_cli"}
+
+
 def executable(name: str) -> Path:
-    return find_file(name, target=name)
+    """Path of a built host executable by file name (built if needed)."""
+    bdir = ensure_built(_TARGET_OF.get(name, name))
+    hits = [p for p in bdir.rglob(name) if p.is_file() and os.access(p, os.X_OK)]
+    if not hits:
+        raise FileNotFoundError(f"executable {name} not found under {bdir}")
+    return sorted(hits)[0]

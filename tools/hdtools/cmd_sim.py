@@ -1,0 +1,21 @@
+"""`hdsense sim`: run the simulated joint (the C `hdsim` executable)."""
+from __future__ import annotations
+
+import subprocess
+
+from . import native
+
+
+def register(sub) -> None:
+    p = sub.add_parser("sim", help="run the simulated joint (hdsim) on a scenario file",
+                       description="Thin front end over the hdsim executable; "
+                                   "all arguments after the scenario are passed through.")
+    p.add_argument("scenario", help="scenario .ini (see docs/sim.md)")
+    p.add_argument("hdsim_args", nargs="*",
+                   help="passed to hdsim, e.g. --csv out.csv --raw out.hdraw --duration 5")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    exe = native.executable("hdsim")
+    return subprocess.run([str(exe), args.scenario, *args.hdsim_args]).returncode
