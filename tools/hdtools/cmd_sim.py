@@ -1,6 +1,7 @@
 """`hdsense sim`: run the simulated joint (the C `hdsim` executable)."""
 from __future__ import annotations
 
+import argparse
 import subprocess
 
 from . import native
@@ -11,7 +12,7 @@ def register(sub) -> None:
                        description="Thin front end over the hdsim executable; "
                                    "all arguments after the scenario are passed through.")
     p.add_argument("scenario", help="scenario .ini (see docs/sim.md)")
-    p.add_argument("hdsim_args", nargs="*",
+    p.add_argument("hdsim_args", nargs=argparse.REMAINDER,
                    help="passed to hdsim, e.g. --csv out.csv --raw out.hdraw --duration 5")
     p.set_defaults(func=_run)
 
