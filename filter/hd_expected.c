@@ -1,6 +1,8 @@
 /* hd_expected: see hd_expected.h. */
 #include "hd_expected.h"
 
+#include <stddef.h>
+
 #define DEFAULT_VEL_EPS_RAD_S 0.01f
 
 static int is_finite(float x)
@@ -18,7 +20,7 @@ void hd_expected_config_default(hd_expected_config_t *cfg)
 
 int hd_expected_config_check(const hd_expected_config_t *cfg)
 {
-    if (!is_finite(cfg->inertia_kgm2) || cfg->inertia_kgm2 < 0.0f ||
+    if (cfg == NULL || !is_finite(cfg->inertia_kgm2) || cfg->inertia_kgm2 < 0.0f ||
         !is_finite(cfg->viscous_nm_s_rad) || cfg->viscous_nm_s_rad < 0.0f ||
         !is_finite(cfg->coulomb_nm) || cfg->coulomb_nm < 0.0f ||
         !is_finite(cfg->coulomb_vel_eps_rad_s) || cfg->coulomb_vel_eps_rad_s <= 0.0f) {

@@ -25,7 +25,7 @@ typedef struct {
 
 void hd_expected_config_default(hd_expected_config_t *cfg);
 
-/* Returns 0 if every field is finite, J, b, Fc >= 0 and v_eps > 0; else -1. */
+/* Returns 0 if cfg is not NULL, every field is finite, J, b, Fc >= 0 and v_eps > 0; else -1. */
 int hd_expected_config_check(const hd_expected_config_t *cfg);
 
 float hd_expected_torque_nm(const hd_expected_config_t *cfg,

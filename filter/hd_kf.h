@@ -165,7 +165,9 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
 void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s);
 
-/* Appends an enabled block; returns its index or a negative hd_kf_err_t. */
+/* Appends an enabled block; returns its index or a negative hd_kf_err_t
+ * (NULL, or no room).  Values are validated by hd_kf_config_check, which
+ * hd_kf_init runs. */
 int hd_kf_config_add_block(hd_kf_config_t *cfg, hd_kf_lock_t lock, float order,
                            float q_nm2);
 
