@@ -331,9 +331,11 @@ static void fill_design(const hd_calib_experiment_t *e, float fs_nm, design_t *d
         d->x[COL_X][i] = x;
         d->x[COL_X2][i] = x * x;
         d->x[COL_X3][i] = x * x * x;
-        /* Branch term: unloading reads +e/2 further from zero than loading
-         * (lag), in either torque direction. */
-        d->x[COL_U][i] = (e->direction[i] == HD_CALIB_DIR_UNLOAD ? 0.5f : -0.5f) * sgn;
+        /* Branch term: unloading reads further from zero than loading (lag),
+         * in either torque direction; the loop closes at the turning points
+         * (|x| = 1) and the branches differ most at low load. */
+        d->x[COL_U][i] = (e->direction[i] == HD_CALIB_DIR_UNLOAD ? 0.5f : -0.5f) * sgn *
+                         (1.0f - x * x);
     }
 }
 
