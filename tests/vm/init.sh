@@ -1,0 +1,22 @@
+#!/bin/sh
+# /init of the SocketCAN test VM (busybox).  Loads the CAN modules, creates
+# vcan0 and runs /bin/hd_vm_can_test, which reports the verdict through the
+# isa-debug-exit device and an "HDVM: VERDICT" line on the serial console.
+export PATH=/bin
+/bin/busybox --install -s /bin
+mount -t proc proc /proc
+mount -t sysfs sysfs /sys
+mount -t devtmpfs devtmpfs /dev 2>/dev/null
+echo "HDVM: booted kernel $(uname -r)"
+for m in can-dev vcan can can-raw; do
+  insmod /lib/modules/$m.ko || echo "HDVM: insmod $m failed"
+done
+ip link add dev vcan0 type vcan || echo "HDVM: ip link add vcan0 failed"
+ip link set up vcan0 || echo "HDVM: ip link set up vcan0 failed"
+if [ -x /bin/hd_vm_can_test ]; then
+  /bin/hd_vm_can_test
+  echo "HDVM: hd_vm_can_test exited with $?"
+else
+  echo "HDVM: VERDICT FAIL (no /bin/hd_vm_can_test in the image)"
+fi
+poweroff -f
