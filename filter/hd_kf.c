@@ -14,6 +14,8 @@
 #define PAPER_Q_NM2 1.0e3f
 #define PAPER_R_NM2 1.0f
 #define OUTPUT_SETTLE_FACTOR 20.0f
+#define RECOMMENDED_JUMP_NOISE_MULTIPLE 25.0f
+#define JUMP_MIN_SIGMA 4.0f
 
 /* isfinite without libm calls; x - x is 0 only for finite x. */
 static bool is_finite(float x)
@@ -66,6 +68,7 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
     cfg->p0_nm2 = DEFAULT_P0_NM2;
     cfg->offset_enabled = 1u;
     cfg->offset_q_nm2 = r * offset_ratio * offset_ratio;
+    cfg->offset_jump_nm = RECOMMENDED_JUMP_NOISE_MULTIPLE * noise_nm;
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_output);
@@ -125,6 +128,9 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         !is_finite(cfg->p_max_nm2) || cfg->p_max_nm2 <= 0.0f ||
         cfg->p0_nm2 > cfg->p_max_nm2 ||
         (cfg->offset_enabled && !is_nonneg(cfg->offset_q_nm2))) {
+        return HD_KF_ERR_NOISE;
+    }
+    if (!is_nonneg(cfg->offset_jump_nm)) {
         return HD_KF_ERR_NOISE;
     }
     if (!is_finite(cfg->nyquist_fraction) || cfg->nyquist_fraction <= 0.0f ||
@@ -480,8 +486,16 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         cpc += g[kf->offset_slot];
     }
     const float s_var = kf->cfg.r_nm2 + cpc;
-    const float inv_s = 1.0f / s_var;
     const float innovation = y - ripple - offset;
+    const float jump_nm = kf->cfg.offset_jump_nm;
+    const float e2 = innovation * innovation;
+    bool jump = false;
+    if (correct && kf->cfg.offset_enabled && jump_nm > 0.0f &&
+        e2 > jump_nm * jump_nm && e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var) {
+        jump = true;
+        status |= HD_KF_STATUS_OFFSET_JUMP;
+    }
+    const float inv_s = 1.0f / s_var;
 
     out->ripple_nm = ripple;
     out->offset_nm = offset;
@@ -499,8 +513,11 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         }
     }
 
-    /* State: x <- Phi (x + g e / S)   (equation 8) */
-    if (correct) {
+    /* State: x <- Phi (x + g e / S)   (equation 8).  A gated jump goes to
+     * the offset alone; the other states and P skip this correction. */
+    if (jump) {
+        kf->x[kf->offset_slot] += innovation;
+    } else if (correct) {
         const float k = innovation * inv_s;
         for (unsigned i = 0; i < n; i++) {
             kf->x[i] += g[i] * k;
@@ -514,7 +531,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         }
     }
     /* Covariance: equations 9-10 in the same factored form */
-    covariance_update(kf, g, inv_s, correct, &rot);
+    covariance_update(kf, g, inv_s, correct && !jump, &rot);
     if (clamp_covariance(kf)) {
         status |= HD_KF_STATUS_P_CLAMPED;
     }

@@ -35,6 +35,19 @@
  *   - a non-finite measurement skips the correction (prediction only) and is
  *     flagged; a non-finite state or covariance resets the filter, flagged.
  *
+ * Offset jumps: a load step is a jump of the offset, which a random walk
+ * with small q does not expect; the filter would share it with whichever
+ * states are uncertain (a slow output-locked block above all) and give it
+ * back over one output revolution.  With offset_jump_nm > 0, an
+ * innovation with |e| > offset_jump_nm and e^2 > 16 S is taken as an offset
+ * jump (the manoeuvre
+ * detection of tracking filters; the absolute threshold keeps small
+ * unmodelled lines, which also exceed 4 sigma, from triggering it, since
+ * skipped corrections would let P grow along the poorly observable
+ * offset/slow-block direction): the whole innovation is added to the
+ * offset, and the other states and P skip this step's correction (the
+ * prediction still runs).  Flagged HD_KF_STATUS_OFFSET_JUMP.
+ *
  * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
  * cannot be observed without aliasing.  It is frozen: dropped from C and from
  * the ripple estimate, its state zeroed and its covariance reset to p0 and
@@ -86,6 +99,9 @@ typedef struct {
     float p0_nm2;                  /* initial / reset covariance diagonal [Nm^2] */
     float p_max_nm2;               /* ceiling on covariance diagonal [Nm^2] */
     float nyquist_fraction;        /* freeze a block when |theta| > this * pi, in (0, 1] */
+    float offset_jump_nm;          /* > 0: an innovation larger than this [Nm] (and
+                                      than 4 sigma) is a jump of the offset (see
+                                      below); 0: off */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -101,6 +117,7 @@ typedef struct {
 #define HD_KF_STATUS_BAD_INPUT   (1u << 1) /* non-finite input: correction skipped */
 #define HD_KF_STATUS_RESET       (1u << 2) /* non-finite state or covariance: filter reset */
 #define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* a covariance diagonal hit p_max */
+#define HD_KF_STATUS_OFFSET_JUMP (1u << 4) /* innovation beyond the gate: offset jump */
 
 typedef struct {
     float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */
@@ -161,6 +178,7 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
  *       are slow enough to compete with the offset for a load step, and
  *       their amplitude (misalignment geometry) does not change;
  *   q (offset) = R (ts / offset_settle_s)^2.
+ *   offset jump threshold 25 x noise_nm (0.5 Nm for 0.02 Nm noise).
  * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.005 s. */
 void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s);

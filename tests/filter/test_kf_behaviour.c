@@ -36,6 +36,7 @@ typedef struct {
     double t_sin_nm, t_sin_hz;
     double texp_gain;      /* T_exp = gain * T_true (1: exact expected torque) */
     double duration_s;
+    double t_step_nm, t_step_at_s; /* T_true += t_step_nm for t >= t_step_at_s */
 } scen_t;
 
 typedef struct {
@@ -69,7 +70,8 @@ static void run_scenario(hd_kf_t *kf, const scen_t *s, run_t *r)
         r->ph_m4[k] = 4.0 * am + 1.1;
         r->ph_o1[k] = ao + 0.5;
         r->omega[k] = mo.omega_rad_s;
-        r->t_true[k] = s->t_const_nm + s->t_sin_nm * sin(2.0 * TU_PI * s->t_sin_hz * t);
+        r->t_true[k] = s->t_const_nm + s->t_sin_nm * sin(2.0 * TU_PI * s->t_sin_hz * t) +
+                       (s->t_step_nm != 0.0 && t >= s->t_step_at_s ? s->t_step_nm : 0.0);
         r->ripple_true[k] = s->a_m2 * cos(r->ph_m2[k]) + s->a_m4 * cos(r->ph_m4[k]);
         r->misalign_true[k] = s->a_o1 * cos(r->ph_o1[k]);
         hd_kf_input_t in;
@@ -162,7 +164,7 @@ static void test_cancel_constant_speed_to_noise_floor(void)
     static hd_kf_t kf;
     hd_kf_config_t cfg;
     const double sigma = 0.05;
-    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.4, 0.0, sigma, 10.0, 5.0, 1.0, 1.0, 6.0};
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.4, 0.0, sigma, 10.0, 5.0, 1.0, 1.0, 6.0, 0.0, 0.0};
     narrowband_cfg(&cfg, sigma, 0);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -191,7 +193,7 @@ static void test_cancel_through_speed_ramps(void)
     static hd_kf_t kf;
     hd_kf_config_t cfg;
     const double sigma = 0.05;
-    scen_t s = {{k_ramp_t, k_ramp_w, 7}, 1.0, 0.4, 0.0, sigma, 10.0, 5.0, 1.0, 1.0, 10.0};
+    scen_t s = {{k_ramp_t, k_ramp_w, 7}, 1.0, 0.4, 0.0, sigma, 10.0, 5.0, 1.0, 1.0, 10.0, 0.0, 0.0};
     narrowband_cfg(&cfg, sigma, 0);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -208,7 +210,7 @@ static void test_paper_lines_312_624_attenuated_30db(void)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
-    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, 0.02, 10.0, 3.0, 1.0, 1.0, 3.0};
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, 0.02, 10.0, 3.0, 1.0, 1.0, 3.0, 0.0, 0.0};
     hd_kf_config_paper(&cfg, (float)TS_S, false);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -232,7 +234,7 @@ static void test_narrowband_lines_312_624_attenuated_30db(void)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
-    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, 0.02, 10.0, 3.0, 1.0, 1.0, 4.0};
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, 0.02, 10.0, 3.0, 1.0, 1.0, 4.0, 0.0, 0.0};
     narrowband_cfg(&cfg, 0.02, 0);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -256,7 +258,7 @@ static void misalign_run(int sixth, double *before, double *after)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
-    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.4, 1.0, 0.02, 10.0, 0.0, 1.0, 1.0, 18.0};
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.4, 1.0, 0.02, 10.0, 0.0, 1.0, 1.0, 18.0, 0.0, 0.0};
     narrowband_cfg(&cfg, 0.02, sixth);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -285,7 +287,7 @@ static void standstill_case(hd_kf_config_t *cfg, const char *name)
     static hd_kf_t kf;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, cfg));
     /* 20 s of standstill with a constant load and noise, then motion. */
-    scen_t s = {{k_still_t, k_still_w, 4}, 1.0, 0.4, 0.0, 0.02, 5.0, 0.0, 1.0, 0.0, 20.0};
+    scen_t s = {{k_still_t, k_still_w, 4}, 1.0, 0.4, 0.0, 0.02, 5.0, 0.0, 1.0, 0.0, 20.0, 0.0, 0.0};
     run_scenario(&kf, &s, &g_run);
     unsigned n = hd_kf_state_count(&kf);
     double pmax_seen = 0.0;
@@ -323,7 +325,7 @@ static void test_standstill_then_motion_cancels(void)
     static hd_kf_t kf;
     hd_kf_config_t cfg;
     const double sigma = 0.02;
-    scen_t s = {{k_still_t, k_still_w, 4}, 1.0, 0.4, 0.0, sigma, 5.0, 0.0, 1.0, 1.0, 24.0};
+    scen_t s = {{k_still_t, k_still_w, 4}, 1.0, 0.4, 0.0, sigma, 5.0, 0.0, 1.0, 1.0, 24.0, 0.0, 0.0};
     narrowband_cfg(&cfg, sigma, 0);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -340,7 +342,7 @@ static void test_direction_reversal(void)
     static hd_kf_t kf;
     hd_kf_config_t cfg;
     const double sigma = 0.05;
-    scen_t s = {{k_rev_t, k_rev_w, 4}, 1.0, 0.4, 0.0, sigma, 10.0, 5.0, 1.0, 1.0, 6.0};
+    scen_t s = {{k_rev_t, k_rev_w, 4}, 1.0, 0.4, 0.0, sigma, 10.0, 5.0, 1.0, 1.0, 6.0, 0.0, 0.0};
     narrowband_cfg(&cfg, sigma, 0);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -481,7 +483,7 @@ static void test_paper_preset_pulls_output_towards_expected_torque(void)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
-    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, 0.01, 10.0, 5.0, 0.5, 0.5, 3.0};
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, 0.01, 10.0, 5.0, 0.5, 0.5, 3.0, 0.0, 0.0};
     hd_kf_config_paper(&cfg, (float)TS_S, false);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -516,7 +518,7 @@ static void test_narrowband_keeps_torque_missed_by_expected(void)
     static hd_kf_t kf;
     hd_kf_config_t cfg;
     const double sigma = 0.02;
-    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, sigma, 10.0, 5.0, 0.5, 0.5, 4.0};
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.5, 0.0, sigma, 10.0, 5.0, 0.5, 0.5, 4.0, 0.0, 0.0};
     narrowband_cfg(&cfg, sigma, 0);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     run_scenario(&kf, &s, &g_run);
@@ -752,6 +754,41 @@ static void test_block_disable_enable_keeps_others(void)
 }
 
 /* ---- amplitude / phase read-out ---------------------------------------------- */
+/* ---- load steps with the recommended tuning --------------------------------
+ * T_exp = 0, so a 10 Nm load step is torque the model does not expect.  The
+ * offset state (kept in the output) must take it; the slow output-order-1
+ * block must not (it would hand the step back over one output revolution,
+ * 4 s at 156 rad/s).  Spec: over the 10 s after the step the filtered error
+ * stays within 5x the noise sigma; without the jump gate the same run is
+ * clearly worse (the gate is what makes the difference). */
+static double load_step_error(float jump_nm, uint32_t *status_or)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    cfg.offset_jump_nm = jump_nm;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    scen_t s = {{k_const_t, k_const_w, 2}, 1.0, 0.4, 0.5, 0.02, 1.0, 0.0, 1.0, 0.0, 20.0,
+                10.0, 10.0};
+    run_scenario(&kf, &s, &g_run);
+    *status_or = g_run.status_or;
+    return rms_error_vs_truth(&g_run, (size_t)(10.0 / TS_S));
+}
+
+static void test_recommended_load_step_goes_to_offset(void)
+{
+    uint32_t st_on, st_off;
+    const float jump_nm = 25.0f * 0.02f;
+    double e_on = load_step_error(jump_nm, &st_on);
+    double e_off = load_step_error(0.0f, &st_off);
+    msg("10 Nm load step, recommended tuning: error RMS after step %.4f Nm with jump gate, "
+        "%.4f Nm without (noise 0.02)", e_on, e_off);
+    TEST_ASSERT_TRUE(st_on & HD_KF_STATUS_OFFSET_JUMP);
+    TEST_ASSERT_FALSE(st_off & HD_KF_STATUS_OFFSET_JUMP);
+    TEST_ASSERT_LESS_THAN_FLOAT(5.0 * 0.02, e_on);
+    TEST_ASSERT_GREATER_THAN_FLOAT(2.0 * e_on, e_off);
+}
+
 static void test_amplitude_and_phase_match_truth(void)
 {
     static hd_kf_t kf;
@@ -802,5 +839,6 @@ int main(void)
     RUN_TEST(test_config_validation_error_codes);
     RUN_TEST(test_block_disable_enable_keeps_others);
     RUN_TEST(test_amplitude_and_phase_match_truth);
+    RUN_TEST(test_recommended_load_step_goes_to_offset);
     return UNITY_END();
 }
