@@ -1,0 +1,205 @@
+"""ctypes binding of the firmware's filter pipeline (filter/hd_pipeline.h).
+
+The analysis never re-implements the filter: it replays data through the
+same C code the firmware runs (libhdfilter.so, target hdfilter_shared).
+
+The Structure classes below mirror the C structs field by field, in
+declaration order, so ctypes applies the same layout rules as the C
+compiler.  tests/tools/test_cfilter.py compiles a tiny C program that prints
+sizeof/offsetof of the real structs and compares them with these mirrors.
+
+Typical use:
+
+    from hdtools.analysis import cfilter
+    kf = cfilter.KfConfig.recommended(ts_s=1e-3, noise_nm=0.02)
+    out = cfilter.run(kf, cfilter.ExpectedConfig(), torque, d_motor, d_output)
+    out["torque_filtered_nm"], out["innovation_nm"], ...
+"""
+from __future__ import annotations
+
+import ctypes
+from ctypes import POINTER, c_float, c_int, c_size_t, c_uint, c_uint8, c_uint32
+
+import numpy as np
+
+from .. import native
+
+# Compile-time capacity of filter/hd_kf.h (HD_KF_MAX_BLOCKS default).
+MAX_BLOCKS = 8
+MAX_STATES = 2 * MAX_BLOCKS + 1
+DEFAULT_TRACK_BANDWIDTH_HZ = 20.0
+
+LOCK_MOTOR, LOCK_OUTPUT, LOCK_FIXED = 0, 1, 2
+LOCK_NAMES = {LOCK_MOTOR: "motor", LOCK_OUTPUT: "output", LOCK_FIXED: "fixed"}
+LOCK_BY_NAME = {v: k for k, v in LOCK_NAMES.items()}
+
+STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED = 1, 2, 4, 8
+
+
+class BlockConfig(ctypes.Structure):
+    """hd_kf_block_config_t"""
+    _fields_ = [("lock", c_uint8), ("enabled", c_uint8),
+                ("order", c_float), ("q_nm2", c_float)]
+
+
+class KfConfig(ctypes.Structure):
+    """hd_kf_config_t"""
+    _fields_ = [("blocks", BlockConfig * MAX_BLOCKS),
+                ("block_count", c_uint8),
+                ("offset_enabled", c_uint8),
+                ("offset_is_sensor_error", c_uint8),
+                ("offset_q_nm2", c_float),
+                ("r_nm2", c_float),
+                ("ts_s", c_float),
+                ("p0_nm2", c_float),
+                ("p_max_nm2", c_float),
+                ("nyquist_fraction", c_float)]
+
+    def add_block(self, lock: int, order: float, q_nm2: float) -> int:
+        if self.block_count >= MAX_BLOCKS:
+            raise ValueError(f"at most {MAX_BLOCKS} oscillator blocks")
+        b = self.blocks[self.block_count]
+        b.lock, b.enabled, b.order, b.q_nm2 = lock, 1, order, q_nm2
+        self.block_count += 1
+        return self.block_count - 1
+
+
+class KfState(ctypes.Structure):
+    """hd_kf_t (treated as opaque; mirrored only for its size/alignment)."""
+    _fields_ = [("cfg", KfConfig),
+                ("n_states", c_uint8),
+                ("active_blocks", c_uint8),
+                ("block_index", c_uint8 * MAX_BLOCKS),
+                ("offset_slot", c_uint8),
+                ("frozen_mask", c_uint32),
+                ("x", c_float * MAX_STATES),
+                ("p", (c_float * MAX_STATES) * MAX_STATES),
+                ("status_sticky", c_uint32),
+                ("reset_count", c_uint32),
+                ("bad_input_count", c_uint32)]
+
+
+class Track(ctypes.Structure):
+    """hd_track_t"""
+    _fields_ = [("ts_s", c_float), ("l1", c_float), ("l2", c_float), ("l3", c_float),
+                ("err_rad", c_float), ("vel_rad_s", c_float), ("acc_rad_s2", c_float)]
+
+
+class ExpectedConfig(ctypes.Structure):
+    """hd_expected_config_t (defaults: all zero, v_eps 0.01 rad/s)."""
+    _fields_ = [("inertia_kgm2", c_float), ("viscous_nm_s_rad", c_float),
+                ("coulomb_nm", c_float), ("coulomb_vel_eps_rad_s", c_float)]
+
+    def __init__(self, inertia_kgm2=0.0, viscous_nm_s_rad=0.0, coulomb_nm=0.0,
+                 coulomb_vel_eps_rad_s=0.01):
+        super().__init__(inertia_kgm2, viscous_nm_s_rad, coulomb_nm, coulomb_vel_eps_rad_s)
+
+
+class Pipeline(ctypes.Structure):
+    """hd_pipeline_t"""
+    _fields_ = [("kf", KfState), ("output_track", Track),
+                ("expected", ExpectedConfig), ("torque_expected_nm", c_float)]
+
+
+_FP = POINTER(c_float)
+
+
+class PipelineIO(ctypes.Structure):
+    """hd_pipeline_io_t"""
+    _fields_ = [("n", c_size_t),
+                ("torque_meas_nm", _FP), ("d_motor_angle_rad", _FP),
+                ("d_output_angle_rad", _FP), ("feedforward_nm", _FP),
+                ("torque_filtered_nm", _FP), ("ripple_nm", _FP), ("offset_nm", _FP),
+                ("innovation_nm", _FP), ("innovation_var_nm2", _FP),
+                ("torque_expected_nm", _FP), ("output_velocity_rad_s", _FP),
+                ("amplitude_nm", _FP), ("status", POINTER(c_uint))]
+
+
+_LIB = None
+
+
+def lib() -> ctypes.CDLL:
+    """libhdfilter.so with argument types declared (loaded once)."""
+    global _LIB
+    if _LIB is None:
+        L = native.load_library("hdfilter")
+        L.hd_pipeline_init.argtypes = [POINTER(Pipeline), POINTER(KfConfig),
+                                       POINTER(ExpectedConfig), c_float]
+        L.hd_pipeline_init.restype = c_int
+        L.hd_pipeline_run.argtypes = [POINTER(Pipeline), POINTER(PipelineIO)]
+        L.hd_pipeline_run.restype = None
+        L.hd_kf_config_check.argtypes = [POINTER(KfConfig)]
+        L.hd_kf_config_check.restype = c_int
+        L.hd_kf_err_str.argtypes = [c_int]
+        L.hd_kf_err_str.restype = ctypes.c_char_p
+        _LIB = L
+    return _LIB
+
+
+def default_config(ts_s: float) -> KfConfig:
+    """Same values as hd_kf_config_default: no blocks, R 1, p0 10, p_max 1e6,
+    nyquist 0.9, offset off (q 1e-6 if enabled)."""
+    cfg = KfConfig()
+    cfg.r_nm2, cfg.ts_s, cfg.p0_nm2, cfg.p_max_nm2 = 1.0, ts_s, 10.0, 1e6
+    cfg.nyquist_fraction, cfg.offset_q_nm2 = 0.9, 1e-6
+    return cfg
+
+
+class FilterError(ValueError):
+    pass
+
+
+def check(cfg: KfConfig) -> None:
+    err = lib().hd_kf_config_check(ctypes.byref(cfg))
+    if err != 0:
+        raise FilterError(f"filter configuration rejected: {lib().hd_kf_err_str(err).decode()}")
+
+
+OUTPUTS = ("torque_filtered_nm", "ripple_nm", "offset_nm", "innovation_nm",
+           "innovation_var_nm2", "torque_expected_nm", "output_velocity_rad_s")
+
+
+def _fptr(a):
+    return a.ctypes.data_as(_FP)
+
+
+def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_output_rad,
+        feedforward_nm=None, track_bandwidth_hz: float = DEFAULT_TRACK_BANDWIDTH_HZ,
+        amplitudes: bool = False) -> dict:
+    """Replays one contiguous, uniformly sampled segment through
+    hd_pipeline_run (one C call).  Returns float32 arrays named as in
+    hd_pipeline_io_t, plus "status" (uint32) and, if amplitudes, "amplitude_nm"
+    (n x MAX_BLOCKS)."""
+    L = lib()
+    n = len(torque_nm)
+    p = Pipeline()
+    err = L.hd_pipeline_init(ctypes.byref(p), ctypes.byref(cfg), ctypes.byref(expected),
+                             float(track_bandwidth_hz))
+    if err != 0:
+        msg = {-100: "bad tracker bandwidth for this sample rate",
+               -101: "bad expected-torque configuration"}.get(
+                   err, L.hd_kf_err_str(err).decode())
+        raise FilterError(f"hd_pipeline_init failed ({err}): {msg}")
+    ins = [np.ascontiguousarray(a, dtype=np.float32)
+           for a in (torque_nm, d_motor_rad, d_output_rad)]
+    for a in ins:
+        if len(a) != n:
+            raise ValueError("input arrays differ in length")
+    ff = None if feedforward_nm is None else np.ascontiguousarray(feedforward_nm, np.float32)
+    outs = {k: np.empty(n, np.float32) for k in OUTPUTS}
+    status = np.empty(n, np.uint32)
+    io = PipelineIO()
+    io.n = n
+    io.torque_meas_nm, io.d_motor_angle_rad, io.d_output_angle_rad = map(_fptr, ins)
+    io.feedforward_nm = _fptr(ff) if ff is not None else None
+    for k, a in outs.items():
+        setattr(io, k, _fptr(a))
+    if amplitudes:
+        outs["amplitude_nm"] = np.empty((n, MAX_BLOCKS), np.float32)
+        io.amplitude_nm = _fptr(outs["amplitude_nm"])
+    io.status = status.ctypes.data_as(POINTER(c_uint))
+    L.hd_pipeline_run(ctypes.byref(p), ctypes.byref(io))
+    outs["status"] = status
+    outs["reset_count"] = int(p.kf.reset_count)
+    outs["bad_input_count"] = int(p.kf.bad_input_count)
+    return outs

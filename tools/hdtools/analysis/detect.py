@@ -1,0 +1,365 @@
+"""Find structure the model lacks in the residual and trace it to an effect
+by its signature.
+
+Lines (spectra of the model residual r = filtered - expected):
+  * a line locked to the motor angle is sharp in the motor-angle order
+    spectrum; locked to the output angle, sharp in the output-angle order
+    spectrum (the two are one spectrum rescaled by the gear ratio when only
+    one encoder exists: then the physically plausible reading wins, integer
+    motor orders >= 1 for the wave generator, integer output orders for the
+    output side);
+  * a fixed-frequency line (electrical pickup) is sharp in the time spectrum
+    and smeared in the order spectra when the speed varies.
+  At (nearly) constant speed the two readings cannot be told apart: the
+  finding says so (`ambiguous`) and the integer-order reading is preferred.
+
+Slow terms (regression of the low-passed residual):
+  velocity (viscous + Coulomb), acceleration (inertia error), and a linear
+  trend in time (offset drift); a polynomial in the output angle is fitted
+  alongside as a nuisance when the joint moves back and forth (gravity).
+
+Every candidate carries its evidence: peak-over-floor power ratios in each
+domain, the least-squares amplitude and explained fraction, the speed
+variation.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import spectra
+
+LINE_MIN_RATIO = 30.0       # peak power over the local floor (~15 dB)
+MIN_EXPLAINED = 0.002       # line must explain >= 0.2 % of residual variance
+SPEED_VARIES = 0.05         # (p90 - p10) / median motor speed above this
+SHARPNESS_FACTOR = 4.0      # ratio in the right domain over the other
+SLOW_MIN_PARTIAL = 0.02     # slow term must explain >= 2 % of slow residual variance
+INTEGER_TOL = 0.03
+# Below this a fixed-frequency line may well be real periodic load torque
+# (a repeated motion, a vibration): it is reported but not removed.
+FIXED_MIN_HZ = 20.0
+BAND_BINS = 4               # half-width of the band around an existing block
+
+
+@dataclass
+class Candidate:
+    kind: str                     # motor_order | output_order | fixed_frequency | velocity | acceleration | offset_drift
+    order: float = float("nan")   # cycles per rev of its lock (order kinds) or Hz (fixed)
+    amplitude_nm: float = 0.0
+    score: float = 0.0
+    action: str = "add_block"     # add_block | retune_block | expected_torque | offset_sensor_error
+    evidence: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+
+    def key(self):
+        if self.kind in ("motor_order", "output_order", "fixed_frequency"):
+            return (self.kind, round(self.order, 2), self.action)
+        # Slow terms may be refined once the model has changed: the key
+        # includes the proposed values (to 2 significant digits).
+        return (self.kind, self.action) + tuple(
+            float(f"{v:.2g}") for _, v in sorted(self.params.items()))
+
+
+def _near_int(x, tol=INTEGER_TOL):
+    return x >= 0.5 and abs(x - round(x)) <= tol
+
+
+@dataclass
+class Context:
+    ts_s: float
+    gear_ratio: float
+    signals: list          # residual per piece (after warm-up)
+    motor_angle: list
+    output_angle: list
+    time: list             # t per piece
+    velocity: list         # output velocity per piece (tracker)
+    torque: list           # measured torque per piece
+    motor_speed_median: float
+    motor_speed_spread: float
+    spec_motor: object = None
+    spec_output: object = None
+    spec_time: object = None
+
+
+def build_context(runs, ts_s, gear_ratio) -> Context:
+    sig, thm, tho, tt, vel, tq = [], [], [], [], [], []
+    for r in runs:
+        w = r.warm
+        sig.append(r.residual[w:])
+        thm.append(r.motor_angle_rad[w:])
+        tho.append(r.output_angle_rad[w:])
+        tt.append(np.asarray(r.t_s[w:], float))
+        vel.append(r.out["output_velocity_rad_s"][w:].astype(float))
+        tq.append(np.asarray(r.torque_nm[w:], float))
+    speeds = np.concatenate([np.abs(np.diff(m)) / ts_s for m in thm if len(m) > 1])
+    moving = speeds[speeds > 0.05 * (np.max(speeds) if len(speeds) else 0)]
+    med = float(np.median(moving)) if len(moving) else 0.0
+    spread = float((np.percentile(moving, 90) - np.percentile(moving, 10)) / med) if med else 0.0
+    ctx = Context(ts_s, gear_ratio, sig, thm, tho, tt, vel, tq, med, spread)
+    ctx.spec_motor = spectra.order_spectrum(sig, thm)
+    ctx.spec_output = spectra.order_spectrum(sig, tho)
+    ctx.spec_time = spectra.time_spectrum(sig, ts_s)
+    return ctx
+
+
+def phases(ctx: Context, kind: str, order: float):
+    if kind == "motor_order":
+        return [order * m for m in ctx.motor_angle]
+    if kind == "output_order":
+        return [order * o for o in ctx.output_angle]
+    return [2 * math.pi * order * t for t in ctx.time]
+
+
+def _refine(ctx, kind, order, step):
+    """Order/frequency that maximises the least-squares line amplitude
+    within +-1 spectral bin."""
+    best = (-1.0, order)
+    for o in order + step * np.linspace(-1, 1, 11):
+        if o <= 0:
+            continue
+        amp, _, _ = spectra.fit_line(_decimated(ctx.signals), _decimated(phases(ctx, kind, o)))
+        if amp > best[0]:
+            best = (amp, o)
+    return best[1]
+
+
+def _decimated(lst, max_total=400_000):
+    total = sum(len(x) for x in lst)
+    k = max(1, int(math.ceil(total / max_total)))
+    return [x[::k] for x in lst]
+
+
+def line_candidates(ctx: Context, model) -> list[Candidate]:
+    fs = 1.0 / ctx.ts_s
+    nyq_hz = 0.45 * fs
+    speed_hz = ctx.motor_speed_median / (2 * math.pi)   # motor revs per second
+    ratio = ctx.gear_ratio
+    raw = []
+    if ctx.spec_motor is not None and speed_hz > 0:
+        lo = 3 * ctx.spec_motor.resolution
+        for p in spectra.find_peaks(ctx.spec_motor, LINE_MIN_RATIO, lo, nyq_hz / speed_hz):
+            raw.append(("angle", p["at"], p))
+    if ctx.spec_time is not None:
+        lo = 3 * ctx.spec_time.resolution
+        for p in spectra.find_peaks(ctx.spec_time, LINE_MIN_RATIO, lo, nyq_hz):
+            raw.append(("time", p["at"], p))
+    cands = []
+    seen = set()
+    varies = ctx.motor_speed_spread > SPEED_VARIES
+    for domain, at, peak in raw:
+        if domain == "angle":
+            f_equiv = at * speed_hz
+            motor_order = at
+        else:
+            f_equiv = at
+            motor_order = at / speed_hz if speed_hz else float("nan")
+        r_angle, _ = spectra.peak_ratio_at(ctx.spec_motor, motor_order)
+        r_out, _ = spectra.peak_ratio_at(ctx.spec_output, motor_order * ratio)
+        r_time, _ = spectra.peak_ratio_at(ctx.spec_time, f_equiv)
+        r_angle = max(r_angle, r_out)
+        ev = {"peak_ratio_order_spectrum": round(r_angle, 1),
+              "peak_ratio_time_spectrum": round(r_time, 1),
+              "speed_spread": round(ctx.motor_speed_spread, 3),
+              "found_in": "order spectrum" if domain == "angle" else "time spectrum"}
+        if varies and r_time > SHARPNESS_FACTOR * r_angle:
+            kind, order = "fixed_frequency", f_equiv
+        elif varies and r_angle > SHARPNESS_FACTOR * r_time:
+            kind, order = _angle_kind(motor_order, ratio)
+        else:
+            ev["ambiguous"] = ("speed nearly constant" if not varies else
+                               "equally sharp in order and time spectra")
+            k2, o2 = _angle_kind(motor_order, ratio)
+            integer = _near_int(o2)
+            kind, order = (k2, o2) if integer or domain == "angle" else ("fixed_frequency", f_equiv)
+        step = (ctx.spec_time.resolution if kind == "fixed_frequency" else
+                ctx.spec_motor.resolution * (ratio if kind == "output_order" else 1.0))
+        order = _refine(ctx, kind, order, step)
+        if kind != "fixed_frequency" and _near_int(order, max(0.5 * step, INTEGER_TOL)):
+            order = float(round(order))
+        key = (kind, round(order, 1))
+        if key in seen:
+            continue
+        seen.add(key)
+        amp, ph, expl = spectra.fit_line(_decimated(ctx.signals),
+                                         _decimated(phases(ctx, kind, order)))
+        if expl < MIN_EXPLAINED:
+            continue
+        ev.update({"fit_amplitude_nm": round(amp, 5), "fit_explained_fraction": round(expl, 4)})
+        action = "add_block"
+        lock = {"motor_order": "motor", "output_order": "output", "fixed_frequency": "fixed"}[kind]
+        for i, b in enumerate(model.blocks):
+            tol = max(step, 0.01 * b.order)
+            if b.lock == lock and abs(b.order - order) <= tol:
+                action = "retune_block"
+                order = b.order
+                ev["existing_block"] = i
+        if kind == "fixed_frequency" and order >= 0.5 * fs * model.nyquist_fraction:
+            continue
+        if kind == "fixed_frequency" and order < FIXED_MIN_HZ:
+            action = "report_only"
+            ev["not_added_because"] = (f"below {FIXED_MIN_HZ:g} Hz a fixed-frequency line may "
+                                       "be real periodic torque (repeated motion, vibration)")
+        cands.append(Candidate(kind, float(order), amp, score=r_angle if kind != "fixed_frequency"
+                               else r_time, action=action, evidence=ev))
+    return cands
+
+
+def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
+    """Residue around an existing block: power in a band of +-BAND_BINS
+    bins around its order over the floor just outside.  A block that lags a
+    ripple whose amplitude moves (e.g. with load) leaves sidebands here."""
+    out = []
+    for i, b in enumerate(model.blocks):
+        if b.lock == "fixed":
+            spec, at = ctx.spec_time, b.order
+        elif b.lock == "motor":
+            spec, at = ctx.spec_motor, b.order
+        else:
+            spec, at = ctx.spec_output, b.order
+        if spec is None:
+            continue
+        df = spec.axis[1] - spec.axis[0]
+        j = int(round((at - spec.axis[0]) / df))
+        if j - 3 * BAND_BINS < 1 or j + 3 * BAND_BINS >= len(spec.axis):
+            continue
+        band = spec.amp2[j - BAND_BINS:j + BAND_BINS + 1].sum()
+        a, z = max(j - spectra.FLOOR_HALF_WIDTH * 2, 0), min(j + spectra.FLOOR_HALF_WIDTH * 2 + 1,
+                                                              len(spec.axis))
+        outside = np.r_[spec.amp2[a:j - 2 * BAND_BINS], spec.amp2[j + 2 * BAND_BINS + 1:z]]
+        floor = np.median(outside) * (2 * BAND_BINS + 1)
+        ratio = float(band / max(floor, 1e-30))
+        if ratio < LINE_MIN_RATIO:
+            continue
+        kind = {"motor": "motor_order", "output": "output_order", "fixed": "fixed_frequency"}[b.lock]
+        amp = math.sqrt(band)
+        ev = {"band_ratio": round(ratio, 1), "band_rms_nm": round(amp / math.sqrt(2), 5),
+              "existing_block": i,
+              "note": "residue around a modelled line: its amplitude or phase moves faster "
+                      "than the block follows"}
+        # Does the ripple amplitude follow the load?  Correlate the
+        # residue's envelope with |torque|.
+        ph = phases(ctx, kind, b.order)
+        env, load = [], []
+        win = max(8, int(round(0.1 / ctx.ts_s)))
+        for x, p_, tq in zip(ctx.signals, ph, ctx.torque):
+            m = (len(x) // win) * win
+            if m < 2 * win:
+                continue
+            c = (x[:m] * np.cos(p_[:m])).reshape(-1, win).mean(1)
+            s_ = (x[:m] * np.sin(p_[:m])).reshape(-1, win).mean(1)
+            env.append(2 * np.hypot(c, s_))
+            load.append(np.abs(tq[:m]).reshape(-1, win).mean(1))
+        if env:
+            e, l_ = np.concatenate(env), np.concatenate(load)
+            if np.std(e) > 0 and np.std(l_) > 0:
+                ev["envelope_load_correlation"] = round(float(np.corrcoef(e, l_)[0, 1]), 3)
+        out.append(Candidate(kind, b.order, amp, score=ratio, action="retune_block", evidence=ev))
+    return out
+
+
+def _angle_kind(motor_order, ratio):
+    """Motor or output reading of an angle-locked line."""
+    out_order = motor_order * ratio
+    if motor_order >= 0.75:
+        return "motor_order", motor_order
+    return "output_order", out_order
+
+
+def slow_candidates(ctx: Context, model) -> list[Candidate]:
+    """Regression of the low-passed residual on velocity terms, acceleration
+    and time (plus nuisances)."""
+    dec = max(1, int(round(0.02 / ctx.ts_s)))
+    ys, cols, groups = [], [], []
+    eps = model.coulomb_vel_eps_rad_s
+    for k, (r, v, t, tho) in enumerate(zip(ctx.signals, ctx.velocity, ctx.time, ctx.output_angle)):
+        m = (len(r) // dec) * dec
+        if m < 4 * dec:
+            continue
+        blk = lambda x: np.asarray(x[:m], float).reshape(-1, dec).mean(axis=1)
+        rb, vb, tb, ob = blk(r), blk(v), blk(t), blk(tho)
+        ab = np.gradient(vb, dec * ctx.ts_s)
+        ys.append(rb)
+        cols.append({"velocity_viscous": vb, "velocity_coulomb": vb / (np.abs(vb) + eps),
+                     "acceleration": ab, "time": tb, "angle": ob})
+        groups.append(k)
+    if not ys:
+        return []
+    y = np.concatenate(ys)
+    n = len(y)
+    X = {name: np.concatenate([c[name] for c in cols]) for name in cols[0]}
+    # Nuisance: a constant per piece; a cubic in output angle when the
+    # joint moves back and forth over less than a turn (gravity).
+    nuis = []
+    offs = np.cumsum([0] + [len(a) for a in ys])
+    for a, b in zip(offs[:-1], offs[1:]):
+        c = np.zeros(n)
+        c[a:b] = 1
+        nuis.append(c)
+    th = X["angle"]
+    reciprocating = np.ptp(th) < 2 * math.pi
+    if reciprocating:
+        thn = (th - th.mean()) / (np.ptp(th) / 2 + 1e-12)
+        nuis += [thn, thn ** 2, thn ** 3]
+    terms = {}
+    vv = X["velocity_viscous"]
+    both_ways = min(np.mean(vv > 0), np.mean(vv < 0)) > 0.05
+    if np.std(vv) > 1e-6:
+        # Coulomb friction is a step at reversals: without both directions
+        # it is indistinguishable from a constant.
+        terms["velocity"] = [vv, X["velocity_coulomb"]] if both_ways else [vv]
+    if np.std(X["acceleration"]) > 1e-6:
+        terms["acceleration"] = [X["acceleration"]]
+    tvals = X["time"]
+    if np.ptp(tvals) > 0:
+        terms["offset_drift"] = [tvals - tvals.mean()]
+    if not terms:
+        return []
+    names = list(terms)
+
+    def rss(include):
+        A = np.vstack(nuis + [c for nm in include for c in terms[nm]]).T
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        res = y - A @ coef
+        return float(res @ res), coef
+    rss_nuis, _ = rss([])
+    rss_full, coef_full = rss(names)
+    if rss_nuis <= 0:
+        return []
+    cands = []
+    base = len(nuis)
+    idx = base
+    coef_of = {}
+    for nm in names:
+        coef_of[nm] = coef_full[idx:idx + len(terms[nm])]
+        idx += len(terms[nm])
+    for nm in names:
+        others = [o for o in names if o != nm]
+        rss_wo, _ = rss(others)
+        partial = (rss_wo - rss_full) / rss_nuis
+        contrib = sum(c * x for c, x in zip(coef_of[nm], terms[nm]))
+        amp = float(np.std(contrib))
+        ev = {"partial_explained_fraction": round(partial, 4),
+              "slow_residual_rms_nm": round(math.sqrt(rss_nuis / n), 5),
+              "gravity_nuisance": bool(reciprocating)}
+        if partial < SLOW_MIN_PARTIAL:
+            continue
+        c = Candidate(nm, amplitude_nm=amp, score=partial * 100, evidence=ev)
+        if nm == "velocity":
+            co = [float(x) for x in coef_of[nm]]
+            c.params = {"viscous_nm_s_rad": co[0]}
+            if len(co) > 1:
+                c.params["coulomb_nm"] = co[1]
+            c.action = "expected_torque"
+        elif nm == "acceleration":
+            c.params = {"inertia_kgm2": float(coef_of[nm][0])}
+            c.action = "expected_torque"
+        else:
+            slope = float(coef_of[nm][0])
+            c.params = {"drift_nm_per_s": slope}
+            c.action = "offset_sensor_error"
+            ev["trend_excursion_nm"] = round(abs(slope) * float(np.ptp(tvals)), 5)
+            ev["residual_after_trend_rms_nm"] = round(math.sqrt(rss_full / n), 5)
+        cands.append(c)
+    return cands

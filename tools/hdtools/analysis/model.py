@@ -1,0 +1,167 @@
+"""The filter model the analysis starts from and augments, and its firmware
+forms: the configuration text of docs/firmware.md (hdjoint-host --config)
+and the equivalent CAN command frames (candump `ID#DATA` notation)."""
+from __future__ import annotations
+
+import copy
+import math
+import struct
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from . import cfilter
+
+# Default tuning (hd_kf_config_recommended): each ripple block settles in
+# ~RIPPLE_SETTLE_S, the offset state (real torque the expected-torque model
+# misses) in ~OFFSET_SETTLE_S.  q = R (ts / settle)^2.
+RIPPLE_SETTLE_S = 0.05
+OFFSET_SETTLE_S = 0.05
+SENSOR_DRIFT_SETTLE_S = 10.0   # offset as a slow sensor-zero estimate
+
+
+@dataclass
+class Block:
+    lock: str          # motor | output | fixed
+    order: float       # cycles per rev, or Hz for fixed
+    q_nm2: float
+
+    def label(self) -> str:
+        unit = "Hz" if self.lock == "fixed" else "/rev"
+        return f"{self.lock} {self.order:g}{unit}"
+
+
+@dataclass
+class Model:
+    gear_ratio: float
+    ts_s: float
+    r_nm2: float
+    blocks: list[Block] = field(default_factory=list)
+    offset_enabled: bool = True
+    offset_q_nm2: float = 0.0
+    offset_is_sensor_error: bool = False
+    p0_nm2: float = 10.0
+    p_max_nm2: float = 1e6
+    nyquist_fraction: float = 0.9
+    inertia_kgm2: float = 0.0
+    viscous_nm_s_rad: float = 0.0
+    coulomb_nm: float = 0.0
+    coulomb_vel_eps_rad_s: float = 0.01
+    track_bandwidth_hz: float = cfilter.DEFAULT_TRACK_BANDWIDTH_HZ
+
+    @classmethod
+    def starting(cls, gear_ratio, ts_s, noise_nm, motor_orders, output_orders,
+                 inertia_kgm2=0.0):
+        """The paper's structure (given orders) with the project's recommended
+        tuning for the measured noise level."""
+        r = max(noise_nm, 1e-6) ** 2
+        q = cls.q_for_settle(r, ts_s, RIPPLE_SETTLE_S)
+        m = cls(gear_ratio=gear_ratio, ts_s=ts_s, r_nm2=r,
+                offset_q_nm2=cls.q_for_settle(r, ts_s, OFFSET_SETTLE_S),
+                inertia_kgm2=inertia_kgm2)
+        m.blocks = [Block("motor", float(o), q) for o in motor_orders]
+        m.blocks += [Block("output", float(o), q) for o in output_orders]
+        # The tracker needs w ts <= 0.5 (hd_track.h).
+        m.track_bandwidth_hz = min(cfilter.DEFAULT_TRACK_BANDWIDTH_HZ, 0.07 / ts_s)
+        return m
+
+    @staticmethod
+    def q_for_settle(r_nm2, ts_s, settle_s):
+        ratio = min(ts_s / settle_s, 0.5)
+        return r_nm2 * ratio * ratio
+
+    def copy(self) -> "Model":
+        return copy.deepcopy(self)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["blocks"] = [asdict(b) for b in self.blocks]
+        return d
+
+    # --- C filter -----------------------------------------------------------
+    def kf_config(self, ts_s: float | None = None) -> cfilter.KfConfig:
+        ts = ts_s or self.ts_s
+        cfg = cfilter.default_config(ts)
+        cfg.r_nm2, cfg.p0_nm2, cfg.p_max_nm2 = self.r_nm2, self.p0_nm2, self.p_max_nm2
+        cfg.nyquist_fraction = self.nyquist_fraction
+        cfg.offset_enabled = int(self.offset_enabled)
+        cfg.offset_q_nm2 = self.offset_q_nm2
+        cfg.offset_is_sensor_error = int(self.offset_is_sensor_error)
+        for b in self.blocks:
+            cfg.add_block(cfilter.LOCK_BY_NAME[b.lock], b.order, b.q_nm2)
+        return cfg
+
+    def expected_config(self) -> cfilter.ExpectedConfig:
+        return cfilter.ExpectedConfig(self.inertia_kgm2, self.viscous_nm_s_rad,
+                                      self.coulomb_nm, self.coulomb_vel_eps_rad_s)
+
+    # --- firmware forms -----------------------------------------------------
+    def config_text(self) -> str:
+        lines = ["# Filter model written by `hdsense analyze` (docs/analyze.md).",
+                 "# Load with: hdjoint-host --config FILE",
+                 f"gear_ratio = {self.gear_ratio:.6g}",
+                 f"r_nm2 = {self.r_nm2:.6g}",
+                 f"p0_nm2 = {self.p0_nm2:.6g}",
+                 f"p_max_nm2 = {self.p_max_nm2:.6g}",
+                 f"nyquist_fraction = {self.nyquist_fraction:.6g}",
+                 f"offset = {'on' if self.offset_enabled else 'off'}",
+                 f"offset_q_nm2 = {self.offset_q_nm2:.6g}",
+                 f"offset_is_sensor_error = {'on' if self.offset_is_sensor_error else 'off'}"]
+        for b in self.blocks:
+            lines.append(f"block = {b.lock} {b.order:.6g} {b.q_nm2:.6g}")
+        lines += [f"inertia_kgm2 = {self.inertia_kgm2:.6g}",
+                  f"viscous_nm_s_rad = {self.viscous_nm_s_rad:.6g}",
+                  f"coulomb_nm = {self.coulomb_nm:.6g}",
+                  f"coulomb_vel_eps_rad_s = {self.coulomb_vel_eps_rad_s:.6g}",
+                  f"track_bandwidth_hz = {self.track_bandwidth_hz:.6g}"]
+        return "\n".join(lines) + "\n"
+
+    def can_commands(self, node_id: int = 1) -> list[dict]:
+        """CAN CMD frames (docs/firmware.md) that put this model into a
+        running joint.  p_max, nyquist_fraction, offset_is_sensor_error and
+        v_eps have no CAN command: they are listed in `not_settable`."""
+        cmd_id = 0x600 + node_id
+        frames = []
+        token = 0
+
+        def frame(opcode, b2=0, b3=0, tail=b"\0\0\0\0", what=""):
+            nonlocal token
+            token = (token + 1) & 0xFF
+            data = bytes([opcode, token, b2 & 0xFF, b3 & 0xFF]) + tail
+            frames.append({"candump": f"{cmd_id:03X}#{data.hex().upper()}", "what": what})
+
+        def set_param(pid, value, name):
+            frame(0x20, pid, 0, struct.pack("<f", value), f"SET_PARAM {name} = {value:.6g}")
+
+        set_param(2, self.gear_ratio, "GEAR_RATIO")
+        set_param(1, self.r_nm2, "R_NM2")
+        set_param(8, self.p0_nm2, "P0_NM2")
+        set_param(6, 1.0 if self.offset_enabled else 0.0, "OFFSET_ENABLED")
+        set_param(7, self.offset_q_nm2, "OFFSET_Q_NM2")
+        set_param(3, self.inertia_kgm2, "INERTIA_KGM2")
+        set_param(4, self.viscous_nm_s_rad, "VISCOUS_NM_S_RAD")
+        set_param(5, self.coulomb_nm, "COULOMB_NM")
+        set_param(9, self.track_bandwidth_hz, "TRACK_BANDWIDTH_HZ")
+        frame(0x14, what="BLOCKS_CLEAR")
+        op = {"motor": 0x10, "output": 0x11, "fixed": 0x12}
+        for b in self.blocks:
+            o100 = int(round(b.order * 100))
+            if not 0 < o100 <= 0xFFFF:
+                raise ValueError(f"block {b.label()}: order not representable on CAN")
+            frame(op[b.lock], o100 & 0xFF, o100 >> 8, struct.pack("<f", b.q_nm2),
+                  f"ADD_{b.lock.upper()} {o100 / 100:g} q={b.q_nm2:.6g}")
+        return frames
+
+    def not_settable_over_can(self) -> list[str]:
+        return ["p_max_nm2", "nyquist_fraction", "offset_is_sensor_error",
+                "coulomb_vel_eps_rad_s"]
+
+
+def estimate_noise_nm(torque_nm: np.ndarray) -> float:
+    """White-noise level from the third difference (removes smooth torque
+    and, mostly, ripple well below Nyquist): std(d3) = sigma sqrt(20)."""
+    d3 = np.diff(np.asarray(torque_nm, float), 3)
+    if len(d3) < 8:
+        return float(np.std(torque_nm)) or 1.0
+    mad = np.median(np.abs(d3 - np.median(d3))) * 1.4826
+    return float(mad / math.sqrt(20.0))
