@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Builds the SocketCAN test VM from Debian packages (idempotent, cached).
 #
-#   tests/vm/build-vm.sh OUTDIR [EXECUTABLE...]
+#   tests/vm/build-vm.sh OUTDIR [EXECUTABLE | SRC=DEST ...]
 #
 # Produces OUTDIR/vmlinuz and OUTDIR/initrd.cpio.gz: a Debian bookworm
 # kernel (downloaded with apt-get download, unpacked with dpkg-deb -x, never
 # installed), busybox-static, the CAN modules (can-dev, vcan, can, can-raw),
-# tests/vm/init.sh as /init, and the given executables in /bin.  Dynamic
-# executables get their shared libraries copied too (static ones need none).
+# tests/vm/init.sh as /init, the given executables in /bin, and data files
+# given as SRC=DEST (absolute DEST inside the image).  Dynamic executables get
+# their loader and shared libraries copied too (static ones need none).
 #
 # Downloads are cached in $HD_VM_CACHE (default: <repo>/build/vm/cache), so
 # only the first run needs the network (deb.debian.org).
@@ -92,7 +93,16 @@ done
 cp "$here/init.sh" "$stage/init"
 chmod 755 "$stage/init"
 
-for exe in "$@"; do
+for item in "$@"; do
+  case $item in
+    *=*)
+      src=${item%%=*} dest=${item#*=}
+      [ -f "$src" ] || die "data file '$src' not found"
+      mkdir -p "$stage$(dirname "$dest")"
+      cp "$src" "$stage$dest"
+      continue ;;
+  esac
+  exe=$item
   [ -x "$exe" ] || die "executable '$exe' not found (build the vm test targets first)"
   cp "$exe" "$stage/bin/"
   # Dynamic executables: copy the loader and libraries to the same paths.
