@@ -55,8 +55,8 @@ static void lsq_solve(const design_t *d, const float *y, lsq_t *out)
     float q[LSQ_MAX_COLS][HD_CALIB_MAX_POINTS];
     float r[LSQ_MAX_COLS][LSQ_MAX_COLS];
     float z[HD_CALIB_MAX_POINTS];
-    float c[LSQ_MAX_COLS];
-    uint32_t idx[LSQ_MAX_COLS];
+    float c[LSQ_MAX_COLS] = {0.0f};
+    uint32_t idx[LSQ_MAX_COLS] = {0u};
     uint32_t k = 0;
     const uint32_t n = d->n;
 
@@ -96,7 +96,7 @@ static void lsq_solve(const design_t *d, const float *y, lsq_t *out)
     }
     out->rss = dot(z, z, n);
     /* Back substitution R b = c. */
-    float b[LSQ_MAX_COLS];
+    float b[LSQ_MAX_COLS] = {0.0f};
     for (uint32_t mm = k; mm-- > 0;) {
         float s = c[mm];
         for (uint32_t l = mm + 1u; l < k; ++l) {
