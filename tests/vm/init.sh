@@ -7,7 +7,7 @@ export PATH=/bin
 mount -t proc proc /proc
 mount -t sysfs sysfs /sys
 mount -t devtmpfs devtmpfs /dev 2>/dev/null
-echo "HDVM: booted kernel $(uname -r)"
+echo "HDVM: booted kernel $(uname -r), guest uptime $(cut -d" " -f1 /proc/uptime) s"
 for m in can-dev vcan can can-raw; do
   insmod /lib/modules/$m.ko || echo "HDVM: insmod $m failed"
 done
@@ -19,4 +19,5 @@ if [ -x /bin/hd_vm_can_test ]; then
 else
   echo "HDVM: VERDICT FAIL (no /bin/hd_vm_can_test in the image)"
 fi
+echo "HDVM: guest uptime at poweroff $(cut -d" " -f1 /proc/uptime) s"
 poweroff -f
