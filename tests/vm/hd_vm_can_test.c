@@ -542,6 +542,7 @@ int main(int argc, char **argv)
     dump_file("host-summary", g_host_out);
     dump_file("capture", g_capture);
     dump_file("csv", g_csv);
+    printf("HDVM: test + console dump time in the VM %.2f s\n", now_s() - t0);
     verdict_exit(g_failures == 0);
     return g_failures == 0 ? 0 : 1;
 }

@@ -42,7 +42,7 @@ end=$(date +%s.%N)
 wall=$(echo "$end - $start" | bc 2>/dev/null || awk "BEGIN{print $end - $start}")
 echo "$wall" >"$out/wall_time_s"
 echo "vm: QEMU exit code $rc after ${wall} s (boot + test, TCG)"
-grep -E '^HDVM: (ok  |FAIL|booted|runner|test time|VERDICT|insmod|ip link|hd_vm)' "$log" 2>/dev/null | grep -v '^HDVM: ok  ' || true
+grep -E '^HDVM: (ok  |FAIL|booted|runner|test|VERDICT|insmod|ip link|hd_vm)' "$log" 2>/dev/null | grep -v '^HDVM: ok  ' || true
 echo "vm: $(grep -c '^HDVM: ok  ' "$log" 2>/dev/null || echo 0) checks passed in the guest"
 
 case $rc in
