@@ -1,0 +1,247 @@
+/*
+ * hd_bench: instruction-count benchmark image (no SysTick: nothing
+ * interrupts a measured interval).  Run it in QEMU with the counting plugin
+ * (tools/qemu-plugin/hdcount.c); `tools/target budget` does both and prints
+ * the table.
+ *
+ * For each model size it measures, call by call, between the markers
+ * hd_mark_begin / hd_mark_end (board.h):
+ *   kf:NAME     hd_kf_step alone (the filter update)
+ *   isr:NAME    hd_fw_isr, the whole 1 kHz tick: sensors (hal_mock), encoder
+ *               deltas, tracker, expected torque, filter, faults, telemetry
+ *               (2 frames per tick at 1 kHz) and the heartbeat on tick 0
+ *   isrcmd:NAME hd_fw_isr with HD_FW_RX_PER_TICK (4) SET_PARAM commands
+ *               queued every tick (each answered with an ACK frame)
+ *   dense:NAME  the dense textbook float32 filter (tests/target/dense_kf_f32.c)
+ * and "empty" (begin immediately followed by end) for the marker overhead.
+ * Before each section it prints "section LABEL STATES" on the console; the
+ * plugin closes the section at hd_mark_section.
+ *
+ * Models: 4 states (motor orders 2, 4), 6 (+ output order 1), 8 (+ motor
+ * order 6), default (the firmware's default: 3 blocks + offset = 7) and max
+ * (HD_KF_MAX_BLOCKS = 8 blocks + offset = 17).
+ */
+#include <stdbool.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "board.h"
+#include "board_io.h"
+#include "dense_kf_f32.h"
+#include "hal_mock.h"
+#include "hd_can_proto.h"
+#include "hd_fw.h"
+#include "hd_kf.h"
+#include "hd_trig.h"
+#include "semihost.h"
+
+#define CALLS 64u
+#define MOTOR_SPEED_RAD_S 156.0f /* the paper's test speed */
+
+typedef struct {
+    const char *name;
+    uint8_t motor_blocks;   /* motor orders 2, 4, 6, ... */
+    uint8_t output_blocks;  /* output orders 1, 2, ... */
+    uint8_t extra_motor;    /* motor orders 1, 3, 5, ... (the max model) */
+    uint8_t offset;
+    bool fw_default;        /* use hd_fw_config_default's model as is */
+} model_t;
+
+static const model_t MODELS[] = {
+    {"4", 2, 0, 0, 0, false},
+    {"6", 2, 1, 0, 0, false},
+    {"8", 3, 1, 0, 0, false},
+    {"default", 0, 0, 0, 0, true},
+    {"max", 4, 2, 2, 1, false},
+};
+
+static hd_fw_t g_fw;
+static hal_mock_t g_mock;
+static hal_t g_hal;
+static hd_kf_t g_kf;
+static dense_kf_t g_dense;
+
+static void section(const char *label, const char *model, uint32_t states)
+{
+    sh_puts("section ");
+    sh_puts(label);
+    sh_puts(":");
+    sh_puts(model);
+    board_print_u32(" ", states);
+}
+
+/* The model's filter configuration, on top of the firmware's defaults (noise,
+ * settle times, Nyquist limit), so kf, isr and dense run the same size. */
+static void model_config(const model_t *m, hd_fw_config_t *cfg)
+{
+    hd_fw_config_default(cfg);
+    if (m->fw_default) {
+        return;
+    }
+    float q_motor = cfg->kf.blocks[0].q_nm2;
+    float q_output = q_motor;
+    for (unsigned b = 0; b < cfg->kf.block_count; b++) {
+        if (cfg->kf.blocks[b].lock == HD_KF_LOCK_OUTPUT) {
+            q_output = cfg->kf.blocks[b].q_nm2;
+        }
+    }
+    cfg->kf.block_count = 0;
+    cfg->kf.offset_enabled = m->offset;
+    for (unsigned i = 0; i < m->motor_blocks; i++) {
+        (void)hd_kf_config_add_block(&cfg->kf, HD_KF_LOCK_MOTOR, 2.0f * (float)(i + 1u), q_motor);
+    }
+    for (unsigned i = 0; i < m->output_blocks; i++) {
+        (void)hd_kf_config_add_block(&cfg->kf, HD_KF_LOCK_OUTPUT, (float)(i + 1u), q_output);
+    }
+    for (unsigned i = 0; i < m->extra_motor; i++) {
+        (void)hd_kf_config_add_block(&cfg->kf, HD_KF_LOCK_MOTOR, 2.0f * (float)i + 1.0f, q_motor);
+    }
+}
+
+/* Ripple at motor orders 2 and 4 on a slow torque, at 156 rad/s. */
+static float test_torque_nm(uint32_t k, float motor_angle_rad)
+{
+    float s2, c2, s4, c4;
+    hd_sincosf(2.0f * motor_angle_rad, &s2, &c2);
+    hd_sincosf(4.0f * motor_angle_rad, &s4, &c4);
+    (void)c2;
+    (void)c4;
+    return 5.0f + 0.001f * (float)(k % 100u) + 1.0f * s2 + 0.5f * s4;
+}
+
+static void wrap_angle(float *a)
+{
+    if (*a > HD_PI_F) {
+        *a -= HD_TWO_PI_F;
+    }
+}
+
+static void bench_kf(const hd_fw_config_t *cfg)
+{
+    if (hd_kf_init(&g_kf, &cfg->kf) != HD_KF_OK) {
+        sh_exit(BOARD_EXIT_INIT);
+    }
+    float angle = 0.0f;
+    const float d_motor = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
+    for (uint32_t k = 0; k < CALLS; k++) {
+        hd_kf_input_t in;
+        memset(&in, 0, sizeof in);
+        in.torque_meas_nm = test_torque_nm(k, angle);
+        in.torque_expected_nm = 5.0f;
+        in.d_motor_angle_rad = d_motor;
+        in.d_output_angle_rad = d_motor / cfg->gear_ratio;
+        hd_kf_output_t out;
+        hd_mark_begin();
+        hd_kf_step(&g_kf, &in, &out);
+        hd_mark_end();
+        angle += d_motor;
+        wrap_angle(&angle);
+    }
+}
+
+static void bench_dense(const hd_fw_config_t *cfg)
+{
+    float orders[DENSE_KF_MAX_BLOCKS];
+    unsigned blocks = cfg->kf.block_count;
+    for (unsigned b = 0; b < blocks; b++) {
+        /* one angle for all blocks: output orders scaled to motor orders */
+        orders[b] = cfg->kf.blocks[b].lock == HD_KF_LOCK_OUTPUT
+                        ? cfg->kf.blocks[b].order / cfg->gear_ratio
+                        : cfg->kf.blocks[b].order;
+    }
+    if (dense_kf_init(&g_dense, blocks, orders, cfg->kf.offset_enabled, cfg->kf.blocks[0].q_nm2,
+                      cfg->kf.r_nm2, cfg->kf.p0_nm2) != 0) {
+        sh_exit(BOARD_EXIT_INIT);
+    }
+    float angle = 0.0f;
+    const float d_motor = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
+    for (uint32_t k = 0; k < CALLS; k++) {
+        float y = test_torque_nm(k, angle) - 5.0f;
+        hd_mark_begin();
+        (void)dense_kf_step(&g_dense, y, d_motor);
+        hd_mark_end();
+        angle += d_motor;
+        wrap_angle(&angle);
+    }
+}
+
+static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
+{
+    hal_mock_init(&g_mock);
+    hal_mock_bind(&g_mock, &g_hal);
+    g_mock.auto_advance_us = 0u;
+    g_mock.tx_store = false; /* frames are "sent" (counted), as to a CAN mailbox */
+    if (hd_fw_init(&g_fw, &g_hal, cfg) != HD_FW_OK) {
+        sh_exit(BOARD_EXIT_INIT);
+    }
+    const float volts_per_nm = 1.0f / 6.60f; /* Table I: 6.60 Nm/V */
+    const float counts_per_rad = (float)cfg->motor_cpr / HD_TWO_PI_F;
+    float angle = 0.0f;
+    float counts_f = 0.0f;
+    for (uint32_t k = 0; k < CALLS; k++) {
+        float torque = test_torque_nm(k, angle);
+        int32_t counts = (int32_t)(torque * volts_per_nm / cfg->adc_volts_per_count);
+        (void)hal_mock_push(&g_mock, counts, (uint32_t)(int32_t)counts_f);
+        for (unsigned c = 0; c < commands_per_tick; c++) {
+            hd_can_cmd_t cmd;
+            memset(&cmd, 0, sizeof cmd);
+            cmd.opcode = HD_CMD_SET_PARAM;
+            cmd.token = (uint8_t)c;
+            cmd.arg_u8[0] = HD_PARAM_R_NM2;
+            cmd.value = cfg->kf.r_nm2; /* same value: the model stays the same */
+            hal_can_frame_t f;
+            hd_can_encode_cmd(cfg->node_id, &cmd, &f);
+            (void)hal_mock_push_rx(&g_mock, &f);
+        }
+        g_mock.now_us = (uint64_t)k * HD_FW_TS_US;
+        hd_mark_begin();
+        hd_fw_isr(&g_fw);
+        hd_mark_end();
+        float d = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
+        angle += d;
+        wrap_angle(&angle);
+        counts_f += d * counts_per_rad;
+        if (counts_f > 1.0e6f) {
+            counts_f -= 1.0e6f; /* keep float resolution; a count jump only at the wrap */
+        }
+    }
+}
+
+int main(void)
+{
+    section("empty", "-", 0u);
+    for (unsigned i = 0; i < 16u; i++) {
+        hd_mark_begin();
+        hd_mark_end();
+    }
+    hd_mark_section();
+
+    for (unsigned m = 0; m < sizeof MODELS / sizeof MODELS[0]; m++) {
+        hd_fw_config_t cfg;
+        model_config(&MODELS[m], &cfg);
+        uint32_t states = 2u * cfg.kf.block_count + (cfg.kf.offset_enabled ? 1u : 0u);
+
+        section("kf", MODELS[m].name, states);
+        bench_kf(&cfg);
+        hd_mark_section();
+
+        section("isr", MODELS[m].name, states);
+        bench_isr(&cfg, 0u);
+        hd_mark_section();
+
+        section("isrcmd", MODELS[m].name, states);
+        bench_isr(&cfg, HD_FW_RX_PER_TICK);
+        hd_mark_section();
+
+        section("dense", MODELS[m].name, states);
+        bench_dense(&cfg);
+        hd_mark_section();
+    }
+    sh_puts("bench: done\n");
+    return BOARD_EXIT_OK;
+}
+
+/* No SysTick in the bench image. */
+void SysTick_Handler(void)
+{
+}
