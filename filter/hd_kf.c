@@ -11,6 +11,13 @@
 #define DEFAULT_P_MAX_NM2 1.0e6f
 #define DEFAULT_NYQUIST_FRACTION 0.9f
 #define DEFAULT_OFFSET_Q_NM2 1.0e-6f
+#define RECOMMENDED_Q_MOTION_REF_RAD 0.05f
+#define RECOMMENDED_OUTPUT_P0_NM2 0.01f
+/* A prior on ripple amplitude (~0.5 Nm per state), not 'unknown': with
+ * R = 4e-4 Nm^2 a p0 of 10 puts a 2.5e4 spread into P, and float32 then
+ * loses the split between collinear states at standstill (measured against
+ * the double reference: 0.1 Nm; with 0.3 Nm^2: 3e-3 Nm). */
+#define RECOMMENDED_P0_NM2 0.3f
 #define PAPER_Q_NM2 1.0e3f
 #define PAPER_R_NM2 1.0f
 #define OUTPUT_SETTLE_FACTOR 20.0f
@@ -32,6 +39,7 @@ void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s)
     cfg->p_max_nm2 = DEFAULT_P_MAX_NM2;
     cfg->nyquist_fraction = DEFAULT_NYQUIST_FRACTION;
     cfg->offset_q_nm2 = DEFAULT_OFFSET_Q_NM2;
+    cfg->output_p0_nm2 = DEFAULT_P0_NM2;
 }
 
 void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
@@ -39,6 +47,7 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
     hd_kf_config_default(cfg, ts_s);
     cfg->r_nm2 = PAPER_R_NM2;
     cfg->p0_nm2 = PAPER_Q_NM2;
+    cfg->output_p0_nm2 = PAPER_Q_NM2;
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, PAPER_Q_NM2);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, PAPER_Q_NM2);
     if (with_misalignment) {
@@ -65,10 +74,12 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
     const float out_ratio = ripple_ratio / OUTPUT_SETTLE_FACTOR;
     const float q_output = r * out_ratio * out_ratio;
     cfg->r_nm2 = r;
-    cfg->p0_nm2 = DEFAULT_P0_NM2;
+    cfg->p0_nm2 = RECOMMENDED_P0_NM2;
     cfg->offset_enabled = 1u;
     cfg->offset_q_nm2 = r * offset_ratio * offset_ratio;
     cfg->offset_jump_nm = RECOMMENDED_JUMP_NOISE_MULTIPLE * noise_nm;
+    cfg->q_motion_ref_rad = RECOMMENDED_Q_MOTION_REF_RAD;
+    cfg->output_p0_nm2 = RECOMMENDED_OUTPUT_P0_NM2;
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_output);
@@ -130,7 +141,8 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         (cfg->offset_enabled && !is_nonneg(cfg->offset_q_nm2))) {
         return HD_KF_ERR_NOISE;
     }
-    if (!is_nonneg(cfg->offset_jump_nm)) {
+    if (!is_nonneg(cfg->offset_jump_nm) || !is_nonneg(cfg->q_motion_ref_rad) ||
+        !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2) {
         return HD_KF_ERR_NOISE;
     }
     if (!is_finite(cfg->nyquist_fraction) || cfg->nyquist_fraction <= 0.0f ||
@@ -162,15 +174,21 @@ const char *hd_kf_err_str(int err)
     }
 }
 
+static float block_p0(const hd_kf_t *kf, unsigned block)
+{
+    return kf->cfg.blocks[block].lock == HD_KF_LOCK_OUTPUT ? kf->cfg.output_p0_nm2
+                                                          : kf->cfg.p0_nm2;
+}
+
 /* Zeroes row and column i of P and sets the diagonal to p0: the state
  * restarts with no correlation to the others (keeps P PSD). */
-static void reset_state_cov(hd_kf_t *kf, unsigned i)
+static void reset_state_cov(hd_kf_t *kf, unsigned i, float p0_nm2)
 {
     for (unsigned j = 0; j < kf->n_states; j++) {
         kf->p[i][j] = 0.0f;
         kf->p[j][i] = 0.0f;
     }
-    kf->p[i][i] = kf->cfg.p0_nm2;
+    kf->p[i][i] = p0_nm2;
     kf->x[i] = 0.0f;
 }
 
@@ -200,7 +218,12 @@ void hd_kf_reset(hd_kf_t *kf)
     for (unsigned i = 0; i < kf->n_states; i++) {
         kf->p[i][i] = kf->cfg.p0_nm2;
     }
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        kf->p[2u * s][2u * s] = kf->p[2u * s + 1u][2u * s + 1u] =
+            block_p0(kf, kf->block_index[s]);
+    }
     kf->frozen_mask = 0u;
+    kf->offset_primed = 0u;
 }
 
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
@@ -294,8 +317,21 @@ static float block_theta(const hd_kf_block_config_t *b, const hd_kf_input_t *in,
 typedef struct {
     float c[HD_KF_MAX_BLOCKS];
     float s[HD_KF_MAX_BLOCKS];
+    float q_scale[HD_KF_MAX_BLOCKS]; /* process-noise scale for this step */
     bool frozen[HD_KF_MAX_BLOCKS]; /* by slot */
 } step_rotation_t;
+
+/* min(1, |theta| / ref) for angle-locked blocks when enabled, else 1. */
+static float motion_q_scale(const hd_kf_t *kf, const hd_kf_block_config_t *b,
+                            float theta)
+{
+    const float ref = kf->cfg.q_motion_ref_rad;
+    if (ref <= 0.0f || b->lock == HD_KF_LOCK_FIXED) {
+        return 1.0f;
+    }
+    const float abs_theta = theta < 0.0f ? -theta : theta;
+    return abs_theta >= ref ? 1.0f : abs_theta / ref;
+}
 
 static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
                               step_rotation_t *rot)
@@ -307,6 +343,7 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
         const float theta = block_theta(&kf->cfg.blocks[b], in, kf->cfg.ts_s);
         const bool frozen = !(theta <= limit && theta >= -limit);
         rot->frozen[s] = frozen;
+        rot->q_scale[s] = motion_q_scale(kf, &kf->cfg.blocks[b], theta);
         if (frozen) {
             frozen_now |= 1u << b;
             rot->c[s] = 1.0f;
@@ -314,8 +351,8 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
             if ((kf->frozen_mask & (1u << b)) == 0u) {
                 /* Entering the frozen state: the estimate is stale from now
                  * on, so drop it rather than let it alias. */
-                reset_state_cov(kf, 2u * s);
-                reset_state_cov(kf, 2u * s + 1u);
+                reset_state_cov(kf, 2u * s, block_p0(kf, b));
+                reset_state_cov(kf, 2u * s + 1u, block_p0(kf, b));
             }
         } else {
             hd_sincosf(theta, &rot->s[s], &rot->c[s]);
@@ -379,7 +416,7 @@ static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
     /* + Q (frozen blocks are held: no process noise) */
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         if (!rot->frozen[s]) {
-            const float q = kf->cfg.blocks[kf->block_index[s]].q_nm2;
+            const float q = kf->cfg.blocks[kf->block_index[s]].q_nm2 * rot->q_scale[s];
             p[2u * s][2u * s] += q;
             p[2u * s + 1u][2u * s + 1u] += q;
         }
@@ -460,6 +497,10 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
             ripple += kf->x[2u * s];
         }
     }
+    if (kf->cfg.offset_enabled && !kf->offset_primed && correct) {
+        kf->x[kf->offset_slot] = y - ripple;
+        kf->offset_primed = 1u;
+    }
     const float offset = kf->cfg.offset_enabled ? kf->x[kf->offset_slot] : 0.0f;
 
     /* g = P C' and S = R + C P C' */
@@ -485,15 +526,16 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     if (kf->cfg.offset_enabled) {
         cpc += g[kf->offset_slot];
     }
-    const float s_var = kf->cfg.r_nm2 + cpc;
+    float s_var = kf->cfg.r_nm2 + cpc;
     const float innovation = y - ripple - offset;
     const float jump_nm = kf->cfg.offset_jump_nm;
     const float e2 = innovation * innovation;
-    bool jump = false;
     if (correct && kf->cfg.offset_enabled && jump_nm > 0.0f &&
         e2 > jump_nm * jump_nm && e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var) {
-        jump = true;
         status |= HD_KF_STATUS_OFFSET_JUMP;
+        kf->p[kf->offset_slot][kf->offset_slot] += e2;
+        g[kf->offset_slot] += e2;
+        s_var += e2;
     }
     const float inv_s = 1.0f / s_var;
 
@@ -513,11 +555,8 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         }
     }
 
-    /* State: x <- Phi (x + g e / S)   (equation 8).  A gated jump goes to
-     * the offset alone; the other states and P skip this correction. */
-    if (jump) {
-        kf->x[kf->offset_slot] += innovation;
-    } else if (correct) {
+    /* State: x <- Phi (x + g e / S)   (equation 8) */
+    if (correct) {
         const float k = innovation * inv_s;
         for (unsigned i = 0; i < n; i++) {
             kf->x[i] += g[i] * k;
@@ -531,7 +570,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         }
     }
     /* Covariance: equations 9-10 in the same factored form */
-    covariance_update(kf, g, inv_s, correct && !jump, &rot);
+    covariance_update(kf, g, inv_s, correct, &rot);
     if (clamp_covariance(kf)) {
         status |= HD_KF_STATUS_P_CLAMPED;
     }

@@ -35,18 +35,27 @@
  *   - a non-finite measurement skips the correction (prediction only) and is
  *     flagged; a non-finite state or covariance resets the filter, flagged.
  *
+ * Slow lines: an output-locked line at low output speed (order 1 at
+ * 1.5 rad/s is 0.25 Hz) is nearly collinear with the offset over any short
+ * window: only their sum is observed, and whatever T_exp misses (a load, an
+ * acceleration) is shared between them by their variances.  An output
+ * block that starts with a large variance takes most of it and hands it
+ * back over one output revolution.  So output-locked blocks have their own,
+ * small, initial variance (output_p0_nm2: a prior on the misalignment
+ * amplitude) and learn slowly (small q, scaled by motion); the offset takes
+ * the unexplained torque.  After init or reset, the offset starts at the
+ * first valid sample's y - ripple (not from zero with a huge variance,
+ * which would make the first float32 downdate lose all precision).
+ *
  * Offset jumps: a load step is a jump of the offset, which a random walk
  * with small q does not expect; the filter would share it with whichever
  * states are uncertain (a slow output-locked block above all) and give it
  * back over one output revolution.  With offset_jump_nm > 0, an
  * innovation with |e| > offset_jump_nm and e^2 > 16 S is taken as an offset
- * jump (the manoeuvre
- * detection of tracking filters; the absolute threshold keeps small
- * unmodelled lines, which also exceed 4 sigma, from triggering it, since
- * skipped corrections would let P grow along the poorly observable
- * offset/slow-block direction): the whole innovation is added to the
- * offset, and the other states and P skip this step's correction (the
- * prediction still runs).  Flagged HD_KF_STATUS_OFFSET_JUMP.
+ * jump (the manoeuvre detection of tracking filters): e^2 is added to the
+ * offset's variance before the update, so the gain sends the jump to the
+ * offset.  The absolute threshold keeps small unmodelled lines, which also
+ * exceed 4 sigma, from triggering it.  Flagged HD_KF_STATUS_OFFSET_JUMP.
  *
  * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
  * cannot be observed without aliasing.  It is frozen: dropped from C and from
@@ -96,7 +105,13 @@ typedef struct {
     float offset_q_nm2;            /* offset random-walk variance per step [Nm^2] */
     float r_nm2;                   /* measurement noise variance R [Nm^2] */
     float ts_s;                    /* sample period [s] */
-    float p0_nm2;                  /* initial / reset covariance diagonal [Nm^2] */
+    float p0_nm2;                  /* initial / reset variance of oscillator states [Nm^2] */
+    float output_p0_nm2;           /* initial / reset variance of output-locked blocks [Nm^2]
+                                      (see "Slow lines" above) */
+    float q_motion_ref_rad;        /* > 0: an angle-locked block's q is scaled by
+                                      min(1, |theta| / q_motion_ref_rad), i.e. ripple
+                                      changes with angle travelled, not with time, and a
+                                      joint at standstill does not inflate P; 0: off (paper) */
     float p_max_nm2;               /* ceiling on covariance diagonal [Nm^2] */
     float nyquist_fraction;        /* freeze a block when |theta| > this * pi, in (0, 1] */
     float offset_jump_nm;          /* > 0: an innovation larger than this [Nm] (and
@@ -139,6 +154,7 @@ typedef struct {
     uint8_t block_index[HD_KF_MAX_BLOCKS];    /* active slot -> configured block */
     uint8_t offset_slot;                      /* state index of the offset, if enabled */
     uint32_t frozen_mask;                     /* by configured block index */
+    uint8_t offset_primed;                    /* the offset has taken its first sample */
     float x[HD_KF_MAX_STATES];
     float p[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
     uint32_t status_sticky;                   /* OR of all step statuses since init */
@@ -178,7 +194,9 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
  *       are slow enough to compete with the offset for a load step, and
  *       their amplitude (misalignment geometry) does not change;
  *   q (offset) = R (ts / offset_settle_s)^2.
- *   offset jump threshold 25 x noise_nm (0.5 Nm for 0.02 Nm noise).
+ *   offset jump threshold 25 x noise_nm (0.5 Nm for 0.02 Nm noise);
+ *   p0 0.3 Nm^2 (a prior on ripple amplitude; keeps P well conditioned in
+ *   float32), output-locked p0 0.01 Nm^2, q_motion_ref 0.05 rad.
  * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.005 s. */
 void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s);

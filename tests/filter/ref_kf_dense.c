@@ -46,6 +46,13 @@ static double block_theta(const hd_kf_config_t *cfg, int b, const hd_kf_input_t 
     }
 }
 
+/* Initial variance of a block: output-locked blocks have their own. */
+static double block_p0(const ref_kf_t *r, int b)
+{
+    return (double)(r->cfg.blocks[b].lock == HD_KF_LOCK_OUTPUT ? r->cfg.output_p0_nm2
+                                                               : r->cfg.p0_nm2);
+}
+
 /* Holds slot s's block at x = 0, P = p0 on its diagonal, no correlation. */
 static void hold_block(ref_kf_t *r, int s)
 {
@@ -55,7 +62,7 @@ static void hold_block(ref_kf_t *r, int s)
             r->P[i][j] = 0.0;
             r->P[j][i] = 0.0;
         }
-        r->P[i][i] = (double)r->cfg.p0_nm2;
+        r->P[i][i] = block_p0(r, r->block_of_slot[s]);
     }
 }
 
@@ -68,10 +75,13 @@ void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg)
             r->block_of_slot[r->nb++] = b;
     r->n = 2 * r->nb;
     r->offset_slot = -1;
+    r->jump_override = -1;
     if (cfg->offset_enabled)
         r->offset_slot = r->n++;
-    for (int i = 0; i < r->n; i++)
-        r->P[i][i] = (double)cfg->p0_nm2;
+    for (int s = 0; s < r->nb; s++)
+        r->P[2 * s][2 * s] = r->P[2 * s + 1][2 * s + 1] = block_p0(r, r->block_of_slot[s]);
+    if (r->offset_slot >= 0)
+        r->P[r->offset_slot][r->offset_slot] = (double)cfg->p0_nm2;
 }
 
 void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
@@ -94,7 +104,11 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
         phi[i][i + 1] = sin(th);
         phi[i + 1][i] = -sin(th);
         phi[i + 1][i + 1] = cos(th);
-        q[i][i] = q[i + 1][i + 1] = (double)r->cfg.blocks[b].q_nm2;
+        /* Angle-locked process noise scales with the angle travelled. */
+        double q_scale = 1.0, ref = (double)r->cfg.q_motion_ref_rad;
+        if (ref > 0.0 && r->cfg.blocks[b].lock != HD_KF_LOCK_FIXED)
+            q_scale = fmin(1.0, fabs(th) / ref);
+        q[i][i] = q[i + 1][i + 1] = (double)r->cfg.blocks[b].q_nm2 * q_scale;
         frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
         if (frozen[s]) {
             out->frozen_mask |= 1u << b;
@@ -117,14 +131,33 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     for (int s = 0; s < r->nb; s++)
         if (!frozen[s])
             ripple += r->x[2 * s];
+    double y = (double)in->torque_meas_nm - (double)in->torque_expected_nm;
+    if (r->offset_slot >= 0 && !r->offset_primed && isfinite(y)) {
+        r->x[r->offset_slot] = y - ripple;
+        r->offset_primed = 1;
+    }
     double offset = r->offset_slot >= 0 ? r->x[r->offset_slot] : 0.0;
     double cx = ripple + offset;
-    double y = (double)in->torque_meas_nm - (double)in->torque_expected_nm;
     double cpc = 0.0;
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++)
             cpc += c[i] * r->P[i][j] * c[j];
     double s_var = (double)r->cfg.r_nm2 + cpc;
+    /* Offset jump: an innovation beyond both the absolute threshold and
+     * 4 sigma inflates the offset variance by e^2 before the update. */
+    out->jump_margin_rel = INFINITY;
+    if (r->offset_slot >= 0 && r->cfg.offset_jump_nm > 0.0f && isfinite(y)) {
+        double e0 = y - cx;
+        double thr = fmax((double)r->cfg.offset_jump_nm, 4.0 * sqrt(s_var));
+        out->jump_own_decision = fabs(e0) > thr;
+        out->jump_margin_rel = fabs(fabs(e0) - thr) / thr;
+        int jump = r->jump_override >= 0 ? r->jump_override : out->jump_own_decision;
+        if (jump) {
+            r->P[r->offset_slot][r->offset_slot] += e0 * e0;
+            s_var += e0 * e0;
+            out->status |= HD_KF_STATUS_OFFSET_JUMP;
+        }
+    }
 
     out->ripple_nm = ripple;
     out->offset_nm = offset;

@@ -33,6 +33,12 @@ typedef struct {
     int offset_slot;                  /* -1 if no offset state */
     double x[REF_KF_MAX_N];
     double P[REF_KF_MAX_N][REF_KF_MAX_N];
+    /* The offset-jump test is a threshold: float and double can fall on
+     * either side of it when the innovation is within rounding of it.  -1:
+     * decide here; 0/1: follow the filter under test (the caller checks
+     * jump_margin_rel to see that a disagreement was only rounding). */
+    int jump_override;
+    int offset_primed; /* the offset starts at the first valid y - ripple */
 } ref_kf_t;
 
 typedef struct {
@@ -43,6 +49,8 @@ typedef struct {
     double innovation_var_nm2;
     uint32_t frozen_mask; /* by configured block index */
     uint32_t status;      /* HD_KF_STATUS_* bits this reference can raise */
+    int jump_own_decision; /* what this reference decided by itself */
+    double jump_margin_rel; /* relative distance of the innovation from the threshold */
 } ref_kf_output_t;
 
 /* Copies cfg (assumed valid), x = 0, P = p0 I. */

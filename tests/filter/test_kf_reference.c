@@ -43,7 +43,7 @@ static const double k_w[] = {0, 0, 156, 156, -156, -156, 0, 0, 450, 450, -200, -
 typedef struct {
     double max_filtered, max_ripple, max_innov, max_s_rel, max_state;
     double scale;
-    unsigned long frozen_steps, clamped_steps;
+    unsigned long frozen_steps, clamped_steps, jumps, jump_disagreements;
 } dev_t_;
 
 static void compare_run(const char *name, const hd_kf_config_t *cfg)
@@ -84,7 +84,16 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg)
         hd_kf_output_t o;
         ref_kf_output_t r;
         hd_kf_step(&kf, &in, &o);
+        const int jumped = (o.status & HD_KF_STATUS_OFFSET_JUMP) != 0;
+        ref.jump_override = jumped;
         ref_kf_step(&ref, &in, &r);
+        if (r.jump_own_decision != jumped) {
+            /* Allowed only within rounding of the threshold. */
+            TEST_ASSERT_LESS_THAN_DOUBLE_MESSAGE(1e-4, r.jump_margin_rel,
+                                                 "offset-jump decision differs from reference");
+            d.jump_disagreements++;
+        }
+        d.jumps += (unsigned long)jumped;
 
         if (o.frozen_mask != r.frozen_mask) {
             char msg[160];
@@ -105,13 +114,14 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg)
             TRACK_MAX(max_state, fabs((double)hd_kf_state(&kf, (unsigned)i) - ref.x[i]));
     }
     d.scale = max_meas + max_exp;
-    char msg[400];
+    char msg[480];
     snprintf(msg, sizeof(msg),
              "%s (%d states): max |dev| filtered %.3g Nm, ripple %.3g Nm, innovation %.3g Nm, "
              "state %.3g Nm; S rel %.3g; scale %.1f Nm -> tol %.3g Nm; frozen steps %lu, "
-             "P-clamped steps %lu",
+             "P-clamped steps %lu, offset jumps %lu (%lu decided by rounding)",
              name, ref.n, d.max_filtered, d.max_ripple, d.max_innov, d.max_state, d.max_s_rel,
-             d.scale, TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps);
+             d.scale, TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps, d.jumps,
+             d.jump_disagreements);
     TEST_MESSAGE(msg);
     double tol = TOL_REL_SCALE * d.scale;
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_filtered, "filtered torque vs reference");
@@ -151,6 +161,18 @@ static void test_reference_8_states_narrowband(void)
     compare_run("narrow-band 8 states", &cfg);
 }
 
+/* 7 states: the recommended tuning (offset with jump gate, motion-scaled
+ * process noise, separate initial variances).  The run's standstill spans
+ * and speed changes exercise the motion scaling; start-up and reversals the
+ * jump gate. */
+static void test_reference_7_states_recommended(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    compare_run("recommended (7 states)", &cfg);
+}
+
 /* Maximum: HD_KF_MAX_BLOCKS blocks of every lock kind + offset (sensor error).
  * Motor order 8 exceeds 0.9 pi per step above 353 rad/s: frozen at 450 rad/s. */
 static void test_reference_max_states(void)
@@ -184,5 +206,6 @@ int main(void)
     RUN_TEST(test_reference_6_states_paper);
     RUN_TEST(test_reference_8_states_narrowband);
     RUN_TEST(test_reference_max_states);
+    RUN_TEST(test_reference_7_states_recommended);
     return UNITY_END();
 }

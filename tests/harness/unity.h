@@ -146,6 +146,7 @@ extern jmp_buf UnityAbortFrame;
 #define TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GE, NULL, __LINE__)
 #define TEST_ASSERT_GREATER_OR_EQUAL_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GE, (m), __LINE__)
 #define TEST_ASSERT_LESS_THAN_DOUBLE(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LT, NULL, __LINE__)
+#define TEST_ASSERT_LESS_THAN_DOUBLE_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LT, (m), __LINE__)
 #define TEST_ASSERT_GREATER_THAN_DOUBLE(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GT, NULL, __LINE__)
 #define TEST_ASSERT_FLOAT_IS_NAN(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_NAN, NULL, __LINE__)
 #define TEST_ASSERT_FLOAT_IS_NOT_NAN(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_NOT_NAN, NULL, __LINE__)
