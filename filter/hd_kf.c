@@ -20,7 +20,6 @@
 #define RECOMMENDED_P0_NM2 0.3f
 #define PAPER_Q_NM2 1.0e3f
 #define PAPER_R_NM2 1.0f
-#define OUTPUT_SETTLE_FACTOR 20.0f
 #define RECOMMENDED_JUMP_NOISE_MULTIPLE 25.0f
 #define JUMP_MIN_SIGMA 4.0f
 
@@ -66,13 +65,6 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
     const float ripple_ratio = ts_s / ripple_settle_s;
     const float offset_ratio = ts_s / offset_settle_s;
     const float q_ripple = r * ripple_ratio * ripple_ratio;
-    /* Output-locked lines are slow (output order 1 at 1.5 rad/s is 0.25 Hz)
-     * and so look like the offset; their amplitude is geometry and does not
-     * change.  A settle time OUTPUT_SETTLE_FACTOR times longer makes a load
-     * step go into the offset (kept) and not into the misalignment block
-     * (subtracted). */
-    const float out_ratio = ripple_ratio / OUTPUT_SETTLE_FACTOR;
-    const float q_output = r * out_ratio * out_ratio;
     cfg->r_nm2 = r;
     cfg->p0_nm2 = RECOMMENDED_P0_NM2;
     cfg->offset_enabled = 1u;
@@ -82,7 +74,7 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
     cfg->output_p0_nm2 = RECOMMENDED_OUTPUT_P0_NM2;
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, q_ripple);
-    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_output);
+    (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_ripple);
 }
 
 int hd_kf_config_add_block(hd_kf_config_t *cfg, hd_kf_lock_t lock, float order,

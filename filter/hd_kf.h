@@ -188,11 +188,10 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
  * and 4 and output order 1, plus the offset state (kept as real torque).
  *   R = noise_nm^2 (white sensor noise only: the offset state, not R, takes
  *       what T_exp misses, so the filter need not follow T_exp);
- *   q (each motor-locked state) = R (ts / ripple_settle_s)^2, so a block's
- *       amplitude/phase estimate settles in ~ripple_settle_s;
- *   q (output-locked) as above with a 20x longer settle time: output lines
- *       are slow enough to compete with the offset for a load step, and
- *       their amplitude (misalignment geometry) does not change;
+ *   q (each oscillator state) = R (ts / ripple_settle_s)^2, so a block's
+ *       amplitude/phase estimate settles in ~ripple_settle_s at full speed
+ *       (q is scaled by motion, so output-locked blocks, whose phase moves
+ *       N times slower, get correspondingly less);
  *   q (offset) = R (ts / offset_settle_s)^2.
  *   offset jump threshold 25 x noise_nm (0.5 Nm for 0.02 Nm noise);
  *   p0 0.3 Nm^2 (a prior on ripple amplitude; keeps P well conditioned in
