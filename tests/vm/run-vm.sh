@@ -34,7 +34,7 @@ start=$(date +%s.%N)
 # TCG on purpose: with -enable-kvm the guest hung at boot on the CI host.
 timeout --kill-after=5 "$timeout_s" "$qemu" -m 512 -smp 1 -nographic -no-reboot -net none \
   -monitor none -serial "file:$log" \
-  -kernel "$out/vmlinuz" -initrd "$out/initrd.cpio.gz" \
+  -kernel "$out/kernel" -initrd "$out/initrd.cpio.gz" \
   -append "console=ttyS0 quiet panic=-1" \
   -device isa-debug-exit,iobase=0xf4,iosize=0x04 </dev/null
 rc=$?
