@@ -40,11 +40,11 @@ def test_dbc_loads_strict_without_warnings():
 
 
 def test_telemetry_decodes_to_the_runner_output_and_beats_raw(tmp_path):
-    log, csv, summary = run_host(tmp_path)
+    log, csv, summary = run_host(tmp_path, duration=6.0)
     res = canproto.decode_log(log)
     telem = res["telemetry"]
     n = len(csv)
-    assert n == 3000 and len(telem) == n
+    assert n == 6000 and len(telem) == n
     assert res["lost_telemetry"] == 0
     assert [r["SeqA"] for r in telem] == [i % 256 for i in range(n)]
     filt = np.array([r["TorqueFiltered"] for r in telem])
@@ -56,20 +56,22 @@ def test_telemetry_decodes_to_the_runner_output_and_beats_raw(tmp_path):
     assert np.max(np.abs(raw - csv["torque_raw_nm"])) <= 0.005 + 1e-6
     assert np.max(np.abs(ripple - csv["ripple_nm"])) <= 0.0005 + 1e-7
     assert np.max(np.abs(vel - csv["motor_velocity_rad_s"])) <= 0.001
-    # against the simulation's truth, after the 0.5 s run-up and 0.5 s settling
+    # against the simulation's truth, once the output has turned one
+    # revolution (~4 s at 156 rad/s through 100:1): the misalignment line is
+    # locked to the output and cannot be learned faster than that
     truth = csv["torque_true_nm"]
-    settled = csv["t_s"] >= 1.0
+    settled = csv["t_s"] >= 4.0
     rms_raw = np.sqrt(np.mean((raw - truth)[settled] ** 2))
     rms_filt = np.sqrt(np.mean((filt - truth)[settled] ** 2))
     assert rms_filt < rms_raw / 5, (rms_raw, rms_filt)
     # the motor speed of the paper's drive: 156 rad/s
     assert abs(np.mean(vel[settled]) - 156.0) < 1.0
-    # heartbeats at 0, 1 and 2 s, all healthy with a valid calibration
+    # one heartbeat per second (0 .. 5 s), all healthy with a valid calibration
     hb = res["heartbeats"]
-    assert len(hb) == 3
+    assert len(hb) == 6
     assert all(str(h["State"]) == "RUN" and str(h["CalibStatus"]) == "OK" for h in hb)
     assert all(int(r["Faults"]) == 0 for r in telem)
-    assert int(summary["samples"]) == 3000
+    assert int(summary["samples"]) == 6000
 
 
 def test_cantools_cli_decodes_the_log(tmp_path):
