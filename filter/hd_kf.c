@@ -353,6 +353,14 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
     kf->frozen_mask = frozen_now;
 }
 
+/* [u; v] <- [c s; -s c] [u; v]: one block of Phi applied to a pair. */
+static void rotate_pair(float *u, float *v, float c, float s)
+{
+    const float u0 = *u, v0 = *v;
+    *u = c * u0 + s * v0;
+    *v = c * v0 - s * u0;
+}
+
 /* Symmetric rank-1 downdate P -= g g' / S on the upper triangle, then the
  * block rotation P <- Phi P Phi', then Q; mirrors to keep P symmetric. */
 static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
@@ -373,30 +381,17 @@ static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
             }
         }
     }
-    /* Rows: P <- Phi P */
+    /* P <- Phi P Phi': rotate the block's row pair, then its column pair. */
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         if (rot->frozen[s]) {
             continue;
         }
         const unsigned a = 2u * s, b = a + 1u;
-        const float c = rot->c[s], sn = rot->s[s];
         for (unsigned j = 0; j < n; j++) {
-            const float pa = p[a][j], pb = p[b][j];
-            p[a][j] = c * pa + sn * pb;
-            p[b][j] = c * pb - sn * pa;
+            rotate_pair(&p[a][j], &p[b][j], rot->c[s], rot->s[s]);
         }
-    }
-    /* Columns: P <- P Phi' */
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (rot->frozen[s]) {
-            continue;
-        }
-        const unsigned a = 2u * s, b = a + 1u;
-        const float c = rot->c[s], sn = rot->s[s];
         for (unsigned i = 0; i < n; i++) {
-            const float pa = p[i][a], pb = p[i][b];
-            p[i][a] = c * pa + sn * pb;
-            p[i][b] = c * pb - sn * pa;
+            rotate_pair(&p[i][a], &p[i][b], rot->c[s], rot->s[s]);
         }
     }
     /* Exact symmetry: the upper triangle is the reference. */
@@ -556,9 +551,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     }
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         if (!rot.frozen[s]) {
-            const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
-            kf->x[2u * s] = rot.c[s] * a + rot.s[s] * b;
-            kf->x[2u * s + 1u] = rot.c[s] * b - rot.s[s] * a;
+            rotate_pair(&kf->x[2u * s], &kf->x[2u * s + 1u], rot.c[s], rot.s[s]);
         }
     }
     /* Covariance: equations 9-10 in the same factored form */
