@@ -117,7 +117,7 @@ static void derive(hd_fw_t *fw)
 
 /* ------------------------------------------------------------- calibration */
 
-static hd_calib_storage_t storage_of(const hal_t *hal)
+hd_calib_storage_t hd_fw_calib_storage(const hal_t *hal)
 {
     hd_calib_storage_t s;
     memset(&s, 0, sizeof s);
@@ -164,7 +164,7 @@ static int load_calibration(hd_fw_t *fw, hd_calib_record_t *rec, uint32_t *seq)
         hd_calib_record_default(rec);
         rc = HD_CALIB_LOAD_MISSING;
     } else {
-        hd_calib_storage_t s = storage_of(fw->hal);
+        hd_calib_storage_t s = hd_fw_calib_storage(fw->hal);
         rc = hd_calib_store_load(&s, rec, seq);
         if (rc != HD_CALIB_LOAD_OK && rc != HD_CALIB_LOAD_ONE_COPY_BAD) {
             hd_calib_record_default(rec); /* do not trust whatever was filled in */
@@ -490,7 +490,7 @@ bool hd_fw_background(hd_fw_t *fw)
     int res = HD_CAN_RES_OK;
     float value = 0.0f;
     uint8_t aux = 0u;
-    hd_calib_storage_t s = storage_of(fw->hal);
+    hd_calib_storage_t s = hd_fw_calib_storage(fw->hal);
     if (fw->nvm_pending == 1u) {
         cmd.opcode = HD_CMD_CALIB_SAVE;
         hd_calib_record_t rec = fw->calib;

@@ -168,6 +168,9 @@ const char *hd_fw_err_str(int err);
  * pipeline.  On error fw is unusable and nothing was sent. */
 int hd_fw_init(hd_fw_t *fw, const hal_t *hal, const hd_fw_config_t *cfg);
 
+/* The HAL's NVM part as the calibration library's storage callbacks. */
+hd_calib_storage_t hd_fw_calib_storage(const hal_t *hal);
+
 /* The 1 ms tick body. */
 void hd_fw_isr(hd_fw_t *fw);
 

@@ -296,13 +296,7 @@ static void provision_calibration(hal_t *hal, float gain, float offset)
     hd_calib_record_default(&rec);
     rec.gain_nm_per_v = gain;
     rec.offset_v = offset;
-    hd_calib_storage_t s;
-    memset(&s, 0, sizeof s);
-    s.ctx = hal->nvm.ctx;
-    s.size = hal->nvm.size;
-    s.read = hal->nvm.read;
-    s.write = hal->nvm.write;
-    s.erase = hal->nvm.erase;
+    const hd_calib_storage_t s = hd_fw_calib_storage(hal);
     if (hd_calib_store_save(&s, &rec) != 0) {
         fprintf(stderr, "hdjoint-host: warning: could not store the calibration record\n");
     }
