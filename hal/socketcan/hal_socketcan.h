@@ -9,9 +9,12 @@
  *    frames the kernel refused with EAGAIN/ENOBUFS; it is drained at every
  *    send/recv call; when it is full send() returns HAL_ERR_BUSY and counts
  *    can_tx_dropped;
- *  - error frames are received (CAN_RAW_ERR_FILTER), counted, and bus-off
- *    (CAN_ERR_BUSOFF) is counted and reported as HAL_ERR_FAULT from send()
- *    until a frame is received or sent successfully again;
+ *  - error frames are received (CAN_RAW_ERR_FILTER) and counted inside
+ *    recv() (never returned to the caller; at most HSC_RX_BURST socket reads
+ *    per call); bus-off (CAN_ERR_BUSOFF) is counted once per event and
+ *    send() returns HAL_ERR_FAULT (frame not sent, queue not drained) until
+ *    the driver reports a restart (CAN_ERR_RESTARTED) or a data frame from
+ *    another node is received;
  *  - only this node's command IDs pass the receive filter (CAN_RAW_FILTER);
  *  - with fd = true the socket accepts and sends CAN FD frames
  *    (CAN_RAW_FD_FRAMES).
