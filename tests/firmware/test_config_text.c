@@ -29,6 +29,9 @@ static void test_good_file_sets_every_key(void)
         "\n"
         "offset = on\n"
         "offset_q_nm2 = 1e-6\n"
+        "output_p0_nm2 = 0.02\n"
+        "offset_jump_nm = 0.75\n"
+        "q_motion_ref_rad = 0.1\n"
         "block = motor 2 1000\n"
         "block = output 1 1e3\n"
         "block = fixed 50 0.25 off\n"
@@ -48,6 +51,9 @@ static void test_good_file_sets_every_key(void)
     TEST_ASSERT_EQUAL_FLOAT(100.0f, cfg.kf.p0_nm2);
     TEST_ASSERT_EQUAL_UINT8(1, cfg.kf.offset_enabled);
     TEST_ASSERT_EQUAL_FLOAT(1e-6f, cfg.kf.offset_q_nm2);
+    TEST_ASSERT_EQUAL_FLOAT(0.02f, cfg.kf.output_p0_nm2);
+    TEST_ASSERT_EQUAL_FLOAT(0.75f, cfg.kf.offset_jump_nm);
+    TEST_ASSERT_EQUAL_FLOAT(0.1f, cfg.kf.q_motion_ref_rad);
     TEST_ASSERT_EQUAL_UINT8(3, cfg.kf.block_count); /* the defaults' blocks were replaced */
     TEST_ASSERT_EQUAL_UINT8(HD_KF_LOCK_MOTOR, cfg.kf.blocks[0].lock);
     TEST_ASSERT_EQUAL_FLOAT(2.0f, cfg.kf.blocks[0].order);
