@@ -247,6 +247,12 @@ static void selftest(void)
     hal_socketcan_t *none = hal_socketcan_open("can7", NULL, 0, false, err, sizeof err);
     CHECK(none == NULL && strstr(err, "no CAN interface 'can7'") != NULL,
           "missing interface refused: %s", err);
+    hal_socketcan_t *classic_if = hal_socketcan_open("vcan1", NULL, 0, true, err, sizeof err);
+    CHECK(classic_if == NULL && strstr(err, "not CAN FD capable") != NULL,
+          "FD socket on the classic-only vcan1 (MTU 16) refused: %s", err);
+    classic_if = hal_socketcan_open("vcan1", NULL, 0, false, err, sizeof err);
+    CHECK(classic_if != NULL, "classic socket on vcan1: %s", err);
+    hal_socketcan_close(classic_if);
     int raw = raw_socket(0);
     CHECK(raw >= 0, "raw socket for error injection");
     if (tx != NULL && rx != NULL && rxc != NULL && raw >= 0) {
@@ -445,6 +451,11 @@ static void end_to_end(void)
     cap.log = fopen(g_capture, "w");
     CHECK(cap.log != NULL, "open %s", g_capture);
     if (cmd_sock == NULL || cap.log == NULL) {
+        if (cap.log != NULL) {
+            fclose(cap.log);
+        }
+        hal_socketcan_close(cmd_sock);
+        close(cap_sock);
         return;
     }
 

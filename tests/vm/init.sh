@@ -13,6 +13,9 @@ for m in can-dev vcan can can-raw; do
 done
 ip link add dev vcan0 type vcan || echo "HDVM: ip link add vcan0 failed"
 ip link set up vcan0 || echo "HDVM: ip link set up vcan0 failed"
+# A classic-only interface (MTU 16) for the backend's FD capability check.
+ip link add dev vcan1 type vcan && ip link set vcan1 mtu 16 && ip link set up vcan1 \
+  || echo "HDVM: classic-only vcan1 setup failed"
 if [ -x /bin/hd_vm_can_test ]; then
   /bin/hd_vm_can_test
   echo "HDVM: hd_vm_can_test exited with $?"
