@@ -16,8 +16,10 @@ it helps -> repeat.
     falls by at least INNOV_GAIN and the slow model residual falls;
   * offset drift (offset state as a slowly moving sensor-zero error): only
     when the trend dominates what the expected torque leaves (the rest of
-    the slow residual is smaller than half the trend's excursion), since a
-    sensor drift cannot otherwise be told from real slow torque.
+    the slow residual is below a quarter of the trend's excursion), since a
+    sensor drift cannot otherwise be told from real slow torque, and the
+    model residual then falls by at least a quarter.  (The innovation is no
+    guide here: a slower offset state always predicts worse.)
 Stopping rule: stop when no candidate passes detection (peak >= 30x local
 floor and >= 0.2 % of residual variance for lines; >= 2 % partial variance
 for slow terms), when every candidate has been tried once, when the filter
@@ -127,9 +129,9 @@ def judge(c, runs0, m0, runs1, m1):
             ev["rejected_because"] = ("the expected torque does not explain the rest of the "
                                       "slow torque: a drift cannot be told from real torque")
             return False, ev
-        if innov_change > 0.5:
-            ev["rejected_because"] = ("with the offset as a slow sensor error the innovation "
-                                      "grew: the offset was following real torque")
+        if m1["model_residual_rms_nm"] > 0.75 * m0["model_residual_rms_nm"]:
+            ev["rejected_because"] = ("with the offset as a slow sensor error the slow residual "
+                                      "did not fall by a quarter")
             return False, ev
         return True, ev
     return False, ev

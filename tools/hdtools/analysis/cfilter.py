@@ -52,8 +52,16 @@ class KfConfig(ctypes.Structure):
                 ("r_nm2", c_float),
                 ("ts_s", c_float),
                 ("p0_nm2", c_float),
+                ("output_p0_nm2", c_float),
+                ("q_motion_ref_rad", c_float),
                 ("p_max_nm2", c_float),
-                ("nyquist_fraction", c_float)]
+                ("nyquist_fraction", c_float),
+                ("offset_jump_nm", c_float)]
+
+    # Fields the analysis model carries one-to-one (see model.Model).
+    SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
+               "output_p0_nm2", "q_motion_ref_rad", "p_max_nm2", "nyquist_fraction",
+               "offset_jump_nm")
 
     def add_block(self, lock: int, order: float, q_nm2: float) -> int:
         if self.block_count >= MAX_BLOCKS:
@@ -72,6 +80,7 @@ class KfState(ctypes.Structure):
                 ("block_index", c_uint8 * MAX_BLOCKS),
                 ("offset_slot", c_uint8),
                 ("frozen_mask", c_uint32),
+                ("offset_primed", c_uint8),
                 ("x", c_float * MAX_STATES),
                 ("p", (c_float * MAX_STATES) * MAX_STATES),
                 ("status_sticky", c_uint32),
@@ -128,6 +137,11 @@ def lib() -> ctypes.CDLL:
         L.hd_pipeline_init.restype = c_int
         L.hd_pipeline_run.argtypes = [POINTER(Pipeline), POINTER(PipelineIO)]
         L.hd_pipeline_run.restype = None
+        L.hd_kf_config_default.argtypes = [POINTER(KfConfig), c_float]
+        L.hd_kf_config_default.restype = None
+        L.hd_kf_config_recommended.argtypes = [POINTER(KfConfig), c_float, c_float, c_float,
+                                               c_float]
+        L.hd_kf_config_recommended.restype = None
         L.hd_kf_config_check.argtypes = [POINTER(KfConfig)]
         L.hd_kf_config_check.restype = c_int
         L.hd_kf_err_str.argtypes = [c_int]
@@ -137,11 +151,18 @@ def lib() -> ctypes.CDLL:
 
 
 def default_config(ts_s: float) -> KfConfig:
-    """Same values as hd_kf_config_default: no blocks, R 1, p0 10, p_max 1e6,
-    nyquist 0.9, offset off (q 1e-6 if enabled)."""
+    """hd_kf_config_default (from the C library): no blocks."""
     cfg = KfConfig()
-    cfg.r_nm2, cfg.ts_s, cfg.p0_nm2, cfg.p_max_nm2 = 1.0, ts_s, 10.0, 1e6
-    cfg.nyquist_fraction, cfg.offset_q_nm2 = 0.9, 1e-6
+    lib().hd_kf_config_default(ctypes.byref(cfg), ts_s)
+    return cfg
+
+
+def recommended_config(ts_s: float, noise_nm: float, ripple_settle_s: float,
+                       offset_settle_s: float) -> KfConfig:
+    """hd_kf_config_recommended (from the C library): the project's tuning."""
+    cfg = KfConfig()
+    lib().hd_kf_config_recommended(ctypes.byref(cfg), ts_s, noise_nm, ripple_settle_s,
+                                   offset_settle_s)
     return cfg
 
 

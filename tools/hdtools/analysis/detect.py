@@ -33,6 +33,11 @@ from . import spectra
 
 LINE_MIN_RATIO = 30.0       # peak power over the local floor (~15 dB)
 MIN_EXPLAINED = 0.002       # line must explain >= 0.2 % of residual variance
+# A weaker peak (>= LINE_WEAK_RATIO) still counts when one sinusoid explains
+# >= WEAK_EXPLAINED of the residual variance: at the lowest orders the local
+# floor is raised by leakage of slow torque, which hides strong lines.
+LINE_WEAK_RATIO = 8.0
+WEAK_EXPLAINED = 0.05
 SPEED_VARIES = 0.05         # (p90 - p10) / median motor speed above this
 SHARPNESS_FACTOR = 4.0      # ratio in the right domain over the other
 SLOW_MIN_PARTIAL = 0.02     # slow term must explain >= 2 % of slow residual variance
@@ -116,10 +121,11 @@ def _refine(ctx, kind, order, step):
     """Order/frequency that maximises the least-squares line amplitude
     within +-1 spectral bin."""
     best = (-1.0, order)
-    for o in order + step * np.linspace(-1, 1, 11):
+    sig = _decimated(ctx.signals, 100_000)
+    for o in order + step * np.linspace(-1, 1, 9):
         if o <= 0:
             continue
-        amp, _, _ = spectra.fit_line(_decimated(ctx.signals), _decimated(phases(ctx, kind, o)))
+        amp, _, _ = spectra.fit_line(sig, _decimated(phases(ctx, kind, o), 100_000))
         if amp > best[0]:
             best = (amp, o)
     return best[1]
@@ -139,11 +145,12 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
     raw = []
     if ctx.spec_motor is not None and speed_hz > 0:
         lo = 3 * ctx.spec_motor.resolution
-        for p in spectra.find_peaks(ctx.spec_motor, LINE_MIN_RATIO, lo, nyq_hz / speed_hz):
+        for p in spectra.find_peaks(ctx.spec_motor, LINE_WEAK_RATIO, lo, nyq_hz / speed_hz,
+                                    max_peaks=8):
             raw.append(("angle", p["at"], p))
     if ctx.spec_time is not None:
         lo = 3 * ctx.spec_time.resolution
-        for p in spectra.find_peaks(ctx.spec_time, LINE_MIN_RATIO, lo, nyq_hz):
+        for p in spectra.find_peaks(ctx.spec_time, LINE_WEAK_RATIO, lo, nyq_hz, max_peaks=8):
             raw.append(("time", p["at"], p))
     cands = []
     seen = set()
@@ -185,6 +192,8 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
         amp, ph, expl = spectra.fit_line(_decimated(ctx.signals),
                                          _decimated(phases(ctx, kind, order)))
         if expl < MIN_EXPLAINED:
+            continue
+        if max(r_angle, r_time) < LINE_MIN_RATIO and expl < WEAK_EXPLAINED:
             continue
         ev.update({"fit_amplitude_nm": round(amp, 5), "fit_explained_fraction": round(expl, 4)})
         action = "add_block"

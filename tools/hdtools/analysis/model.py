@@ -16,7 +16,7 @@ from . import cfilter
 # ~RIPPLE_SETTLE_S, the offset state (real torque the expected-torque model
 # misses) in ~OFFSET_SETTLE_S.  q = R (ts / settle)^2.
 RIPPLE_SETTLE_S = 0.05
-OFFSET_SETTLE_S = 0.05
+OFFSET_SETTLE_S = 0.005
 SENSOR_DRIFT_SETTLE_S = 10.0   # offset as a slow sensor-zero estimate
 
 
@@ -41,8 +41,11 @@ class Model:
     offset_q_nm2: float = 0.0
     offset_is_sensor_error: bool = False
     p0_nm2: float = 10.0
+    output_p0_nm2: float = 10.0
+    q_motion_ref_rad: float = 0.0
     p_max_nm2: float = 1e6
     nyquist_fraction: float = 0.9
+    offset_jump_nm: float = 0.0
     inertia_kgm2: float = 0.0
     viscous_nm_s_rad: float = 0.0
     coulomb_nm: float = 0.0
@@ -51,14 +54,23 @@ class Model:
 
     @classmethod
     def starting(cls, gear_ratio, ts_s, noise_nm, motor_orders, output_orders,
-                 inertia_kgm2=0.0):
-        """The paper's structure (given orders) with the project's recommended
-        tuning for the measured noise level."""
-        r = max(noise_nm, 1e-6) ** 2
-        q = cls.q_for_settle(r, ts_s, RIPPLE_SETTLE_S)
-        m = cls(gear_ratio=gear_ratio, ts_s=ts_s, r_nm2=r,
-                offset_q_nm2=cls.q_for_settle(r, ts_s, OFFSET_SETTLE_S),
-                inertia_kgm2=inertia_kgm2)
+                 inertia_kgm2=0.0, slow_step_nm=0.0):
+        """The paper's structure (the given orders) with the project's
+        recommended tuning, hd_kf_config_recommended (C), for the measured
+        noise level: R = noise^2, q = R (ts/settle)^2, plus its gates/priors.
+        One data-driven guard: the offset (real torque the expected torque
+        misses) must be able to follow the torque's slow changes, so its q is
+        at least the mean square per-step change of the 0.2 s-smoothed torque
+        (gravity on a sweeping robot joint changes tens of N m per second)."""
+        noise = max(noise_nm, 1e-4)
+        c = cfilter.recommended_config(ts_s, noise, RIPPLE_SETTLE_S, OFFSET_SETTLE_S)
+        m = cls(gear_ratio=gear_ratio, ts_s=ts_s, r_nm2=c.r_nm2, inertia_kgm2=inertia_kgm2)
+        for k in cfilter.KfConfig.SCALARS:
+            v = getattr(c, k)
+            setattr(m, k, bool(v) if k in ("offset_enabled", "offset_is_sensor_error") else float(v))
+        m.offset_q_nm2 = max(m.offset_q_nm2, slow_step_nm ** 2)
+        q = float(c.blocks[0].q_nm2) if c.block_count else cls.q_for_settle(
+            m.r_nm2, ts_s, RIPPLE_SETTLE_S)
         m.blocks = [Block("motor", float(o), q) for o in motor_orders]
         m.blocks += [Block("output", float(o), q) for o in output_orders]
         # The tracker needs w ts <= 0.5 (hd_track.h).
@@ -82,11 +94,8 @@ class Model:
     def kf_config(self, ts_s: float | None = None) -> cfilter.KfConfig:
         ts = ts_s or self.ts_s
         cfg = cfilter.default_config(ts)
-        cfg.r_nm2, cfg.p0_nm2, cfg.p_max_nm2 = self.r_nm2, self.p0_nm2, self.p_max_nm2
-        cfg.nyquist_fraction = self.nyquist_fraction
-        cfg.offset_enabled = int(self.offset_enabled)
-        cfg.offset_q_nm2 = self.offset_q_nm2
-        cfg.offset_is_sensor_error = int(self.offset_is_sensor_error)
+        for k in cfilter.KfConfig.SCALARS:
+            setattr(cfg, k, getattr(self, k))
         for b in self.blocks:
             cfg.add_block(cfilter.LOCK_BY_NAME[b.lock], b.order, b.q_nm2)
         return cfg
@@ -155,6 +164,18 @@ class Model:
     def not_settable_over_can(self) -> list[str]:
         return ["p_max_nm2", "nyquist_fraction", "offset_is_sensor_error",
                 "coulomb_vel_eps_rad_s"]
+
+
+def slow_step_nm(torque_nm: np.ndarray, ts_s: float, window_s: float = 0.2) -> float:
+    """RMS per-sample change of the torque smoothed over window_s (ripple
+    above ~1/window_s averages out; load and gravity changes remain)."""
+    x = np.asarray(torque_nm, float)
+    w = max(1, int(round(window_s / ts_s)))
+    if len(x) < 2 * w + 2:
+        return 0.0
+    c = np.cumsum(np.r_[0.0, x])
+    sm = (c[w:] - c[:-w]) / w
+    return float(np.sqrt(np.mean(np.diff(sm) ** 2)))
 
 
 def estimate_noise_nm(torque_nm: np.ndarray) -> float:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from . import augment, gear, loading, report as rep, spectra
-from .model import Model, estimate_noise_nm
+from .model import Model, estimate_noise_nm, slow_step_nm
 
 DEFINITIONS = {
     "residual": (
@@ -73,7 +73,9 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         log(n)
     g = _gear(data, gear_ratio, log)
     noise = float(np.median([estimate_noise_nm(p.torque_nm) for p in data.pieces]))
-    m0 = Model.starting(g["value"], data.ts_s, noise, motor_orders, output_orders, inertia_kgm2)
+    slow = float(np.median([slow_step_nm(p.torque_nm, data.ts_s) for p in data.pieces]))
+    m0 = Model.starting(g["value"], data.ts_s, noise, motor_orders, output_orders, inertia_kgm2,
+                        slow_step_nm=slow)
     res = augment.run_loop(data, m0, log=log)
     m1 = res["model"]
     effects = _merge(res["effects"])
@@ -94,7 +96,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         "data": {"samples": data.n, "pieces": len(data.pieces), "ts_s": data.ts_s,
                  "has_motor_angle": data.has_motor, "has_output_angle": data.has_output,
                  "has_truth": data.has_truth, "source": data.source, "notes": data.notes,
-                 "cleaning": data.cleaning, "noise_nm": noise},
+                 "cleaning": data.cleaning, "noise_nm": noise, "slow_step_nm": slow},
         "model_before": m0.to_dict(),
         "model_after": m1.to_dict(),
         "effects": effects,

@@ -180,28 +180,52 @@ def find_peaks(spec: Spectrum, min_ratio, lo=None, hi=None, max_peaks=20):
     return out
 
 
-def fit_line(signals, phases, weights=None, detrend=True):
+class _Detrender:
+    """Removes each piece's mean and slope from concatenated arrays (the
+    per-piece nuisance of the line fits), in O(n) numpy."""
+
+    def __init__(self, lengths):
+        self.lengths = np.asarray(lengths, int)
+        self.starts = np.r_[0, np.cumsum(self.lengths)[:-1]]
+        k = np.concatenate([np.arange(n) - (n - 1) / 2.0 for n in self.lengths])
+        self.k = k
+        self.kk = np.maximum(np.add.reduceat(k * k, self.starts), 1e-12)
+
+    def __call__(self, v):
+        means = np.add.reduceat(v, self.starts) / self.lengths
+        v = v - np.repeat(means, self.lengths)
+        slopes = np.add.reduceat(v * self.k, self.starts) / self.kk
+        return v - np.repeat(slopes, self.lengths) * self.k
+
+
+_DETRENDERS: dict = {}
+
+
+def _detrender(lengths):
+    if lengths not in _DETRENDERS:
+        if len(_DETRENDERS) > 8:
+            _DETRENDERS.clear()
+        _DETRENDERS[lengths] = _Detrender(lengths)
+    return _DETRENDERS[lengths]
+
+
+def fit_line(signals, phases, detrend=True):
     """Least-squares amplitude of a sinusoid with the given phase (one
     common amplitude/phase over all pieces).  Each piece's mean and slope are
     fitted alongside (nuisance).  Returns (amplitude_nm, phase_rad,
     explained_fraction)."""
-    sxx = np.zeros((2, 2))
-    sxy = np.zeros(2)
-    total = 0.0
-    for x, ph in zip(signals, phases):
-        if len(x) < 8:
-            continue
-        x = np.asarray(x, float)
-        c, s = np.cos(ph), np.sin(ph)
-        if detrend:
-            k = np.linspace(-1, 1, len(x))
-            basis = np.vstack([np.ones_like(k), k]).T
-            proj = lambda v: v - basis @ np.linalg.lstsq(basis, v, rcond=None)[0]
-            x, c, s = proj(x), proj(c), proj(s)
-        A = np.vstack([c, s])
-        sxx += A @ A.T
-        sxy += A @ x
-        total += float(x @ x)
+    keep = [i for i, x in enumerate(signals) if len(x) >= 8]
+    if not keep:
+        return 0.0, 0.0, 0.0
+    x = np.concatenate([np.asarray(signals[i], float) for i in keep])
+    ph = np.concatenate([np.asarray(phases[i], float) for i in keep])
+    c, s = np.cos(ph), np.sin(ph)
+    if detrend:
+        d = _detrender(tuple(len(signals[i]) for i in keep))
+        x, c, s = d(x), d(c), d(s)
+    sxx = np.array([[c @ c, c @ s], [c @ s, s @ s]])
+    sxy = np.array([c @ x, s @ x])
+    total = float(x @ x)
     if total <= 0 or np.linalg.cond(sxx) > 1e12:
         return 0.0, 0.0, 0.0
     coef = np.linalg.solve(sxx, sxy)
