@@ -10,8 +10,8 @@
  * warm-up batches, then R timed batches of N steps each (CLOCK_MONOTONIC),
  * interleaved across implementations; the median batch gives ns per update
  * (min and max are printed too).  The filter state carries over between
- * batches, so the timed updates are steady-state ones.  This is a benchmark: it prints numbers and never
- * fails on speed.  Exit status 2 on a bad command line.
+ * batches, so the timed updates are steady-state ones.  This is a
+ * benchmark: it prints numbers and never fails on speed.  Exit status 2 on a bad command line.
  */
 #define _POSIX_C_SOURCE 199309L
 #include <math.h>
