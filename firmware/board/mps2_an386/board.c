@@ -58,4 +58,7 @@ __asm__(".section .text.hd_mark,\"ax\",%progbits\n"
         "hd_mark_end: bx lr\n.size hd_mark_end,.-hd_mark_end\n"
         ".global hd_mark_section\n.type hd_mark_section,%function\n.thumb_func\n"
         "hd_mark_section: bx lr\n.size hd_mark_section,.-hd_mark_section\n"
+        ".global hd_bench_loop\n.type hd_bench_loop,%function\n.thumb_func\n"
+        "hd_bench_loop: subs r0, r0, #1\n bne hd_bench_loop\n bx lr\n"
+        ".size hd_bench_loop,.-hd_bench_loop\n"
         ".text\n");

@@ -65,6 +65,10 @@ void hd_mark_begin(void);
 void hd_mark_end(void);
 void hd_mark_section(void);
 
+/* A loop of known length for checking the instruction counter: for n >= 1
+ * it executes exactly 2 n + 1 instructions (n x `subs; bne`, then `bx lr`). */
+void hd_bench_loop(uint32_t n);
+
 #ifdef __cplusplus
 }
 #endif

@@ -12,8 +12,11 @@
  *               (2 frames per tick at 1 kHz) and the heartbeat on tick 0
  *   isrcmd:NAME hd_fw_isr with HD_FW_RX_PER_TICK (4) SET_PARAM commands
  *               queued every tick (each answered with an ACK frame)
- *   dense:NAME  the dense textbook float32 filter (tests/target/dense_kf_f32.c)
- * and "empty" (begin immediately followed by end) for the marker overhead.
+ *   dense:NAME  the dense textbook float32 filter, same model and inputs
+ *               (tests/bench/dense_kf_f32.c, the compute benchmark's peer)
+ * and "empty" (begin immediately followed by end) for the marker overhead,
+ * and "loop" (hd_bench_loop(10), then hd_bench_loop(1010): the counts must
+ * differ by exactly 2 x 1000, a closed-form check of the counter).
  * Before each section it prints "section LABEL STATES" on the console; the
  * plugin closes the section at hd_mark_section.
  *
@@ -59,7 +62,7 @@ static hd_fw_t g_fw;
 static hal_mock_t g_mock;
 static hal_t g_hal;
 static hd_kf_t g_kf;
-static dense_kf_t g_dense;
+static dense_kf_f32_t g_dense;
 
 static void section(const char *label, const char *model, uint32_t states)
 {
@@ -141,24 +144,19 @@ static void bench_kf(const hd_fw_config_t *cfg)
 
 static void bench_dense(const hd_fw_config_t *cfg)
 {
-    float orders[DENSE_KF_MAX_BLOCKS];
-    unsigned blocks = cfg->kf.block_count;
-    for (unsigned b = 0; b < blocks; b++) {
-        /* one angle for all blocks: output orders scaled to motor orders */
-        orders[b] = cfg->kf.blocks[b].lock == HD_KF_LOCK_OUTPUT
-                        ? cfg->kf.blocks[b].order / cfg->gear_ratio
-                        : cfg->kf.blocks[b].order;
-    }
-    if (dense_kf_init(&g_dense, blocks, orders, cfg->kf.offset_enabled, cfg->kf.blocks[0].q_nm2,
-                      cfg->kf.r_nm2, cfg->kf.p0_nm2) != 0) {
-        sh_exit(BOARD_EXIT_INIT);
-    }
+    dense_kf_f32_init(&g_dense, &cfg->kf);
     float angle = 0.0f;
     const float d_motor = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
     for (uint32_t k = 0; k < CALLS; k++) {
-        float y = test_torque_nm(k, angle) - 5.0f;
+        hd_kf_input_t in;
+        memset(&in, 0, sizeof in);
+        in.torque_meas_nm = test_torque_nm(k, angle);
+        in.torque_expected_nm = 5.0f;
+        in.d_motor_angle_rad = d_motor;
+        in.d_output_angle_rad = d_motor / cfg->gear_ratio;
+        dense_kf_f32_output_t out;
         hd_mark_begin();
-        (void)dense_kf_step(&g_dense, y, d_motor);
+        dense_kf_f32_step(&g_dense, &in, &out);
         hd_mark_end();
         angle += d_motor;
         wrap_angle(&angle);
@@ -214,6 +212,15 @@ int main(void)
         hd_mark_begin();
         hd_mark_end();
     }
+    hd_mark_section();
+
+    section("loop", "-", 0u);
+    hd_mark_begin();
+    hd_bench_loop(10u);
+    hd_mark_end();
+    hd_mark_begin();
+    hd_bench_loop(1010u);
+    hd_mark_end();
     hd_mark_section();
 
     for (unsigned m = 0; m < sizeof MODELS / sizeof MODELS[0]; m++) {
