@@ -1,0 +1,300 @@
+/* fi_rig: see fi_rig.h. */
+#include "fi_rig.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "hd_sim_scenario.h"
+#include "unity.h"
+
+#define BASE_SCENARIO                                                                          \
+    "seed = 7\n"                                                                               \
+    "gear_ratio = 100\n"                                                                       \
+    "load_inertia_kgm2 = 0.1\n"                                                                \
+    "viscous_nm_s_rad = 1.0\n"                                                                 \
+    "coulomb_nm = 0.8\n"                                                                       \
+    "ripple = motor : 2 : 1.0 : 0.3\n"                                                         \
+    "ripple = motor : 4 : 0.4 : 1.1\n"                                                         \
+    "ripple = output : 1 : 0.5 : -0.7\n"                                                       \
+    "noise_nm = 0.02\n"
+
+/* ------------------------------------------------------------ the injector */
+
+static bool in_window(const fi_rig_t *r)
+{
+    return r->tick >= r->fault.start_tick && r->tick < r->fault.end_tick;
+}
+
+static int inj_adc_read(void *ctx, hal_adc_sample_t *out)
+{
+    fi_rig_t *r = ctx;
+    int rc = r->sim_hal.sensors.adc_read(r->sim_hal.sensors.ctx, out);
+    if (rc != HAL_OK) {
+        return rc; /* end of the scenario */
+    }
+    const hd_sim_sample_t *s = hal_sim_current(&r->sim);
+    if (r->fault.kind == FI_EXTRA_RIPPLE && r->tick >= r->fault.start_tick) {
+        /* a new motor order-2 line in the sensor, not in the truth */
+        double extra_nm = r->fault.amp_nm * sin(2.0 * s->motor_angle_rad + 0.5);
+        double counts = extra_nm / (r->nom.gain_nm_per_v * r->nom.adc_v_per_count);
+        out->bridge_counts += (int32_t)lround(counts);
+    }
+    if (!in_window(r)) {
+        return HAL_OK;
+    }
+    switch (r->fault.kind) {
+    case FI_ADC_IO:
+        return HAL_ERR_IO;
+    case FI_OPEN_BRIDGE:
+        out->bridge_counts = 32767;
+        return HAL_ERR_FAULT;
+    case FI_ADC_RAIL:
+        out->bridge_counts = 32767;
+        out->saturated = true;
+        return HAL_OK;
+    case FI_ADC_COUNTS:
+        out->bridge_counts = r->fault.counts;
+        return HAL_OK;
+    default:
+        return HAL_OK;
+    }
+}
+
+static int inj_encoder_read(void *ctx, hal_encoder_sample_t *out)
+{
+    fi_rig_t *r = ctx;
+    int rc = r->sim_hal.sensors.encoder_read(r->sim_hal.sensors.ctx, out);
+    if (rc != HAL_OK) {
+        return rc;
+    }
+    if (r->fault.kind == FI_ENC_JUMP && r->tick >= r->fault.start_tick) {
+        out->motor_counts += (uint32_t)r->fault.counts;
+    }
+    if (!in_window(r)) {
+        return HAL_OK;
+    }
+    if (r->fault.kind == FI_ENC_FAULT) {
+        out->fault = true;
+        out->motor_counts = 0xDEADBEEFu; /* garbage: must not be used */
+    } else if (r->fault.kind == FI_ENC_SPIKE) {
+        out->motor_counts += (uint32_t)r->fault.counts;
+    }
+    return HAL_OK;
+}
+
+/* ------------------------------------------------------- telemetry decoding */
+
+static uint16_t u16le(const uint8_t *p)
+{
+    return (uint16_t)(p[0] | (p[1] << 8));
+}
+
+/* Decodes by the byte layout of docs/firmware.md (not with hd_can_proto). */
+static void tx_hook(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
+{
+    fi_rig_t *r = ctx;
+    (void)t_us;
+    const uint32_t node = r->fw.cfg.node_id;
+    if (f->id == 0x100u + node) {
+        uint8_t seq = f->data[6];
+        if (r->have_seq && (uint8_t)(seq - r->last_seq) != 1u) {
+            r->seq_gaps += (uint8_t)(seq - r->last_seq) - 1u;
+        }
+        r->last_seq = seq;
+        r->have_seq = true;
+        r->telem_a++;
+    } else if (f->id == 0x180u + node) {
+        r->telem_faults_or |= u16le(&f->data[4]);
+        r->telem_b++;
+    } else if (f->id == 0x700u + node) {
+        r->heartbeats++;
+        r->last_hb_faults = u16le(&f->data[1]);
+        r->hb_faults_or |= r->last_hb_faults;
+        r->last_hb_calib_status = f->data[7];
+    } else if (f->id == 0x580u + node) {
+        r->acks++;
+        memcpy(r->last_ack, f->data, 8);
+    }
+}
+
+/* ------------------------------------------------------------------ set-up */
+
+void fi_rig_init(fi_rig_t *r, const char *extra)
+{
+    memset(r, 0, sizeof *r);
+    static char text[4096];
+    if (extra == NULL) {
+        extra = "";
+    }
+    /* defaults for the keys a test may set (scalar keys may appear once) */
+    snprintf(text, sizeof text, "%s%s%s%s", BASE_SCENARIO,
+             strstr(extra, "duration_s") ? "" : "duration_s = 8\n",
+             strstr(extra, "load_torque_profile") ? "" : "load_torque_profile = 0:3\n", extra);
+    hd_sim_scenario_t sc;
+    hd_sim_scenario_default(&sc);
+    char err[256];
+    if (hd_sim_scenario_parse(&sc, text, "fi_rig", err, sizeof err) != 0) {
+        TEST_FAIL_MESSAGE(err);
+    }
+    if (hal_sim_init(&r->sim, &sc, err, sizeof err) != 0) {
+        TEST_FAIL_MESSAGE(err);
+    }
+    r->n_ticks = hal_sim_samples(&r->sim);
+    TEST_ASSERT_TRUE(r->n_ticks <= FI_MAX_TICKS);
+    hal_sim_bind(&r->sim, &r->sim_hal);
+    hal_sim_nominal(&r->sim, &r->nom);
+
+    hal_mock_init(&r->mock);
+    r->mock.tx_store = false; /* the hook sees every frame; nothing is capped */
+    r->mock.tx_hook = tx_hook;
+    r->mock.tx_hook_ctx = r;
+    hal_mock_bind(&r->mock, &r->hal); /* CAN and NVM from the mock */
+    r->hal.name = "fi_rig";
+    r->hal.sensors.ctx = r;
+    r->hal.sensors.adc_read = inj_adc_read;
+    r->hal.sensors.encoder_read = inj_encoder_read;
+    r->hal.clock = r->sim_hal.clock; /* sample time: 1000 us per tick */
+
+    /* the nominal calibration in NVM, as the host runner stores it */
+    hd_calib_record_t rec;
+    hd_calib_record_default(&rec);
+    rec.gain_nm_per_v = (float)r->nom.gain_nm_per_v;
+    rec.offset_v = (float)r->nom.offset_v;
+    hd_calib_storage_t st = {r->hal.nvm.ctx, r->hal.nvm.size, r->hal.nvm.read, r->hal.nvm.write,
+                             r->hal.nvm.erase};
+    TEST_ASSERT_EQUAL_INT(0, hd_calib_store_save(&st, &rec));
+
+    hd_fw_config_default(&r->cfg);
+    r->cfg.adc_volts_per_count = (float)r->nom.adc_v_per_count;
+    r->cfg.motor_cpr = r->nom.motor_cpr;
+    r->cfg.gear_ratio = (float)r->nom.gear_ratio;
+    r->cfg.expected.inertia_kgm2 = (float)r->nom.load_inertia_kgm2;
+    r->cfg.expected.viscous_nm_s_rad = (float)r->nom.viscous_nm_s_rad;
+    r->cfg.expected.coulomb_nm = (float)r->nom.coulomb_nm;
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&r->fw, &r->hal, &r->cfg));
+    r->fault.start_tick = UINT64_MAX;
+    r->fault.end_tick = UINT64_MAX;
+}
+
+/* ---------------------------------------------------------------- running */
+
+static void check_tick(fi_rig_t *r, const hd_fw_sample_t *s)
+{
+    const hd_fw_config_t *c = &r->fw.cfg;
+    if (!isfinite(s->ripple_nm) || !isfinite(s->motor_velocity_rad_s) ||
+        !isfinite(s->torque_expected_nm) || (s->valid && !isfinite(s->torque_filtered_nm))) {
+        r->non_finite++;
+        return;
+    }
+    /* physical bounds: a ripple estimate beyond the torque range, a filtered
+     * torque beyond twice the range or a speed beyond 1.5 x the glitch limit
+     * would mean the numbers have run away */
+    if (fabsf(s->ripple_nm) > c->torque_limit_nm ||
+        fabsf(s->motor_velocity_rad_s) > 1.5f * c->max_motor_speed_rad_s ||
+        (s->valid && fabsf(s->torque_filtered_nm) > 2.0f * c->torque_limit_nm)) {
+        r->out_of_bounds++;
+    }
+    if (!s->valid && s->faults == 0u) {
+        r->invalid_unflagged++;
+    }
+    if (s->valid && fabs((double)s->torque_filtered_nm) > r->max_abs_filtered_nm) {
+        r->max_abs_filtered_nm = fabs((double)s->torque_filtered_nm);
+    }
+}
+
+uint64_t fi_rig_run(fi_rig_t *r, uint64_t n)
+{
+    uint64_t done = 0;
+    while (done < n && r->tick < r->n_ticks) {
+        uint32_t before = r->fw.counters.ticks;
+        hd_fw_isr(&r->fw);
+        hd_fw_background(&r->fw);
+        if (r->fw.counters.ticks != before + 1u) {
+            r->bad_steps++;
+            break;
+        }
+        const hd_fw_sample_t *s = hd_fw_last_sample(&r->fw);
+        check_tick(r, s);
+        const hd_sim_sample_t *truth = hal_sim_current(&r->sim);
+        r->err_nm[r->tick] = s->valid ? (float)((double)s->torque_filtered_nm - truth->torque_true_nm)
+                                      : NAN;
+        r->faults[r->tick] = s->faults;
+        r->tick++;
+        done++;
+    }
+    return done;
+}
+
+long fi_recovery_ticks(const fi_rig_t *r, uint64_t from_tick, double band_nm, uint64_t hold)
+{
+    uint64_t run = 0;
+    for (uint64_t t = from_tick; t < r->tick; t++) {
+        float e = r->err_nm[t];
+        if (isfinite(e) && fabs((double)e) <= band_nm) {
+            run++;
+            if (run >= hold) {
+                return (long)(t + 1u - hold - from_tick);
+            }
+        } else {
+            run = 0;
+        }
+    }
+    return -1;
+}
+
+double fi_max_abs_err(const fi_rig_t *r, uint64_t a, uint64_t b)
+{
+    double m = (double)NAN;
+    for (uint64_t t = a; t < b && t < r->tick; t++) {
+        float e = r->err_nm[t];
+        if (isfinite(e) && !(fabs((double)e) <= m)) {
+            m = fabs((double)e);
+        }
+    }
+    return m;
+}
+
+double fi_rms_err(const fi_rig_t *r, uint64_t a, uint64_t b)
+{
+    double s = 0.0;
+    uint64_t n = 0;
+    for (uint64_t t = a; t < b && t < r->tick; t++) {
+        float e = r->err_nm[t];
+        if (isfinite(e)) {
+            s += (double)e * (double)e;
+            n++;
+        }
+    }
+    return n > 0 ? sqrt(s / (double)n) : (double)NAN;
+}
+
+uint16_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b)
+{
+    uint16_t f = 0;
+    for (uint64_t t = a; t < b && t < r->tick; t++) {
+        f |= r->faults[t];
+    }
+    return f;
+}
+
+void fi_push_cmd(fi_rig_t *r, const uint8_t data[8], uint8_t len, uint8_t flags, uint32_t id)
+{
+    hal_can_frame_t f;
+    memset(&f, 0, sizeof f);
+    f.id = id;
+    f.len = len;
+    f.flags = flags;
+    memcpy(f.data, data, len <= 8u ? len : 8u);
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&r->mock, &f));
+}
+
+void fi_report(const char *fault, long recovery_ticks, double extra_value, const char *extra_name)
+{
+    printf("RECOVERY %-28s ticks=%ld", fault, recovery_ticks);
+    if (extra_name != NULL) {
+        printf(" %s=%.4g", extra_name, extra_value);
+    }
+    printf("\n");
+    fflush(stdout);
+}
