@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,13 +83,15 @@ def _read_csv(path: Path) -> tuple[dict, list[str]]:
     num = [h for h in header if h in KNOWN and h != "segment"]
     idx = [header.index(h) for h in num]
     cols: dict = {}
-    try:
-        arr = np.loadtxt(path, delimiter=",", skiprows=1, usecols=idx, dtype=np.float64,
-                         ndmin=2)
-    except ValueError:
-        # Empty or non-numeric fields: slower reader that turns them into NaN.
-        arr = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=idx,
-                            dtype=np.float64, ndmin=2, invalid_raise=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # "no data" is reported below
+        try:
+            arr = np.loadtxt(path, delimiter=",", skiprows=1, usecols=idx, dtype=np.float64,
+                             ndmin=2)
+        except ValueError:
+            # Empty or non-numeric fields: slower reader that turns them into NaN.
+            arr = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=idx,
+                                dtype=np.float64, ndmin=2, invalid_raise=False)
     if arr.size == 0:
         raise InputError(f"{path}: no data rows")
     for j, h in enumerate(num):
