@@ -34,10 +34,26 @@ def ensure_built(target: str | None = None) -> Path:
     return bdir
 
 
+# Parts of a build tree that hold no artefacts of ours but scratch files that
+# tests create and delete while other tests run (a walk must not trip on them).
+_SKIP_DIRS = {"CMakeFiles", "Testing", "vm", "cache"}
+
+
+def _walk_for(bdir: Path, name: str, want_exec: bool = False) -> list[Path]:
+    hits = []
+    for dirpath, dirnames, filenames in os.walk(bdir):  # ignores vanished dirs
+        dirnames[:] = [d for d in dirnames if d not in _SKIP_DIRS]
+        if name in filenames:
+            path = Path(dirpath) / name
+            if not want_exec or os.access(path, os.X_OK):
+                hits.append(path)
+    return sorted(hits)
+
+
 def find_file(name: str, target: str | None = None) -> Path:
     """Path of a built artefact (library or executable) by file name."""
     bdir = ensure_built(target)
-    hits = sorted(bdir.rglob(name))
+    hits = _walk_for(bdir, name)
     if not hits:
         raise FileNotFoundError(f"{name} not found under {bdir}; build the project first")
     return hits[0]
@@ -55,7 +71,7 @@ _TARGET_OF = {"hdsim": "hdsim_cli"}
 def executable(name: str) -> Path:
     """Path of a built host executable by file name (built if needed)."""
     bdir = ensure_built(_TARGET_OF.get(name, name))
-    hits = [p for p in bdir.rglob(name) if p.is_file() and os.access(p, os.X_OK)]
+    hits = _walk_for(bdir, name, want_exec=True)
     if not hits:
         raise FileNotFoundError(f"executable {name} not found under {bdir}")
     return sorted(hits)[0]
