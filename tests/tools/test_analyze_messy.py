@@ -169,3 +169,25 @@ def test_cli_contract(simulate, tmp_path):
     assert run.returncode == 0, run.stderr
     assert f"commands = {len(frames)}" in run.stdout + run.stderr
     assert "command_errors = 0" in run.stdout + run.stderr
+
+
+def test_candump_telemetry_input(tmp_path):
+    """A candump -l log of the firmware's telemetry (host runner on the
+    simulated joint) is decoded through the DBC and analysed: the hidden
+    motor order 6 is found from the telemetry alone."""
+    from hdtools import native
+    from conftest import SCENARIOS
+    try:
+        host = native.find_file("hdjoint-host", target="hdjoint-host")
+    except (FileNotFoundError, subprocess.CalledProcessError):
+        pytest.skip("hdjoint-host not built")
+    log = tmp_path / "telem.log"
+    subprocess.run([str(host), "--sensors", f"sim:{SCENARIOS / 'motor6.ini'}", "--duration", "20",
+                    "--can", f"log:{log}"], check=True, capture_output=True)
+    r = analyze(log, gear_ratio=100.0)
+    assert r["data"]["source"] == "candump"
+    assert _finds_motor6(r)
+    bad = tmp_path / "bad.log"
+    bad.write_text("(0.0) vcan0 7FF#00\n")
+    with pytest.raises(InputError, match="telemetry"):
+        analyze(bad)
