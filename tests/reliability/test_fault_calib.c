@@ -1,0 +1,314 @@
+/* What the FIRMWARE does with each state of the calibration record (the
+ * record store itself is tested in tests/calib): missing, CRC-corrupt, one
+ * copy corrupt, wrong version, NVM I/O error, and a power loss at every byte
+ * of a CALIB_SAVE issued over CAN.
+ *
+ * Expectations from docs/firmware.md and docs/calibration.md: the right
+ * flag on every tick (telemetry) and the right CalibStatus in the heartbeat;
+ * defaults (6.60 N m/V, offset 0) whenever no valid copy exists, the stored
+ * values otherwise, checked through the torque the firmware computes from
+ * known ADC counts; a later good save clears the flag on the next tick.
+ * Records with a wrong version are built here with an independent CRC-32. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "hal_mock.h"
+#include "hd_calib_record.h"
+#include "hd_fw.h"
+#include "unity.h"
+
+static hal_mock_t mock;
+static hal_t hal;
+static hd_fw_t fw;
+static hd_fw_config_t cfg;
+
+#define VPC (10.0 / 32768.0)
+#define COUNTS 3000 /* 0.9155 V */
+#define NOMINAL_GAIN 6.60
+#define STORED_GAIN 6.0f
+#define STORED_OFFSET 0.05f
+#define NEW_GAIN 7.0f
+
+void setUp(void)
+{
+    hal_mock_init(&mock);
+    hal_mock_bind(&mock, &hal);
+    hd_fw_config_default(&cfg);
+    cfg.adc_volts_per_count = (float)VPC;
+}
+void tearDown(void) {}
+
+/* Independent CRC-32 (IEEE 802.3, reflected, init and final xor ~0). */
+static uint32_t crc32_ref(const uint8_t *p, size_t n)
+{
+    uint32_t c = 0xFFFFFFFFu;
+    for (size_t i = 0; i < n; i++) {
+        c ^= p[i];
+        for (int b = 0; b < 8; b++) {
+            c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+        }
+    }
+    return ~c;
+}
+
+static hd_calib_storage_t storage(const hal_t *h)
+{
+    hd_calib_storage_t s = {h->nvm.ctx, h->nvm.size, h->nvm.read, h->nvm.write, h->nvm.erase};
+    return s;
+}
+
+static void store(float gain, float offset)
+{
+    hd_calib_record_t rec;
+    hd_calib_record_default(&rec);
+    rec.gain_nm_per_v = gain;
+    rec.offset_v = offset;
+    hd_calib_storage_t s = storage(&hal);
+    TEST_ASSERT_EQUAL_INT(0, hd_calib_store_save(&s, &rec));
+}
+
+static void tick(unsigned n)
+{
+    static uint32_t motor;
+    for (unsigned i = 0; i < n; i++) {
+        motor += 5u;
+        TEST_ASSERT_EQUAL_INT(0, hal_mock_push(&mock, COUNTS, motor));
+        hd_fw_isr(&fw);
+        hd_fw_background(&fw);
+    }
+}
+
+static uint8_t last_heartbeat_calib_status(void)
+{
+    const hal_can_frame_t *hb = NULL;
+    for (uint32_t i = 0; i < hal_mock_tx_count(&mock); i++) {
+        if (hal_mock_tx(&mock, i)->id == 0x701u) {
+            hb = hal_mock_tx(&mock, i);
+        }
+    }
+    TEST_ASSERT_NOT_NULL(hb);
+    return hb->data[7];
+}
+
+/* Init, run a few ticks, check flag, heartbeat status and the torque the
+ * firmware computes (which tells the gain and offset in use). */
+static void check_boot(uint16_t flag, uint8_t status, double gain, double offset_v)
+{
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
+    tick(5);
+    const hd_fw_sample_t *s = hd_fw_last_sample(&fw);
+    TEST_ASSERT_EQUAL_UINT16(flag, s->faults & (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT |
+                                                HD_FAULT_CALIB_ONE_COPY));
+    TEST_ASSERT_EQUAL_UINT8(status, last_heartbeat_calib_status());
+    TEST_ASSERT_EQUAL_UINT32(5, fw.counters.by_fault[flag == HD_FAULT_CALIB_MISSING   ? 10
+                                                     : flag == HD_FAULT_CALIB_CORRUPT ? 11
+                                                                                      : 14]);
+    double expect = gain * (COUNTS * VPC - offset_v);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, expect, (double)s->torque_raw_nm);
+    TEST_ASSERT_TRUE(s->valid); /* defaults are usable: the joint keeps running */
+}
+
+/* A CALIB_SAVE over CAN clears the flag on the next tick. */
+static void check_recovery_by_save(void)
+{
+    TEST_ASSERT_EQUAL_UINT8(0, mock.nvm_fail); /* caller made the NVM writable */
+    hal_can_frame_t f = {0x601u, 8, 0, {0x31, 0x42, 0, 0, 0x10, 0x20, 0x30, 0x40}};
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
+    tick(1); /* the command is taken in this tick, the write after it */
+    tick(1);
+    TEST_ASSERT_EQUAL_UINT16(0, hd_fw_last_sample(&fw)->faults);
+    hd_calib_storage_t s = storage(&hal);
+    hd_calib_record_t back;
+    uint32_t seq;
+    /* the save rewrote the older or damaged slot; if both were damaged the
+     * other one stays damaged until the next save (a warning, not a fault) */
+    int rc = hd_calib_store_load(&s, &back, &seq);
+    TEST_ASSERT_TRUE(rc == HD_CALIB_LOAD_OK || rc == HD_CALIB_LOAD_ONE_COPY_BAD);
+    TEST_ASSERT_EQUAL_UINT32(0x40302010u, back.calibrated_unix_s);
+}
+
+static void test_missing_record(void)
+{
+    check_boot(HD_FAULT_CALIB_MISSING, 2, NOMINAL_GAIN, 0.0);
+    check_recovery_by_save();
+}
+
+static void test_crc_corrupt_both_copies(void)
+{
+    store(STORED_GAIN, STORED_OFFSET);
+    store(STORED_GAIN, STORED_OFFSET); /* both copies written */
+    mock.nvm[14] ^= 0x01u;             /* a gain byte of copy A */
+    mock.nvm[HAL_MOCK_NVM_BYTES / 2u + 14u] ^= 0x80u;
+    check_boot(HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
+    check_recovery_by_save();
+}
+
+static void test_one_copy_corrupt(void)
+{
+    store(STORED_GAIN, STORED_OFFSET);
+    store(STORED_GAIN, STORED_OFFSET);
+    mock.nvm[HAL_MOCK_NVM_BYTES / 2u + 30u] ^= 0x10u; /* copy B, serial byte */
+    check_boot(HD_FAULT_CALIB_ONE_COPY, 1, STORED_GAIN, STORED_OFFSET);
+}
+
+static void test_wrong_version(void)
+{
+    store(STORED_GAIN, STORED_OFFSET);
+    store(STORED_GAIN, STORED_OFFSET);
+    for (unsigned copy = 0; copy < 2u; copy++) {
+        uint8_t *p = &mock.nvm[copy * (HAL_MOCK_NVM_BYTES / 2u)];
+        TEST_ASSERT_EQUAL_UINT32(crc32_ref(p, 60), (uint32_t)(p[60] | p[61] << 8 | p[62] << 16 |
+                                                              (uint32_t)p[63] << 24));
+        /* an intact record of format version 2 (flash: rewrite the copy) */
+        uint8_t rec[64];
+        memcpy(rec, p, 64);
+        rec[4] = 2;
+        rec[5] = 0;
+        uint32_t c = crc32_ref(rec, 60);
+        rec[60] = (uint8_t)c;
+        rec[61] = (uint8_t)(c >> 8);
+        rec[62] = (uint8_t)(c >> 16);
+        rec[63] = (uint8_t)(c >> 24);
+        memcpy(p, rec, 64);
+    }
+    check_boot(HD_FAULT_CALIB_CORRUPT, 4, NOMINAL_GAIN, 0.0);
+    check_recovery_by_save();
+}
+
+static void test_nvm_io_error(void)
+{
+    store(STORED_GAIN, STORED_OFFSET);
+    mock.nvm_fail = true;
+    check_boot(HD_FAULT_CALIB_CORRUPT, 5, NOMINAL_GAIN, 0.0);
+    mock.nvm_fail = false;
+    check_recovery_by_save();
+}
+
+/* ----------------------------------------------- power loss during a save */
+
+typedef struct {
+    hal_mock_t *m;
+    const hal_t *inner;
+    long budget; /* bytes that still reach the flash; < 0: unlimited */
+    long used;
+} cut_nvm_t;
+
+static int cut_read(void *ctx, size_t off, void *buf, size_t len)
+{
+    cut_nvm_t *c = ctx;
+    if (c->budget == 0) {
+        return HAL_ERR_IO; /* power is gone */
+    }
+    return c->inner->nvm.read(c->inner->nvm.ctx, off, buf, len);
+}
+
+/* Byte by byte, so the power can fail after any one of them. */
+static int cut_write(void *ctx, size_t off, const void *buf, size_t len)
+{
+    cut_nvm_t *c = ctx;
+    for (size_t i = 0; i < len; i++) {
+        if (c->budget == 0) {
+            return HAL_ERR_IO;
+        }
+        int rc = c->inner->nvm.write(c->inner->nvm.ctx, off + i, (const uint8_t *)buf + i, 1);
+        if (rc != HAL_OK) {
+            return rc;
+        }
+        c->budget = c->budget > 0 ? c->budget - 1 : c->budget;
+        c->used++;
+    }
+    return HAL_OK;
+}
+
+static int cut_erase(void *ctx, size_t off, size_t len)
+{
+    cut_nvm_t *c = ctx;
+    for (size_t i = 0; i < len; i++) {
+        if (c->budget == 0) {
+            return HAL_ERR_IO;
+        }
+        int rc = c->inner->nvm.erase(c->inner->nvm.ctx, off + i, 1);
+        if (rc != HAL_OK) {
+            return rc;
+        }
+        c->budget = c->budget > 0 ? c->budget - 1 : c->budget;
+        c->used++;
+    }
+    return HAL_OK;
+}
+
+/* Boots on `hal` with a stored record (gain 6.0), sets gain 7.0 over CAN,
+ * sends CALIB_SAVE, and lets the power fail after `budget` flash bytes
+ * (erase or write).  Returns the bytes used. */
+static long save_with_power_cut(long budget)
+{
+    hal_mock_init(&mock);
+    hal_mock_bind(&mock, &hal);
+    store(STORED_GAIN, STORED_OFFSET);
+    static cut_nvm_t cut;
+    cut.m = &mock;
+    cut.inner = &hal;
+    cut.budget = -1;
+    cut.used = 0;
+    static hal_t cut_hal;
+    cut_hal = hal;
+    cut_hal.nvm.ctx = &cut;
+    cut_hal.nvm.read = cut_read;
+    cut_hal.nvm.write = cut_write;
+    cut_hal.nvm.erase = cut_erase;
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &cut_hal, &cfg));
+    uint8_t set[8] = {0x20, 1, 12, 0, 0, 0, 0, 0};
+    float g = NEW_GAIN;
+    memcpy(&set[4], &g, 4); /* little-endian host */
+    hal_can_frame_t f = {0x601u, 8, 0, {0}};
+    memcpy(f.data, set, 8);
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
+    hal_can_frame_t save = {0x601u, 8, 0, {0x31, 2, 0, 0, 1, 0, 0, 0}};
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &save));
+    cut.budget = budget;
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push(&mock, COUNTS, 0));
+    hd_fw_isr(&fw);          /* takes both commands */
+    hd_fw_background(&fw);   /* the write, cut by the power loss */
+    return cut.used;
+}
+
+static void test_power_loss_at_every_byte_of_a_save(void)
+{
+    long total = save_with_power_cut(-1);
+    TEST_ASSERT_TRUE(total >= 64);
+    unsigned old_seen = 0, new_seen = 0;
+    bool switched = false;
+    for (long k = 0; k <= total; k++) {
+        save_with_power_cut(k);
+        /* reboot on the plain NVM */
+        TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
+        TEST_ASSERT_TRUE(fw.calib_load_result == HD_CALIB_LOAD_OK ||
+                         fw.calib_load_result == HD_CALIB_LOAD_ONE_COPY_BAD);
+        TEST_ASSERT_EQUAL_UINT16(0, fw.calib_faults & (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT));
+        if (fw.calib.gain_nm_per_v == STORED_GAIN) {
+            TEST_ASSERT_FALSE_MESSAGE(switched, "old record came back after the new one");
+            old_seen++;
+        } else {
+            TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, fw.calib.gain_nm_per_v);
+            switched = true;
+            new_seen++;
+        }
+    }
+    TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, fw.calib.gain_nm_per_v); /* complete save */
+    TEST_ASSERT_TRUE(old_seen > 0 && new_seen > 0);
+    printf("RECOVERY %-28s ticks=0 cut_points=%ld old=%u new=%u\n", "calib_power_loss", total + 1,
+           old_seen, new_seen);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_missing_record);
+    RUN_TEST(test_crc_corrupt_both_copies);
+    RUN_TEST(test_one_copy_corrupt);
+    RUN_TEST(test_wrong_version);
+    RUN_TEST(test_nvm_io_error);
+    RUN_TEST(test_power_loss_at_every_byte_of_a_save);
+    return UNITY_END();
+}
