@@ -84,7 +84,9 @@ def test_load_dependent_ripple_is_traced_to_its_line(simulate):
     found = [e for e in r["effects"] if e["kind"] == "motor_order"
              and abs(e["order_per_motor_rev"] - 2.0) < 0.01]
     assert found, r["effects"]
-    assert found[0]["evidence"]["band_ratio"] >= 30
+    ev = found[0]["evidence"]
+    assert max(ev.get("band_ratio", 0), ev.get("peak_ratio_order_spectrum", 0)) >= 30
+    assert ev.get("existing_block") == 0   # traced to the modelled order-2 line
     # Nothing wrong is added.
     assert all(e["kind"] == "motor_order" for e in added(r))
 

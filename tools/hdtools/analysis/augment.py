@@ -74,14 +74,18 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
     return m
 
 
-def line_amplitude(runs, kind, order):
-    sig = [r.filtered[r.warm:] for r in runs]
+def line_amplitude(runs, kind, order, raw=False):
+    """Least-squares amplitude of the line in the filtered (or raw) torque
+    (slow torque removed first, see spectra.highpass_for_line)."""
+    sig = [(np.asarray(r.torque_nm, float) if raw else r.filtered)[r.warm:] for r in runs]
     if kind == "motor_order":
         ph = [order * r.motor_angle_rad[r.warm:] for r in runs]
     elif kind == "output_order":
         ph = [order * r.output_angle_rad[r.warm:] for r in runs]
     else:
         ph = [2 * math.pi * order * np.asarray(r.t_s[r.warm:], float) for r in runs]
+    ts = float(np.median(np.diff(runs[0].t_s))) if len(runs[0].t_s) > 1 else 1e-3
+    sig = spectra.highpass_for_line(sig, ph, ts)
     amp, _, _ = spectra.fit_line(detect._decimated(sig), detect._decimated(ph))
     return amp
 
@@ -97,8 +101,15 @@ def judge(c, runs0, m0, runs1, m1):
         ev["rejected_because"] = "the filter reset itself with this change"
         return False, ev
     if c.kind in ("motor_order", "output_order", "fixed_frequency"):
-        a0 = line_amplitude(runs0, c.kind, c.order)
-        a1 = line_amplitude(runs1, c.kind, c.order)
+        if c.evidence.get("phase_coherent_over_record") is False:
+            # No common phase over the record: measure in the averaged
+            # spectrum (per-window phase) instead of one global fit.
+            a0 = spectral_line_amplitude(runs0, c.kind, c.order)
+            a1 = spectral_line_amplitude(runs1, c.kind, c.order)
+            ev["amplitude_measure"] = "averaged spectrum"
+        else:
+            a0 = line_amplitude(runs0, c.kind, c.order)
+            a1 = line_amplitude(runs1, c.kind, c.order)
         d = np.concatenate([(r1.filtered - r0.filtered)[r0.warm:] for r0, r1 in zip(runs0, runs1)])
         change_rms = float(np.sqrt(np.mean(d ** 2)))
         line_rms = a0 / math.sqrt(2)
@@ -137,8 +148,8 @@ def judge(c, runs0, m0, runs1, m1):
     return False, ev
 
 
-def run_loop(data, model0: Model, log=print):
-    runs = rp.replay(data, model0)
+def run_loop(data, model0: Model, log=print, feedforward=None):
+    runs = rp.replay(data, model0, feedforward)
     met = rp.metrics(runs)
     model = model0
     history = [{"step": 0, "change": "starting model", **met}]
@@ -173,7 +184,7 @@ def run_loop(data, model0: Model, log=print):
                                       "cannot be expressed in the firmware model")
                 effects.append(_finding(c, False, None, None, model.gear_ratio))
                 continue
-            runs1 = rp.replay(data, trial)
+            runs1 = rp.replay(data, trial, feedforward)
             met1 = rp.metrics(runs1)
             keep, ev = judge(c, runs, met, runs1, met1)
             c.evidence.update(ev)
@@ -219,3 +230,25 @@ def _finding(c, added, m0, m1, gear_ratio):
         f["metrics_before"] = m0
         f["metrics_after"] = m1
     return f
+
+
+def spectral_line_amplitude(runs, kind, order, raw=False):
+    """Line amplitude from the averaged order (or time) spectrum: the peak
+    within +-2 bins of the line.  Each spectral window has its own phase,
+    so this survives a slowly drifting phase (inexact gear ratio, real
+    logs) where one global least-squares fit does not; it includes the
+    noise floor in that bin."""
+    sig = [(np.asarray(r.torque_nm, float) if raw else r.filtered)[r.warm:] for r in runs]
+    ts = float(np.median(np.diff(runs[0].t_s))) if len(runs[0].t_s) > 1 else 1e-3
+    if kind == "fixed_frequency":
+        spec = spectra.time_spectrum(sig, ts)
+    else:
+        ang = [(r.motor_angle_rad if kind == "motor_order" else r.output_angle_rad)[r.warm:]
+               for r in runs]
+        spec = spectra.order_spectrum(sig, ang)
+    if spec is None:
+        return float("nan")
+    i = int(round((order - spec.axis[0]) / (spec.axis[1] - spec.axis[0])))
+    if i < 1 or i >= len(spec.axis) - 2:
+        return float("nan")
+    return float(np.sqrt(np.max(spec.amp2[max(i - 2, 0):i + 3])))

@@ -121,7 +121,8 @@ def _refine(ctx, kind, order, step):
     """Order/frequency that maximises the least-squares line amplitude
     within +-1 spectral bin."""
     best = (-1.0, order)
-    sig = _decimated(ctx.signals, 100_000)
+    sig = _decimated(spectra.highpass_for_line(ctx.signals, phases(ctx, kind, order), ctx.ts_s),
+                     100_000)
     for o in order + step * np.linspace(-1, 1, 9):
         if o <= 0:
             continue
@@ -182,6 +183,7 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
             kind, order = (k2, o2) if integer or domain == "angle" else ("fixed_frequency", f_equiv)
         step = (ctx.spec_time.resolution if kind == "fixed_frequency" else
                 ctx.spec_motor.resolution * (ratio if kind == "output_order" else 1.0))
+        peak_order = order
         order = _refine(ctx, kind, order, step)
         if kind != "fixed_frequency" and _near_int(order, max(0.5 * step, INTEGER_TOL)):
             order = float(round(order))
@@ -189,11 +191,26 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
         if key in seen:
             continue
         seen.add(key)
-        amp, ph, expl = spectra.fit_line(_decimated(ctx.signals),
-                                         _decimated(phases(ctx, kind, order)))
-        if expl < MIN_EXPLAINED:
-            continue
-        if max(r_angle, r_time) < LINE_MIN_RATIO and expl < WEAK_EXPLAINED:
+        ph_all = phases(ctx, kind, order)
+        amp, ph, expl = spectra.fit_line(
+            _decimated(spectra.highpass_for_line(ctx.signals, ph_all, ctx.ts_s)),
+            _decimated(ph_all))
+        strong = max(r_angle, r_time) >= LINE_MIN_RATIO
+        spec_amp = peak["amplitude_nm"]
+        # The global fit is trusted when it agrees with the spectral peak and
+        # explains a measurable share; otherwise it is noise projection.
+        coherent = 0.5 * spec_amp <= amp <= 2.0 * spec_amp and expl >= MIN_EXPLAINED
+        if not coherent and strong:
+            # Sharp in the averaged spectrum but no single phase over the
+            # whole record: the lock drifts slowly (inexact gear ratio, real
+            # logs).  The Kalman block tracks phase, so it is still a
+            # candidate; the spectral amplitude and position stand.
+            ev["phase_coherent_over_record"] = False
+            amp = spec_amp
+            if domain == "angle" and kind != "fixed_frequency":
+                order = (peak_order if not _near_int(peak_order, max(0.5 * step, INTEGER_TOL))
+                         else float(round(peak_order)))
+        elif not strong and expl < WEAK_EXPLAINED:
             continue
         ev.update({"fit_amplitude_nm": round(amp, 5), "fit_explained_fraction": round(expl, 4)})
         action = "add_block"

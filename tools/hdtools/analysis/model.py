@@ -175,7 +175,8 @@ def slow_step_nm(torque_nm: np.ndarray, ts_s: float, window_s: float = 0.2) -> f
         return 0.0
     c = np.cumsum(np.r_[0.0, x])
     sm = (c[w:] - c[:-w]) / w
-    return float(np.sqrt(np.mean(np.diff(sm) ** 2)))
+    # Median, not mean: the steps at reversals are the jump gate's business.
+    return float(np.sqrt(np.median(np.diff(sm) ** 2)))
 
 
 def estimate_noise_nm(torque_nm: np.ndarray) -> float:

@@ -47,6 +47,90 @@ def _gear(data, given, log):
                       "the paper's 100 is assumed"}
 
 
+GRAVITY_DEGREE = 5
+
+
+def position_feedforward(data):
+    """Position-dependent torque (gravity) on a joint that sweeps back and
+    forth over less than a turn: a degree-5 polynomial in the output angle,
+    fitted per segment to the measured torque, used as the expected-torque
+    feed-forward (hd_pipeline's feedforward_nm).  On the robot this is the
+    controller's gravity model; here it is estimated from the log.  Returns
+    (list per piece or None, description)."""
+    if not data.has_output:
+        return None, None
+    if max(np.ptp(p.output_angle_rad) for p in data.pieces) >= 2 * np.pi:
+        return None, None   # turning joint: position torque is output-order lines
+    by_seg = {}
+    for k, p in enumerate(data.pieces):
+        by_seg.setdefault(p.segment, []).append(k)
+    ff = [None] * len(data.pieces)
+    total, explained = 0.0, 0.0
+    for seg, ks in by_seg.items():
+        th = np.concatenate([data.pieces[k].output_angle_rad for k in ks])
+        tq = np.concatenate([data.pieces[k].torque_nm for k in ks])
+        c0, sc = float(th.mean()), float(np.ptp(th) / 2) or 1.0
+        if np.ptp(th) < 1e-3 or len(th) < 10 * GRAVITY_DEGREE:
+            for k in ks:
+                ff[k] = np.zeros(len(data.pieces[k]))
+            continue
+        coef = np.polyfit((th - c0) / sc, tq, GRAVITY_DEGREE)
+        for k in ks:
+            ff[k] = np.polyval(coef, (data.pieces[k].output_angle_rad - c0) / sc)
+        fit = np.polyval(coef, (th - c0) / sc)
+        total += float(np.sum((tq - tq.mean()) ** 2))
+        explained += float(np.sum((fit - tq.mean()) ** 2))
+    desc = {"kind": f"polynomial of degree {GRAVITY_DEGREE} in the output angle, per segment",
+            "explained_fraction_of_torque_variance": explained / total if total else 0.0,
+            "note": "host-side expected torque (gravity); on the robot the controller sends "
+                    "it as feed-forward, the firmware model itself has no position term"}
+    return ff, desc
+
+
+NOISE_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
+TUNE_MAX_SAMPLES = 300_000
+
+
+def tune_noise(data, ff, noise, make_model, log):
+    """R of the starting model.  The third-difference noise estimate is far
+    too low on logs low-pass filtered before logging (the iiwa's), and then
+    the filter trusts every sample, lets its blocks chase torque changes and
+    injects ripple.  So R is chosen on a grid of multiples of the estimate:
+    the smallest value whose filtered torque keeps (within 25 %) the least of the model's own
+    motor-locked and fixed lines (averaged-spectrum amplitude, which does
+    not need a coherent phase), ties broken by the smaller multiple.  Uses
+    the first TUNE_MAX_SAMPLES samples.  Output-locked lines are left out
+    of the criterion: at a joint's low output orders they may be real
+    torque."""
+    from . import replay as rp
+    from .loading import Data
+    pieces, ffs, total = [], [], 0
+    for k, p in enumerate(data.pieces):
+        if total >= TUNE_MAX_SAMPLES:
+            break
+        pieces.append(p)
+        ffs.append(None if ff is None else ff[k])
+        total += len(p)
+    sub = Data(pieces, data.ts_s, data.has_motor, data.has_output, data.has_truth, data.source)
+    table = []
+    for f in NOISE_GRID:
+        m = make_model(noise * f)
+        runs = rp.replay(sub, m, None if ff is None else ffs)
+        met = rp.metrics(runs)
+        kinds = {"motor": "motor_order", "fixed": "fixed_frequency"}
+        amps = [augment.spectral_line_amplitude(runs, kinds[b.lock], b.order)
+                for b in m.blocks if b.lock in kinds]
+        left = float(np.nansum(amps)) if amps else 0.0
+        table.append({"noise_nm": noise * f, "lines_left_nm": left,
+                      "innovation_rms_nm": met["innovation_rms_nm"]})
+    lo = min(r["lines_left_nm"] for r in table)
+    # Smallest multiple within 25 % of the best (ties: keep R small).
+    best = next(r for r in table if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
+    log(f"starting R: noise {best['noise_nm']:.3g} N m (grid of {len(NOISE_GRID)}: least "
+        "modelled ripple left in the filtered torque)")
+    return best["noise_nm"], table
+
+
 def _merge(effects):
     """Repeated refinements of one slow term become one finding."""
     out, slow = [], {}
@@ -73,10 +157,19 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         log(n)
     g = _gear(data, gear_ratio, log)
     noise = float(np.median([estimate_noise_nm(p.torque_nm) for p in data.pieces]))
-    slow = float(np.median([slow_step_nm(p.torque_nm, data.ts_s) for p in data.pieces]))
-    m0 = Model.starting(g["value"], data.ts_s, noise, motor_orders, output_orders, inertia_kgm2,
-                        slow_step_nm=slow)
-    res = augment.run_loop(data, m0, log=log)
+    ff, ff_desc = position_feedforward(data)
+    if ff_desc:
+        log(f"position feed-forward (gravity): {ff_desc['kind']}, explains "
+            f"{100 * ff_desc['explained_fraction_of_torque_variance']:.1f} % of the torque variance")
+    slow = float(np.median([slow_step_nm(p.torque_nm - (0 if ff is None else ff[k]), data.ts_s)
+                            for k, p in enumerate(data.pieces)]))
+    def make(nz):
+        return Model.starting(g["value"], data.ts_s, nz, motor_orders, output_orders,
+                              inertia_kgm2, slow_step_nm=slow)
+    noise_est = noise
+    noise, noise_table = tune_noise(data, ff, noise_est, make, log)
+    m0 = make(noise)
+    res = augment.run_loop(data, m0, log=log, feedforward=ff)
     m1 = res["model"]
     effects = _merge(res["effects"])
     # Every identified line: amplitude in the filtered torque with the
@@ -89,6 +182,24 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
                 res["runs_before"], e["kind"], o)
             e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(
                 res["runs_after"], e["kind"], o)
+    # Every line of the final model: amplitude in the raw torque and in the
+    # filtered torque with the starting and the final model.
+    kinds = {"motor": "motor_order", "output": "output_order", "fixed": "fixed_frequency"}
+    lines = []
+    for b in m1.blocks:
+        k = kinds[b.lock]
+        lines.append({"block": b.label(), "kind": k, "order": b.order,
+                      "raw_amplitude_nm": augment.line_amplitude(res["runs_before"], k, b.order, True),
+                      "filtered_amplitude_before_nm": augment.line_amplitude(res["runs_before"], k,
+                                                                             b.order),
+                      "filtered_amplitude_after_nm": augment.line_amplitude(res["runs_after"], k,
+                                                                            b.order),
+                      "spectral_raw_amplitude_nm": augment.spectral_line_amplitude(
+                          res["runs_before"], k, b.order, True),
+                      "spectral_filtered_before_nm": augment.spectral_line_amplitude(
+                          res["runs_before"], k, b.order),
+                      "spectral_filtered_after_nm": augment.spectral_line_amplitude(
+                          res["runs_after"], k, b.order)})
     mb, ma = res["metrics_before"], res["metrics_after"]
     report = {
         "input": str(path),
@@ -96,11 +207,14 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         "data": {"samples": data.n, "pieces": len(data.pieces), "ts_s": data.ts_s,
                  "has_motor_angle": data.has_motor, "has_output_angle": data.has_output,
                  "has_truth": data.has_truth, "source": data.source, "notes": data.notes,
-                 "cleaning": data.cleaning, "noise_nm": noise, "slow_step_nm": slow,
+                 "cleaning": data.cleaning, "noise_nm": noise, "noise_estimate_nm": noise_est,
+                 "noise_tuning": noise_table, "slow_step_nm": slow,
                  "torque_std_nm": float(np.std(np.concatenate([p.torque_nm for p in data.pieces])))},
         "model_before": m0.to_dict(),
         "model_after": m1.to_dict(),
         "effects": effects,
+        "lines": lines,
+        "position_feedforward": ff_desc,
         "residual_rms_before_nm": mb["innovation_rms_nm"],
         "residual_rms_after_nm": ma["innovation_rms_nm"],
         "model_residual_rms_before_nm": mb["model_residual_rms_nm"],

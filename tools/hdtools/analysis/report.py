@@ -69,20 +69,29 @@ def plots(out_dir: Path, res, data, model_before, model_after, title=""):
         fig.savefig(f)
         plt.close(fig)
         files.append(f.name)
-    # Torque traces: a 2 s window after warm-up of the longest piece.
+    # Torque traces: a 2 s window after warm-up of the longest piece; the
+    # lower panel removes a 0.2 s moving average so the ripple is visible
+    # even on a large, changing load (gravity).
     k = int(np.argmax([len(r.t_s) for r in res["runs_after"]]))
     rb, ra = res["runs_before"][k], res["runs_after"][k]
     n = min(len(ra.t_s) - ra.warm, int(2.0 / data.ts_s))
     s = slice(ra.warm, ra.warm + n)
-    fig, ax = plt.subplots(figsize=(7, 3.2), dpi=80)
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 4.6), dpi=80, sharex=True)
     t = ra.t_s[s]
-    ax.plot(t, ra.torque_nm[s], lw=0.6, color="0.6", label="raw")
-    ax.plot(t, rb.filtered[s], lw=0.8, label="filtered (before)")
-    ax.plot(t, ra.filtered[s], lw=0.8, label="filtered (after)")
+    traces = [("raw", np.asarray(ra.torque_nm, float), dict(lw=0.6, color="0.6")),
+              ("filtered (before)", rb.filtered, dict(lw=0.8)),
+              ("filtered (after)", ra.filtered, dict(lw=0.8))]
     if ra.torque_true_nm is not None:
-        ax.plot(t, ra.torque_true_nm[s], lw=0.8, ls="--", color="k", label="truth")
-    ax.set_xlabel("t [s]")
+        traces.append(("truth", np.asarray(ra.torque_true_nm, float),
+                       dict(lw=0.8, ls="--", color="k")))
+    w = max(3, int(round(0.2 / data.ts_s)))
+    for lab, x, kw in traces:
+        ax.plot(t, x[s], label=lab, **kw)
+        hp = x - np.convolve(x, np.ones(w) / w, mode="same")
+        ax2.plot(t, hp[s], **kw)
     ax.set_ylabel("torque [N m]")
+    ax2.set_ylabel("minus 0.2 s mean [N m]")
+    ax2.set_xlabel("t [s]")
     ax.set_title(f"{title} torque", fontsize=9)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
@@ -112,6 +121,15 @@ def markdown(report: dict, plot_files: list[str]) -> str:
         if "error_rms_nm" in h:
             row += f" {h['error_rms_nm']:.4g} |"
         L.append(row)
+    L += ["", "## Lines of the final model", "",
+          "Least-squares fit with one global phase (fit) and averaged-spectrum peak (spec; "
+          "tolerates a drifting phase, includes the floor).", "",
+          "| block | raw: fit / spec [N m] | filtered, start: fit / spec | "
+          "filtered, final: fit / spec |", "|---|---|---|---|"]
+    for ln in report.get("lines", []):
+        L.append(f"| {ln['block']} | {ln['raw_amplitude_nm']:.3g} / {ln['spectral_raw_amplitude_nm']:.3g} | "
+                 f"{ln['filtered_amplitude_before_nm']:.3g} / {ln['spectral_filtered_before_nm']:.3g} | "
+                 f"{ln['filtered_amplitude_after_nm']:.3g} / {ln['spectral_filtered_after_nm']:.3g} |")
     L += ["", "## Findings", "",
           "| kind | order / frequency | amplitude [N m] | added | evidence |", "|---|---|---|---|---|"]
     for e in report["effects"]:

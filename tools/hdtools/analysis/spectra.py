@@ -233,3 +233,27 @@ def fit_line(signals, phases, detrend=True):
     amp = float(np.hypot(*coef))
     phase = float(np.arctan2(-coef[1], coef[0]))
     return amp, phase, explained
+
+
+def highpass_for_line(signals, phases, ts_s, cycles=3.0, min_s=0.1, max_s=10.0):
+    """Removes slow torque (gravity, load) that would leak into a line fit:
+    subtracts a centred moving average spanning `cycles` periods of the
+    line at its median frequency (window clamped to [min_s, max_s])."""
+    steps = np.concatenate([np.abs(np.diff(p)) for p in phases if len(p) > 1])
+    moving = steps[steps > 0]
+    if len(moving) == 0:
+        return [np.asarray(x, float) for x in signals]
+    f_hz = float(np.median(moving)) / (2 * np.pi * ts_s)
+    w = int(round(min(max(cycles / max(f_hz, 1e-9), min_s), max_s) / ts_s))
+    out = []
+    for x in signals:
+        x = np.asarray(x, float)
+        if w < 3 or len(x) < 2 * w:
+            out.append(x - x.mean())
+            continue
+        c = np.cumsum(np.r_[0.0, x])
+        ma = (c[w:] - c[:-w]) / w
+        pad_l = (w - 1) // 2
+        ma = np.r_[np.full(pad_l, ma[0]), ma, np.full(len(x) - len(ma) - pad_l, ma[-1])]
+        out.append(x - ma)
+    return out
