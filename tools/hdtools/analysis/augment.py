@@ -90,8 +90,11 @@ def line_amplitude(runs, kind, order, raw=False):
     return amp
 
 
-def judge(c, runs0, m0, runs1, m1):
-    """Returns (keep, evidence)."""
+def judge(c, runs0, m0, runs1, m1, view0=None, view1=None):
+    """Returns (keep, evidence).  view0/view1: analysis views of the two
+    replays (line amplitudes are measured on them)."""
+    view0 = runs0 if view0 is None else view0
+    view1 = runs1 if view1 is None else view1
     ev = {"innovation_rms_before_nm": m0["innovation_rms_nm"],
           "innovation_rms_after_nm": m1["innovation_rms_nm"],
           "model_residual_rms_before_nm": m0["model_residual_rms_nm"],
@@ -104,12 +107,12 @@ def judge(c, runs0, m0, runs1, m1):
         if c.evidence.get("phase_coherent_over_record") is False:
             # No common phase over the record: measure in the averaged
             # spectrum (per-window phase) instead of one global fit.
-            a0 = spectral_line_amplitude(runs0, c.kind, c.order)
-            a1 = spectral_line_amplitude(runs1, c.kind, c.order)
+            a0 = spectral_line_amplitude(view0, c.kind, c.order)
+            a1 = spectral_line_amplitude(view1, c.kind, c.order)
             ev["amplitude_measure"] = "averaged spectrum"
         else:
-            a0 = line_amplitude(runs0, c.kind, c.order)
-            a1 = line_amplitude(runs1, c.kind, c.order)
+            a0 = line_amplitude(view0, c.kind, c.order)
+            a1 = line_amplitude(view1, c.kind, c.order)
         d = np.concatenate([(r1.filtered - r0.filtered)[r0.warm:] for r0, r1 in zip(runs0, runs1)])
         change_rms = float(np.sqrt(np.mean(d ** 2)))
         line_rms = a0 / math.sqrt(2)
@@ -157,7 +160,7 @@ def run_loop(data, model0: Model, log=print, feedforward=None):
     tried = set()
     first_runs, first_met = runs, met
     for rnd in range(1, MAX_ROUNDS + 1):
-        ctx = detect.build_context(runs, data.ts_s, model.gear_ratio)
+        ctx = detect.build_context(rp.analysis_view(runs), data.ts_s, model.gear_ratio)
         lines = detect.line_candidates(ctx, model) + detect.block_residue_candidates(ctx, model)
         slow = detect.slow_candidates(ctx, model)
         # Order of trial: lines (strongest first), then expected-torque
@@ -186,7 +189,8 @@ def run_loop(data, model0: Model, log=print, feedforward=None):
                 continue
             runs1 = rp.replay(data, trial, feedforward)
             met1 = rp.metrics(runs1)
-            keep, ev = judge(c, runs, met, runs1, met1)
+            keep, ev = judge(c, runs, met, runs1, met1, rp.analysis_view(runs),
+                             rp.analysis_view(runs1))
             c.evidence.update(ev)
             effects.append(_finding(c, keep, met, met1, model.gear_ratio))
             log(f"round {rnd}: {c.kind} {c.order:.4g} ({c.action}) -> "

@@ -88,7 +88,7 @@ def position_feedforward(data):
 
 
 NOISE_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
-TUNE_MAX_SAMPLES = 300_000
+TUNE_MAX_SAMPLES = 200_000
 
 
 def tune_noise(data, ff, noise, make_model, log):
@@ -170,6 +170,8 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     noise, noise_table = tune_noise(data, ff, noise_est, make, log)
     m0 = make(noise)
     res = augment.run_loop(data, m0, log=log, feedforward=ff)
+    from .replay import analysis_view
+    vb, va = analysis_view(res["runs_before"]), analysis_view(res["runs_after"])
     m1 = res["model"]
     effects = _merge(res["effects"])
     # Every identified line: amplitude in the filtered torque with the
@@ -178,10 +180,8 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         if e["kind"] in ("motor_order", "output_order", "fixed_frequency"):
             o = e.get("order_per_motor_rev") if e["kind"] == "motor_order" else (
                 e.get("order_per_output_rev") if e["kind"] == "output_order" else e["frequency_hz"])
-            e["line_amplitude_in_filtered_before_nm"] = augment.line_amplitude(
-                res["runs_before"], e["kind"], o)
-            e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(
-                res["runs_after"], e["kind"], o)
+            e["line_amplitude_in_filtered_before_nm"] = augment.line_amplitude(vb, e["kind"], o)
+            e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(va, e["kind"], o)
     # Every line of the final model: amplitude in the raw torque and in the
     # filtered torque with the starting and the final model.
     kinds = {"motor": "motor_order", "output": "output_order", "fixed": "fixed_frequency"}
@@ -189,17 +189,15 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     for b in m1.blocks:
         k = kinds[b.lock]
         lines.append({"block": b.label(), "kind": k, "order": b.order,
-                      "raw_amplitude_nm": augment.line_amplitude(res["runs_before"], k, b.order, True),
-                      "filtered_amplitude_before_nm": augment.line_amplitude(res["runs_before"], k,
-                                                                             b.order),
-                      "filtered_amplitude_after_nm": augment.line_amplitude(res["runs_after"], k,
-                                                                            b.order),
+                      "raw_amplitude_nm": augment.line_amplitude(vb, k, b.order, True),
+                      "filtered_amplitude_before_nm": augment.line_amplitude(vb, k, b.order),
+                      "filtered_amplitude_after_nm": augment.line_amplitude(va, k, b.order),
                       "spectral_raw_amplitude_nm": augment.spectral_line_amplitude(
-                          res["runs_before"], k, b.order, True),
+                          vb, k, b.order, True),
                       "spectral_filtered_before_nm": augment.spectral_line_amplitude(
-                          res["runs_before"], k, b.order),
+                          vb, k, b.order),
                       "spectral_filtered_after_nm": augment.spectral_line_amplitude(
-                          res["runs_after"], k, b.order)})
+                          va, k, b.order)})
     mb, ma = res["metrics_before"], res["metrics_after"]
     report = {
         "input": str(path),

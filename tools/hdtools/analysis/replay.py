@@ -95,3 +95,40 @@ def metrics(runs: list[PieceRun]) -> dict:
         m["error_rms_nm"] = float(np.sqrt(np.mean(err ** 2)))
         m["raw_error_rms_nm"] = float(np.sqrt(np.mean(raw ** 2)))
     return m
+
+
+ANALYSIS_MAX_SAMPLES = 600_000
+ANALYSIS_CHUNK = 100_000
+
+
+def analysis_view(runs: list[PieceRun], max_total: int = ANALYSIS_MAX_SAMPLES,
+                  chunk: int = ANALYSIS_CHUNK) -> list[PieceRun]:
+    """Spectra and fits need not see every sample of a long record: evenly
+    spaced contiguous chunks (after each piece's warm-up) totalling at most
+    max_total samples.  Deterministic in the run lengths, so views of two
+    replays of the same data cover the same samples.  Metrics (RMS values)
+    always use all samples."""
+    spans = []
+    for i, r in enumerate(runs):
+        a, n = r.warm, len(r.t_s)
+        while a < n:
+            b = min(a + chunk, n)
+            spans.append((i, a, b))
+            a = b
+    total = sum(b - a for _, a, b in spans)
+    if total <= max_total:
+        keep = spans
+    else:
+        k = max(1, int(max_total // chunk))
+        idx = np.unique(np.linspace(0, len(spans) - 1, k).round().astype(int))
+        keep = [spans[j] for j in idx]
+    out = []
+    for i, a, b in keep:
+        r = runs[i]
+        sl = slice(a, b)
+        o = {k: (v[sl] if isinstance(v, np.ndarray) and len(v) == len(r.t_s) else v)
+             for k, v in r.out.items()}
+        out.append(PieceRun(r.t_s[sl], r.motor_angle_rad[sl], r.output_angle_rad[sl],
+                            r.torque_nm[sl],
+                            None if r.torque_true_nm is None else r.torque_true_nm[sl], o, 0))
+    return out

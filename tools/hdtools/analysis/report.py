@@ -33,6 +33,8 @@ def write_json(path, report):
 
 
 def _spectra_of(runs, ts_s):
+    from .replay import analysis_view
+    runs = analysis_view(runs)
     sig = [r.residual[r.warm:] for r in runs]
     thm = [r.motor_angle_rad[r.warm:] for r in runs]
     return spectra.order_spectrum(sig, thm), spectra.time_spectrum(sig, ts_s)
