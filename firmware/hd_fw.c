@@ -155,6 +155,20 @@ static uint16_t calib_faults_of(int load_result)
     return HD_FAULT_CALIB_CORRUPT;
 }
 
+/* A record can pass its CRC and still hold nonsense (written by a buggy
+ * tool): a gain far outside any bridge/amplifier chain would turn every
+ * sample into an overflow.  The bounds are generous (the paper's sensor is
+ * 6.6 N m/V). */
+static bool calib_gain_plausible(float gain_nm_per_v)
+{
+    return gain_nm_per_v > 0.0f && gain_nm_per_v <= HD_FW_CALIB_GAIN_MAX_NM_PER_V;
+}
+
+static bool calib_offset_plausible(float offset_v)
+{
+    return offset_v >= -HD_FW_CALIB_OFFSET_MAX_V && offset_v <= HD_FW_CALIB_OFFSET_MAX_V;
+}
+
 /* Loads the record; on any failure the defaults are used and the fault flag
  * stays raised until a good record is saved or loaded. */
 static int load_calibration(hd_fw_t *fw, hd_calib_record_t *rec, uint32_t *seq)
@@ -166,6 +180,11 @@ static int load_calibration(hd_fw_t *fw, hd_calib_record_t *rec, uint32_t *seq)
     } else {
         hd_calib_storage_t s = hd_fw_calib_storage(fw->hal);
         rc = hd_calib_store_load(&s, rec, seq);
+        if ((rc == HD_CALIB_LOAD_OK || rc == HD_CALIB_LOAD_ONE_COPY_BAD) &&
+            (!calib_gain_plausible(rec->gain_nm_per_v) ||
+             !calib_offset_plausible(rec->offset_v))) {
+            rc = HD_CALIB_LOAD_CORRUPT;
+        }
         if (rc != HD_CALIB_LOAD_OK && rc != HD_CALIB_LOAD_ONE_COPY_BAD) {
             hd_calib_record_default(rec); /* do not trust whatever was filled in */
         }
@@ -334,11 +353,12 @@ static int set_param(hd_fw_t *fw, int id, float v, uint8_t *new_node)
         *new_node = (uint8_t)v;
         return HD_CAN_RES_OK;
     case HD_PARAM_CALIB_GAIN_NM_PER_V:
-        if (!(v > 0.0f)) return HD_CAN_RES_OUT_OF_RANGE;
+        if (!calib_gain_plausible(v)) return HD_CAN_RES_OUT_OF_RANGE;
         fw->calib.gain_nm_per_v = v;
         return HD_CAN_RES_OK;
     case HD_PARAM_CALIB_OFFSET_V:
-        fw->calib.offset_v = v; /* finite: checked by the decoder */
+        if (!calib_offset_plausible(v)) return HD_CAN_RES_OUT_OF_RANGE;
+        fw->calib.offset_v = v;
         return HD_CAN_RES_OK;
     case HD_PARAM_BLOCK_COUNT:
         return HD_CAN_RES_READ_ONLY;

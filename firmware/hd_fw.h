@@ -32,6 +32,10 @@ extern "C" {
 #define HD_FW_TICK_HZ 1000u
 #define HD_FW_TS_S 0.001f
 #define HD_FW_TS_US 1000u
+/* Plausibility bounds for a calibration (record or CAN): outside them the
+ * record counts as corrupt / the command is out of range. */
+#define HD_FW_CALIB_GAIN_MAX_NM_PER_V 1.0e4f
+#define HD_FW_CALIB_OFFSET_MAX_V 100.0f
 #define HD_FW_RX_PER_TICK 4u       /* command frames handled per tick, at most */
 #define HD_FW_HEARTBEAT_TICKS 1000u
 #define HD_FW_TARE_TICKS 64u       /* tare averages the last this many valid samples */

@@ -32,8 +32,8 @@ void hd_sim_scenario_default(hd_sim_scenario_t *sc)
     sc->adc_bits = 16;
     sc->adc_range_v = 10.0;
     sc->encoder_cpr = 4096;
-    sc->cal_gain_nm_per_v = NAN;
-    sc->cal_offset_v = NAN;
+    sc->cal_gain_nm_per_v = (double)NAN;
+    sc->cal_offset_v = (double)NAN;
 }
 
 /* ------------------------------------------------------------------ helpers */

@@ -185,6 +185,16 @@ static void test_nvm_io_error(void)
     check_recovery_by_save();
 }
 
+/* A record with a valid CRC but a gain no bridge chain has (a buggy tool
+ * wrote it): counted as corrupt, defaults used. */
+static void test_implausible_gain_record(void)
+{
+    store(3.4e38f, STORED_OFFSET);
+    store(3.4e38f, STORED_OFFSET);
+    check_boot(HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
+    check_recovery_by_save();
+}
+
 /* ----------------------------------------------- power loss during a save */
 
 typedef struct {
@@ -309,6 +319,7 @@ int main(void)
     RUN_TEST(test_one_copy_corrupt);
     RUN_TEST(test_wrong_version);
     RUN_TEST(test_nvm_io_error);
+    RUN_TEST(test_implausible_gain_record);
     RUN_TEST(test_power_loss_at_every_byte_of_a_save);
     return UNITY_END();
 }

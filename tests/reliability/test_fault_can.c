@@ -253,27 +253,36 @@ static void test_command_flood_is_bounded(void)
     TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0, rig.tick) <= FI_BAND_NM);
 }
 
-static void test_gain_overflow_gives_non_finite_torque(void)
+static void test_implausible_gain_rejected_large_gain_flagged(void)
 {
-    /* A calibration gain of 3.4e38 N m/V is > 0, so it is accepted; with
-     * 13 N m of load the bridge gives ~2 V and gain x volts overflows to
-     * +inf: the sample must be flagged (ADC_ERROR: not finite) and never
-     * reach the filter.  Restoring the gain recovers at once. */
+    /* A calibration gain of 3.4e38 N m/V would overflow gain x volts to +inf:
+     * the firmware refuses it (OUT_OF_RANGE, calibration unchanged).  The
+     * largest accepted gain (HD_FW_CALIB_GAIN_MAX_NM_PER_V) with 13 N m of
+     * load gives ~2e4 N m: every sample must be flagged TORQUE_RANGE and
+     * never reach the filter.  Restoring the gain recovers at once. */
     fi_rig_init(&rig, "duration_s = 16\nload_torque_profile = 0:13\n");
     fi_rig_run(&rig, T0);
     TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0 - 1000u, T0) <= FI_BAND_NM);
+    const float gain_before = rig.fw.calib.gain_nm_per_v;
     bad_cmd_t huge = set_param("gain 3.4e38", 12, 3.4e38f, 0);
     fi_push_cmd(&rig, huge.data, 8, 0, NODE_CMD_ID);
-    fi_rig_run(&rig, 300);
+    fi_rig_run(&rig, 100u);
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, rig.last_ack[2]);
+    TEST_ASSERT_EQUAL_FLOAT(gain_before, rig.fw.calib.gain_nm_per_v);
+    TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0, T0 + 100u) <= FI_BAND_NM);
+
+    bad_cmd_t large = set_param("gain max", 12, HD_FW_CALIB_GAIN_MAX_NM_PER_V, 0);
+    fi_push_cmd(&rig, large.data, 8, 0, NODE_CMD_ID);
+    fi_rig_run(&rig, 300u);
     TEST_ASSERT_EQUAL_UINT8(0, rig.last_ack[2]);
-    uint16_t f = fi_faults_in(&rig, T0 + 1u, T0 + 300u);
-    TEST_ASSERT_EQUAL_UINT16(HD_FAULT_ADC_ERROR, f & HD_FAULT_ADC_ERROR);
+    uint16_t f = fi_faults_in(&rig, T0 + 102u, T0 + 400u);
+    TEST_ASSERT_EQUAL_UINT16(HD_FAULT_TORQUE_RANGE, f & HD_FAULT_TORQUE_RANGE);
     bad_cmd_t back = set_param("gain nominal", 12, (float)rig.nom.gain_nm_per_v, 0);
     fi_push_cmd(&rig, back.data, 8, 0, NODE_CMD_ID);
     fi_rig_run(&rig, UINT64_MAX);
     assert_core_invariants();
-    long rec = fi_recovery_ticks(&rig, T0 + 301u, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("non_finite_torque_gain_overflow", rec, 0.0, NULL);
+    long rec = fi_recovery_ticks(&rig, T0 + 401u, FI_BAND_NM, FI_HOLD_TICKS);
+    fi_report("calibration_gain_out_of_torque_range", rec, 0.0, NULL);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= 20);
 }
 
@@ -286,6 +295,6 @@ int main(void)
     RUN_TEST(test_malformed_and_unknown_commands);
     RUN_TEST(test_out_of_range_configuration_rejected);
     RUN_TEST(test_command_flood_is_bounded);
-    RUN_TEST(test_gain_overflow_gives_non_finite_torque);
+    RUN_TEST(test_implausible_gain_rejected_large_gain_flagged);
     return UNITY_END();
 }
