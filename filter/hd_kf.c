@@ -468,7 +468,10 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         status |= HD_KF_STATUS_BAD_INPUT;
     }
     const float y = in.torque_meas_nm - in.torque_expected_nm;
-    const bool correct = is_finite(y);
+    /* A finite but absurd y (a broken sensor, a bad log) would square to
+     * infinity in the update and reset the whole filter: treat it as bad
+     * input instead, like a non-finite one. */
+    const bool correct = y <= HD_KF_MAX_ABS_Y_NM && y >= -HD_KF_MAX_ABS_Y_NM;
     if (!correct) {
         status |= HD_KF_STATUS_BAD_INPUT;
     }

@@ -32,8 +32,8 @@
  *   - P is exactly symmetric (only the upper triangle is computed, then mirrored);
  *   - diagonal entries stay in [0, p_max_nm2]; a diagonal above p_max is
  *     brought down by scaling its row and column (a congruence, keeps PSD);
- *   - a non-finite measurement skips the correction (prediction only) and is
- *     flagged; a non-finite state or covariance resets the filter, flagged.
+ *   - a non-finite measurement, or |T_meas - T_exp| > HD_KF_MAX_ABS_Y_NM,
+ *     skips the correction (prediction only) and is flagged BAD_INPUT; a non-finite state or covariance resets the filter, flagged.
  *
  * Slow lines: an output-locked line at low output speed (order 1 at
  * 1.5 rad/s is 0.25 Hz) is nearly collinear with the offset over any short
@@ -81,6 +81,11 @@ extern "C" {
 #define HD_KF_MAX_BLOCKS 8
 #endif
 #define HD_KF_MAX_STATES (2 * HD_KF_MAX_BLOCKS + 1)
+
+/* Largest |T_meas - T_exp| the filter corrects with [N m]; beyond it (or
+ * non-finite) a sample is bad input.  Far above any joint's torque, far
+ * below where squares overflow float32. */
+#define HD_KF_MAX_ABS_Y_NM 1.0e6f
 
 typedef enum {
     HD_KF_LOCK_MOTOR = 0,
