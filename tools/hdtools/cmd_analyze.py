@@ -7,8 +7,6 @@ before and after.  See docs/analyze.md."""
 from __future__ import annotations
 
 import sys
-import time
-from pathlib import Path
 
 
 def register(sub):

@@ -11,9 +11,13 @@ sizeof/offsetof of the real structs and compares them with these mirrors.
 Typical use:
 
     from hdtools.analysis import cfilter
-    kf = cfilter.KfConfig.recommended(ts_s=1e-3, noise_nm=0.02)
+    kf = cfilter.recommended_config(1e-3, 0.02, 0.05, 0.005)   # C defaults
+    kf.add_block(cfilter.LOCK_MOTOR, 6.0, kf.blocks[0].q_nm2)   # optional extra line
     out = cfilter.run(kf, cfilter.ExpectedConfig(), torque, d_motor, d_output)
     out["torque_filtered_nm"], out["innovation_nm"], ...
+
+If filter/hd_kf.h changes a struct, update the mirror here; the layout test
+fails until it matches.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import augment, gear, loading, report as rep, spectra
+from . import augment, gear, loading, report as rep
 from .model import Model, estimate_noise_nm, slow_step_nm
 
 DEFINITIONS = {

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import cfilter
 from .loading import Data
-from .model import RIPPLE_SETTLE_S, Model
+from .model import Model
 
 
 @dataclass
