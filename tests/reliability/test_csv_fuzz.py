@@ -68,11 +68,9 @@ def report(failures):
 
 
 # Known, reported bugs: excluded from the mutation runs so that they catch
-# anything new; each has a strict-xfail regression test below, which starts
-# failing (XPASS) once the bug is fixed, so this entry gets removed.
-KNOWN = {
-    "load": {"UnicodeDecodeError"},  # hdtools/analysis/loading.py _read_csv: non-UTF-8 bytes
-}
+# anything new; each gets a strict-xfail regression test below until fixed.
+# (Fixed: UnicodeDecodeError from analysis.loading on non-UTF-8 bytes.)
+KNOWN: dict = {}
 
 
 def remember(failures, exc, data, reader=""):
@@ -117,8 +115,6 @@ def test_log_loader_only_raises_input_error(tmp_path):
 
 
 # Regressions found by the mutation runs above (fixed inputs).
-@pytest.mark.xfail(strict=True, raises=UnicodeDecodeError,
-                   reason="reported: loading._read_csv lets UnicodeDecodeError escape")
 @pytest.mark.parametrize("data", [
     b"t_s,motor_angle_rad,torque_nm\n0.000,0.0,3.0\n0.001,0.1,\xd6\n",  # not UTF-8
 ])

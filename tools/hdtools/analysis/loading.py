@@ -122,7 +122,11 @@ def load(path: str | Path, fs_hz: float | None = None) -> Data:
         cols, _ = _read_candump(path)
         source = "candump"
     else:
-        cols, _ = _read_csv(path)
+        try:
+            cols, _ = _read_csv(path)
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{path}: not a text CSV (byte {exc.start}: "
+                             f"{exc.reason})") from None
         source = "csv"
     n = len(cols["torque_nm"])
     if "t_s" not in cols:
