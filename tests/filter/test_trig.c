@@ -24,6 +24,7 @@ typedef struct {
 static void sweep(double lo, double hi, long n, err_t_ *e)
 {
     e->max_sin = e->max_cos = 0.0;
+    e->at_sin = e->at_cos = 0.0;
     for (long i = 0; i <= n; i++) {
         float a = (float)(lo + (hi - lo) * (double)i / (double)n);
         float s, c;
