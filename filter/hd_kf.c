@@ -137,6 +137,10 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2) {
         return HD_KF_ERR_NOISE;
     }
+    if (cfg->p0_nm2 > HD_KF_MAX_P0_OVER_R * cfg->r_nm2 ||
+        cfg->output_p0_nm2 > HD_KF_MAX_P0_OVER_R * cfg->r_nm2) {
+        return HD_KF_ERR_CONDITION;
+    }
     if (!is_finite(cfg->nyquist_fraction) || cfg->nyquist_fraction <= 0.0f ||
         cfg->nyquist_fraction > 1.0f) {
         return HD_KF_ERR_NYQUIST;
@@ -162,6 +166,7 @@ const char *hd_kf_err_str(int err)
     case HD_KF_ERR_TS: return "sample period must be finite and > 0";
     case HD_KF_ERR_NYQUIST: return "nyquist_fraction must be in (0, 1]";
     case HD_KF_ERR_FIXED_OVER_NYQUIST: return "fixed-frequency block at or above fs/2";
+    case HD_KF_ERR_CONDITION: return "p0 / r above HD_KF_MAX_P0_OVER_R: float32 would lose the covariance";
     default: return "unknown error";
     }
 }

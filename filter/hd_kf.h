@@ -87,6 +87,12 @@ extern "C" {
  * below where squares overflow float32. */
 #define HD_KF_MAX_ABS_Y_NM 1.0e6f
 
+/* Largest accepted p0 / r (and output_p0 / r).  The first update subtracts
+ * numbers of size p0 to leave one of size r; float32 keeps ~7 digits, so
+ * beyond ~1e6 the covariance is noise (measured: R = 2.7e-9 with p0 = 10
+ * drove the state to 1e8 within 6 samples). */
+#define HD_KF_MAX_P0_OVER_R 1.0e6f
+
 typedef enum {
     HD_KF_LOCK_MOTOR = 0,
     HD_KF_LOCK_OUTPUT = 1,
@@ -178,6 +184,7 @@ typedef enum {
     HD_KF_ERR_TS = -6,            /* ts_s not finite or <= 0 */
     HD_KF_ERR_NYQUIST = -7,       /* nyquist_fraction outside (0, 1] */
     HD_KF_ERR_FIXED_OVER_NYQUIST = -8, /* fixed-frequency block at or above fs/2 */
+    HD_KF_ERR_CONDITION = -9,     /* p0 / r > HD_KF_MAX_P0_OVER_R (float32 would lose P) */
 } hd_kf_err_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,
