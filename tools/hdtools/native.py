@@ -60,8 +60,8 @@ def find_file(name: str, target: str | None = None) -> Path:
 
 
 def load_library(stem: str) -> ctypes.CDLL:
-    """Loads lib<stem>.so from the build tree (target name = stem)."""
-    return ctypes.CDLL(str(find_file(f"lib{stem}.so", target=stem)))
+    """Loads lib<stem>.so from the build tree (CMake target <stem>_shared)."""
+    return ctypes.CDLL(str(find_file(f"lib{stem}.so", target=f"{stem}_shared")))
 
 
 # Executables whose CMake target name differs from the file name.
