@@ -146,7 +146,15 @@ def test_cli_contract(simulate, tmp_path):
     for f in ("report.md", "model.cfg", "model.can", "order_spectrum.png", "time_spectrum.png",
               "torque.png"):
         assert (out / f).stat().st_size > 0
-    assert "block = motor 6" in (out / "model.cfg").read_text()
+    cfg_text = (out / "model.cfg").read_text()
+    assert "block = motor 6" in cfg_text
+    # The gates/priors the analysis evaluated travel with the model (else the
+    # firmware runs its defaults); hdjoint-host below must accept them.
+    for key, value in (("output_p0_nm2", r["model_after"]["output_p0_nm2"]),
+                       ("offset_jump_nm", r["model_after"]["offset_jump_nm"]),
+                       ("q_motion_ref_rad", r["model_after"]["q_motion_ref_rad"])):
+        line = next(l for l in cfg_text.splitlines() if l.startswith(key + " ="))
+        assert float(line.split("=")[1]) == pytest.approx(value, rel=1e-5)
     bad = subprocess.run([str(ROOT / "tools" / "hdsense"), "analyze", str(tmp_path / "nope.csv"),
                           "--json", str(rep)], capture_output=True, text=True, env=env)
     assert bad.returncode == 2 and "no such file" in bad.stderr

@@ -60,9 +60,26 @@ def test_friction_is_found_with_its_coefficients(simulate):
     assert r["residual_rms_after_nm"] < r["residual_rms_before_nm"]
 
 
-@pytest.mark.xfail(reason="filter limitation (reported to the lead): the slowly converging "
-                          "output-order-1 block dominates the error; a correct T_exp does "
-                          "not lower it yet", strict=False)
+def test_friction_leaves_the_ripple_band_error_unchanged(simulate):
+    # T_exp enters the filter only through y = T_meas - T_exp; with the
+    # offset kept as real torque the filtered torque is T_meas - ripple, so
+    # friction in T_exp can change the error against truth only through how
+    # the filter shares the torque between its states.  In the ripple band
+    # (above 2 Hz: motor orders 2 and 4 are at 48 and 95 Hz here) it must change
+    # nothing: measured 0.0375 -> 0.0380 N m.
+    r = analyze(simulate("friction"))
+    assert r["error_split_hz"] == 2.0
+    assert r["error_fast_rms_after_nm"] < 1.05 * r["error_fast_rms_before_nm"]
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "filter limitation (reported to the lead, docs/analyze.md 'Known limits'): the error "
+    "0.127 -> 0.161 N m is all in the slow band (< 2 Hz: 0.121 -> 0.156; ripple band "
+    "0.0375 -> 0.0380), i.e. the output-order-1 block: with output_p0 0.01 N m^2 and "
+    "motion-scaled q it holds 0.18-0.33 N m of the 0.5 N m line in 20 s (without the block "
+    "the error is 0.33 N m), and with a correct T_exp (mean miss 0.002 N m) it holds less "
+    "(0.18 vs 0.26 N m at 2 s), the offset takes the rest; with output_p0 0.3 N m^2 the "
+    "errors are 0.088 -> 0.134 N m: still a rise, so not a tuning choice of the tool"))
 def test_friction_lowers_the_error(simulate):
     r = analyze(simulate("friction"))
     assert r["error_rms_after_nm"] < r["error_rms_before_nm"]
@@ -91,8 +108,22 @@ def test_load_dependent_ripple_is_traced_to_its_line(simulate):
     assert all(e["kind"] == "motor_order" for e in added(r))
 
 
-@pytest.mark.xfail(reason="retuning the block (q x10) does not follow the load-driven "
-                          "amplitude in the current filter; reported", strict=False)
+def test_load_dependent_ripple_lowers_the_ripple_band_error(simulate):
+    # The retune (q x10 on the motor blocks) is meant to follow the
+    # load-driven ripple amplitude, which lives in the ripple band (> 2 Hz;
+    # motor order 2 is at 25-64 Hz here): that error must fall (measured
+    # 0.085 -> 0.035 N m).  The total error (1.344 -> 1.340 N m) is the slow
+    # band, not the retune's business: the output-order-1 block takes the
+    # 6 N m load ramps (a filter limitation, see the strict xfail below).
+    r = analyze(simulate("loadripple"))
+    assert r["error_fast_rms_after_nm"] < 0.8 * r["error_fast_rms_before_nm"]
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "filter limitation (reported to the lead, docs/analyze.md 'Known limits'): the error "
+    "vs truth is 1.34 N m, almost all below 2 Hz (1.340): the output-order-1 block takes "
+    "the 0 <-> 6 N m load ramps (without that block the error is 0.71 N m, about the bare "
+    "load-grown output line; with output_p0 0.3 N m^2 it is 2.08 N m)"))
 def test_load_dependent_ripple_lowers_the_error(simulate):
     r = analyze(simulate("loadripple"))
     assert r["error_rms_after_nm"] < 0.8 * r["error_rms_before_nm"]

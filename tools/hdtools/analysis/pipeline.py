@@ -228,6 +228,13 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         report["error_rms_before_nm"] = mb["error_rms_nm"]
         report["error_rms_after_nm"] = ma["error_rms_nm"]
         report["raw_error_rms_nm"] = mb["raw_error_rms_nm"]
+        if "error_fast_rms_nm" in mb:
+            # The error split at error_split_hz (replay.error_bands): the
+            # ripple band and the slow band (output-locked lines, offset).
+            report["error_split_hz"] = mb["error_split_hz"]
+            for band in ("fast", "slow"):
+                report[f"error_{band}_rms_before_nm"] = mb[f"error_{band}_rms_nm"]
+                report[f"error_{band}_rms_after_nm"] = ma[f"error_{band}_rms_nm"]
     added = [e for e in effects if e["added"]]
     s = (f"gear ratio {g['value']:g} ({g['source']}); {len(added)} effect(s) added: "
          + (", ".join(_label(e) for e in added) or "none")

@@ -94,7 +94,36 @@ def metrics(runs: list[PieceRun]) -> dict:
         raw = _cat(runs, lambda r: r.torque_nm - r.torque_true_nm)
         m["error_rms_nm"] = float(np.sqrt(np.mean(err ** 2)))
         m["raw_error_rms_nm"] = float(np.sqrt(np.mean(raw ** 2)))
+        m.update(error_bands(runs))
     return m
+
+
+ERROR_SPLIT_HZ = 2.0
+
+
+def error_bands(runs: list[PieceRun], split_hz: float = ERROR_SPLIT_HZ) -> dict:
+    """The error against truth split at split_hz (zero-phase 4th-order
+    Butterworth, per piece after its warm-up).  Above it: what the
+    motor-locked (and fixed) blocks leave or inject, i.e. the ripple band
+    at any useful motor speed.  Below it: output-locked lines, the offset
+    and load torque the ripple blocks may take (an output-order-1 line at
+    1.5 rad/s is 0.24 Hz).  A piece shorter than 2/split_hz counts as slow
+    only.  Empty when the sample rate is below 4 x split_hz."""
+    from scipy import signal
+    ts = float(np.median(np.diff(runs[0].t_s))) if runs and len(runs[0].t_s) > 1 else 0.0
+    if not ts > 0 or 1.0 / ts < 4 * split_hz:
+        return {}
+    sos = signal.butter(4, split_hz, "highpass", fs=1.0 / ts, output="sos")
+    fast, slow = [], []
+    for r in runs:
+        e = (r.filtered - r.torque_true_nm)[r.warm:]
+        hp = signal.sosfiltfilt(sos, e) if len(e) * ts >= 2.0 / split_hz else np.zeros_like(e)
+        fast.append(hp)
+        slow.append(e - hp)
+    fast, slow = np.concatenate(fast), np.concatenate(slow)
+    return {"error_split_hz": split_hz,
+            "error_fast_rms_nm": float(np.sqrt(np.mean(fast ** 2))),
+            "error_slow_rms_nm": float(np.sqrt(np.mean(slow ** 2)))}
 
 
 ANALYSIS_MAX_SAMPLES = 600_000
