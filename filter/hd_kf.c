@@ -7,17 +7,16 @@
 #include "hd_trig.h"
 
 #define DEFAULT_R_NM2 1.0f
-#define DEFAULT_P0_NM2 10.0f
+/* A prior on ripple amplitude (~0.5 N m per state), not 'unknown': with
+ * R = 4e-4 N m^2 a p0 of 10 puts a 2.5e4 spread into P, and float32 then
+ * loses the split between collinear states at standstill (measured against
+ * the double reference: 0.1 N m; with 0.3 N m^2: 3e-3 N m). */
+#define DEFAULT_P0_NM2 0.3f
 #define DEFAULT_P_MAX_NM2 1.0e6f
 #define DEFAULT_NYQUIST_FRACTION 0.9f
 #define DEFAULT_OFFSET_Q_NM2 1.0e-6f
 #define RECOMMENDED_Q_MOTION_REF_RAD 0.05f
 #define RECOMMENDED_OUTPUT_P0_NM2 0.01f
-/* A prior on ripple amplitude (~0.5 Nm per state), not 'unknown': with
- * R = 4e-4 Nm^2 a p0 of 10 puts a 2.5e4 spread into P, and float32 then
- * loses the split between collinear states at standstill (measured against
- * the double reference: 0.1 Nm; with 0.3 Nm^2: 3e-3 Nm). */
-#define RECOMMENDED_P0_NM2 0.3f
 #define PAPER_Q_NM2 1.0e3f
 #define PAPER_R_NM2 1.0f
 #define RECOMMENDED_JUMP_NOISE_MULTIPLE 25.0f
@@ -66,7 +65,6 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
     const float offset_ratio = ts_s / offset_settle_s;
     const float q_ripple = r * ripple_ratio * ripple_ratio;
     cfg->r_nm2 = r;
-    cfg->p0_nm2 = RECOMMENDED_P0_NM2;
     cfg->offset_enabled = 1u;
     cfg->offset_q_nm2 = r * offset_ratio * offset_ratio;
     cfg->offset_jump_nm = RECOMMENDED_JUMP_NOISE_MULTIPLE * noise_nm;

@@ -90,8 +90,10 @@ static void make_max(hd_kf_config_t *cfg)
     }
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_ripple());
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 2.0f, q_ripple());
-    while (cfg->block_count < HD_KF_MAX_BLOCKS) {
-        (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_FIXED, 50.0f, q_ripple());
+    /* distinct pickup lines: duplicated blocks would make an unobservable
+     * pair whose split float32 rounding walks freely */
+    for (float hz = 50.0f; cfg->block_count < HD_KF_MAX_BLOCKS; hz += 50.0f) {
+        (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_FIXED, hz, q_ripple());
     }
 }
 

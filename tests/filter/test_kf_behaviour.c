@@ -639,13 +639,13 @@ static void test_config_validation_error_codes(void)
     valid_cfg(&cfg); cfg.r_nm2 = INFINITY;              expect_err(&cfg, HD_KF_ERR_NOISE, "r inf");
     valid_cfg(&cfg); cfg.p0_nm2 = NAN;                  expect_err(&cfg, HD_KF_ERR_NOISE, "p0 NaN");
     valid_cfg(&cfg); cfg.p_max_nm2 = -1.0f;             expect_err(&cfg, HD_KF_ERR_NOISE, "p_max < 0");
-    /* p0 / r beyond 1e6: a float32 covariance update cannot resolve r */
+    /* p0 / r beyond 1e4: float32 loses the covariance (hd_kf.h) */
     valid_cfg(&cfg); cfg.r_nm2 = 2.7e-9f; cfg.p0_nm2 = 10.0f; cfg.output_p0_nm2 = 10.0f;
     expect_err(&cfg, HD_KF_ERR_CONDITION, "p0/r 3.7e9");
-    valid_cfg(&cfg); cfg.r_nm2 = 1e-5f; cfg.p0_nm2 = 1e-5f; cfg.output_p0_nm2 = 11.0f;
-    expect_err(&cfg, HD_KF_ERR_CONDITION, "output p0/r 1.1e6");
-    valid_cfg(&cfg); cfg.r_nm2 = 1e-5f; cfg.p0_nm2 = 9.0f; cfg.output_p0_nm2 = 9.0f;
-    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg)); /* 9e5: accepted */
+    valid_cfg(&cfg); cfg.r_nm2 = 1e-5f; cfg.p0_nm2 = 1e-5f; cfg.output_p0_nm2 = 0.11f;
+    expect_err(&cfg, HD_KF_ERR_CONDITION, "output p0/r 1.1e4");
+    valid_cfg(&cfg); cfg.r_nm2 = 1e-5f; cfg.p0_nm2 = 0.09f; cfg.output_p0_nm2 = 0.09f;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg)); /* 9e3: accepted */
     valid_cfg(&cfg); cfg.ts_s = 0.0f;                   expect_err(&cfg, HD_KF_ERR_TS, "ts 0");
     valid_cfg(&cfg); cfg.ts_s = -1e-3f;                 expect_err(&cfg, HD_KF_ERR_TS, "ts < 0");
     valid_cfg(&cfg); cfg.ts_s = NAN;                    expect_err(&cfg, HD_KF_ERR_TS, "ts NaN");

@@ -62,9 +62,9 @@ class Model:
         misses) must be able to follow the torque's slow changes, so its q is
         at least the mean square per-step change of the 0.2 s-smoothed torque
         (gravity on a sweeping robot joint changes tens of N m per second)."""
-        # Floor: the C filter refuses p0 / R > 1e6 (float32 would lose P);
-        # 1 mN m keeps the recommended p0 (0.3 N m^2) well inside it.
-        noise = max(noise_nm, 1e-3)
+        # Floor: the C filter refuses p0 / R > 1e4 (float32 would lose P);
+        # 6 mN m keeps the recommended p0 (0.3 N m^2) inside it.
+        noise = max(noise_nm, 6e-3)
         c = cfilter.recommended_config(ts_s, noise, RIPPLE_SETTLE_S, OFFSET_SETTLE_S)
         m = cls(gear_ratio=gear_ratio, ts_s=ts_s, r_nm2=c.r_nm2, inertia_kgm2=inertia_kgm2)
         for k in cfilter.KfConfig.SCALARS:
