@@ -70,6 +70,14 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
     cfg->offset_jump_nm = RECOMMENDED_JUMP_NOISE_MULTIPLE * noise_nm;
     cfg->q_motion_ref_rad = RECOMMENDED_Q_MOTION_REF_RAD;
     cfg->output_p0_nm2 = RECOMMENDED_OUTPUT_P0_NM2;
+    /* A very quiet sensor: keep p0 / R inside the float32 bound. */
+    const float p0_limit = 0.5f * HD_KF_MAX_P0_OVER_R * r;
+    if (cfg->p0_nm2 > p0_limit) {
+        cfg->p0_nm2 = p0_limit;
+    }
+    if (cfg->output_p0_nm2 > p0_limit) {
+        cfg->output_p0_nm2 = p0_limit;
+    }
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 2.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 4.0f, q_ripple);
     (void)hd_kf_config_add_block(cfg, HD_KF_LOCK_OUTPUT, 1.0f, q_ripple);

@@ -209,7 +209,9 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
  *   q (offset) = R (ts / offset_settle_s)^2.
  *   offset jump threshold 25 x noise_nm (0.5 Nm for 0.02 Nm noise);
  *   p0 0.3 Nm^2 (the default: a prior on ripple amplitude that keeps P well
- *   conditioned in float32), output-locked p0 0.01 Nm^2, q_motion_ref 0.05 rad.
+ *   conditioned in float32), output-locked p0 0.01 Nm^2, q_motion_ref 0.05 rad;
+ *   both p0 are capped at HD_KF_MAX_P0_OVER_R / 2 x R, so the result always
+ *   passes hd_kf_config_check (noise below ~8 mN m lowers them).
  * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.005 s. */
 void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s);

@@ -639,6 +639,11 @@ static void test_config_validation_error_codes(void)
     valid_cfg(&cfg); cfg.r_nm2 = INFINITY;              expect_err(&cfg, HD_KF_ERR_NOISE, "r inf");
     valid_cfg(&cfg); cfg.p0_nm2 = NAN;                  expect_err(&cfg, HD_KF_ERR_NOISE, "p0 NaN");
     valid_cfg(&cfg); cfg.p_max_nm2 = -1.0f;             expect_err(&cfg, HD_KF_ERR_NOISE, "p_max < 0");
+    /* the recommended tuning is valid for any sensor noise level */
+    for (float noise = 1e-5f; noise < 10.0f; noise *= 3.0f) {
+        hd_kf_config_recommended(&cfg, 1e-3f, noise, 0.05f, 0.005f);
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    }
     /* p0 / r beyond 1e4: float32 loses the covariance (hd_kf.h) */
     valid_cfg(&cfg); cfg.r_nm2 = 2.7e-9f; cfg.p0_nm2 = 10.0f; cfg.output_p0_nm2 = 10.0f;
     expect_err(&cfg, HD_KF_ERR_CONDITION, "p0/r 3.7e9");
