@@ -73,7 +73,14 @@ def run(args) -> int:
     print(header)
     print(report.text(tabs))
     tgt = results["compute"].get("target")
-    if tgt:
+    if tgt and tgt.get("status") == "ok":
+        print("\nCortex-M4F (QEMU, exact instruction counts, max per call)")
+        print(f"{'states':>6}  {'hd_kf_step':>10}  {'dense_f32':>10}  {'ratio':>6}  {'whole ISR':>9}")
+        for n, r in sorted(tgt["instructions_max"].items()):
+            kf, dense = r.get("kf"), r.get("dense")
+            ratio = f"{dense / kf:6.2f}" if kf and dense else "     -"
+            print(f"{n:>6}  {kf or '-':>10}  {dense or '-':>10}  {ratio}  {r.get('isr', '-'):>9}")
+    elif tgt:
         print(f"\nCortex-M4 target: {tgt.get('status')}: {tgt.get('note', '')}")
     report.write_json(results, args.out / "results.json")
     md = f"_{header}_\n" + report.markdown(tabs)
