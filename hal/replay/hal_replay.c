@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "hd_rawstream.h"
+
 struct hal_replay {
     FILE *f;
     uint32_t ts_us;
@@ -16,16 +18,6 @@ struct hal_replay {
     hal_encoder_sample_t enc;
     int enc_rc;
 };
-
-static uint32_t le32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
-}
-
-static uint16_t le16(const uint8_t *p)
-{
-    return (uint16_t)(p[0] | (p[1] << 8));
-}
 
 static hal_replay_t *fail(FILE *f, hal_replay_t *r, char *err, size_t errlen, const char *path,
                           const char *why)
@@ -50,20 +42,12 @@ hal_replay_t *hal_replay_open(const char *path, char *err, size_t errlen)
     if (fread(h, 1, sizeof h, f) != sizeof h) {
         return fail(f, NULL, err, errlen, path, "shorter than the 16-byte header");
     }
-    if (memcmp(h, "HDRW", 4) != 0) {
-        return fail(f, NULL, err, errlen, path, "not a raw sample stream (magic is not HDRW)");
+    hd_raw_header_t hdr;
+    const hd_raw_err_t herr = hd_raw_header_parse(h, &hdr);
+    if (herr != HD_RAW_OK) {
+        return fail(f, NULL, err, errlen, path, hd_raw_err_str(herr));
     }
-    if (le16(&h[4]) != 1u) {
-        return fail(f, NULL, err, errlen, path, "unsupported version (expected 1)");
-    }
-    uint16_t rs = le16(&h[6]);
-    uint32_t ts = le32(&h[8]);
-    if (rs < HAL_REPLAY_RECORD_BYTES) {
-        return fail(f, NULL, err, errlen, path, "record size below 16 bytes");
-    }
-    if (ts == 0u) {
-        return fail(f, NULL, err, errlen, path, "sample period ts_us is 0");
-    }
+    const uint16_t rs = hdr.record_size;
     if (fseek(f, 0, SEEK_END) != 0) {
         return fail(f, NULL, err, errlen, path, "cannot seek");
     }
@@ -76,7 +60,7 @@ hal_replay_t *hal_replay_open(const char *path, char *err, size_t errlen)
         return fail(f, NULL, err, errlen, path, "out of memory");
     }
     r->f = f;
-    r->ts_us = ts;
+    r->ts_us = hdr.ts_us;
     r->record_size = rs;
     uint64_t body = (uint64_t)size - HAL_REPLAY_HEADER_BYTES;
     r->records = body / rs;
@@ -99,13 +83,7 @@ static int adc_read(void *ctx, hal_adc_sample_t *out)
         return HAL_ERR_IO;
     }
     r->pos++;
-    uint16_t flags = le16(&rec[12]);
-    r->adc.bridge_counts = (int32_t)le32(&rec[0]);
-    r->adc.saturated = (flags & 1u) != 0u;
-    r->enc.motor_counts = le32(&rec[4]);
-    r->enc.output_counts = le32(&rec[8]);
-    r->enc.fault = (flags & 2u) != 0u;
-    r->enc.has_output = (flags & 4u) != 0u;
+    hd_raw_record_decode(rec, &r->adc, &r->enc);
     r->enc_rc = HAL_OK;
     *out = r->adc;
     return HAL_OK;

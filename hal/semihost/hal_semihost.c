@@ -4,19 +4,10 @@
 #include <string.h>
 
 #include "hal_mock.h"
+#include "hd_rawstream.h"
 #include "semihost.h"
 
 #define HEADER_BYTES 16u
-
-static uint32_t le32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
-}
-
-static uint16_t le16(const uint8_t *p)
-{
-    return (uint16_t)(p[0] | (p[1] << 8));
-}
 
 const char *hal_sh_err_str(int err)
 {
@@ -32,6 +23,18 @@ const char *hal_sh_err_str(int err)
     }
 }
 
+/* The board's exit codes distinguish these, so keep its own error enum. */
+static int stream_err(hd_raw_err_t err)
+{
+    switch (err) {
+    case HD_RAW_OK: return HAL_SH_OK;
+    case HD_RAW_ERR_MAGIC: return HAL_SH_ERR_MAGIC;
+    case HD_RAW_ERR_VERSION: return HAL_SH_ERR_VERSION;
+    case HD_RAW_ERR_RECORD: return HAL_SH_ERR_RECORD;
+    default: return HAL_SH_ERR_TS;
+    }
+}
+
 int hal_sh_stream_open(hal_sh_stream_t *s, const char *path)
 {
     memset(s, 0, sizeof *s);
@@ -40,26 +43,21 @@ int hal_sh_stream_open(hal_sh_stream_t *s, const char *path)
         return HAL_SH_ERR_OPEN;
     }
     uint8_t h[HEADER_BYTES];
+    hd_raw_header_t hdr = {0};
     long size = sh_flen(s->fd);
     int rc = HAL_SH_OK;
     if (size < (long)HEADER_BYTES || sh_read(s->fd, h, sizeof h) != (long)sizeof h) {
         rc = HAL_SH_ERR_HEADER;
-    } else if (memcmp(h, "HDRW", 4) != 0) {
-        rc = HAL_SH_ERR_MAGIC;
-    } else if (le16(&h[4]) != 1u) {
-        rc = HAL_SH_ERR_VERSION;
-    } else if (le16(&h[6]) < HAL_SH_RECORD_MIN || le16(&h[6]) > HAL_SH_RECORD_MAX) {
-        rc = HAL_SH_ERR_RECORD;
-    } else if (le32(&h[8]) == 0u) {
-        rc = HAL_SH_ERR_TS;
+    } else {
+        rc = stream_err(hd_raw_header_parse(h, &hdr));
     }
     if (rc != HAL_SH_OK) {
         (void)sh_close(s->fd);
         s->fd = -1;
         return rc;
     }
-    s->record_size = le16(&h[6]);
-    s->ts_us = le32(&h[8]);
+    s->record_size = hdr.record_size;
+    s->ts_us = hdr.ts_us;
     uint32_t body = (uint32_t)size - HEADER_BYTES;
     s->records = body / s->record_size;
     s->trailing = body % s->record_size;
@@ -97,13 +95,7 @@ static int adc_read(void *ctx, hal_adc_sample_t *out)
     const uint8_t *rec = &s->buf[s->buf_off];
     s->buf_off += s->record_size;
     s->pos++;
-    uint16_t flags = le16(&rec[12]);
-    s->adc.bridge_counts = (int32_t)le32(&rec[0]);
-    s->adc.saturated = (flags & 1u) != 0u;
-    s->enc.motor_counts = le32(&rec[4]);
-    s->enc.output_counts = le32(&rec[8]);
-    s->enc.fault = (flags & 2u) != 0u;
-    s->enc.has_output = (flags & 4u) != 0u;
+    hd_raw_record_decode(rec, &s->adc, &s->enc);
     s->enc_rc = HAL_OK;
     *out = s->adc;
     return HAL_OK;
