@@ -78,13 +78,20 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     hd_fw_config_t cfg;
     hd_fw_config_default(&cfg);
     FUZZ_CHECK(hd_fw_init(&fw, &hal, &cfg) == HD_FW_OK);
-    FUZZ_CHECK(fw.calib_load_result == lrc);
-    uint16_t want = lrc == HD_CALIB_LOAD_OK            ? 0u
-                    : lrc == HD_CALIB_LOAD_ONE_COPY_BAD ? HD_FAULT_CALIB_ONE_COPY
-                    : lrc == HD_CALIB_LOAD_MISSING      ? HD_FAULT_CALIB_MISSING
-                                                        : HD_FAULT_CALIB_CORRUPT;
+    /* The firmware reports the loader's verdict, except that an intact
+     * record with an implausible gain or offset counts as corrupt. */
+    int expect = lrc;
+    if (lrc >= 0 && (!(r.gain_nm_per_v <= HD_FW_CALIB_GAIN_MAX_NM_PER_V) ||
+                     !(fabsf(r.offset_v) <= HD_FW_CALIB_OFFSET_MAX_V))) {
+        expect = HD_CALIB_LOAD_CORRUPT;
+    }
+    FUZZ_CHECK(fw.calib_load_result == expect);
+    uint16_t want = expect == HD_CALIB_LOAD_OK            ? 0u
+                    : expect == HD_CALIB_LOAD_ONE_COPY_BAD ? HD_FAULT_CALIB_ONE_COPY
+                    : expect == HD_CALIB_LOAD_MISSING      ? HD_FAULT_CALIB_MISSING
+                                                           : HD_FAULT_CALIB_CORRUPT;
     FUZZ_CHECK(fw.calib_faults == want);
-    if (lrc < 0) {
+    if (expect < 0) {
         FUZZ_CHECK(fw.calib.gain_nm_per_v == HD_CALIB_NOMINAL_GAIN_NM_PER_V);
     } else {
         FUZZ_CHECK(fw.calib.gain_nm_per_v == r.gain_nm_per_v);
