@@ -194,6 +194,25 @@ void UnityAssertDoubleWithin(double delta, double expected, double actual,
     abort_test();
 }
 
+void UnityAssertFloatWithin(float delta, float expected, float actual,
+                            const char *message, int line)
+{
+    /* float arithmetic, as upstream Unity's UnityAssertFloatsWithin */
+    float diff = actual - expected;
+    if (diff < 0.0f) {
+        diff = -diff;
+    }
+    float tol = delta < 0.0f ? -delta : delta;
+    if (expected == actual || diff <= tol) {
+        return;
+    }
+    fail_prefix(line);
+    printf(" Values Not Within Delta %.9g Expected %.9g Was %.9g", (double)delta,
+           (double)expected, (double)actual);
+    finish_message(message);
+    abort_test();
+}
+
 void UnityAssertCompareDouble(double threshold, double actual, int op,
                               const char *message, int line)
 {

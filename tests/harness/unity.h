@@ -45,6 +45,8 @@ void UnityAssertCompareInt(int64_t threshold, int64_t actual, int op,
                            const char *message, int line, int is_unsigned);
 void UnityAssertDoubleWithin(double delta, double expected, double actual,
                              const char *message, int line);
+void UnityAssertFloatWithin(float delta, float expected, float actual,
+                            const char *message, int line);
 void UnityAssertCompareDouble(double threshold, double actual, int op,
                               const char *message, int line);
 void UnityAssertDoubleClass(double actual, int which, const char *message,
@@ -129,30 +131,31 @@ extern jmp_buf UnityAbortFrame;
 #define TEST_ASSERT_LESS_THAN_UINT32(t, a) UnityAssertCompareInt((int64_t)(t), (int64_t)(a), UNITY_CMP_LT, NULL, __LINE__, 1)
 #define TEST_ASSERT_GREATER_THAN_UINT32(t, a) UnityAssertCompareInt((int64_t)(t), (int64_t)(a), UNITY_CMP_GT, NULL, __LINE__, 1)
 
-/* Floating point (floats are checked in double precision) */
-#define TEST_ASSERT_FLOAT_WITHIN(d, e, a) UnityAssertDoubleWithin((double)(d), (double)(e), (double)(a), NULL, __LINE__)
-#define TEST_ASSERT_FLOAT_WITHIN_MESSAGE(d, e, a, m) UnityAssertDoubleWithin((double)(d), (double)(e), (double)(a), (m), __LINE__)
+/* Floating point.  As in upstream Unity, FLOAT assertions convert their
+ * arguments to float and compare in float; DOUBLE ones work in double. */
+#define TEST_ASSERT_FLOAT_WITHIN(d, e, a) UnityAssertFloatWithin((float)(d), (float)(e), (float)(a), NULL, __LINE__)
+#define TEST_ASSERT_FLOAT_WITHIN_MESSAGE(d, e, a, m) UnityAssertFloatWithin((float)(d), (float)(e), (float)(a), (m), __LINE__)
 #define TEST_ASSERT_DOUBLE_WITHIN(d, e, a) UnityAssertDoubleWithin((double)(d), (double)(e), (double)(a), NULL, __LINE__)
 #define TEST_ASSERT_DOUBLE_WITHIN_MESSAGE(d, e, a, m) UnityAssertDoubleWithin((double)(d), (double)(e), (double)(a), (m), __LINE__)
-#define TEST_ASSERT_EQUAL_FLOAT(e, a) UnityAssertDoubleWithin(1e-5 * ((double)(e) < 0 ? -(double)(e) : (double)(e)) + 1e-30, (double)(e), (double)(a), NULL, __LINE__)
-#define TEST_ASSERT_EQUAL_FLOAT_MESSAGE(e, a, m) UnityAssertDoubleWithin(1e-5 * ((double)(e) < 0 ? -(double)(e) : (double)(e)) + 1e-30, (double)(e), (double)(a), (m), __LINE__)
+#define TEST_ASSERT_EQUAL_FLOAT(e, a) UnityAssertFloatWithin(1e-5f * ((float)(e) < 0 ? -(float)(e) : (float)(e)), (float)(e), (float)(a), NULL, __LINE__)
+#define TEST_ASSERT_EQUAL_FLOAT_MESSAGE(e, a, m) UnityAssertFloatWithin(1e-5f * ((float)(e) < 0 ? -(float)(e) : (float)(e)), (float)(e), (float)(a), (m), __LINE__)
 #define TEST_ASSERT_EQUAL_DOUBLE(e, a) UnityAssertDoubleWithin(1e-12 * ((double)(e) < 0 ? -(double)(e) : (double)(e)) + 1e-300, (double)(e), (double)(a), NULL, __LINE__)
-#define TEST_ASSERT_LESS_THAN_FLOAT(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LT, NULL, __LINE__)
-#define TEST_ASSERT_LESS_THAN_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LT, (m), __LINE__)
-#define TEST_ASSERT_LESS_OR_EQUAL_FLOAT(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LE, NULL, __LINE__)
-#define TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LE, (m), __LINE__)
-#define TEST_ASSERT_GREATER_THAN_FLOAT(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GT, NULL, __LINE__)
-#define TEST_ASSERT_GREATER_THAN_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GT, (m), __LINE__)
-#define TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GE, NULL, __LINE__)
-#define TEST_ASSERT_GREATER_OR_EQUAL_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GE, (m), __LINE__)
+#define TEST_ASSERT_LESS_THAN_FLOAT(t, a) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_LT, NULL, __LINE__)
+#define TEST_ASSERT_LESS_THAN_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_LT, (m), __LINE__)
+#define TEST_ASSERT_LESS_OR_EQUAL_FLOAT(t, a) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_LE, NULL, __LINE__)
+#define TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_LE, (m), __LINE__)
+#define TEST_ASSERT_GREATER_THAN_FLOAT(t, a) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_GT, NULL, __LINE__)
+#define TEST_ASSERT_GREATER_THAN_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_GT, (m), __LINE__)
+#define TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(t, a) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_GE, NULL, __LINE__)
+#define TEST_ASSERT_GREATER_OR_EQUAL_FLOAT_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(float)(t), (double)(float)(a), UNITY_CMP_GE, (m), __LINE__)
 #define TEST_ASSERT_LESS_THAN_DOUBLE(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LT, NULL, __LINE__)
 #define TEST_ASSERT_LESS_THAN_DOUBLE_MESSAGE(t, a, m) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_LT, (m), __LINE__)
 #define TEST_ASSERT_GREATER_THAN_DOUBLE(t, a) UnityAssertCompareDouble((double)(t), (double)(a), UNITY_CMP_GT, NULL, __LINE__)
 #define TEST_ASSERT_FLOAT_IS_NAN(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_NAN, NULL, __LINE__)
 #define TEST_ASSERT_FLOAT_IS_NOT_NAN(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_NOT_NAN, NULL, __LINE__)
 #define TEST_ASSERT_FLOAT_IS_INF(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_INF, NULL, __LINE__)
-#define TEST_ASSERT_FLOAT_IS_DETERMINATE(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_DETERMINATE, NULL, __LINE__)
-#define TEST_ASSERT_FLOAT_IS_DETERMINATE_MESSAGE(a, m) UnityAssertDoubleClass((double)(a), UNITY_CLASS_DETERMINATE, (m), __LINE__)
+#define TEST_ASSERT_FLOAT_IS_DETERMINATE(a) UnityAssertDoubleClass((double)(float)(a), UNITY_CLASS_DETERMINATE, NULL, __LINE__)
+#define TEST_ASSERT_FLOAT_IS_DETERMINATE_MESSAGE(a, m) UnityAssertDoubleClass((double)(float)(a), UNITY_CLASS_DETERMINATE, (m), __LINE__)
 #define TEST_ASSERT_DOUBLE_IS_DETERMINATE(a) UnityAssertDoubleClass((double)(a), UNITY_CLASS_DETERMINATE, NULL, __LINE__)
 
 /* Strings and memory */
