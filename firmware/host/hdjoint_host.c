@@ -32,6 +32,21 @@
 #include "hal_socketcan.h"
 #endif
 
+/* "GAIN,OFFSET_V" -> two finite floats; strtof reports overflow (ERANGE),
+ * which sscanf does not. */
+static bool parse_calib_pair(const char *text, float *gain, float *offset_v)
+{
+    char *end;
+    errno = 0;
+    *gain = strtof(text, &end);
+    if (end == text || *end != ',' || errno == ERANGE) {
+        return false;
+    }
+    const char *second = end + 1;
+    *offset_v = strtof(second, &end);
+    return end != second && *end == '\0' && errno != ERANGE;
+}
+
 #define MAX_CMDS 64
 #define HOST_PI 3.14159265358979323846
 
@@ -108,7 +123,7 @@ static int parse_args(int argc, char **argv, options_t *o)
             }
             i++;
         } else if (strcmp(a, "--calib") == 0) {
-            if (sscanf(v, "%f,%f", &o->calib_gain, &o->calib_offset) != 2 ||
+            if (!parse_calib_pair(v, &o->calib_gain, &o->calib_offset) ||
                 !(o->calib_gain > 0.0f) || !isfinite(o->calib_offset)) {
                 fprintf(stderr, "hdjoint-host: --calib wants GAIN,OFFSET with GAIN > 0\n");
                 return -1;
@@ -135,6 +150,14 @@ static int parse_args(int argc, char **argv, options_t *o)
 }
 
 /* "123#0011AA" -> frame (classic CAN, up to 8 bytes). */
+static int hex_digit(char c)
+{
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
 static int parse_frame(const char *s, hal_can_frame_t *f)
 {
     memset(f, 0, sizeof *f);
@@ -149,11 +172,11 @@ static int parse_frame(const char *s, hal_can_frame_t *f)
         return -1;
     }
     for (size_t i = 0; i < n / 2u; i++) {
-        unsigned byte;
-        if (sscanf(p + 2 * i, "%2x", &byte) != 1) {
+        const int hi = hex_digit(p[2u * i]), lo = hex_digit(p[2u * i + 1u]);
+        if (hi < 0 || lo < 0) {
             return -1;
         }
-        f->data[i] = (uint8_t)byte;
+        f->data[i] = (uint8_t)(hi * 16 + lo);
     }
     f->id = (uint32_t)id;
     f->len = (uint8_t)(n / 2u);
