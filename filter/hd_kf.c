@@ -247,6 +247,32 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     return HD_KF_OK;
 }
 
+/* New state i takes old state src[i] (-1: a new state, zero with its p0).
+ * In place, no copy of P: src is monotone, so for a compaction (src[i] >= i)
+ * an ascending sweep never reads an entry it already overwrote, and for an
+ * expansion (src[i] <= i) a descending sweep does not either. */
+static void remap_states(hd_kf_t *kf, const int *src, unsigned n_new, bool ascending)
+{
+    for (unsigned step = 0; step < n_new; step++) {
+        const unsigned i = ascending ? step : n_new - 1u - step;
+        for (unsigned step_j = 0; step_j < n_new; step_j++) {
+            const unsigned j = ascending ? step_j : n_new - 1u - step_j;
+            kf->p[i][j] = (src[i] < 0 || src[j] < 0) ? 0.0f : kf->p[src[i]][src[j]];
+        }
+        kf->x[i] = src[i] < 0 ? 0.0f : kf->x[src[i]];
+    }
+    for (unsigned i = 0; i < HD_KF_MAX_STATES; i++) {
+        for (unsigned j = 0; j < HD_KF_MAX_STATES; j++) {
+            if (i >= n_new || j >= n_new) {
+                kf->p[i][j] = 0.0f;
+            }
+        }
+        if (i >= n_new) {
+            kf->x[i] = 0.0f;
+        }
+    }
+}
+
 hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 {
     if (kf == NULL) {
@@ -258,50 +284,37 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     if ((kf->cfg.blocks[block].enabled != 0u) == enabled) {
         return HD_KF_OK;
     }
-    /* Remember the estimates of the other blocks by configured index, then
-     * rebuild the compact layout and put them back. */
-    float x_old[HD_KF_MAX_STATES];
-    float p_old[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
-    int old_slot_of[HD_KF_MAX_BLOCKS + 1];
-    for (unsigned i = 0; i <= HD_KF_MAX_BLOCKS; i++) {
+    /* Old slot of every configured block, then the new compact layout. */
+    int old_slot_of[HD_KF_MAX_BLOCKS];
+    for (unsigned i = 0; i < HD_KF_MAX_BLOCKS; i++) {
         old_slot_of[i] = -1;
     }
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         old_slot_of[kf->block_index[s]] = (int)s;
     }
-    const bool had_offset = kf->cfg.offset_enabled != 0u;
     const unsigned old_offset = kf->offset_slot;
-    for (unsigned i = 0; i < HD_KF_MAX_STATES; i++) {
-        x_old[i] = kf->x[i];
-        for (unsigned j = 0; j < HD_KF_MAX_STATES; j++) {
-            p_old[i][j] = kf->p[i][j];
-        }
-    }
     kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
     build_layout(kf);
-    hd_kf_reset(kf);
 
-    /* old state index of each new state, or -1 for the re-enabled block */
     int src[HD_KF_MAX_STATES];
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         const int old = old_slot_of[kf->block_index[s]];
         src[2u * s] = old < 0 ? -1 : 2 * old;
         src[2u * s + 1u] = old < 0 ? -1 : 2 * old + 1;
     }
-    if (had_offset) {
+    if (kf->cfg.offset_enabled) {
         src[kf->offset_slot] = (int)old_offset;
     }
-    for (unsigned i = 0; i < kf->n_states; i++) {
-        if (src[i] < 0) {
-            continue;
-        }
-        kf->x[i] = x_old[src[i]];
-        for (unsigned j = 0; j < kf->n_states; j++) {
-            if (src[j] >= 0) {
-                kf->p[i][j] = p_old[src[i]][src[j]];
+    remap_states(kf, src, kf->n_states, !enabled);
+    if (enabled) {
+        /* the re-enabled block restarts from zero with its initial variance */
+        for (unsigned i = 0; i < kf->n_states; i++) {
+            if (src[i] < 0) {
+                kf->p[i][i] = block_p0(kf, block);
             }
         }
     }
+    kf->frozen_mask &= ~(1u << block);
     return HD_KF_OK;
 }
 

@@ -801,6 +801,49 @@ static void test_recommended_load_step_goes_to_offset(void)
     TEST_ASSERT_GREATER_THAN_FLOAT(2.0 * e_on, e_off);
 }
 
+/* With the offset state last: disabling the first block moves every other
+ * state down by two and the offset with them; enabling it again moves them
+ * back.  The kept states and covariances must survive bit for bit, the
+ * re-enabled block restarts at zero with its initial variance. */
+static void test_block_toggle_with_offset_keeps_states_bitwise(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    scen_t sc = {{k_const_t, k_const_w, 2}, 1.0, 0.4, 0.5, 0.02, 3.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0};
+    run_scenario(&kf, &sc, &g_run);
+    const unsigned n = hd_kf_state_count(&kf); /* 7: blocks 0, 1, 2 and the offset */
+    TEST_ASSERT_EQUAL_UINT(7u, n);
+    float x0[7], p0[7][7];
+    for (unsigned i = 0; i < n; i++) {
+        x0[i] = hd_kf_state(&kf, i);
+        for (unsigned j = 0; j < n; j++)
+            p0[i][j] = hd_kf_cov(&kf, i, j);
+    }
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_set_block_enabled(&kf, 0, false));
+    TEST_ASSERT_EQUAL_UINT(5u, hd_kf_state_count(&kf));
+    for (unsigned i = 0; i < 5u; i++) {
+        TEST_ASSERT_EQUAL_MEMORY(&x0[i + 2u], &kf.x[i], sizeof(float));
+        for (unsigned j = 0; j < 5u; j++)
+            TEST_ASSERT_EQUAL_MEMORY(&p0[i + 2u][j + 2u], &kf.p[i][j], sizeof(float));
+    }
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_set_block_enabled(&kf, 0, true));
+    TEST_ASSERT_EQUAL_UINT(7u, hd_kf_state_count(&kf));
+    for (unsigned i = 2u; i < 7u; i++) {
+        TEST_ASSERT_EQUAL_MEMORY(&x0[i], &kf.x[i], sizeof(float));
+        for (unsigned j = 2u; j < 7u; j++)
+            TEST_ASSERT_EQUAL_MEMORY(&p0[i][j], &kf.p[i][j], sizeof(float));
+    }
+    for (unsigned i = 0; i < 2u; i++) {
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, kf.x[i]);
+        TEST_ASSERT_EQUAL_FLOAT(cfg.p0_nm2, kf.p[i][i]);
+        for (unsigned j = 0; j < 7u; j++)
+            if (j != i)
+                TEST_ASSERT_EQUAL_FLOAT(0.0f, kf.p[i][j]);
+    }
+}
+
 static void test_amplitude_and_phase_match_truth(void)
 {
     static hd_kf_t kf;
@@ -851,6 +894,7 @@ int main(void)
     RUN_TEST(test_config_validation_error_codes);
     RUN_TEST(test_block_disable_enable_keeps_others);
     RUN_TEST(test_amplitude_and_phase_match_truth);
+    RUN_TEST(test_block_toggle_with_offset_keeps_states_bitwise);
     RUN_TEST(test_recommended_load_step_goes_to_offset);
     return UNITY_END();
 }
