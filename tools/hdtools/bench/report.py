@@ -92,7 +92,7 @@ def tables(results: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                  f"{c['max_diff_vs_f64_nm']:.1e}"] for c in comp["compute"]]
         out.append((f"Host updates per second ({comp['steps']} steps x {comp['reps']} reps, "
                     f"median)", ["model", "states", "implementation", "updates/s", "ns/update",
-                                 "time vs hd_kf", "max |diff| vs f64 [Nm]"], rows))
+                                 "time vs hd_kf", "max diff vs f64 [Nm]"], rows))
         rows = [[str(m["capacity_blocks"]), str(m["capacity_states"]), str(m["hd_kf_bytes"]),
                  str(m["pipeline_bytes"]), str(m["dense_f32_bytes"]),
                  str(m["dense_f32_stack_bytes"])] for m in comp["memory"]]
