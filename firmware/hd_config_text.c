@@ -19,6 +19,20 @@ static bool is_digit(char c)
     return c >= '0' && c <= '9';
 }
 
+/* Appends a decimal digit to the mantissa while fewer than 19 significant
+ * digits are kept; returns false when the digit is dropped. */
+static bool take_digit(char c, uint64_t *mant, int *digits)
+{
+    if (*digits >= 19) {
+        return false;
+    }
+    *mant = *mant * 10u + (uint64_t)(c - '0');
+    if (*mant != 0u) {
+        (*digits)++;
+    }
+    return true;
+}
+
 int hd_config_parse_float(const char *s, size_t n, float *out)
 {
     size_t i = 0;
@@ -35,13 +49,8 @@ int hd_config_parse_float(const char *s, size_t n, float *out)
     bool any = false;
     while (i < n && is_digit(s[i])) {
         any = true;
-        if (digits < 19) {
-            mant = mant * 10u + (uint64_t)(s[i] - '0');
-            if (mant != 0u) {
-                digits++;
-            }
-        } else {
-            dec_exp++;
+        if (!take_digit(s[i], &mant, &digits)) {
+            dec_exp++; /* integer digit past the 19 kept: only the scale */
         }
         i++;
     }
@@ -49,12 +58,8 @@ int hd_config_parse_float(const char *s, size_t n, float *out)
         i++;
         while (i < n && is_digit(s[i])) {
             any = true;
-            if (digits < 19) {
-                mant = mant * 10u + (uint64_t)(s[i] - '0');
-                if (mant != 0u) {
-                    digits++;
-                }
-                dec_exp--;
+            if (take_digit(s[i], &mant, &digits)) {
+                dec_exp--; /* a kept fraction digit */
             }
             i++;
         }

@@ -119,47 +119,48 @@ static void wrap_angle(float *a)
     }
 }
 
+/* Sample k of the bench input: the same for every filter implementation. */
+static hd_kf_input_t bench_input(uint32_t k, const hd_fw_config_t *cfg)
+{
+    const float d_motor = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
+    static float angle;
+    if (k == 0u) {
+        angle = 0.0f;
+    }
+    hd_kf_input_t in;
+    memset(&in, 0, sizeof in);
+    in.torque_meas_nm = test_torque_nm(k, angle);
+    in.torque_expected_nm = 5.0f;
+    in.d_motor_angle_rad = d_motor;
+    in.d_output_angle_rad = d_motor / cfg->gear_ratio;
+    angle += d_motor;
+    wrap_angle(&angle);
+    return in;
+}
+
 static void bench_kf(const hd_fw_config_t *cfg)
 {
     if (hd_kf_init(&g_kf, &cfg->kf) != HD_KF_OK) {
         sh_exit(BOARD_EXIT_INIT);
     }
-    float angle = 0.0f;
-    const float d_motor = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
     for (uint32_t k = 0; k < CALLS; k++) {
-        hd_kf_input_t in;
-        memset(&in, 0, sizeof in);
-        in.torque_meas_nm = test_torque_nm(k, angle);
-        in.torque_expected_nm = 5.0f;
-        in.d_motor_angle_rad = d_motor;
-        in.d_output_angle_rad = d_motor / cfg->gear_ratio;
+        const hd_kf_input_t in = bench_input(k, cfg);
         hd_kf_output_t out;
         hd_mark_begin();
         hd_kf_step(&g_kf, &in, &out);
         hd_mark_end();
-        angle += d_motor;
-        wrap_angle(&angle);
     }
 }
 
 static void bench_dense(const hd_fw_config_t *cfg)
 {
     dense_kf_f32_init(&g_dense, &cfg->kf);
-    float angle = 0.0f;
-    const float d_motor = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
     for (uint32_t k = 0; k < CALLS; k++) {
-        hd_kf_input_t in;
-        memset(&in, 0, sizeof in);
-        in.torque_meas_nm = test_torque_nm(k, angle);
-        in.torque_expected_nm = 5.0f;
-        in.d_motor_angle_rad = d_motor;
-        in.d_output_angle_rad = d_motor / cfg->gear_ratio;
+        const hd_kf_input_t in = bench_input(k, cfg);
         dense_kf_f32_output_t out;
         hd_mark_begin();
         dense_kf_f32_step(&g_dense, &in, &out);
         hd_mark_end();
-        angle += d_motor;
-        wrap_angle(&angle);
     }
 }
 
