@@ -140,6 +140,7 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         return HD_KF_ERR_NOISE;
     }
     if (!is_nonneg(cfg->offset_jump_nm) || !is_nonneg(cfg->q_motion_ref_rad) ||
+        !is_nonneg(cfg->ripple_load_coeff_per_nm) ||
         !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2) {
         return HD_KF_ERR_NOISE;
     }
@@ -168,7 +169,7 @@ const char *hd_kf_err_str(int err)
     case HD_KF_ERR_BLOCK_COUNT: return "too many blocks (HD_KF_MAX_BLOCKS)";
     case HD_KF_ERR_LOCK: return "unknown block lock kind";
     case HD_KF_ERR_ORDER: return "block order/frequency must be finite and > 0";
-    case HD_KF_ERR_NOISE: return "q, r, p0, p_max must be finite, q >= 0, r > 0, p0 <= p_max";
+    case HD_KF_ERR_NOISE: return "q, r, p0, p_max, gates and load coefficient must be finite, q >= 0, r > 0, p0 <= p_max";
     case HD_KF_ERR_TS: return "sample period must be finite and > 0";
     case HD_KF_ERR_NYQUIST: return "nyquist_fraction must be in (0, 1]";
     case HD_KF_ERR_FIXED_OVER_NYQUIST: return "fixed-frequency block at or above fs/2";
@@ -479,6 +480,31 @@ static bool state_is_finite(const hd_kf_t *kf)
     return true;
 }
 
+/* Measurement-row scale of every block: 1 + k |T_ref| (hd_kf.h,
+ * "Load-dependent ripple"); 1 when off.  T_ref is bounded by the bad-input
+ * limit on y and by p_max on the offset, so c stays finite. */
+static float load_scale(const hd_kf_t *kf, const hd_kf_input_t *in)
+{
+    const float k = kf->cfg.ripple_load_coeff_per_nm;
+    if (k <= 0.0f) {
+        return 1.0f;
+    }
+    float t_ref = is_finite(in->torque_expected_nm) ? in->torque_expected_nm : 0.0f;
+    if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
+        t_ref += kf->x[kf->offset_slot];
+    }
+    const float abs_t = t_ref < 0.0f ? -t_ref : t_ref;
+    return 1.0f + k * (abs_t < HD_KF_MAX_ABS_Y_NM ? abs_t : HD_KF_MAX_ABS_Y_NM);
+}
+
+/* C entry of an unfrozen slot: the load scale for motor-locked blocks
+ * (meshing ripple), 1 for output-locked (misalignment is geometry) and
+ * fixed-frequency ones (electrical pickup). */
+static float block_c(const hd_kf_t *kf, unsigned slot, float c_load)
+{
+    return kf->cfg.blocks[kf->block_index[slot]].lock == HD_KF_LOCK_MOTOR ? c_load : 1.0f;
+}
+
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
 {
     uint32_t status = 0u;
@@ -503,13 +529,14 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     step_rotation_t rot;
     compute_rotations(kf, &in, &rot);
     const unsigned n = kf->n_states;
+    const float c_load = load_scale(kf, &in);
 
     /* Prior outputs: ripple = C x without the offset; C skips frozen blocks. */
+    float c_row[HD_KF_MAX_BLOCKS]; /* C entry of each slot's first state; 0 if frozen */
     float ripple = 0.0f;
     for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (!rot.frozen[s]) {
-            ripple += kf->x[2u * s];
-        }
+        c_row[s] = rot.frozen[s] ? 0.0f : block_c(kf, s, c_load);
+        ripple += c_row[s] * kf->x[2u * s];
     }
     if (kf->cfg.offset_enabled && !kf->offset_primed && correct) {
         kf->x[kf->offset_slot] = y - ripple;
@@ -517,14 +544,13 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     }
     const float offset = kf->cfg.offset_enabled ? kf->x[kf->offset_slot] : 0.0f;
 
-    /* g = P C' and S = R + C P C' */
+    /* g = P C' and S = R + C P C' (C: c_load on block first states, 1 on
+     * the offset) */
     float g[HD_KF_MAX_STATES];
     for (unsigned i = 0; i < n; i++) {
         float sum = 0.0f;
         for (unsigned s = 0; s < kf->active_blocks; s++) {
-            if (!rot.frozen[s]) {
-                sum += kf->p[i][2u * s];
-            }
+            sum += c_row[s] * kf->p[i][2u * s];
         }
         if (kf->cfg.offset_enabled) {
             sum += kf->p[i][kf->offset_slot];
@@ -533,9 +559,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     }
     float cpc = 0.0f;
     for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (!rot.frozen[s]) {
-            cpc += g[2u * s];
-        }
+        cpc += c_row[s] * g[2u * s];
     }
     if (kf->cfg.offset_enabled) {
         cpc += g[kf->offset_slot];
@@ -565,7 +589,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         if (!rot.frozen[s]) {
             const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
-            out->amplitude_nm[kf->block_index[s]] = sqrtf(a * a + b * b);
+            out->amplitude_nm[kf->block_index[s]] = c_row[s] * sqrtf(a * a + b * b);
         }
     }
 

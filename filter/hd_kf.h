@@ -57,6 +57,16 @@
  * offset.  The absolute threshold keeps small unmodelled lines, which also
  * exceed 4 sigma, from triggering it.  Flagged HD_KF_STATUS_OFFSET_JUMP.
  *
+ * Load-dependent ripple: the meshing and misalignment torques of a
+ * strain-wave gear grow with the transmitted torque.  With
+ * ripple_load_coeff_per_nm = k > 0 the measurement row of every block is
+ * c = 1 + k |T_ref| instead of 1, where T_ref = T_exp + offset (the filter's
+ * own slow-torque estimate before this sample; T_exp alone when the offset
+ * is a sensor error).  The states are then the ripple at zero load: a load
+ * change changes the predicted ripple at once instead of being learned
+ * again by every block (and shared with the offset).  c is known before
+ * the update, so the model stays linear and the update unchanged.
+ *
  * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
  * cannot be observed without aliasing.  It is frozen: dropped from C and from
  * the ripple estimate, its state zeroed and its covariance reset to p0 and
@@ -130,6 +140,9 @@ typedef struct {
     float offset_jump_nm;          /* > 0: an innovation larger than this [Nm] (and
                                       than 4 sigma) is a jump of the offset (see
                                       below); 0: off */
+    float ripple_load_coeff_per_nm; /* >= 0: every line's amplitude scales with
+                                      1 + coeff |T| (see "Load-dependent ripple");
+                                      0: off (the paper's constant amplitudes) */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -153,7 +166,9 @@ typedef struct {
     float offset_nm;           /* offset state (0 if disabled) */
     float innovation_nm;       /* e = y - C x (prior) */
     float innovation_var_nm2;  /* S = R + C P C' (prior) */
-    float amplitude_nm[HD_KF_MAX_BLOCKS]; /* per configured block; 0 if disabled/frozen */
+    float amplitude_nm[HD_KF_MAX_BLOCKS]; /* per configured block, at the present load
+                                             (x c, see "Load-dependent ripple");
+                                             0 if disabled/frozen */
     uint32_t frozen_mask;      /* bit i: block i frozen this step */
     uint32_t status;           /* HD_KF_STATUS_* for this step */
 } hd_kf_output_t;
@@ -243,7 +258,8 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled);
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out);
 
 /* Amplitude [Nm] and phase [rad] of configured block i from the current
- * state (phase of the first state's oscillation: ripple_i = A cos(phase) ).
+ * state (phase of the first state's oscillation: ripple_i = A cos(phase) ),
+ * at zero load when ripple_load_coeff_per_nm > 0.
  * Uses libm atan2f: call it outside the 1 kHz path. */
 void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
                                  float *amplitude_nm, float *phase_rad);

@@ -60,12 +60,13 @@ class KfConfig(ctypes.Structure):
                 ("q_motion_ref_rad", c_float),
                 ("p_max_nm2", c_float),
                 ("nyquist_fraction", c_float),
-                ("offset_jump_nm", c_float)]
+                ("offset_jump_nm", c_float),
+                ("ripple_load_coeff_per_nm", c_float)]
 
     # Fields the analysis model carries one-to-one (see model.Model).
     SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
                "output_p0_nm2", "q_motion_ref_rad", "p_max_nm2", "nyquist_fraction",
-               "offset_jump_nm")
+               "offset_jump_nm", "ripple_load_coeff_per_nm")
 
     def add_block(self, lock: int, order: float, q_nm2: float) -> int:
         if self.block_count >= MAX_BLOCKS:
