@@ -57,15 +57,18 @@
  * offset.  The absolute threshold keeps small unmodelled lines, which also
  * exceed 4 sigma, from triggering it.  Flagged HD_KF_STATUS_OFFSET_JUMP.
  *
- * Load-dependent ripple: the meshing and misalignment torques of a
- * strain-wave gear grow with the transmitted torque.  With
- * ripple_load_coeff_per_nm = k > 0 the measurement row of every block is
- * c = 1 + k |T_ref| instead of 1, where T_ref = T_exp + offset (the filter's
- * own slow-torque estimate before this sample; T_exp alone when the offset
- * is a sensor error).  The states are then the ripple at zero load: a load
- * change changes the predicted ripple at once instead of being learned
- * again by every block (and shared with the offset).  c is known before
- * the update, so the model stays linear and the update unchanged.
+ * Load-dependent ripple: the meshing torque of a strain-wave gear grows
+ * with the transmitted torque.  With ripple_load_coeff_per_nm = k > 0 the
+ * measurement-row entry of every motor-locked block is c = 1 + k |T_ref|
+ * instead of 1, where T_ref = T_exp + offset (the filter's own slow-torque
+ * estimate before this sample; T_exp alone when the offset is a sensor
+ * error).  Those states are then the ripple at zero load: a load change
+ * changes the predicted ripple at once instead of being learned again by
+ * every block.  Output-locked (misalignment: geometry) and fixed-frequency
+ * (electrical pickup) blocks keep c = 1; scaling the slow output-locked
+ * line as well made it take load steps (measured in the analysis suite).
+ * c is known before the update, so the model stays linear and the update
+ * unchanged.
  *
  * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
  * cannot be observed without aliasing.  It is frozen: dropped from C and from
@@ -140,7 +143,7 @@ typedef struct {
     float offset_jump_nm;          /* > 0: an innovation larger than this [Nm] (and
                                       than 4 sigma) is a jump of the offset (see
                                       below); 0: off */
-    float ripple_load_coeff_per_nm; /* >= 0: every line's amplitude scales with
+    float ripple_load_coeff_per_nm; /* >= 0: motor-locked lines scale with
                                       1 + coeff |T| (see "Load-dependent ripple");
                                       0: off (the paper's constant amplitudes) */
 } hd_kf_config_t;
