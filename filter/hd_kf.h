@@ -230,7 +230,15 @@ void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
  *   conditioned in float32), output-locked p0 0.01 Nm^2, q_motion_ref 0.05 rad;
  *   both p0 are capped at HD_KF_MAX_P0_OVER_R / 2 x R, so the result always
  *   passes hd_kf_config_check (noise below ~8 mN m lowers them).
- * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.005 s. */
+ * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.02 s.
+ * The offset settle time trades load tracking against learning the slow
+ * output-locked line: the offset's bandwidth (~1 / (2 pi settle)) must stay
+ * well above the load's changes, but every bit of it hides the 0.2-0.3 Hz
+ * misalignment line from its block.  Measured on the benchmark joint
+ * (docs/bench.md): 5 ms left 86 mN m at 156 rad/s (floor 20), 20 ms 24;
+ * slower still helps constant load a little and loses on ramps and slow
+ * load changes.  Load steps are the jump gate's business, not the settle
+ * time's. */
 void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s);
 

@@ -182,6 +182,7 @@ static const float_key_t FLOAT_KEYS[] = {
     FKEY("output_p0_nm2", V_NONNEG, kf.output_p0_nm2),
     FKEY("offset_jump_nm", V_NONNEG, kf.offset_jump_nm),
     FKEY("q_motion_ref_rad", V_NONNEG, kf.q_motion_ref_rad),
+    FKEY("ripple_load_coeff_per_nm", V_NONNEG, kf.ripple_load_coeff_per_nm),
     FKEY("inertia_kgm2", V_NONNEG, expected.inertia_kgm2),
     FKEY("viscous_nm_s_rad", V_NONNEG, expected.viscous_nm_s_rad),
     FKEY("coulomb_nm", V_NONNEG, expected.coulomb_nm),

@@ -155,7 +155,7 @@ typedef struct {
 
 #define HD_FW_DEFAULT_NOISE_NM 0.02f
 #define HD_FW_DEFAULT_RIPPLE_SETTLE_S 0.05f
-#define HD_FW_DEFAULT_OFFSET_SETTLE_S 0.005f
+#define HD_FW_DEFAULT_OFFSET_SETTLE_S 0.02f
 
 /* The defaults: hd_kf_config_recommended (motor orders 2 and 4, output
  * order 1, offset state; noise and settle times above), gear ratio 100,

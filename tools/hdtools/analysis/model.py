@@ -16,7 +16,7 @@ from . import cfilter
 # ~RIPPLE_SETTLE_S, the offset state (real torque the expected-torque model
 # misses) in ~OFFSET_SETTLE_S.  q = R (ts / settle)^2.
 RIPPLE_SETTLE_S = 0.05
-OFFSET_SETTLE_S = 0.005
+OFFSET_SETTLE_S = 0.02
 SENSOR_DRIFT_SETTLE_S = 10.0   # offset as a slow sensor-zero estimate
 
 
@@ -46,6 +46,7 @@ class Model:
     p_max_nm2: float = 1e6
     nyquist_fraction: float = 0.9
     offset_jump_nm: float = 0.0
+    ripple_load_coeff_per_nm: float = 0.0
     inertia_kgm2: float = 0.0
     viscous_nm_s_rad: float = 0.0
     coulomb_nm: float = 0.0
@@ -123,7 +124,8 @@ class Model:
                  # run its defaults, not the model the analysis evaluated.
                  f"output_p0_nm2 = {self.output_p0_nm2:.6g}",
                  f"offset_jump_nm = {self.offset_jump_nm:.6g}",
-                 f"q_motion_ref_rad = {self.q_motion_ref_rad:.6g}"]
+                 f"q_motion_ref_rad = {self.q_motion_ref_rad:.6g}",
+                 f"ripple_load_coeff_per_nm = {self.ripple_load_coeff_per_nm:.6g}"]
         for b in self.blocks:
             lines.append(f"block = {b.lock} {b.order:.6g} {b.q_nm2:.6g}")
         lines += [f"inertia_kgm2 = {self.inertia_kgm2:.6g}",
@@ -136,7 +138,7 @@ class Model:
     def can_commands(self, node_id: int = 1) -> list[dict]:
         """CAN CMD frames (docs/firmware.md) that put this model into a
         running joint.  p_max, nyquist_fraction, offset_is_sensor_error, v_eps,
-        output_p0, offset_jump and q_motion_ref have no CAN command: they are
+        output_p0, offset_jump, q_motion_ref and the ripple load coefficient have no CAN command: they are
         listed in `not_settable` (the config file carries them)."""
         cmd_id = 0x600 + node_id
         frames = []
@@ -172,7 +174,8 @@ class Model:
 
     def not_settable_over_can(self) -> list[str]:
         return ["p_max_nm2", "nyquist_fraction", "offset_is_sensor_error",
-                "coulomb_vel_eps_rad_s", "output_p0_nm2", "offset_jump_nm", "q_motion_ref_rad"]
+                "coulomb_vel_eps_rad_s", "output_p0_nm2", "offset_jump_nm", "q_motion_ref_rad",
+                "ripple_load_coeff_per_nm"]
 
 
 def slow_step_nm(torque_nm: np.ndarray, ts_s: float, window_s: float = 0.2) -> float:
