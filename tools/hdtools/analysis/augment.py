@@ -10,8 +10,11 @@ it helps -> repeat.
     innovation RMS does not rise by more than INNOV_TOL, and the change of
     the filtered torque is essentially the line (rms change <= CHANGE_FACTOR
     x the line's rms), i.e. the block did not eat real torque;
-  * a retuned block (q x 10: ripple whose amplitude moves, e.g. with load):
-    the same line test;
+  * a retuned block (q x 10: ripple whose amplitude or phase moves): the
+    same line test;
+  * a load coefficient (ripple amplitude x (1 + k |T|), when the residue's
+    envelope follows the load): the innovation RMS falls by at least
+    LOAD_GAIN and the residue band around the line falls;
   * an expected-torque term (velocity, acceleration): the innovation RMS
     falls by at least INNOV_GAIN and the slow model residual falls;
   * offset drift (offset state as a slowly moving sensor-zero error): only
@@ -41,6 +44,7 @@ CHANGE_FACTOR = 2.0
 MAX_ROUNDS = 8
 MAX_BLOCKS = 8
 RETUNE_FACTOR = 10.0
+LOAD_GAIN = 0.05
 
 
 def apply(model: Model, c: detect.Candidate) -> Model | None:
@@ -54,6 +58,8 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
     elif c.action == "retune_block":
         b = m.blocks[c.evidence["existing_block"]]
         b.q_nm2 = b.q_nm2 * RETUNE_FACTOR
+    elif c.action == "load_scale":
+        m.ripple_load_coeff_per_nm = c.params["ripple_load_coeff_per_nm"]
     elif c.action == "expected_torque":
         for k, v in c.params.items():
             if getattr(m, k) + v < 0:
@@ -103,6 +109,11 @@ def judge(c, runs0, m0, runs1, m1, view0=None, view1=None):
     if m1.get("filter_resets", 0) > m0.get("filter_resets", 0):
         ev["rejected_because"] = "the filter reset itself with this change"
         return False, ev
+    if c.action == "load_scale":
+        if innov_change > -LOAD_GAIN:
+            ev["rejected_because"] = "the innovation did not fall by 5 %"
+            return False, ev
+        return True, ev
     if c.kind in ("motor_order", "output_order", "fixed_frequency"):
         if c.evidence.get("phase_coherent_over_record") is False:
             # No common phase over the record: measure in the averaged
@@ -168,8 +179,10 @@ def run_loop(data, model0: Model, log=print, feedforward=None):
         # else that could explain slow torque has been tried.
         drift = [c for c in slow if c.kind == "offset_drift"]
         slow = [c for c in slow if c.kind != "offset_drift"]
-        cands = (sorted(lines, key=lambda c: -c.score) + sorted(slow, key=lambda c: -c.score)
-                 + drift)
+        # A residue whose envelope follows the load is tried before a
+        # plain retune of the same line: it is the more specific reading.
+        cands = (sorted(lines, key=lambda c: (c.action != "load_scale", -c.score))
+                 + sorted(slow, key=lambda c: -c.score) + drift)
         for c in cands:
             if c.action == "report_only" and c.key() not in tried:
                 tried.add(c.key())
@@ -212,6 +225,9 @@ def _describe(c):
         return f"add {c.kind} block {c.order:.4g}"
     if c.action == "retune_block":
         return f"raise q of the {c.kind} {c.order:.4g} block x{RETUNE_FACTOR:g}"
+    if c.action == "load_scale":
+        return (f"ripple amplitude x (1 + {c.params['ripple_load_coeff_per_nm']:.3g} |T|) "
+                f"(seen on the {c.kind} {c.order:.4g} line)")
     if c.action == "expected_torque":
         return "expected torque += " + ", ".join(f"{k} {v:+.4g}" for k, v in c.params.items())
     return "offset state as sensor error (slow drift)"

@@ -46,6 +46,10 @@ INTEGER_TOL = 0.03
 # (a repeated motion, a vibration): it is reported but not removed.
 FIXED_MIN_HZ = 20.0
 BAND_BINS = 4               # half-width of the band around an existing block
+# A residue whose envelope follows |torque| this closely is load-dependent
+# ripple: the model gets a load coefficient (hd_kf.h "Load-dependent
+# ripple") instead of a faster block.
+LOAD_CORRELATION_MIN = 0.5
 
 
 @dataclass
@@ -54,11 +58,15 @@ class Candidate:
     order: float = float("nan")   # cycles per rev of its lock (order kinds) or Hz (fixed)
     amplitude_nm: float = 0.0
     score: float = 0.0
-    action: str = "add_block"     # add_block | retune_block | expected_torque | offset_sensor_error
+    action: str = "add_block"     # add_block | retune_block | load_scale | expected_torque | offset_sensor_error
     evidence: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
 
     def key(self):
+        if self.action == "load_scale":
+            # One coefficient for every line: tried once, whichever line
+            # showed it.
+            return (self.action,)
         if self.kind in ("motor_order", "output_order", "fixed_frequency"):
             return (self.kind, round(self.order, 2), self.action)
         # Slow terms may be refined once the model has changed: the key
@@ -281,8 +289,51 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
             e, l_ = np.concatenate(env), np.concatenate(load)
             if np.std(e) > 0 and np.std(l_) > 0:
                 ev["envelope_load_correlation"] = round(float(np.corrcoef(e, l_)[0, 1]), 3)
-        out.append(Candidate(kind, b.order, amp, score=ratio, action="retune_block", evidence=ev))
+        # The residue is the block's lag, which follows load *changes*; the
+        # line itself, in the measured torque, shows whether its amplitude
+        # follows |load|.
+        action, params = "retune_block", {}
+        fit = load_coefficient(ctx, kind, b.order, win) if b.lock == "motor" else None
+        if fit is not None:
+            k, corr = fit
+            ev["line_amplitude_load_correlation"] = round(corr, 3)
+            if corr >= LOAD_CORRELATION_MIN:
+                action, params = "load_scale", {"ripple_load_coeff_per_nm": k}
+                ev["note"] = ("residue around a modelled line whose amplitude follows the "
+                              "load: load-dependent ripple amplitude")
+        out.append(Candidate(kind, b.order, amp, score=ratio, action=action, evidence=ev,
+                             params=params))
     return out
+
+
+def load_coefficient(ctx: Context, kind: str, order: float, win: int):
+    """(k, correlation) of a line whose amplitude is A0 (1 + k |T|): the
+    line's amplitude in the measured torque, demodulated over windows of win
+    samples, against the window's mean |torque| (the ripple averages out of
+    the mean), fitted as A0 + A0 k |T|.  None when the load does not vary or
+    the fit gives no positive A0 and slope.  Motor-locked lines only: a
+    window holds several of their cycles."""
+    amp, load = [], []
+    for x, p_ in zip(ctx.torque, phases(ctx, kind, order)):
+        m = (len(x) // win) * win
+        if m < 2 * win:
+            continue
+        xs = x[:m].reshape(-1, win)
+        ps = p_[:m].reshape(-1, win)
+        dc = xs.mean(1, keepdims=True)
+        c = ((xs - dc) * np.cos(ps)).mean(1)
+        s_ = ((xs - dc) * np.sin(ps)).mean(1)
+        amp.append(2 * np.hypot(c, s_))
+        load.append(np.abs(dc[:, 0]))
+    if not amp:
+        return None
+    a, l_ = np.concatenate(amp), np.concatenate(load)
+    if not (np.std(l_) > 0 and np.std(a) > 0):
+        return None
+    slope, a0 = np.polyfit(l_, a, 1)
+    if not (a0 > 0 and slope > 0):
+        return None
+    return float(f"{slope / a0:.3g}"), float(np.corrcoef(a, l_)[0, 1])
 
 
 def _angle_kind(motor_order, ratio):
