@@ -95,6 +95,19 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     memset(phi, 0, sizeof(phi));
     memset(q, 0, sizeof(q));
 
+    /* Load-dependent ripple: the C entry of motor-locked blocks is
+     * 1 + k |T_ref|, T_ref = T_exp (+ the prior offset when it is real
+     * torque and has been primed).  A non-finite T_exp makes y non-finite
+     * (prediction only); it then adds nothing to T_ref. */
+    double c_load = 1.0;
+    if (r->cfg.ripple_load_coeff_per_nm > 0.0f) {
+        double t_ref = isfinite(in->torque_expected_nm) ? (double)in->torque_expected_nm : 0.0;
+        if (r->offset_slot >= 0 && !r->cfg.offset_is_sensor_error && r->offset_primed)
+            t_ref += r->x[r->offset_slot];
+        c_load = 1.0 + (double)r->cfg.ripple_load_coeff_per_nm * fabs(t_ref);
+    }
+    out->load_scale = c_load;
+
     /* Phi(k), Q, C(k) and the Nyquist freeze for this step. */
     for (int s = 0; s < r->nb; s++) {
         int b = r->block_of_slot[s];
@@ -114,7 +127,7 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
             out->frozen_mask |= 1u << b;
             hold_block(r, s);
         } else {
-            c[i] = 1.0;
+            c[i] = r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? c_load : 1.0;
         }
     }
     if (r->offset_slot >= 0) {
@@ -128,16 +141,21 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
 
     /* Outputs from the prior x(k|k-1). */
     double ripple = 0.0;
-    for (int s = 0; s < r->nb; s++)
-        if (!frozen[s])
-            ripple += r->x[2 * s];
+    for (int s = 0; s < r->nb; s++) {
+        int i = 2 * s;
+        ripple += c[i] * r->x[i]; /* c = 0 for a frozen block */
+        out->amplitude_nm[r->block_of_slot[s]] =
+            c[i] * sqrt(r->x[i] * r->x[i] + r->x[i + 1] * r->x[i + 1]);
+    }
     double y = (double)in->torque_meas_nm - (double)in->torque_expected_nm;
     if (r->offset_slot >= 0 && !r->offset_primed && isfinite(y)) {
         r->x[r->offset_slot] = y - ripple;
         r->offset_primed = 1;
     }
     double offset = r->offset_slot >= 0 ? r->x[r->offset_slot] : 0.0;
-    double cx = ripple + offset;
+    double cx = 0.0; /* C x, straight from the row */
+    for (int i = 0; i < n; i++)
+        cx += c[i] * r->x[i];
     double cpc = 0.0;
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++)

@@ -14,7 +14,16 @@
  *     from C and from the ripple, and its state is held at zero with
  *     covariance p0 I, decorrelated from the rest, until theta drops back;
  *   - covariance diagonal ceiling p_max by congruence scaling of row/column;
- *   - a non-finite measurement skips the correction (prediction only).
+ *   - a non-finite measurement skips the correction (prediction only);
+ *   - load-dependent ripple (cfg.ripple_load_coeff_per_nm = k, 0 by default,
+ *     so callers that never set it get the paper's C): the C entry of the
+ *     first state of every unfrozen MOTOR-locked block is
+ *       c = 1 + k |T_ref|,  T_ref = T_exp + offset (prior, once primed)
+ *     with the offset only when it is enabled and kept as real torque
+ *     (not offset_is_sensor_error), T_exp alone otherwise; output-locked and
+ *     fixed blocks keep c = 1.  Computed here in double from that
+ *     definition; amplitude_nm[] is c times the state amplitude.
+ *     Set it in the config before ref_kf_init, or later in r->cfg.
  */
 #ifndef REF_KF_DENSE_H
 #define REF_KF_DENSE_H
@@ -51,6 +60,9 @@ typedef struct {
     uint32_t status;      /* HD_KF_STATUS_* bits this reference can raise */
     int jump_own_decision; /* what this reference decided by itself */
     double jump_margin_rel; /* relative distance of the innovation from the threshold */
+    double load_scale;      /* 1 + k |T_ref| used this step (1 when k = 0) */
+    double amplitude_nm[HD_KF_MAX_BLOCKS]; /* per configured block, prior, x its C entry;
+                                              0 if disabled or frozen */
 } ref_kf_output_t;
 
 /* Copies cfg (assumed valid), x = 0, P = p0 I. */

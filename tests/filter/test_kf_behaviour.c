@@ -875,6 +875,192 @@ static void test_amplitude_and_phase_match_truth(void)
     }
 }
 
+/* ---- load-dependent ripple (ripple_load_coeff_per_nm) ----------------------
+ * Closed-form truth: the motor order-2 line has amplitude A0 (1 + K |T|),
+ * T steps 0 -> 10 Nm at 3 s and is given exactly as T_exp (no offset state,
+ * so T_ref = T_exp is known exactly).  An output-locked (misalignment) and a
+ * fixed 50 Hz line (pickup) have constant amplitudes.  With the correct k the
+ * filter predicts the 4x larger line from the first sample after the step;
+ * with k = 0 every block has to learn it again.  Tuning: the recommended one
+ * (ripple settles in ~50 ms) plus a fixed 50 Hz block, without its offset
+ * state (T_ref = T_exp exactly) or with it (T_ref = T_exp + prior offset, the
+ * true offset being 0).  (The narrow-band tuning of the tests above relearns
+ * a line in a few ms, so there the gain of k would hide inside 20 ms.) */
+#define LOAD_K_TRUE 0.3
+#define LOAD_A0_NM 0.5       /* order-2 line at zero load */
+#define LOAD_A_OUT_NM 0.3    /* output order 1, constant */
+#define LOAD_A_FIX_NM 0.2    /* 50 Hz, constant */
+#define LOAD_STEP_AT_S 3.0
+#define LOAD_STEP_NM 10.0
+#define LOAD_RUN_S 6.0
+
+typedef struct {
+    double rms_before;     /* ripple error RMS over the 0.5 s before the step */
+    double rms_after;      /* ... over 20-200 ms after it */
+    double max_c_dev_rel;  /* amplitude_nm[motor] / (1 + k|T_ref|) vs state amplitude */
+    double max_unscaled_dev; /* amplitude_nm[output, fixed] vs state amplitude */
+    float amp0_zero_load, amp_fix_zero_load; /* hd_kf_block_amplitude_phase at the end */
+    float amp0_out;        /* amplitude_nm[0] at the last step (at load) */
+} load_run_t;
+
+static void load_step_run(float k, int with_offset, load_run_t *res)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    const double sigma = 0.02;
+    /* with the offset (kept as real torque): T_ref = T_exp + prior offset */
+    hd_kf_config_recommended(&cfg, (float)TS_S, (float)sigma, 0.05f, 0.005f);
+    cfg.offset_enabled = with_offset ? 1u : 0u;
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(&cfg, HD_KF_LOCK_FIXED, 50.0f,
+                                                    cfg.blocks[0].q_nm2));
+    cfg.ripple_load_coeff_per_nm = k;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    TEST_ASSERT_EQUAL_INT(HD_KF_LOCK_MOTOR, cfg.blocks[0].lock);
+    TEST_ASSERT_EQUAL_INT(HD_KF_LOCK_OUTPUT, cfg.blocks[2].lock);
+    tu_rng_t rng;
+    tu_rng_seed(&rng, 4242u);
+    memset(res, 0, sizeof(*res));
+    const double w = 156.0, d_am = w * TS_S;
+    const long n = (long)(LOAD_RUN_S / TS_S + 0.5), k_step = (long)(LOAD_STEP_AT_S / TS_S + 0.5);
+    double s_before = 0.0, s_after = 0.0;
+    long n_before = 0, n_after = 0;
+    for (long i = 1; i <= n; i++) {
+        double t = (double)i * TS_S, am = w * t, ao = am / GEAR_RATIO;
+        double torque = i >= k_step ? LOAD_STEP_NM : 0.0;
+        double ripple = LOAD_A0_NM * (1.0 + LOAD_K_TRUE * fabs(torque)) * cos(2.0 * am + 0.3) +
+                        LOAD_A_OUT_NM * cos(ao + 0.5) +
+                        LOAD_A_FIX_NM * cos(2.0 * TU_PI * 50.0 * t + 0.7);
+        hd_kf_input_t in = {(float)(torque + ripple + sigma * tu_gauss(&rng)), (float)torque,
+                            (float)d_am, (float)(d_am / GEAR_RATIO)};
+        /* the prior state amplitudes: what amplitude_nm reports this step */
+        double st_amp[4];
+        for (unsigned b = 0; b < 4; b++) {
+            double a = (double)hd_kf_state(&kf, 2 * b), bb = (double)hd_kf_state(&kf, 2 * b + 1);
+            st_amp[b] = sqrt(a * a + bb * bb);
+        }
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        TEST_ASSERT_EQUAL_UINT32(0u, o.status & (HD_KF_STATUS_RESET | HD_KF_STATUS_BAD_INPUT |
+                                                 HD_KF_STATUS_FROZEN));
+        /* T_ref: T_exp plus, with the offset state kept as torque, its prior */
+        double t_ref = (double)in.torque_expected_nm + (with_offset ? (double)o.offset_nm : 0.0);
+        double c = 1.0 + (double)k * fabs(t_ref);
+        for (unsigned b = 0; b < 2; b++) { /* motor blocks: scaled */
+            double dev = fabs((double)o.amplitude_nm[b] - c * st_amp[b]) / (c * st_amp[b] + 1e-3);
+            if (dev > res->max_c_dev_rel)
+                res->max_c_dev_rel = dev;
+        }
+        for (unsigned b = 2; b < 4; b++) { /* output-locked and fixed: not scaled */
+            double dev = fabs((double)o.amplitude_nm[b] - st_amp[b]);
+            if (dev > res->max_unscaled_dev)
+                res->max_unscaled_dev = dev;
+        }
+        double e = ripple - (double)o.ripple_nm;
+        if (t >= LOAD_STEP_AT_S - 0.5 && t < LOAD_STEP_AT_S) {
+            s_before += e * e;
+            n_before++;
+        }
+        if (t >= LOAD_STEP_AT_S + 0.020 && t < LOAD_STEP_AT_S + 0.200) {
+            s_after += e * e;
+            n_after++;
+        }
+        res->amp0_out = o.amplitude_nm[0];
+    }
+    res->rms_before = sqrt(s_before / (double)n_before);
+    res->rms_after = sqrt(s_after / (double)n_after);
+    float ph;
+    hd_kf_block_amplitude_phase(&kf, 0, &res->amp0_zero_load, &ph);
+    hd_kf_block_amplitude_phase(&kf, 3, &res->amp_fix_zero_load, &ph);
+}
+
+static void test_load_coeff_step_predicts_ripple(void)
+{
+    load_run_t with_k, without_k;
+    load_step_run((float)LOAD_K_TRUE, 0, &with_k);
+    load_step_run(0.0f, 0, &without_k);
+    msg("load step 0 -> 10 Nm (order-2 line %.2f -> %.2f Nm), no offset state: ripple error RMS "
+        "20-200 ms after the step %.4f Nm with k = %.2f, %.4f Nm with k = 0 (ratio %.3f); "
+        "0.5 s before it %.4f / %.4f Nm", LOAD_A0_NM, LOAD_A0_NM * (1.0 + LOAD_K_TRUE * LOAD_STEP_NM),
+        with_k.rms_after, LOAD_K_TRUE, without_k.rms_after, with_k.rms_after / without_k.rms_after,
+        with_k.rms_before, without_k.rms_before);
+    msg("with k: amplitude_nm[order 2] %.4f Nm at 10 Nm, zero-load state %.4f Nm (truth %.2f / "
+        "%.2f); 50 Hz block %.4f Nm (truth %.2f, unscaled)", (double)with_k.amp0_out,
+        (double)with_k.amp0_zero_load, LOAD_A0_NM * (1.0 + LOAD_K_TRUE * LOAD_STEP_NM),
+        LOAD_A0_NM, (double)with_k.amp_fix_zero_load, LOAD_A_FIX_NM);
+    /* before the step T_ref = 0, so c = 1 + k 0 = 1 exactly: the two filters
+     * are the same filter until the step */
+    TEST_ASSERT_EQUAL_DOUBLE(without_k.rms_before, with_k.rms_before);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.02, with_k.rms_before);
+    /* after it, only the filter that knows k predicts the 4x line */
+    TEST_ASSERT_LESS_THAN_DOUBLE(0.3 * without_k.rms_after, with_k.rms_after);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(2.0 * 0.02, with_k.rms_after);
+    /* the states are the zero-load ripple; amplitude_nm is at the load */
+    TEST_ASSERT_FLOAT_WITHIN(0.03, LOAD_A0_NM, (double)with_k.amp0_zero_load);
+    TEST_ASSERT_FLOAT_WITHIN(0.1, LOAD_A0_NM * (1.0 + LOAD_K_TRUE * LOAD_STEP_NM),
+                             (double)with_k.amp0_out);
+    /* the fixed line is not load-dependent: its state is the line itself
+     * (a scaled block would settle at 0.2 / 4) */
+    TEST_ASSERT_FLOAT_WITHIN(0.03, LOAD_A_FIX_NM, (double)with_k.amp_fix_zero_load);
+}
+
+/* amplitude_nm = c x state amplitude: c = 1 + k |T_ref| for motor-locked
+ * blocks, 1 for output-locked and fixed ones, every step of the run (with
+ * no offset state T_ref = T_exp; with the recommended tuning T_ref = T_exp +
+ * the prior offset, which is reported as offset_nm). */
+static void test_load_coeff_scales_motor_blocks_only(void)
+{
+    load_run_t runs[2];
+    for (int rec = 0; rec <= 1; rec++) {
+        load_run_t r;
+        load_step_run((float)LOAD_K_TRUE, rec, &r);
+        runs[rec] = r;
+        msg("%s, k = %.2f: max relative |amplitude_nm - (1 + k|T_ref|) state amp| (motor) "
+            "%.2e; max |amplitude_nm - state amp| (output, fixed) %.2e Nm",
+            rec ? "with offset state" : "no offset state", LOAD_K_TRUE, r.max_c_dev_rel,
+            r.max_unscaled_dev);
+        TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-5, r.max_c_dev_rel);
+        TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-6, r.max_unscaled_dev);
+    }
+    /* with the offset state (T_ref = T_exp + its prior, jump gate on) the
+     * gain is the same */
+    load_run_t rec_0;
+    const load_run_t rec_k = runs[1];
+    load_step_run(0.0f, 1, &rec_0);
+    msg("load step, with offset state: ripple error RMS 20-200 ms after %.4f Nm with k, "
+        "%.4f Nm with k = 0 (ratio %.3f)", rec_k.rms_after, rec_0.rms_after,
+        rec_k.rms_after / rec_0.rms_after);
+    TEST_ASSERT_LESS_THAN_DOUBLE(0.3 * rec_0.rms_after, rec_k.rms_after);
+}
+
+/* Negative, NaN and infinite coefficients are configuration errors; 0 and
+ * positive ones are accepted. */
+static void test_load_coeff_config_check(void)
+{
+    hd_kf_config_t cfg;
+    valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = -0.1f;     expect_err(&cfg, HD_KF_ERR_NOISE, "k < 0");
+    valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = -1e-30f;   expect_err(&cfg, HD_KF_ERR_NOISE, "k tiny < 0");
+    valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = NAN;       expect_err(&cfg, HD_KF_ERR_NOISE, "k NaN");
+    valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = INFINITY;  expect_err(&cfg, HD_KF_ERR_NOISE, "k +inf");
+    valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = -INFINITY; expect_err(&cfg, HD_KF_ERR_NOISE, "k -inf");
+    /* the same for the recommended tuning (offset state enabled) */
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    cfg.ripple_load_coeff_per_nm = -0.3f;
+    expect_err(&cfg, HD_KF_ERR_NOISE, "k < 0, recommended");
+    const float ok[] = {0.0f, 1e-6f, 0.3f, 5.0f};
+    for (unsigned i = 0; i < sizeof(ok) / sizeof(ok[0]); i++) {
+        valid_cfg(&cfg);
+        cfg.ripple_load_coeff_per_nm = ok[i];
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    }
+    /* every preset leaves it at 0 (the paper's constant amplitudes) */
+    hd_kf_config_default(&cfg, (float)TS_S);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, cfg.ripple_load_coeff_per_nm);
+    hd_kf_config_paper(&cfg, (float)TS_S, true);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, cfg.ripple_load_coeff_per_nm);
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, cfg.ripple_load_coeff_per_nm);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -896,5 +1082,8 @@ int main(void)
     RUN_TEST(test_amplitude_and_phase_match_truth);
     RUN_TEST(test_block_toggle_with_offset_keeps_states_bitwise);
     RUN_TEST(test_recommended_load_step_goes_to_offset);
+    RUN_TEST(test_load_coeff_step_predicts_ripple);
+    RUN_TEST(test_load_coeff_scales_motor_blocks_only);
+    RUN_TEST(test_load_coeff_config_check);
     return UNITY_END();
 }

@@ -17,6 +17,16 @@
  * i.e. 1e-3 to 4e-2 of the scale).  The innovation variance S is compared
  * relative to itself (1e-3): S runs from ~R to p_max and a relative error in
  * P is what float32 can keep.
+ *
+ * Load-dependent ripple (ripple_load_coeff_per_nm = k): a second signal
+ * (SIG_LOAD) has T_exp with steps and ramps through zero, an unmodelled
+ * offset with a step, and motor-locked lines whose amplitude is
+ * (1 + k_true |T_true|) times their zero-load amplitude; output-locked and
+ * fixed lines are constant.  Same tolerances; the per-block amplitude_nm
+ * (c x state amplitude) is compared too.  So that the comparison can tell
+ * a filter that honours k from one that ignores it, a second reference with
+ * k = 0 runs alongside and must differ from the filter by far more than the
+ * tolerance.
  */
 #include <math.h>
 #include <stdio.h>
@@ -40,16 +50,67 @@ void tearDown(void) {}
 static const double k_t[] = {0, 1, 4, 12, 16, 22, 25, 30, 36, 40, 46, 52, 56, 60};
 static const double k_w[] = {0, 0, 156, 156, -156, -156, 0, 0, 450, 450, -200, -200, 0, 0};
 
+/* Truth for SIG_LOAD: motor-line amplitudes scale with 1 + K_TRUE |T_true|. */
+#define K_TRUE_PER_NM 0.3
+
+typedef enum { SIG_BASE, SIG_LOAD } signal_t;
+
+/* T_exp for SIG_LOAD [Nm]: steps and ramps, through zero and negative. */
+static double load_t_exp(double t)
+{
+    if (t < 3.0) return 0.0;
+    if (t < 8.0) return 10.0;                                   /* step 0 -> 10 */
+    if (t < 12.0) return 10.0 - 25.0 * (t - 8.0) / 4.0;         /* ramp 10 -> -15 */
+    if (t < 18.0) return -15.0;
+    if (t < 24.0) return 25.0;                                  /* step -15 -> 25 */
+    if (t < 30.0) return 25.0 - 20.0 * (t - 24.0) / 6.0;        /* ramp 25 -> 5 */
+    if (t < 36.0) return 5.0 + 3.0 * sin(2.0 * TU_PI * 0.5 * (t - 30.0));
+    if (t < 44.0) return -8.0;                                  /* step -> -8 */
+    if (t < 50.0) return -8.0 + 20.0 * (t - 44.0) / 6.0;        /* ramp -8 -> 12 */
+    if (t < 54.0) return 12.0;
+    return 0.0;                                                 /* step -> 0 */
+}
+
+/* Torque the model does not expect (the offset's job) [Nm]. */
+static double load_offset_true(double t)
+{
+    return t < 40.0 ? 1.5 : 3.5;
+}
+
+/* Measured and expected torque at time t (motor angle am, output angle ao). */
+static void make_signal(signal_t sig, double t, double am, double ao, tu_rng_t *rng,
+                        hd_kf_input_t *in)
+{
+    if (sig == SIG_BASE) {
+        double t_true = 5.0 + 20.0 * sin(2.0 * TU_PI * 0.2 * t);
+        double ripple = 1.0 * cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am + 1.1) +
+                        2.0 * cos(ao + 0.5) + 0.3 * cos(2.0 * TU_PI * 50.0 * t);
+        in->torque_meas_nm = (float)(t_true + ripple + 0.05 * tu_gauss(rng));
+        in->torque_expected_nm = (float)(0.8 * t_true);
+        return;
+    }
+    double t_exp = load_t_exp(t);
+    double t_true = t_exp + load_offset_true(t);
+    double motor = 0.5 * cos(2.0 * am + 0.3) + 0.2 * cos(4.0 * am + 1.1) +
+                   0.1 * cos(8.0 * am + 2.0);
+    double ripple = (1.0 + K_TRUE_PER_NM * fabs(t_true)) * motor + 0.8 * cos(ao + 0.5) +
+                    0.3 * cos(2.0 * TU_PI * 50.0 * t);
+    in->torque_meas_nm = (float)(t_true + ripple + 0.05 * tu_gauss(rng));
+    in->torque_expected_nm = (float)t_exp;
+}
+
 typedef struct {
-    double max_filtered, max_ripple, max_innov, max_s_rel, max_state;
+    double max_filtered, max_ripple, max_innov, max_s_rel, max_state, max_amp;
+    double max_filtered_k0; /* vs a reference with k = 0 (only when k > 0) */
     double scale;
     unsigned long frozen_steps, clamped_steps, jumps, jump_disagreements;
 } dev_t_;
 
-static void compare_run(const char *name, const hd_kf_config_t *cfg)
+static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t sig)
 {
     static hd_kf_t kf;
-    static ref_kf_t ref;
+    static ref_kf_t ref, ref_k0;
+    const int with_k = cfg->ripple_load_coeff_per_nm > 0.0f;
     tu_profile_t prof = {k_t, k_w, sizeof(k_t) / sizeof(k_t[0])};
     tu_motion_t mo;
     tu_rng_t rng;
@@ -58,6 +119,10 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg)
 
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, cfg));
     ref_kf_init(&ref, cfg);
+    if (with_k) {
+        ref_kf_init(&ref_k0, cfg);
+        ref_k0.cfg.ripple_load_coeff_per_nm = 0.0f;
+    }
     TEST_ASSERT_EQUAL_UINT((unsigned)ref.n, hd_kf_state_count(&kf));
     tu_motion_init(&mo, &prof, TS_S);
     tu_rng_seed(&rng, 12345u);
@@ -68,12 +133,8 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg)
         tu_motion_next(&mo);
         double t = (double)mo.k * TS_S;
         double am = mo.angle_rad, ao = am / GEAR_RATIO;
-        double t_true = 5.0 + 20.0 * sin(2.0 * TU_PI * 0.2 * t);
-        double ripple = 1.0 * cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am + 1.1) +
-                        2.0 * cos(ao + 0.5) + 0.3 * cos(2.0 * TU_PI * 50.0 * t);
         hd_kf_input_t in;
-        in.torque_meas_nm = (float)(t_true + ripple + 0.05 * tu_gauss(&rng));
-        in.torque_expected_nm = (float)(0.8 * t_true);
+        make_signal(sig, t, am, ao, &rng, &in);
         in.d_motor_angle_rad = (float)mo.d_angle_rad;
         in.d_output_angle_rad = (float)(mo.d_angle_rad / GEAR_RATIO);
         if (fabs((double)in.torque_meas_nm) > max_meas)
@@ -110,24 +171,42 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg)
         TRACK_MAX(max_innov, fabs((double)o.innovation_nm - r.innovation_nm));
         TRACK_MAX(max_s_rel, fabs((double)o.innovation_var_nm2 - r.innovation_var_nm2) /
                                  r.innovation_var_nm2);
+        for (int b = 0; b < HD_KF_MAX_BLOCKS; b++)
+            TRACK_MAX(max_amp, fabs((double)o.amplitude_nm[b] - r.amplitude_nm[b]));
         for (int i = 0; i < ref.n; i++)
             TRACK_MAX(max_state, fabs((double)hd_kf_state(&kf, (unsigned)i) - ref.x[i]));
+        if (with_k) {
+            ref_kf_output_t r0;
+            ref_k0.jump_override = -1; /* its own decisions: it is a different filter */
+            ref_kf_step(&ref_k0, &in, &r0);
+            TRACK_MAX(max_filtered_k0, fabs((double)o.torque_filtered_nm - r0.torque_filtered_nm));
+        }
     }
     d.scale = max_meas + max_exp;
-    char msg[480];
+    char msg[600];
     snprintf(msg, sizeof(msg),
-             "%s (%d states): max |dev| filtered %.3g Nm, ripple %.3g Nm, innovation %.3g Nm, "
-             "state %.3g Nm; S rel %.3g; scale %.1f Nm -> tol %.3g Nm; frozen steps %lu, "
-             "P-clamped steps %lu, offset jumps %lu (%lu decided by rounding)",
-             name, ref.n, d.max_filtered, d.max_ripple, d.max_innov, d.max_state, d.max_s_rel,
-             d.scale, TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps, d.jumps,
-             d.jump_disagreements);
+             "%s (%d states, k %.3g /Nm): max |dev| filtered %.3g Nm, ripple %.3g Nm, "
+             "innovation %.3g Nm, state %.3g Nm, amplitude %.3g Nm; S rel %.3g; scale %.1f Nm "
+             "-> tol %.3g Nm; frozen steps %lu, P-clamped steps %lu, offset jumps %lu (%lu "
+             "decided by rounding)",
+             name, ref.n, (double)cfg->ripple_load_coeff_per_nm, d.max_filtered, d.max_ripple,
+             d.max_innov, d.max_state, d.max_amp, d.max_s_rel, d.scale, TOL_REL_SCALE * d.scale,
+             d.frozen_steps, d.clamped_steps, d.jumps, d.jump_disagreements);
     TEST_MESSAGE(msg);
     double tol = TOL_REL_SCALE * d.scale;
+    if (with_k) {
+        snprintf(msg, sizeof(msg),
+                 "%s: the same run against a k = 0 reference: max |dev| filtered %.3g Nm "
+                 "(%.0f x tol)", name, d.max_filtered_k0, d.max_filtered_k0 / tol);
+        TEST_MESSAGE(msg);
+        /* the comparison sees the load coefficient: ignoring it is a failure */
+        TEST_ASSERT_GREATER_THAN_DOUBLE(100.0 * tol, d.max_filtered_k0);
+    }
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_filtered, "filtered torque vs reference");
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_ripple, "ripple vs reference");
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_innov, "innovation vs reference");
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_state, "state vs reference");
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_amp, "amplitude_nm vs reference");
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(TOL_REL_S, d.max_s_rel,
                                             "innovation variance vs reference");
 }
@@ -137,7 +216,7 @@ static void test_reference_4_states_paper(void)
 {
     hd_kf_config_t cfg;
     hd_kf_config_paper(&cfg, (float)TS_S, false);
-    compare_run("paper 4th order", &cfg);
+    compare_run("paper 4th order", &cfg, SIG_BASE);
 }
 
 /* 6 states: the paper's sixth-order model with the misalignment block. */
@@ -145,7 +224,7 @@ static void test_reference_6_states_paper(void)
 {
     hd_kf_config_t cfg;
     hd_kf_config_paper(&cfg, (float)TS_S, true);
-    compare_run("paper 6th order", &cfg);
+    compare_run("paper 6th order", &cfg, SIG_BASE);
 }
 
 /* 8 states: narrow-band tuning, motor orders 2, 4, 6 and output order 1. */
@@ -158,7 +237,7 @@ static void test_reference_8_states_narrowband(void)
     TEST_ASSERT_EQUAL_INT(1, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 4.0f, 1e-4f));
     TEST_ASSERT_EQUAL_INT(2, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 6.0f, 1e-4f));
     TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, 1.0f, 1e-4f));
-    compare_run("narrow-band 8 states", &cfg);
+    compare_run("narrow-band 8 states", &cfg, SIG_BASE);
 }
 
 /* 7 states: the recommended tuning (offset with jump gate, motion-scaled
@@ -170,12 +249,12 @@ static void test_reference_7_states_recommended(void)
     hd_kf_config_t cfg;
     hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    compare_run("recommended (7 states)", &cfg);
+    compare_run("recommended (7 states)", &cfg, SIG_BASE);
 }
 
 /* Maximum: HD_KF_MAX_BLOCKS blocks of every lock kind + offset (sensor error).
  * Motor order 8 exceeds 0.9 pi per step above 353 rad/s: frozen at 450 rad/s. */
-static void test_reference_max_states(void)
+static void max_states_cfg(hd_kf_config_t *cfg_out)
 {
     static const float motor_orders[] = {1.0f, 2.0f, 3.0f, 4.0f, 8.0f};
     hd_kf_config_t cfg;
@@ -196,7 +275,69 @@ static void test_reference_max_states(void)
         nb = 1 + hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, (float)(nb - 4), 1e-2f);
     TEST_ASSERT_EQUAL_INT(HD_KF_MAX_BLOCKS, cfg.block_count);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    compare_run("max blocks + offset", &cfg);
+    *cfg_out = cfg;
+}
+
+static void test_reference_max_states(void)
+{
+    hd_kf_config_t cfg;
+    max_states_cfg(&cfg);
+    compare_run("max blocks + offset", &cfg, SIG_BASE);
+}
+
+/* ---- load-dependent ripple (ripple_load_coeff_per_nm) --------------------- */
+#define K_FILTER_PER_NM 0.3f
+
+/* The recommended tuning plus motor order 8, which freezes at 450 rad/s:
+ * offset kept as real torque, so T_ref = T_exp + offset. */
+static void recommended_8_cfg(hd_kf_config_t *cfg, float k)
+{
+    hd_kf_config_recommended(cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(cfg, HD_KF_LOCK_MOTOR, 8.0f,
+                                                    cfg->blocks[0].q_nm2));
+    cfg->ripple_load_coeff_per_nm = k;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(cfg));
+}
+
+/* T_ref = T_exp + offset (offset real torque, primed at the first sample):
+ * load steps and ramps through zero, offset step (jump gate), standstill,
+ * reversals, motor order 8 frozen at 450 rad/s. */
+static void test_reference_load_coeff_recommended(void)
+{
+    hd_kf_config_t cfg;
+    recommended_8_cfg(&cfg, K_FILTER_PER_NM);
+    compare_run("load k, recommended + motor 8 (T_ref = T_exp + offset)", &cfg, SIG_LOAD);
+}
+
+/* T_ref = T_exp alone (the offset is a sensor error); every lock kind, so
+ * output-locked and fixed blocks (c = 1) sit next to scaled motor blocks. */
+static void test_reference_load_coeff_max_states(void)
+{
+    hd_kf_config_t cfg;
+    max_states_cfg(&cfg);
+    cfg.ripple_load_coeff_per_nm = K_FILTER_PER_NM;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    compare_run("load k, max blocks + sensor-error offset (T_ref = T_exp)", &cfg, SIG_LOAD);
+}
+
+/* T_ref = T_exp, no offset state; Q >> R (wide band), P clamped at rest. */
+static void test_reference_load_coeff_paper(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_paper(&cfg, (float)TS_S, true);
+    cfg.ripple_load_coeff_per_nm = K_FILTER_PER_NM;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    compare_run("load k, paper 6th order (no offset)", &cfg, SIG_LOAD);
+}
+
+/* k = 0 on the same load run (the truth still has load-dependent lines):
+ * the filter must stay the paper's constant-C filter, i.e. agree with the
+ * reference at k = 0 within the same tolerance. */
+static void test_reference_load_coeff_zero(void)
+{
+    hd_kf_config_t cfg;
+    recommended_8_cfg(&cfg, 0.0f);
+    compare_run("load run, k = 0, recommended + motor 8", &cfg, SIG_LOAD);
 }
 
 int main(void)
@@ -207,5 +348,9 @@ int main(void)
     RUN_TEST(test_reference_8_states_narrowband);
     RUN_TEST(test_reference_max_states);
     RUN_TEST(test_reference_7_states_recommended);
+    RUN_TEST(test_reference_load_coeff_recommended);
+    RUN_TEST(test_reference_load_coeff_max_states);
+    RUN_TEST(test_reference_load_coeff_paper);
+    RUN_TEST(test_reference_load_coeff_zero);
     return UNITY_END();
 }
