@@ -141,6 +141,7 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
     }
     if (!is_nonneg(cfg->offset_jump_nm) || !is_nonneg(cfg->q_motion_ref_rad) ||
         !is_nonneg(cfg->ripple_load_coeff_per_nm) ||
+        cfg->ripple_load_coeff_per_nm > HD_KF_MAX_LOAD_COEFF_PER_NM ||
         !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2) {
         return HD_KF_ERR_NOISE;
     }
@@ -169,7 +170,7 @@ const char *hd_kf_err_str(int err)
     case HD_KF_ERR_BLOCK_COUNT: return "too many blocks (HD_KF_MAX_BLOCKS)";
     case HD_KF_ERR_LOCK: return "unknown block lock kind";
     case HD_KF_ERR_ORDER: return "block order/frequency must be finite and > 0";
-    case HD_KF_ERR_NOISE: return "q, r, p0, p_max, gates and load coefficient must be finite, q >= 0, r > 0, p0 <= p_max";
+    case HD_KF_ERR_NOISE: return "q, r, p0, p_max, gates and load coefficient must be finite, q >= 0, r > 0, p0 <= p_max, load coefficient <= HD_KF_MAX_LOAD_COEFF_PER_NM";
     case HD_KF_ERR_TS: return "sample period must be finite and > 0";
     case HD_KF_ERR_NYQUIST: return "nyquist_fraction must be in (0, 1]";
     case HD_KF_ERR_FIXED_OVER_NYQUIST: return "fixed-frequency block at or above fs/2";
@@ -228,6 +229,8 @@ void hd_kf_reset(hd_kf_t *kf)
     }
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
+    kf->load_ref_primed = 0u;
+    kf->load_ref_nm = 0.0f;
 }
 
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
@@ -480,21 +483,33 @@ static bool state_is_finite(const hd_kf_t *kf)
     return true;
 }
 
-/* Measurement-row scale of every block: 1 + k |T_ref| (hd_kf.h,
- * "Load-dependent ripple"); 1 when off.  T_ref is bounded by the bad-input
- * limit on y and by p_max on the offset, so c stays finite. */
-static float load_scale(const hd_kf_t *kf, const hd_kf_input_t *in)
+/* Measurement-row scale of motor-locked blocks: 1 + k |T_ref| (hd_kf.h,
+ * "Load-dependent ripple"); 1 when off.  T_ref follows T_exp + offset by
+ * the motor's motion fraction and is held at standstill.  |T_ref| is
+ * clamped to HD_KF_MAX_ABS_Y_NM and k to HD_KF_MAX_LOAD_COEFF_PER_NM, so c
+ * stays finite. */
+static float update_load_scale(hd_kf_t *kf, const hd_kf_input_t *in)
 {
     const float k = kf->cfg.ripple_load_coeff_per_nm;
     if (k <= 0.0f) {
         return 1.0f;
     }
-    float t_ref = is_finite(in->torque_expected_nm) ? in->torque_expected_nm : 0.0f;
+    float t_now = is_finite(in->torque_expected_nm) ? in->torque_expected_nm : 0.0f;
     if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
-        t_ref += kf->x[kf->offset_slot];
+        t_now += kf->x[kf->offset_slot];
     }
-    const float abs_t = t_ref < 0.0f ? -t_ref : t_ref;
-    return 1.0f + k * (abs_t < HD_KF_MAX_ABS_Y_NM ? abs_t : HD_KF_MAX_ABS_Y_NM);
+    if (!kf->load_ref_primed) {
+        kf->load_ref_nm = t_now;
+        kf->load_ref_primed = 1u;
+    } else {
+        const float ref = kf->cfg.q_motion_ref_rad;
+        const float d = in->d_motor_angle_rad < 0.0f ? -in->d_motor_angle_rad
+                                                     : in->d_motor_angle_rad;
+        const float f = (ref <= 0.0f || d >= ref) ? 1.0f : d / ref;
+        kf->load_ref_nm += f * (t_now - kf->load_ref_nm);
+    }
+    const float t = kf->load_ref_nm < 0.0f ? -kf->load_ref_nm : kf->load_ref_nm;
+    return 1.0f + k * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);
 }
 
 /* C entry of an unfrozen slot: the load scale for motor-locked blocks
@@ -529,7 +544,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     step_rotation_t rot;
     compute_rotations(kf, &in, &rot);
     const unsigned n = kf->n_states;
-    const float c_load = load_scale(kf, &in);
+    const float c_load = update_load_scale(kf, &in);
 
     /* Prior outputs: ripple = C x without the offset; C skips frozen blocks. */
     float c_row[HD_KF_MAX_BLOCKS]; /* C entry of each slot's first state; 0 if frozen */

@@ -67,8 +67,13 @@
  * every block.  Output-locked (misalignment: geometry) and fixed-frequency
  * (electrical pickup) blocks keep c = 1; scaling the slow output-locked
  * line as well made it take load steps (measured in the analysis suite).
- * c is known before the update, so the model stays linear and the update
- * unchanged.
+ * T_ref is held while the motor stands still and follows T_exp + offset
+ * with the same motion fraction as q (min(1, |motor increment| /
+ * q_motion_ref_rad)): at standstill a motor block and the offset are one
+ * constant, their split is unobservable, and a c computed from the offset
+ * estimate fed that split back into itself (the double reference drifted
+ * the same way: ripple error 0.2 -> 7.3 N m over 60 s still).  With c
+ * taken as known before the update the model stays linear.
  *
  * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
  * cannot be observed without aliasing.  It is frozen: dropped from C and from
@@ -108,6 +113,11 @@ extern "C" {
  * tuning is 1e3, the recommended one 750. */
 #define HD_KF_MAX_P0_OVER_R 1.0e4f
 
+/* Largest accepted ripple_load_coeff_per_nm [1/Nm]: 100 means the ripple
+ * grows 100x per N m, far beyond any gear; much larger values overflow
+ * c^2 P in float32 (measured: 1e20 resets the filter every step). */
+#define HD_KF_MAX_LOAD_COEFF_PER_NM 100.0f
+
 typedef enum {
     HD_KF_LOCK_MOTOR = 0,
     HD_KF_LOCK_OUTPUT = 1,
@@ -145,7 +155,8 @@ typedef struct {
                                       below); 0: off */
     float ripple_load_coeff_per_nm; /* >= 0: motor-locked lines scale with
                                       1 + coeff |T| (see "Load-dependent ripple");
-                                      0: off (the paper's constant amplitudes) */
+                                      0: off (the paper's constant amplitudes);
+                                      at most HD_KF_MAX_LOAD_COEFF_PER_NM */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -186,6 +197,8 @@ typedef struct {
     uint8_t offset_slot;                      /* state index of the offset, if enabled */
     uint32_t frozen_mask;                     /* by configured block index */
     uint8_t offset_primed;                    /* the offset has taken its first sample */
+    uint8_t load_ref_primed;                  /* load_ref_nm has taken its first value */
+    float load_ref_nm;                        /* T_ref of "Load-dependent ripple" [Nm] */
     float x[HD_KF_MAX_STATES];
     float p[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
     uint32_t status_sticky;                   /* OR of all step statuses since init */

@@ -96,15 +96,26 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     memset(q, 0, sizeof(q));
 
     /* Load-dependent ripple: the C entry of motor-locked blocks is
-     * 1 + k |T_ref|, T_ref = T_exp (+ the prior offset when it is real
-     * torque and has been primed).  A non-finite T_exp makes y non-finite
-     * (prediction only); it then adds nothing to T_ref. */
+     * 1 + k |T_ref|.  T_ref starts at T_exp (+ the prior offset when it is
+     * real torque and has been primed) and then moves towards that value by
+     * the motor's motion fraction min(1, |d motor| / q_motion_ref): held at
+     * standstill.  A non-finite T_exp makes y non-finite (prediction only);
+     * it then adds nothing to T_ref. */
     double c_load = 1.0;
     if (r->cfg.ripple_load_coeff_per_nm > 0.0f) {
-        double t_ref = isfinite(in->torque_expected_nm) ? (double)in->torque_expected_nm : 0.0;
+        double t_now = isfinite(in->torque_expected_nm) ? (double)in->torque_expected_nm : 0.0;
         if (r->offset_slot >= 0 && !r->cfg.offset_is_sensor_error && r->offset_primed)
-            t_ref += r->x[r->offset_slot];
-        c_load = 1.0 + (double)r->cfg.ripple_load_coeff_per_nm * fabs(t_ref);
+            t_now += r->x[r->offset_slot];
+        if (!r->load_ref_primed) {
+            r->load_ref = t_now;
+            r->load_ref_primed = 1;
+        } else {
+            double dm = isfinite(in->d_motor_angle_rad) ? fabs((double)in->d_motor_angle_rad) : 0.0;
+            double ref = (double)r->cfg.q_motion_ref_rad;
+            double f = ref > 0.0 ? fmin(1.0, dm / ref) : 1.0;
+            r->load_ref += f * (t_now - r->load_ref);
+        }
+        c_load = 1.0 + (double)r->cfg.ripple_load_coeff_per_nm * fabs(r->load_ref);
     }
     out->load_scale = c_load;
 

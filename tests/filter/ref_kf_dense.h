@@ -48,6 +48,8 @@ typedef struct {
      * jump_margin_rel to see that a disagreement was only rounding). */
     int jump_override;
     int offset_primed; /* the offset starts at the first valid y - ripple */
+    int load_ref_primed; /* T_ref of the load-dependent ripple has its first value */
+    double load_ref;     /* T_ref [Nm], held at standstill (hd_kf.h) */
 } ref_kf_t;
 
 typedef struct {

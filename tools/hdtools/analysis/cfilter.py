@@ -86,6 +86,8 @@ class KfState(ctypes.Structure):
                 ("offset_slot", c_uint8),
                 ("frozen_mask", c_uint32),
                 ("offset_primed", c_uint8),
+                ("load_ref_primed", c_uint8),
+                ("load_ref_nm", c_float),
                 ("x", c_float * MAX_STATES),
                 ("p", (c_float * MAX_STATES) * MAX_STATES),
                 ("status_sticky", c_uint32),
