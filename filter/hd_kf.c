@@ -338,6 +338,7 @@ typedef struct {
     float c[HD_KF_MAX_BLOCKS];
     float s[HD_KF_MAX_BLOCKS];
     float q_scale[HD_KF_MAX_BLOCKS]; /* process-noise scale for this step */
+    float gain[HD_KF_MAX_STATES];    /* gain fraction per state (1: optimal) */
     bool frozen[HD_KF_MAX_BLOCKS]; /* by slot */
 } step_rotation_t;
 
@@ -364,6 +365,11 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
         const bool frozen = !(theta <= limit && theta >= -limit);
         rot->frozen[s] = frozen;
         rot->q_scale[s] = motion_q_scale(kf, &kf->cfg.blocks[b], theta);
+        /* Motor-locked blocks learn in proportion to their motion (hd_kf.h,
+         * "Slow motor blocks"); output-locked ones always turn slowly and
+         * rely on their small prior instead. */
+        rot->gain[2u * s] = rot->gain[2u * s + 1u] =
+            kf->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? rot->q_scale[s] : 1.0f;
         if (frozen) {
             frozen_now |= 1u << b;
             rot->c[s] = 1.0f;
@@ -379,6 +385,9 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
         }
     }
     kf->frozen_mask = frozen_now;
+    if (kf->cfg.offset_enabled) {
+        rot->gain[kf->offset_slot] = 1.0f;
+    }
 }
 
 /* [u; v] <- [c s; -s c] [u; v]: one block of Phi applied to a pair. */
@@ -389,8 +398,12 @@ static void rotate_pair(float *u, float *v, float c, float s)
     *v = c * v0 - s * u0;
 }
 
-/* Symmetric rank-1 downdate P -= g g' / S on the upper triangle, then the
- * block rotation P <- Phi P Phi', then Q; mirrors to keep P symmetric. */
+/* Symmetric rank-1 downdate on the upper triangle, then the block rotation
+ * P <- Phi P Phi', then Q; mirrors to keep P symmetric.  The downdate is the
+ * Joseph form for the gain F g / S (F = diag(gain), hd_kf.h "Slow motor
+ * blocks"): P_ij -= (f_i + f_j - f_i f_j) g_i g_j / S, which is g g' / S
+ * when every f is 1 and keeps P the exact covariance of the suboptimal
+ * estimate otherwise. */
 static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
                               bool correct, const step_rotation_t *rot)
 {
@@ -400,7 +413,8 @@ static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
         for (unsigned i = 0; i < n; i++) {
             const float gi = g[i] * inv_s;
             for (unsigned j = i; j < n; j++) {
-                p[i][j] -= gi * g[j];
+                const float w = rot->gain[i] + rot->gain[j] - rot->gain[i] * rot->gain[j];
+                p[i][j] -= w * gi * g[j];
             }
         }
         for (unsigned i = 0; i < n; i++) {
@@ -612,7 +626,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     if (correct) {
         const float k = innovation * inv_s;
         for (unsigned i = 0; i < n; i++) {
-            kf->x[i] += g[i] * k;
+            kf->x[i] += rot.gain[i] * g[i] * k;
         }
     }
     for (unsigned s = 0; s < kf->active_blocks; s++) {

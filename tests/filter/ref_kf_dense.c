@@ -89,6 +89,9 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     const int n = r->n;
     mat_t phi, phit, q, tmp, a;
     double c[N] = {0}, k_e[N], px[N];
+    double gain[N]; /* gain fraction per state: 1 (optimal) or a motor block's motion */
+    for (int i = 0; i < N; i++)
+        gain[i] = 1.0;
     int frozen[HD_KF_MAX_BLOCKS] = {0};
 
     memset(out, 0, sizeof(*out));
@@ -133,6 +136,10 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
         if (ref > 0.0 && r->cfg.blocks[b].lock != HD_KF_LOCK_FIXED)
             q_scale = fmin(1.0, fabs(th) / ref);
         q[i][i] = q[i + 1][i + 1] = (double)r->cfg.blocks[b].q_nm2 * q_scale;
+        /* A motor-locked block learns as it turns: its gain is scaled by
+         * the same motion fraction (hd_kf.h, "Slow motor blocks"). */
+        if (r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR)
+            gain[i] = gain[i + 1] = q_scale;
         frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
         if (frozen[s]) {
             out->frozen_mask |= 1u << b;
@@ -221,7 +228,7 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
         for (int i = 0; i < n; i++) {
             k_e[i] = 0.0;
             for (int j = 0; j < n; j++)
-                k_e[i] += phi[i][j] * pc[j];
+                k_e[i] += phi[i][j] * gain[j] * pc[j];
             k_e[i] /= s_var;
         }
         /* (8) x(k+1) = Phi x + K_e (y - C x) */
@@ -236,11 +243,16 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
         for (int i = 0; i < n; i++)
             for (int j = 0; j < n; j++)
                 a[i][j] = phi[i][j] - k_e[i] * c[j];
+        /* Joseph form, valid for any gain (the motion-scaled one is not
+         * optimal): P = (Phi - K_e C) P (Phi - K_e C)' + K_e R K_e' + Q.
+         * With the optimal gain it equals (10), Q + (Phi - K_e C) P Phi'. */
+        mat_t at;
+        mat_transpose(n, a, at);
         mat_mul(n, a, r->P, tmp);
-        mat_mul(n, tmp, phit, r->P);
+        mat_mul(n, tmp, at, r->P);
         for (int i = 0; i < n; i++)
             for (int j = 0; j < n; j++)
-                r->P[i][j] += q[i][j];
+                r->P[i][j] += q[i][j] + k_e[i] * (double)r->cfg.r_nm2 * k_e[j];
     }
 
     /* Ceiling on the diagonal: P <- D P D with D_ii = sqrt(p_max / P_ii). */
