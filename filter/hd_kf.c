@@ -561,7 +561,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     const float c_load = update_load_scale(kf, &in);
 
     /* Prior outputs: ripple = C x without the offset; C skips frozen blocks. */
-    float c_row[HD_KF_MAX_BLOCKS]; /* C entry of each slot's first state; 0 if frozen */
+    float c_row[HD_KF_MAX_BLOCKS] = {0.0f}; /* C entry of each slot's first state; 0 if frozen */
     float ripple = 0.0f;
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         c_row[s] = rot.frozen[s] ? 0.0f : block_c(kf, s, c_load);
@@ -575,7 +575,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
 
     /* g = P C' and S = R + C P C' (C: c_load on block first states, 1 on
      * the offset) */
-    float g[HD_KF_MAX_STATES];
+    float g[HD_KF_MAX_STATES] = {0.0f};
     for (unsigned i = 0; i < n; i++) {
         float sum = 0.0f;
         for (unsigned s = 0; s < kf->active_blocks; s++) {

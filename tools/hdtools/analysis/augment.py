@@ -162,7 +162,21 @@ def judge(c, runs0, m0, runs1, m1, view0=None, view1=None):
     return False, ev
 
 
-def run_loop(data, model0: Model, log=print, feedforward=None):
+def _trials(model, c, noise_estimate_nm):
+    """The models to try for candidate c.  A load coefficient removes what
+    made the starting R large (ripple lines that move with the load and that
+    the blocks then chased): it is also tried with R back at the noise
+    estimate, and the trial with the better innovation likelihood is judged
+    (R is a noise parameter: likelihood is its criterion)."""
+    first = apply(model, c)
+    if first is None or c.action != "load_scale" or not noise_estimate_nm:
+        return [first]
+    if model.r_nm2 <= 1.5 * max(noise_estimate_nm, 6e-3) ** 2:
+        return [first]
+    return [first, apply(model.with_noise(noise_estimate_nm), c)]
+
+
+def run_loop(data, model0: Model, log=print, feedforward=None, noise_estimate_nm=None):
     runs = rp.replay(data, model0, feedforward)
     met = rp.metrics(runs)
     model = model0
@@ -194,13 +208,20 @@ def run_loop(data, model0: Model, log=print, feedforward=None):
         progressed = False
         for c in cands:
             tried.add(c.key())
-            trial = apply(model, c)
-            if trial is None:
+            trials = _trials(model, c, noise_estimate_nm)
+            if trials[0] is None:
                 c.evidence.setdefault("rejected_because",
                                       "cannot be expressed in the firmware model")
                 effects.append(_finding(c, False, None, None, model.gear_ratio))
                 continue
-            runs1 = rp.replay(data, trial, feedforward)
+            scored = []
+            for t in trials:
+                r1 = rp.replay(data, t, feedforward)
+                scored.append((rp.metrics(r1)["innovation_nll"], t, r1))
+            if len(scored) > 1:
+                c.evidence["r_variants_innovation_nll"] = [round(s[0], 4) for s in scored]
+                c.evidence["r_back_to_noise_estimate"] = bool(scored[1][0] < scored[0][0])
+            _, trial, runs1 = min(scored, key=lambda s: s[0])
             met1 = rp.metrics(runs1)
             keep, ev = judge(c, runs, met, runs1, met1, rp.analysis_view(runs),
                              rp.analysis_view(runs1))

@@ -85,6 +85,22 @@ class Model:
         ratio = min(ts_s / settle_s, 0.5)
         return r_nm2 * ratio * ratio
 
+    def with_noise(self, noise_nm: float) -> "Model":
+        """The same model for another noise level: R = noise^2 and every
+        R-proportional setting (block and offset q, i.e. the same settle
+        times; the jump threshold ~ noise) rescaled; the p0 caps as in
+        hd_kf_config_recommended."""
+        m = self.copy()
+        ratio = max(noise_nm, 6e-3) ** 2 / self.r_nm2
+        m.r_nm2 = self.r_nm2 * ratio
+        for b in m.blocks:
+            b.q_nm2 *= ratio
+        m.offset_q_nm2 *= ratio
+        m.offset_jump_nm *= math.sqrt(ratio)
+        cap = 0.5 * 1e4 * m.r_nm2
+        m.p0_nm2, m.output_p0_nm2 = min(m.p0_nm2, cap), min(m.output_p0_nm2, cap)
+        return m
+
     def copy(self) -> "Model":
         return copy.deepcopy(self)
 

@@ -169,7 +169,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     noise_est = noise
     noise, noise_table = tune_noise(data, ff, noise_est, make, log)
     m0 = make(noise)
-    res = augment.run_loop(data, m0, log=log, feedforward=ff)
+    res = augment.run_loop(data, m0, log=log, feedforward=ff, noise_estimate_nm=noise_est)
     from .replay import analysis_view
     vb, va = analysis_view(res["runs_before"]), analysis_view(res["runs_after"])
     m1 = res["model"]
