@@ -555,7 +555,8 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         status |= HD_KF_STATUS_BAD_INPUT;
     }
 
-    step_rotation_t rot;
+    step_rotation_t rot = {0}; /* every field is set below for the active slots;
+                                  zeroed so the rest is defined too */
     compute_rotations(kf, &in, &rot);
     const unsigned n = kf->n_states;
     const float c_load = update_load_scale(kf, &in);
