@@ -359,6 +359,11 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
 {
     const float limit = kf->cfg.nyquist_fraction * HD_PI_F;
     uint32_t frozen_now = 0u;
+    /* Slots past active_blocks are never read; defined anyway, so static
+     * analysis can see every read of frozen[] is of a written entry. */
+    for (unsigned s = 0; s < HD_KF_MAX_BLOCKS; s++) {
+        rot->frozen[s] = true;
+    }
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         const unsigned b = kf->block_index[s];
         const float theta = block_theta(&kf->cfg.blocks[b], in, kf->cfg.ts_s);
@@ -555,44 +560,48 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         status |= HD_KF_STATUS_BAD_INPUT;
     }
 
-    step_rotation_t rot = {0}; /* every field is set below for the active slots;
-                                  zeroed so the rest is defined too */
+    step_rotation_t rot;
     compute_rotations(kf, &in, &rot);
     const unsigned n = kf->n_states;
     const float c_load = update_load_scale(kf, &in);
 
-    /* Prior outputs: ripple = C x without the offset; C skips frozen blocks. */
-    float c_row[HD_KF_MAX_BLOCKS] = {0.0f}; /* C entry of each slot's first state; 0 if frozen */
-    float ripple = 0.0f;
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        c_row[s] = rot.frozen[s] ? 0.0f : block_c(kf, s, c_load);
-        ripple += c_row[s] * kf->x[2u * s];
+    /* The measurement row C for this step: the load scale (or 1) on each
+     * unfrozen block's first state, 1 on the offset, 0 elsewhere. */
+    float c_row[HD_KF_MAX_STATES];
+    for (unsigned i = 0; i < n; i++) {
+        c_row[i] = 0.0f;
     }
-    if (kf->cfg.offset_enabled && !kf->offset_primed && correct) {
-        kf->x[kf->offset_slot] = y - ripple;
-        kf->offset_primed = 1u;
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        c_row[2u * s] = rot.frozen[s] ? 0.0f : block_c(kf, s, c_load);
+    }
+    /* Prior outputs: ripple = C x without the offset. */
+    float ripple = 0.0f;
+    for (unsigned i = 0; i < n; i++) {
+        ripple += c_row[i] * kf->x[i];
+    }
+    if (kf->cfg.offset_enabled) {
+        c_row[kf->offset_slot] = 1.0f;
+        if (!kf->offset_primed && correct) {
+            kf->x[kf->offset_slot] = y - ripple;
+            kf->offset_primed = 1u;
+        }
     }
     const float offset = kf->cfg.offset_enabled ? kf->x[kf->offset_slot] : 0.0f;
 
-    /* g = P C' and S = R + C P C' (C: c_load on block first states, 1 on
-     * the offset) */
-    float g[HD_KF_MAX_STATES] = {0.0f};
+    /* g = P C' and S = R + C P C'; C is nonzero only on block first states
+     * and the offset, so g sums over those columns. */
+    float g[HD_KF_MAX_STATES];
+    float cpc = 0.0f;
     for (unsigned i = 0; i < n; i++) {
         float sum = 0.0f;
         for (unsigned s = 0; s < kf->active_blocks; s++) {
-            sum += c_row[s] * kf->p[i][2u * s];
+            sum += kf->p[i][2u * s] * c_row[2u * s];
         }
         if (kf->cfg.offset_enabled) {
             sum += kf->p[i][kf->offset_slot];
         }
         g[i] = sum;
-    }
-    float cpc = 0.0f;
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        cpc += c_row[s] * g[2u * s];
-    }
-    if (kf->cfg.offset_enabled) {
-        cpc += g[kf->offset_slot];
+        cpc += c_row[i] * sum;
     }
     float s_var = kf->cfg.r_nm2 + cpc;
     const float innovation = y - ripple - offset;
@@ -619,7 +628,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
     for (unsigned s = 0; s < kf->active_blocks; s++) {
         if (!rot.frozen[s]) {
             const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
-            out->amplitude_nm[kf->block_index[s]] = c_row[s] * sqrtf(a * a + b * b);
+            out->amplitude_nm[kf->block_index[s]] = c_row[2u * s] * sqrtf(a * a + b * b);
         }
     }
 
