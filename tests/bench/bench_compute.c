@@ -65,7 +65,7 @@ static void make_paper6(hd_kf_config_t *cfg)
 
 static void make_recommended7(hd_kf_config_t *cfg)
 {
-    hd_kf_config_recommended(cfg, TS_S, NOISE_NM, 0.05f, 0.005f);
+    hd_kf_config_recommended(cfg, TS_S, NOISE_NM, 0.05f, 0.02f); /* firmware default */
 }
 
 static void make_eight(hd_kf_config_t *cfg)

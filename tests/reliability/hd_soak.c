@@ -162,7 +162,8 @@ int main(int argc, char **argv)
     uint64_t last_a = steps - win;
 
     hd_kf_config_t kcfg;
-    hd_kf_config_recommended(&kcfg, (float)REL_TS_S, 0.02f, 0.05f, 0.005f);
+    /* the firmware default (firmware/hd_fw.h HD_FW_DEFAULT_*) */
+    hd_kf_config_recommended(&kcfg, (float)REL_TS_S, 0.02f, 0.05f, 0.02f);
     hd_expected_config_t ecfg;
     hd_expected_config_default(&ecfg);
     static hd_pipeline_t pipe;

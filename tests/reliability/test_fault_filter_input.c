@@ -43,7 +43,8 @@ static float err_log[RUN];
 static void run_case(const bad_input_t *c)
 {
     hd_kf_config_t k;
-    hd_kf_config_recommended(&k, (float)REL_TS_S, 0.02f, 0.05f, 0.005f);
+    /* the firmware default (firmware/hd_fw.h HD_FW_DEFAULT_*) */
+    hd_kf_config_recommended(&k, (float)REL_TS_S, 0.02f, 0.05f, 0.02f);
     hd_expected_config_t e;
     hd_expected_config_default(&e);
     TEST_ASSERT_EQUAL_INT(0, hd_pipeline_init(&pipe, &k, &e, 20.0f));
