@@ -376,18 +376,17 @@ static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
         rot->gain[2u * s] = rot->gain[2u * s + 1u] =
             kf->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? rot->q_scale[s] : 1.0f;
         if (frozen) {
+            /* Held (hd_kf.h, "Nyquist"): not observed, not corrected, but
+             * still turned by the measured increment, which is exact at any
+             * speed, unless no motion can explain it. */
             frozen_now |= 1u << b;
-            rot->c[s] = 1.0f;
-            rot->s[s] = 0.0f;
-            if ((kf->frozen_mask & (1u << b)) == 0u) {
-                /* Entering the frozen state: the estimate is stale from now
-                 * on, so drop it rather than let it alias. */
+            rot->gain[2u * s] = rot->gain[2u * s + 1u] = 0.0f;
+            if (!(theta <= HD_KF_PHASE_LOST_RAD && theta >= -HD_KF_PHASE_LOST_RAD)) {
                 reset_state_cov(kf, 2u * s, block_p0(kf, b));
                 reset_state_cov(kf, 2u * s + 1u, block_p0(kf, b));
             }
-        } else {
-            hd_sincosf(theta, &rot->s[s], &rot->c[s]);
         }
+        hd_sincosf(theta, &rot->s[s], &rot->c[s]);
     }
     kf->frozen_mask = frozen_now;
     if (kf->cfg.offset_enabled) {
@@ -430,9 +429,6 @@ static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
     }
     /* P <- Phi P Phi': rotate the block's row pair, then its column pair. */
     for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (rot->frozen[s]) {
-            continue;
-        }
         const unsigned a = 2u * s, b = a + 1u;
         for (unsigned j = 0; j < n; j++) {
             rotate_pair(&p[a][j], &p[b][j], rot->c[s], rot->s[s]);
@@ -640,9 +636,7 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
         }
     }
     for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (!rot.frozen[s]) {
-            rotate_pair(&kf->x[2u * s], &kf->x[2u * s + 1u], rot.c[s], rot.s[s]);
-        }
+        rotate_pair(&kf->x[2u * s], &kf->x[2u * s + 1u], rot.c[s], rot.s[s]);
     }
     /* Covariance: equations 9-10 in the same factored form */
     covariance_update(kf, g, inv_s, correct, &rot);

@@ -88,9 +88,17 @@
  * taken as known before the update the model stays linear.
  *
  * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
- * cannot be observed without aliasing.  It is frozen: dropped from C and from
- * the ripple estimate, its state zeroed and its covariance reset to p0 and
- * decorrelated, until theta is back under the limit, when it restarts from zero.
+ * cannot be observed without aliasing.  It is frozen for that step: dropped
+ * from C and from the ripple estimate, its gain 0 (no correction; the
+ * covariance update is the Joseph form for that gain), no process noise, but
+ * still turned by theta, which comes from the encoder and is exact at any
+ * speed.  When theta is back under the limit the block resumes with its
+ * estimate.  (It used to restart from zero with p0: on a 200 Hz log whose
+ * speed jitters across the limit for 3 samples at a time, 38 restarts put a
+ * 7 mN m order-4 line into the output that the data did not have.)  A phase
+ * advance beyond HD_KF_PHASE_LOST_RAD in one step is no motion a joint makes
+ * (an encoder fault): the block's phase is lost and it restarts from zero
+ * with its p0, decorrelated.
  *
  * No heap, no VLAs, no libm in hd_kf_step (sine/cosine come from hd_trig.h,
  * one sqrtf per block for the amplitude compiles to VSQRT on Cortex-M4F).
@@ -129,6 +137,11 @@ extern "C" {
  * grows 100x per N m, far beyond any gear; much larger values overflow
  * c^2 P in float32 (measured: 1e20 resets the filter every step). */
 #define HD_KF_MAX_LOAD_COEFF_PER_NM 100.0f
+
+/* A block phase advance beyond this in one step [rad] (four turns: motor
+ * order 2 at 12 500 rad/s at 1 kHz) is an encoder fault, not motion: the
+ * block restarts (see "Nyquist"). */
+#define HD_KF_PHASE_LOST_RAD 25.132741f
 
 typedef enum {
     HD_KF_LOCK_MOTOR = 0,

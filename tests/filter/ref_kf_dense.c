@@ -53,19 +53,6 @@ static double block_p0(const ref_kf_t *r, int b)
                                                                : r->cfg.p0_nm2);
 }
 
-/* Holds slot s's block at x = 0, P = p0 on its diagonal, no correlation. */
-static void hold_block(ref_kf_t *r, int s)
-{
-    for (int i = 2 * s; i < 2 * s + 2; i++) {
-        r->x[i] = 0.0;
-        for (int j = 0; j < r->n; j++) {
-            r->P[i][j] = 0.0;
-            r->P[j][i] = 0.0;
-        }
-        r->P[i][i] = block_p0(r, r->block_of_slot[s]);
-    }
-}
-
 void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg)
 {
     memset(r, 0, sizeof(*r));
@@ -142,8 +129,20 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
             gain[i] = gain[i + 1] = q_scale;
         frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
         if (frozen[s]) {
+            /* Held: unobserved (C = 0), uncorrected (gain 0), no process
+             * noise, still turned by Phi (hd_kf.h, "Nyquist"). */
             out->frozen_mask |= 1u << b;
-            hold_block(r, s);
+            q[i][i] = q[i + 1][i + 1] = 0.0;
+            gain[i] = gain[i + 1] = 0.0;
+            if (fabs(th) > (double)HD_KF_PHASE_LOST_RAD) {
+                /* phase lost (an encoder fault): restart from 0 with p0 */
+                for (int k = i; k < i + 2; k++) {
+                    r->x[k] = 0.0;
+                    for (int j = 0; j < r->n; j++)
+                        r->P[k][j] = r->P[j][k] = 0.0;
+                    r->P[k][k] = block_p0(r, b);
+                }
+            }
         } else {
             c[i] = r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? c_load : 1.0;
         }
@@ -272,8 +271,4 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
                 r->P[i][j] *= d[i] * d[j];
     }
 
-    /* A frozen block stays held at zero / p0 until theta is back in range. */
-    for (int s = 0; s < r->nb; s++)
-        if (frozen[s])
-            hold_block(r, s);
 }

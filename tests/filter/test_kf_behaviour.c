@@ -381,8 +381,9 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
     tu_motion_init(&mo, &prof, TS_S);
     tu_rng_seed(&rng, 99u);
     size_t n = 9000, frozen_steps = 0;
-    double res2 = 0.0, res_end = 0.0;
-    size_t n_end = 0;
+    double res2 = 0.0, res_end = 0.0, res_resume = 0.0;
+    double held_amp = -1.0, held_trace = 0.0; /* block 1 when it froze */
+    size_t n_end = 0, n_resume = 0, k_resume = 0;
     for (size_t k = 0; k < n; k++) {
         tu_motion_next(&mo);
         double am = mo.angle_rad;
@@ -407,14 +408,26 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
             TEST_ASSERT_EQUAL_FLOAT(0.0f, o.amplitude_nm[1]);
             /* its ripple is excluded: the estimate is block 0's prior alone */
             TEST_ASSERT_FLOAT_WITHIN(1e-6, (double)x0_prior, (double)o.ripple_nm);
-            TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, 2));
-            TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, 3));
-            /* block 1 decorrelated from block 0 */
-            TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, 0, 2));
-            TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, 1, 3));
+            /* held: only turned (a rotation keeps the state's norm and the
+             * trace of its covariance), never corrected, no process noise */
+            double a1 = hypot((double)hd_kf_state(&kf, 2), (double)hd_kf_state(&kf, 3));
+            double tr1 = (double)hd_kf_cov(&kf, 2, 2) + (double)hd_kf_cov(&kf, 3, 3);
+            if (held_amp < 0.0) {
+                held_amp = a1;
+                held_trace = tr1;
+            }
+            TEST_ASSERT_FLOAT_WITHIN(1e-3 * held_amp, held_amp, a1);
+            TEST_ASSERT_FLOAT_WITHIN(1e-3 * held_trace, held_trace, tr1);
         } else {
             TEST_ASSERT_EQUAL_UINT32(0u, o.frozen_mask);
             TEST_ASSERT_EQUAL_UINT32(0u, o.status & HD_KF_STATUS_FROZEN);
+        }
+        if (expect_frozen)
+            k_resume = k + 1; /* the last frozen step so far */
+        if (!expect_frozen && frozen_steps > 0 && k < k_resume + 100) { /* 0.1 s after resuming */
+            double e = r2 + r4 - (double)o.ripple_nm;
+            res_resume += e * e;
+            n_resume++;
         }
         if (k >= 7000) { /* 1 s after dropping back to 500 rad/s */
             double e = r2 + r4 - (double)o.ripple_nm;
@@ -424,8 +437,13 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
         (void)res2;
     }
     res_end = sqrt(res_end / (double)n_end);
-    msg("over-Nyquist: %.0f frozen steps at 900 rad/s; after resuming, ripple residual/noise %.3f",
-        (double)frozen_steps, res_end / sigma);
+    res_resume = sqrt(res_resume / (double)(n_resume ? n_resume : 1));
+    msg("over-Nyquist: %.0f frozen steps at 900 rad/s, block held at %.3f Nm (truth 0.4); "
+        "ripple residual/noise in the first 0.1 s after resuming %.3f, after 1 s %.3f",
+        (double)frozen_steps, held_amp, res_resume / sigma, res_end / sigma);
+    /* the held block resumes at once: its phase followed the encoder */
+    TEST_ASSERT_EQUAL_UINT(100u, n_resume);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(sigma, res_resume);
     TEST_ASSERT_GREATER_THAN(1500, (int)frozen_steps);
     TEST_ASSERT_TRUE(kf.status_sticky & HD_KF_STATUS_FROZEN);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res_end);
@@ -875,6 +893,46 @@ static void test_amplitude_and_phase_match_truth(void)
     }
 }
 
+/* A phase advance no joint can make in one step (an encoder fault) loses the
+ * block's phase: it restarts from zero with p0, decorrelated.  One just over
+ * Nyquist (a real, fast motion) keeps the held estimate. */
+static void test_phase_lost_restarts_block(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    const double sigma = 0.02;
+    narrowband_cfg(&cfg, sigma, 0);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    tu_rng_t rng;
+    tu_rng_seed(&rng, 5u);
+    double am = 0.0;
+    const double d_am = 156.0 * TS_S;
+    hd_kf_output_t o;
+    for (int k = 0; k < 3000; k++) { /* learn the order-2 and order-4 lines */
+        am += d_am;
+        hd_kf_input_t in = {(float)(cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am + 1.1) +
+                                    sigma * tu_gauss(&rng)), 0.0f, (float)d_am,
+                            (float)(d_am / GEAR_RATIO)};
+        hd_kf_step(&kf, &in, &o);
+    }
+    const double a_before = hypot((double)hd_kf_state(&kf, 2), (double)hd_kf_state(&kf, 3));
+    /* order 4 over Nyquist but a physical motion (2 rad x 4 = 8 rad < 8 pi): held */
+    hd_kf_input_t fast = {0.0f, 0.0f, 2.0f, 2.0f / (float)GEAR_RATIO};
+    hd_kf_step(&kf, &fast, &o);
+    TEST_ASSERT_TRUE(o.frozen_mask & 2u);
+    const double a_held = hypot((double)hd_kf_state(&kf, 2), (double)hd_kf_state(&kf, 3));
+    TEST_ASSERT_FLOAT_WITHIN(1e-4, a_before, a_held);
+    /* order 4 advance of 4 x 7 = 28 rad > HD_KF_PHASE_LOST_RAD: restarted */
+    hd_kf_input_t glitch = {0.0f, 0.0f, 7.0f, 7.0f / (float)GEAR_RATIO};
+    hd_kf_step(&kf, &glitch, &o);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, 2));
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, 3));
+    TEST_ASSERT_EQUAL_FLOAT(cfg.p0_nm2, hd_kf_cov(&kf, 2, 2));
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, 0, 2));
+    msg("phase lost: order-4 block %.3f Nm before, %.3f Nm held over Nyquist, restarted at "
+        "a %.0f rad advance", a_before, a_held, 4.0 * 7.0);
+}
+
 /* ---- load-dependent ripple (ripple_load_coeff_per_nm) ----------------------
  * Closed-form truth: the motor order-2 line has amplitude A0 (1 + K |T|),
  * T steps 0 -> 10 Nm at 3 s and is given exactly as T_exp (no offset state,
@@ -1144,6 +1202,7 @@ int main(void)
     RUN_TEST(test_standstill_then_motion_cancels);
     RUN_TEST(test_direction_reversal);
     RUN_TEST(test_over_nyquist_block_frozen_then_resumes);
+    RUN_TEST(test_phase_lost_restarts_block);
     RUN_TEST(test_paper_preset_values);
     RUN_TEST(test_paper_preset_pulls_output_towards_expected_torque);
     RUN_TEST(test_narrowband_keeps_torque_missed_by_expected);
