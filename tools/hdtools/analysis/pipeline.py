@@ -91,6 +91,30 @@ NOISE_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
 TUNE_MAX_SAMPLES = 200_000
 
 
+def _tune_subset(data, ff):
+    """The first TUNE_MAX_SAMPLES samples (whole pieces) and their feed-forward."""
+    from .loading import Data
+    pieces, ffs, total = [], [], 0
+    for k, p in enumerate(data.pieces):
+        if total >= TUNE_MAX_SAMPLES:
+            break
+        pieces.append(p)
+        ffs.append(None if ff is None else ff[k])
+        total += len(p)
+    sub = Data(pieces, data.ts_s, data.has_motor, data.has_output, data.has_truth, data.source)
+    return sub, (None if ff is None else ffs)
+
+
+def _lines_left(runs, model):
+    """Sum of the averaged-spectrum amplitudes of the model's motor-locked and
+    fixed lines in the filtered torque (output-locked lines are left out: at a
+    joint's low output orders they may be real torque)."""
+    kinds = {"motor": "motor_order", "fixed": "fixed_frequency"}
+    amps = [augment.spectral_line_amplitude(runs, kinds[b.lock], b.order)
+            for b in model.blocks if b.lock in kinds]
+    return float(np.nansum(amps)) if amps else 0.0
+
+
 def tune_noise(data, ff, noise, make_model, log):
     """R of the starting model.  The third-difference noise estimate is far
     too low on logs low-pass filtered before logging (the iiwa's), and then
@@ -103,25 +127,13 @@ def tune_noise(data, ff, noise, make_model, log):
     of the criterion: at a joint's low output orders they may be real
     torque."""
     from . import replay as rp
-    from .loading import Data
-    pieces, ffs, total = [], [], 0
-    for k, p in enumerate(data.pieces):
-        if total >= TUNE_MAX_SAMPLES:
-            break
-        pieces.append(p)
-        ffs.append(None if ff is None else ff[k])
-        total += len(p)
-    sub = Data(pieces, data.ts_s, data.has_motor, data.has_output, data.has_truth, data.source)
+    sub, ffs = _tune_subset(data, ff)
     table = []
     for f in NOISE_GRID:
         m = make_model(noise * f)
-        runs = rp.replay(sub, m, None if ff is None else ffs)
+        runs = rp.replay(sub, m, ffs)
         met = rp.metrics(runs)
-        kinds = {"motor": "motor_order", "fixed": "fixed_frequency"}
-        amps = [augment.spectral_line_amplitude(runs, kinds[b.lock], b.order)
-                for b in m.blocks if b.lock in kinds]
-        left = float(np.nansum(amps)) if amps else 0.0
-        table.append({"noise_nm": noise * f, "lines_left_nm": left,
+        table.append({"noise_nm": noise * f, "lines_left_nm": _lines_left(runs, m),
                       "innovation_rms_nm": met["innovation_rms_nm"]})
     lo = min(r["lines_left_nm"] for r in table)
     # Smallest multiple within 25 % of the best (ties: keep R small).
@@ -129,6 +141,33 @@ def tune_noise(data, ff, noise, make_model, log):
     log(f"starting R: noise {best['noise_nm']:.3g} N m (grid of {len(NOISE_GRID)}: least "
         "modelled ripple left in the filtered torque)")
     return best["noise_nm"], table
+
+
+NYQUIST_GRID = (0.9, 0.7, 0.5)
+
+
+def tune_nyquist(data, ff, model, log):
+    """nyquist_fraction of the starting model.  A block whose phase advance
+    per sample nears pi is barely observable, and on logs low-pass filtered
+    before logging (the iiwa's, 200 Hz) the line there is gone while the
+    block still follows what is left: it can put a line *into* the output
+    (iiwa joint 4: order 4, 0.09 -> 2.4 mN m at 0.9).  The same criterion as
+    for R, on the same samples: the largest fraction whose filtered torque
+    keeps (within 25 %) the least of the model's own motor-locked and fixed
+    lines."""
+    from . import replay as rp
+    sub, ffs = _tune_subset(data, ff)
+    table = []
+    for f in NYQUIST_GRID:
+        m = model.copy()
+        m.nyquist_fraction = f
+        runs = rp.replay(sub, m, ffs)
+        table.append({"nyquist_fraction": f, "lines_left_nm": _lines_left(runs, m)})
+    lo = min(r["lines_left_nm"] for r in table)
+    best = next(r for r in table if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
+    if best["nyquist_fraction"] != model.nyquist_fraction:
+        log(f"starting nyquist_fraction: {best['nyquist_fraction']:g} (least modelled ripple left)")
+    return best["nyquist_fraction"], table
 
 
 def _merge(effects):
@@ -169,6 +208,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     noise_est = noise
     noise, noise_table = tune_noise(data, ff, noise_est, make, log)
     m0 = make(noise)
+    m0.nyquist_fraction, nyquist_table = tune_nyquist(data, ff, m0, log)
     res = augment.run_loop(data, m0, log=log, feedforward=ff, noise_estimate_nm=noise_est)
     from .replay import analysis_view
     vb, va = analysis_view(res["runs_before"]), analysis_view(res["runs_after"])
@@ -206,7 +246,8 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
                  "has_motor_angle": data.has_motor, "has_output_angle": data.has_output,
                  "has_truth": data.has_truth, "source": data.source, "notes": data.notes,
                  "cleaning": data.cleaning, "noise_nm": noise, "noise_estimate_nm": noise_est,
-                 "noise_tuning": noise_table, "slow_step_nm": slow,
+                 "noise_tuning": noise_table, "nyquist_tuning": nyquist_table,
+                 "slow_step_nm": slow,
                  "torque_std_nm": float(np.std(np.concatenate([p.torque_nm for p in data.pieces])))},
         "model_before": m0.to_dict(),
         "model_after": m1.to_dict(),
