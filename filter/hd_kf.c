@@ -343,15 +343,18 @@ typedef struct {
 } step_rotation_t;
 
 /* min(1, |theta| / ref) for angle-locked blocks when enabled, else 1. */
+/* The motion fraction min(1, |angle| / q_motion_ref_rad); 1 when off. */
+static float motion_fraction(const hd_kf_t *kf, float angle_rad)
+{
+    const float ref = kf->cfg.q_motion_ref_rad;
+    const float abs_angle = angle_rad < 0.0f ? -angle_rad : angle_rad;
+    return (ref <= 0.0f || abs_angle >= ref) ? 1.0f : abs_angle / ref;
+}
+
 static float motion_q_scale(const hd_kf_t *kf, const hd_kf_block_config_t *b,
                             float theta)
 {
-    const float ref = kf->cfg.q_motion_ref_rad;
-    if (ref <= 0.0f || b->lock == HD_KF_LOCK_FIXED) {
-        return 1.0f;
-    }
-    const float abs_theta = theta < 0.0f ? -theta : theta;
-    return abs_theta >= ref ? 1.0f : abs_theta / ref;
+    return b->lock == HD_KF_LOCK_FIXED ? 1.0f : motion_fraction(kf, theta);
 }
 
 static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
@@ -517,11 +520,7 @@ static float update_load_scale(hd_kf_t *kf, const hd_kf_input_t *in)
         kf->load_ref_nm = t_now;
         kf->load_ref_primed = 1u;
     } else {
-        const float ref = kf->cfg.q_motion_ref_rad;
-        const float d = in->d_motor_angle_rad < 0.0f ? -in->d_motor_angle_rad
-                                                     : in->d_motor_angle_rad;
-        const float f = (ref <= 0.0f || d >= ref) ? 1.0f : d / ref;
-        kf->load_ref_nm += f * (t_now - kf->load_ref_nm);
+        kf->load_ref_nm += motion_fraction(kf, in->d_motor_angle_rad) * (t_now - kf->load_ref_nm);
     }
     const float t = kf->load_ref_nm < 0.0f ? -kf->load_ref_nm : kf->load_ref_nm;
     return 1.0f + k * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);

@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from . import detect, replay as rp, spectra
-from .model import SENSOR_DRIFT_SETTLE_S, Block, Model
+from .model import NOISE_FLOOR_NM, SENSOR_DRIFT_SETTLE_S, Block, Model
 
 LINE_DROP = 0.5
 INNOV_TOL = 0.01
@@ -171,7 +171,7 @@ def _trials(model, c, noise_estimate_nm):
     first = apply(model, c)
     if first is None or c.action != "load_scale" or not noise_estimate_nm:
         return [first]
-    if model.r_nm2 <= 1.5 * max(noise_estimate_nm, 6e-3) ** 2:
+    if model.r_nm2 <= 1.5 * max(noise_estimate_nm, NOISE_FLOOR_NM) ** 2:
         return [first]
     return [first, apply(model.with_noise(noise_estimate_nm), c)]
 

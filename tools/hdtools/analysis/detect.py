@@ -274,21 +274,12 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
                       "than the block follows"}
         # Does the ripple amplitude follow the load?  Correlate the
         # residue's envelope with |torque|.
-        ph = phases(ctx, kind, b.order)
-        env, load = [], []
         win = max(8, int(round(0.1 / ctx.ts_s)))
-        for x, p_, tq in zip(ctx.signals, ph, ctx.torque):
-            m = (len(x) // win) * win
-            if m < 2 * win:
-                continue
-            c = (x[:m] * np.cos(p_[:m])).reshape(-1, win).mean(1)
-            s_ = (x[:m] * np.sin(p_[:m])).reshape(-1, win).mean(1)
-            env.append(2 * np.hypot(c, s_))
-            load.append(np.abs(tq[:m]).reshape(-1, win).mean(1))
-        if env:
-            e, l_ = np.concatenate(env), np.concatenate(load)
-            if np.std(e) > 0 and np.std(l_) > 0:
-                ev["envelope_load_correlation"] = round(float(np.corrcoef(e, l_)[0, 1]), 3)
+        env, _ = window_line_amplitude(ctx.signals, phases(ctx, kind, b.order), win, False)
+        _, load = window_line_amplitude([np.abs(t) for t in ctx.torque],
+                                        phases(ctx, kind, b.order), win, False)
+        if env is not None and np.std(env) > 0 and np.std(load) > 0:
+            ev["envelope_load_correlation"] = round(float(np.corrcoef(env, load)[0, 1]), 3)
         # The residue is the block's lag, which follows load *changes*; the
         # line itself, in the measured torque, shows whether its amplitude
         # follows |load|.
@@ -306,6 +297,27 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
     return out
 
 
+def window_line_amplitude(signals, phases_, win, remove_mean):
+    """Amplitude of the line with the given phase in each window of win
+    samples (2 |mean(x e^-i phase)|, the window's mean removed first if asked)
+    and each window's mean, over all pieces with at least two windows:
+    (amplitudes, means) or (None, None)."""
+    amp, mean = [], []
+    for x, p_ in zip(signals, phases_):
+        m = (len(x) // win) * win
+        if m < 2 * win:
+            continue
+        xs = x[:m].reshape(-1, win)
+        ps = p_[:m].reshape(-1, win)
+        dc = xs.mean(1, keepdims=True)
+        xc = xs - dc if remove_mean else xs
+        amp.append(2 * np.hypot((xc * np.cos(ps)).mean(1), (xc * np.sin(ps)).mean(1)))
+        mean.append(dc[:, 0])
+    if not amp:
+        return None, None
+    return np.concatenate(amp), np.concatenate(mean)
+
+
 def load_coefficient(ctx: Context, kind: str, order: float, win: int):
     """(k, correlation) of a line whose amplitude is A0 (1 + k |T|): the
     line's amplitude in the measured torque, demodulated over windows of win
@@ -313,21 +325,10 @@ def load_coefficient(ctx: Context, kind: str, order: float, win: int):
     the mean), fitted as A0 + A0 k |T|.  None when the load does not vary or
     the fit gives no positive A0 and slope.  Motor-locked lines only: a
     window holds several of their cycles."""
-    amp, load = [], []
-    for x, p_ in zip(ctx.torque, phases(ctx, kind, order)):
-        m = (len(x) // win) * win
-        if m < 2 * win:
-            continue
-        xs = x[:m].reshape(-1, win)
-        ps = p_[:m].reshape(-1, win)
-        dc = xs.mean(1, keepdims=True)
-        c = ((xs - dc) * np.cos(ps)).mean(1)
-        s_ = ((xs - dc) * np.sin(ps)).mean(1)
-        amp.append(2 * np.hypot(c, s_))
-        load.append(np.abs(dc[:, 0]))
-    if not amp:
+    a, mean = window_line_amplitude(ctx.torque, phases(ctx, kind, order), win, True)
+    if a is None:
         return None
-    a, l_ = np.concatenate(amp), np.concatenate(load)
+    l_ = np.abs(mean)
     if not (np.std(l_) > 0 and np.std(a) > 0):
         return None
     slope, a0 = np.polyfit(l_, a, 1)

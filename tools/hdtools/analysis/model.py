@@ -18,6 +18,10 @@ from . import cfilter
 RIPPLE_SETTLE_S = 0.05
 OFFSET_SETTLE_S = 0.02
 SENSOR_DRIFT_SETTLE_S = 10.0   # offset as a slow sensor-zero estimate
+# Floor on the noise level the model is built for: the C filter refuses
+# p0 / R > 1e4 (float32 would lose P); 6 mN m keeps the recommended p0
+# (0.3 N m^2) inside it.
+NOISE_FLOOR_NM = 6e-3
 
 
 @dataclass
@@ -63,9 +67,7 @@ class Model:
         misses) must be able to follow the torque's slow changes, so its q is
         at least the mean square per-step change of the 0.2 s-smoothed torque
         (gravity on a sweeping robot joint changes tens of N m per second)."""
-        # Floor: the C filter refuses p0 / R > 1e4 (float32 would lose P);
-        # 6 mN m keeps the recommended p0 (0.3 N m^2) inside it.
-        noise = max(noise_nm, 6e-3)
+        noise = max(noise_nm, NOISE_FLOOR_NM)
         c = cfilter.recommended_config(ts_s, noise, RIPPLE_SETTLE_S, OFFSET_SETTLE_S)
         m = cls(gear_ratio=gear_ratio, ts_s=ts_s, r_nm2=c.r_nm2, inertia_kgm2=inertia_kgm2)
         for k in cfilter.KfConfig.SCALARS:
@@ -86,19 +88,21 @@ class Model:
         return r_nm2 * ratio * ratio
 
     def with_noise(self, noise_nm: float) -> "Model":
-        """The same model for another noise level: R = noise^2 and every
-        R-proportional setting (block and offset q, i.e. the same settle
-        times; the jump threshold ~ noise) rescaled; the p0 caps as in
-        hd_kf_config_recommended."""
+        """The same model for another noise level: R, the jump threshold and
+        the p0 caps from hd_kf_config_recommended (C) for that noise, and every
+        R-proportional q (blocks, offset) rescaled, i.e. the same settle
+        times."""
+        c = cfilter.recommended_config(self.ts_s, max(noise_nm, NOISE_FLOOR_NM),
+                                       RIPPLE_SETTLE_S, OFFSET_SETTLE_S)
         m = self.copy()
-        ratio = max(noise_nm, 6e-3) ** 2 / self.r_nm2
-        m.r_nm2 = self.r_nm2 * ratio
+        ratio = float(c.r_nm2) / self.r_nm2
+        m.r_nm2 = float(c.r_nm2)
         for b in m.blocks:
             b.q_nm2 *= ratio
         m.offset_q_nm2 *= ratio
-        m.offset_jump_nm *= math.sqrt(ratio)
-        cap = 0.5 * 1e4 * m.r_nm2
-        m.p0_nm2, m.output_p0_nm2 = min(m.p0_nm2, cap), min(m.output_p0_nm2, cap)
+        m.offset_jump_nm = float(c.offset_jump_nm)
+        m.p0_nm2 = min(m.p0_nm2, float(c.p0_nm2))
+        m.output_p0_nm2 = min(m.output_p0_nm2, float(c.output_p0_nm2))
         return m
 
     def copy(self) -> "Model":

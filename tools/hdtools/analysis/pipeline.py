@@ -115,6 +115,13 @@ def _lines_left(runs, model):
     return float(np.nansum(amps)) if amps else 0.0
 
 
+def _first_near_least(table):
+    """The first grid entry (grids are ordered by preference) whose
+    modelled ripple left is within 25 % of the least."""
+    lo = min(r["lines_left_nm"] for r in table)
+    return next(r for r in table if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
+
+
 def tune_noise(data, ff, noise, make_model, log):
     """R of the starting model.  The third-difference noise estimate is far
     too low on logs low-pass filtered before logging (the iiwa's), and then
@@ -135,9 +142,7 @@ def tune_noise(data, ff, noise, make_model, log):
         met = rp.metrics(runs)
         table.append({"noise_nm": noise * f, "lines_left_nm": _lines_left(runs, m),
                       "innovation_rms_nm": met["innovation_rms_nm"]})
-    lo = min(r["lines_left_nm"] for r in table)
-    # Smallest multiple within 25 % of the best (ties: keep R small).
-    best = next(r for r in table if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
+    best = _first_near_least(table)   # ties: keep R small
     log(f"starting R: noise {best['noise_nm']:.3g} N m (grid of {len(NOISE_GRID)}: least "
         "modelled ripple left in the filtered torque)")
     return best["noise_nm"], table
@@ -163,8 +168,7 @@ def tune_nyquist(data, ff, model, log):
         m.nyquist_fraction = f
         runs = rp.replay(sub, m, ffs)
         table.append({"nyquist_fraction": f, "lines_left_nm": _lines_left(runs, m)})
-    lo = min(r["lines_left_nm"] for r in table)
-    best = next(r for r in table if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
+    best = _first_near_least(table)   # ties: keep the default fraction
     if best["nyquist_fraction"] != model.nyquist_fraction:
         log(f"starting nyquist_fraction: {best['nyquist_fraction']:g} (least modelled ripple left)")
     return best["nyquist_fraction"], table
