@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import canproto, native  # noqa: E402
 
-SCENARIO = ROOT / "hal" / "sim" / "scenarios" / "paper_156.ini"
+SCENARIO = ROOT / "sim" / "scenarios" / "paper_156.ini"
 
 
 def run_host(tmp_path: Path, *extra: str, duration: float = 3.0):

@@ -17,8 +17,6 @@ installs them), never a skip.
 from __future__ import annotations
 
 import csv
-import importlib.machinery
-import importlib.util
 import json
 import math
 import os
@@ -33,19 +31,17 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 TARGET = ROOT / "tools" / "target"
 HOST_BUILD = Path(os.environ.get("HD_BUILD_DIR", ROOT / "build" / "host-debug"))
-SCENARIOS = ROOT / "hal" / "sim" / "scenarios"
+SCENARIOS = ROOT / "sim" / "scenarios"
 
 
 def load_target_module():
-    loader = importlib.machinery.SourceFileLoader("hd_tools_target", str(TARGET))
-    spec = importlib.util.spec_from_loader(loader.name, loader)
-    mod = importlib.util.module_from_spec(spec)
-    loader.exec_module(mod)
-    return mod
+    sys.path.insert(0, str(ROOT / "tools"))
+    import hdtools.target
+    return hdtools.target
 
 
 def run_target(*args, timeout=600):
-    return subprocess.run([sys.executable, str(TARGET), *map(str, args)], cwd=ROOT,
+    return subprocess.run([str(TARGET), *map(str, args)], cwd=ROOT,
                           capture_output=True, text=True, timeout=timeout)
 
 
@@ -95,7 +91,7 @@ def f32(bits: int) -> float:
 
 def test_host_reference_matches_host_runner(built, tmp_path):
     """target_hostref (float bits) must be the same computation as hdjoint-host."""
-    hdsim = HOST_BUILD / "hal" / "sim" / "hdsim"
+    hdsim = HOST_BUILD / "sim" / "hdsim"
     stream = tmp_path / "s.hdraw"
     subprocess.run([hdsim, SCENARIOS / "paper_156.ini", "--duration", "1", "--csv",
                     tmp_path / "sim.csv", "--raw", stream], check=True, capture_output=True)

@@ -57,17 +57,17 @@ put("config_text", "all_keys", "# every key\ngear_ratio 50\nr_nm2 = 4e-4\np0_nm2
 put("config_text", "bad_line", "gear_ratio = 100\nblock = sideways 2 1\n")
 
 # --- scenarios: the example files
-for p in sorted((root / "hal/sim/scenarios").glob("*.ini")):
+for p in sorted((root / "sim/scenarios").glob("*.ini")):
     shutil.copy(p, corpus.joinpath("scenario").mkdir(parents=True, exist_ok=True) or corpus / "scenario" / p.name)
 put("scenario", "faults", "duration_s = 1\nencoder_fault = 0.1:0.2\nencoder_fault = 0.5:0.6\n"
     "output_encoder_cpr = 65536\nripple = fixed : 50 : 0.1 : 0\nadc_bits = 12\n")
 
 # --- replay: a 50-record stream from hdsim, and a header-only one
-hdsim = build / "hal/sim/hdsim"
+hdsim = build / "sim/hdsim"
 if hdsim.exists():
     out = corpus / "replay"
     out.mkdir(parents=True, exist_ok=True)
-    subprocess.run([str(hdsim), str(root / "hal/sim/scenarios/paper_156.ini"), "--duration", "0.05",
+    subprocess.run([str(hdsim), str(root / "sim/scenarios/paper_156.ini"), "--duration", "0.05",
                     "--csv", "/dev/null", "--raw", str(out / "paper_50")], check=True)
     put("replay", "header_only", (out / "paper_50").read_bytes()[:16])
 else:

@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-SCEN = ROOT / "hal" / "sim" / "scenarios"
+SCEN = ROOT / "sim" / "scenarios"
 COLUMNS = ("t_s,motor_angle_rad,output_angle_rad,motor_velocity_rad_s,output_velocity_rad_s,"
            "torque_nm,torque_true_nm,ripple_true_nm,bridge_counts,motor_counts,output_counts")
 
 
 def hdsim() -> Path:
     bdir = Path(os.environ.get("HD_BUILD_DIR", ROOT / "build" / "host-release"))
-    exe = bdir / "hal" / "sim" / "hdsim"
+    exe = bdir / "sim" / "hdsim"
     if not exe.exists():
         if os.environ.get("HD_BUILD_DIR"):  # under CTest the build must have made it
             pytest.fail(f"{exe} missing from the build tree")

@@ -7,7 +7,7 @@
  * arm apply torque = n * weight * g * arm, loading 0 -> +FS, unloading to 0,
  * loading to -FS, unloading to 0.  Experiments cycle through the positions;
  * the second half of the experiments uses the low range.  The bridge is the
- * rosette model of hal/sim/hd_bridge.h (its placement errors make the
+ * rosette model of sim/hd_bridge.h (its placement errors make the
  * zero-torque output depend on position), then the injected imperfections:
  *   per-experiment gain spread, gain vs position (order 2), quadratic
  *   nonlinearity, hysteresis (loop closing at the turning points), offset,

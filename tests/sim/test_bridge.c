@@ -1,4 +1,4 @@
-/* Rosette bridge (hal/sim/hd_bridge.h) against equations 1-4 of the paper
+/* Rosette bridge (sim/hd_bridge.h) against equations 1-4 of the paper
  * and the first-order placement-error prediction derived in hd_bridge.h. */
 #include <math.h>
 

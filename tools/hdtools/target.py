@@ -1,0 +1,757 @@
+"""tools/target: the Cortex-M4F firmware image under QEMU (mps2-an386).
+
+  tools/target build              cross-build the images (preset cortex-m4),
+                                  the instruction-count plugin and the host pieces
+  tools/target run IN.hdraw [--out OUT.bin] [--can CAN.log] [--count FILE]
+                                  run the firmware image on a raw sample stream
+  tools/target compare (IN.hdraw | --scenario INI [--duration S])
+                                  host build vs QEMU image: bit-identical?
+  tools/target budget [--markdown]
+                                  flash, RAM, worst-case stack, instruction
+                                  counts per filter update / ISR, cycle estimate
+  tools/target count ELF [ARG...] instruction counts between the markers of
+                                  any image that uses them (board.h)
+
+Environment: HD_TARGET_BUILD (default build/cortex-m4), HD_TARGET_HOST_BUILD
+(default build/target-host).  Exit status: 0 ok, 1 check failed, 2 setup or
+usage error.  Only the Python standard library is used.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import statistics
+import struct
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+M4_BUILD = Path(os.environ.get("HD_TARGET_BUILD", ROOT / "build" / "cortex-m4"))
+HOST_BUILD = Path(os.environ.get("HD_TARGET_HOST_BUILD", ROOT / "build" / "target-host"))
+BOARD_REL = Path("firmware/board/mps2_an386")
+PLUGIN_SRC = ROOT / "tools" / "qemu-plugin" / "hdcount.c"
+QEMU = "qemu-system-arm"
+QEMU_ARGS = ["-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
+             "-icount", "shift=0,sleep=off"]
+DUMP_RECORD = struct.Struct("<IiIIIII")  # tick, counts, raw, filtered, ripple, faults, kf_status
+QEMU_TIMEOUT_S = 120
+
+# Clock frequencies of the MCU classes the image targets (for microseconds).
+MCU_CLOCKS_MHZ = [("STM32F4", 168), ("STM32G4", 170)]
+
+
+class TargetError(Exception):
+    """A setup problem (missing tool, build failure): exit status 2."""
+
+
+# ------------------------------------------------------------------ helpers
+
+def need(tool: str) -> str:
+    path = shutil.which(tool)
+    if path is None:
+        raise TargetError(f"{tool} not found: run tools/setup (installs gcc-arm-none-eabi "
+                          f"and qemu-system-arm)")
+    return path
+
+
+def sh(cmd: list, **kw) -> subprocess.CompletedProcess:
+    kw.setdefault("check", True)
+    try:
+        return subprocess.run([str(c) for c in cmd], **kw)
+    except subprocess.CalledProcessError as exc:
+        raise TargetError(f"command failed ({exc.returncode}): {' '.join(map(str, cmd))}") from exc
+
+
+def image(name: str) -> Path:
+    return M4_BUILD / BOARD_REL / f"{name}.elf"
+
+
+def symbols(elf: Path) -> dict:
+    out = sh([need("arm-none-eabi-nm"), elf], capture_output=True, text=True).stdout
+    syms = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3:
+            syms[parts[2]] = int(parts[0], 16)
+    return syms
+
+
+# -------------------------------------------------------------------- build
+
+def build_images() -> None:
+    need("arm-none-eabi-gcc")
+    need("cmake")
+    if not (M4_BUILD / "build.ninja").exists():
+        if M4_BUILD == ROOT / "build" / "cortex-m4":
+            sh(["cmake", "--preset", "cortex-m4"], cwd=ROOT, stdout=subprocess.DEVNULL)
+        else:
+            sh(["cmake", "-S", ROOT, "-B", M4_BUILD, "-G", "Ninja",
+                f"-DCMAKE_TOOLCHAIN_FILE={ROOT / 'cmake' / 'arm-none-eabi.cmake'}",
+                "-DCMAKE_BUILD_TYPE=MinSizeRel"], stdout=subprocess.DEVNULL)
+    sh(["cmake", "--build", M4_BUILD, "-j2", "--target", "hd_image", "hd_bench"],
+       stdout=subprocess.DEVNULL)
+
+
+def build_plugin() -> Path:
+    cc = shutil.which("cc") or need("gcc")
+    out = HOST_BUILD / "hdcount.so"
+    header = PLUGIN_SRC.parent / "hd_qemu_plugin_abi.h"
+    newest = max(PLUGIN_SRC.stat().st_mtime, header.stat().st_mtime)
+    if not out.exists() or out.stat().st_mtime < newest:
+        HOST_BUILD.mkdir(parents=True, exist_ok=True)
+        sh([cc, "-shared", "-fPIC", "-O2", "-std=c11", "-Wall", "-Wextra", "-Werror",
+            "-o", out, PLUGIN_SRC])
+    return out
+
+
+def host_tools(host_build: Path | None) -> dict:
+    """target_hostref, hdjoint-host and hdsim from a host build tree."""
+    bdir = host_build or HOST_BUILD
+    if host_build is None:
+        if not (bdir / "build.ninja").exists():
+            sh(["cmake", "-S", ROOT, "-B", bdir, "-G", "Ninja",
+                "-DCMAKE_BUILD_TYPE=RelWithDebInfo"], stdout=subprocess.DEVNULL)
+        sh(["cmake", "--build", bdir, "-j2", "--target", "target_hostref", "hdjoint-host",
+            "hdsim_cli"], stdout=subprocess.DEVNULL)
+    tools = {
+        "hostref": bdir / "tests" / "target" / "target_hostref",
+        "runner": bdir / "firmware" / "host" / "hdjoint-host",
+        "hdsim": bdir / "sim" / "hdsim",
+    }
+    for name, path in tools.items():
+        if not path.exists():
+            raise TargetError(f"{path} is missing: build the host tree {bdir} first")
+    return tools
+
+
+# ---------------------------------------------------------------------- run
+
+def run_qemu(elf: Path, args: list, count_out: Path | None = None,
+             timeout: float = QEMU_TIMEOUT_S) -> tuple:
+    """Runs an image; returns (exit status, console text)."""
+    need(QEMU)
+    for a in args:
+        if " " in str(a) or "," in str(a):
+            raise TargetError(f"semihosting arguments cannot contain spaces or commas: {a}")
+    semi = ",".join(["enable=on", "target=native", f"arg={elf.stem}"] +
+                    [f"arg={a}" for a in args])
+    cmd = [QEMU] + QEMU_ARGS + ["-kernel", elf, "-semihosting-config", semi]
+    if count_out is not None:
+        syms = symbols(elf)
+        plugin = build_plugin()
+        cmd += ["-plugin", f"{plugin},begin={syms['hd_mark_begin']:#x},"
+                f"end={syms['hd_mark_end']:#x},section={syms['hd_mark_section']:#x},"
+                f"out={count_out}"]
+    try:
+        proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True,
+                              timeout=timeout)
+    except subprocess.TimeoutExpired as exc:
+        raise TargetError(f"QEMU did not finish within {timeout} s: {elf.name}") from exc
+    return proc.returncode, proc.stdout + proc.stderr
+
+
+def cmd_run(a) -> int:
+    build_images()
+    out = Path(a.out).resolve() if a.out else "-"
+    can = Path(a.can).resolve() if a.can else "-"
+    count = Path(a.count).resolve() if a.count else None
+    rc, text = run_qemu(image("hd_image"), [Path(a.stream).resolve(), out, can], count)
+    sys.stdout.write(text)
+    if count is not None:
+        isr = [n for s in parse_counts(count.read_text())[0] for n in s["intervals"]]
+        if isr:
+            print(f"isr instructions per tick: mean {statistics.mean(isr):.0f}, "
+                  f"max {max(isr)} over {len(isr)} ticks (QEMU board: includes the candump "
+                  f"text formatting of the CAN hook)")
+    print(f"exit status {rc}")
+    return 0 if rc == 0 else 1
+
+
+# ------------------------------------------------------------------ compare
+
+def read_dump(path: Path) -> list:
+    data = path.read_bytes()
+    if len(data) % DUMP_RECORD.size:
+        raise TargetError(f"{path}: not a whole number of {DUMP_RECORD.size}-byte records")
+    return [DUMP_RECORD.unpack_from(data, i) for i in range(0, len(data), DUMP_RECORD.size)]
+
+
+def f32(bits: int) -> float:
+    return struct.unpack("<f", struct.pack("<I", bits))[0]
+
+
+def compare_dumps(host: list, qemu: list) -> list:
+    """Exact comparison of two per-tick dumps; returns the problems found."""
+    problems = []
+    if len(host) != len(qemu) or not host:
+        problems.append(f"{len(host)} host ticks, {len(qemu)} QEMU ticks")
+    diff = [i for i, (h, q) in enumerate(zip(host, qemu)) if h != q]
+    if diff:
+        i = diff[0]
+        h, q = host[i], qemu[i]
+        problems.append(f"{len(diff)} of {len(host)} ticks differ; first at tick {h[0]}: "
+                        f"filtered host {f32(h[3])!r} qemu {f32(q[3])!r}, raw host "
+                        f"{f32(h[2])!r} qemu {f32(q[2])!r}, faults {h[5]:#x}/{q[5]:#x}")
+    return problems
+
+
+def compare_stream(stream: Path, tools: dict, work: Path) -> bool:
+    """Host vs QEMU on one stream: per-tick float bits and the CAN log."""
+    h_bin, q_bin = work / "host.bin", work / "qemu.bin"
+    h_log, q_log = work / "host.log", work / "qemu.log"
+    sh([tools["hostref"], stream, h_bin], stdout=subprocess.DEVNULL)
+    sh([tools["runner"], "--sensors", f"replay:{stream}", "--can", f"log:{h_log}", "--quiet"],
+       stdout=subprocess.DEVNULL)
+    rc, text = run_qemu(image("hd_image"), [stream, q_bin, q_log])
+    if rc != 0:
+        print(f"FAIL: the QEMU image exited with status {rc}\n{text}")
+        return False
+    host, qemu = read_dump(h_bin), read_dump(q_bin)
+    problems = compare_dumps(host, qemu)
+    for msg in problems:
+        print(f"FAIL: {msg}")
+    ok = not problems
+    h_text, q_text = h_log.read_bytes(), q_log.read_bytes()
+    if h_text != q_text:
+        hl, ql = h_text.splitlines(), q_text.splitlines()
+        first = next((i for i, (x, y) in enumerate(zip(hl, ql)) if x != y), min(len(hl), len(ql)))
+        print(f"FAIL: CAN logs differ ({len(hl)} vs {len(ql)} frames), first at line {first + 1}")
+        ok = False
+    n_frames = h_text.count(b"\n")
+    status = "bit-identical" if ok else "DIFFERENT"
+    print(f"{stream.name}: {len(qemu)} ticks, filtered/raw torque and ripple float bits "
+          f"{status}; CAN log {n_frames} frames {'identical' if h_text == q_text else 'DIFFERENT'}")
+    return ok
+
+
+def cmd_compare(a) -> int:
+    build_images()
+    tools = host_tools(Path(a.host_build).resolve() if a.host_build else None)
+    with tempfile.TemporaryDirectory(prefix="hd-target-") as tmp:
+        work = Path(tmp)
+        if a.scenario:
+            stream = work / "stream.hdraw"
+            cmd = [tools["hdsim"], Path(a.scenario).resolve(), "--csv", work / "sim.csv",
+                   "--raw", stream]
+            if a.duration:
+                cmd += ["--duration", str(a.duration)]
+            sh(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        else:
+            stream = Path(a.stream).resolve()
+        return 0 if compare_stream(stream, tools, work) else 1
+
+
+# -------------------------------------------------------------------- count
+
+def parse_counts(text: str) -> list:
+    """Plugin output -> sections [{intervals: [...], hist: {pc: n}}], total."""
+    sections = [{"intervals": [], "hist": {}}]
+    total = None
+    for line in text.splitlines():
+        kind, *rest = line.split()
+        if kind == "I":
+            sections[-1]["intervals"].append(int(rest[0]))
+        elif kind == "P":
+            sections[-1]["hist"][int(rest[0], 16)] = int(rest[1])
+        elif kind == "S":
+            sections.append({"intervals": [], "hist": {}})
+        elif kind == "T":
+            total = int(rest[0])
+    if not sections[-1]["intervals"] and not sections[-1]["hist"]:
+        sections.pop()
+    return sections, total
+
+
+def labelled_sections(elf: Path, args: list) -> list:
+    """Runs an image with the plugin; pairs its 'section LABEL N' console lines
+    with the plugin's sections."""
+    with tempfile.TemporaryDirectory(prefix="hd-count-") as tmp:
+        out = Path(tmp) / "count.txt"
+        rc, text = run_qemu(elf, args, out)
+        if rc != 0:
+            raise TargetError(f"{elf.name} exited with status {rc}:\n{text}")
+        sections, _ = parse_counts(out.read_text())
+    labels = [(m.group(1), int(m.group(2)))
+              for m in re.finditer(r"(?m)^section (\S+) (\d+)$", text)]
+    if len(labels) != len(sections):
+        raise TargetError(f"{len(labels)} section labels but {len(sections)} counted sections")
+    return [dict(label=lbl, states=n, **s) for (lbl, n), s in zip(labels, sections)]
+
+
+def cmd_count(a) -> int:
+    build_images()
+    elf = Path(a.elf)
+    for s in labelled_sections(elf, a.args):
+        iv = s["intervals"]
+        if iv:
+            print(f"{s['label']:<16} calls {len(iv):4d}  instructions min {min(iv)} "
+                  f"mean {statistics.mean(iv):.1f} max {max(iv)}")
+    return 0
+
+
+# ------------------------------------------------------- Cortex-M4 timings
+
+def disassembly(elf: Path) -> dict:
+    """address -> (mnemonic, operands) from objdump."""
+    out = sh([need("arm-none-eabi-objdump"), "-d", "--no-show-raw-insn", elf],
+             capture_output=True, text=True).stdout
+    insns = {}
+    for line in out.splitlines():
+        m = re.match(r"^\s+([0-9a-f]+):\s+(\S+)\s*(.*)$", line)
+        if m:
+            insns[int(m.group(1), 16)] = (m.group(2), m.group(3))
+    return insns
+
+
+def reg_count(ops: str) -> int:
+    m = re.search(r"\{([^}]*)\}", ops)
+    if not m:
+        return 1
+    n = 0
+    for part in m.group(1).split(","):
+        part = part.strip()
+        r = re.match(r"([a-z]+)(\d+)-[a-z]+(\d+)", part)
+        n += int(r.group(3)) - int(r.group(2)) + 1 if r else 1
+    return n
+
+
+CONDS = ("eq", "ne", "cs", "cc", "hs", "lo", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt",
+         "gt", "le")
+
+
+def m4_cycles(mnem: str, ops: str) -> tuple:
+    """(best, worst) cycles of one instruction, Cortex-M4 TRM (r0p1) tables
+    3-1 (processor) and 7-1 (FPU), zero-wait-state memory.  P (pipeline
+    refill after a taken branch) is 1..3; a load/store that follows another
+    can pipeline to 1 cycle."""
+    base = mnem.split(".")[0]
+    if base.startswith("v"):
+        if base.startswith(("vdiv", "vsqrt")):
+            return (14, 14)
+        if base.startswith(("vmla", "vmls", "vnmla", "vnmls", "vfma", "vfms", "vfnma", "vfnms")):
+            return (3, 3)
+        if base.startswith(("vldr", "vstr")):
+            return (2, 2)
+        if base.startswith(("vldm", "vstm", "vpush", "vpop")):
+            n = reg_count(ops)
+            return (1 + n, 1 + n)
+        if base.startswith("vmov") and ops.count(",") >= 2:
+            return (2, 2)  # two core registers <-> two singles / a double
+        return (1, 1)
+    if base.startswith("it"):
+        return (0, 1)  # usually folded into the preceding instruction
+    if base in ("b", "bl", "bx", "blx") or (base.startswith("b") and base[1:] in CONDS):
+        if base[1:] in CONDS:
+            return (1, 4)   # not taken: 1; taken: 1 + P
+        return (2, 4)       # 1 + P
+    if base in ("cbz", "cbnz"):
+        return (1, 4)
+    if base in ("tbb", "tbh"):
+        return (3, 5)
+    if base.startswith(("push", "stm")):
+        n = reg_count(ops)
+        return (1 + n, 1 + n)
+    if base.startswith(("pop", "ldm")):
+        n = reg_count(ops)
+        if "pc" in ops:
+            return (1 + n + 1, 1 + n + 3)
+        return (1 + n, 1 + n)
+    if base.startswith(("ldrd", "strd")):
+        return (3, 3)
+    if base.startswith("ldr"):
+        if re.match(r"\s*pc\b", ops):
+            return (3, 5)
+        return (1, 2)
+    if base.startswith("str"):
+        return (1, 2)
+    if base.startswith(("sdiv", "udiv")):
+        return (2, 12)
+    if base.startswith(("mla", "mls")):
+        return (2, 2)
+    return (1, 1)  # data processing, MUL, long multiplies, moves, compares
+
+
+def cycle_estimate(hist: dict, insns: dict, calls: int) -> tuple:
+    lo = hi = 0
+    unknown = 0
+    for pc, n in hist.items():
+        if pc not in insns:
+            unknown += n
+            lo += n
+            hi += n
+            continue
+        c_lo, c_hi = m4_cycles(*insns[pc])
+        lo += n * c_lo
+        hi += n * c_hi
+    return lo / calls, hi / calls, unknown
+
+
+# ------------------------------------------------------------------- budget
+
+def section_sizes(elf: Path) -> dict:
+    out = sh([need("arm-none-eabi-size"), "-A", elf], capture_output=True, text=True).stdout
+    sizes = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[0].startswith(".") and parts[1].isdigit():
+            sizes[parts[0]] = int(parts[1])
+    return sizes
+
+
+def component(obj: str) -> str:
+    for key, name in (("libhdfilter", "filter/"), ("libhdcalib", "calib/"),
+                      ("libhdfw", "firmware/ (hd_fw, CAN protocol)"),
+                      ("libhal_mock", "hal/mock (NVM, CAN hook)"),
+                      ("libhal_semihost", "hal/semihost"), ("libgcc", "libgcc (64-bit division)"),
+                      ("dense_kf", "dense textbook KF (bench)"), (".dir/", "board/mps2_an386")):
+        if key in obj:
+            return name
+    return "other"
+
+
+def map_by_component(map_path: Path) -> tuple:
+    """(flash bytes, RAM bytes) per component, from the linker map."""
+    flash, ram = {}, {}
+    text = map_path.read_text()
+    text = text[text.find("Linker script and memory map"):]
+    pending = None
+    for line in text.splitlines():
+        m = re.match(r"^ (\.[\w.$]+)\s*$", line)
+        if m:
+            pending = m.group(1)
+            continue
+        m = re.match(r"^ (\.[\w.$]+)?\s+0x([0-9a-f]+)\s+0x([0-9a-f]+)\s+(\S+\.(?:obj|o|a\(.*\)))\s*$",
+                     line)
+        if m:
+            name = m.group(1) or pending
+            pending = None
+            if name is None:
+                continue
+            size = int(m.group(3), 16)
+            comp = component(m.group(4))
+            if name.startswith((".text", ".rodata", ".vectors", ".ARM")):
+                flash[comp] = flash.get(comp, 0) + size
+            elif name.startswith((".bss", ".data", "COMMON")):
+                ram[comp] = ram.get(comp, 0) + size
+                if name.startswith(".data"):
+                    flash[comp] = flash.get(comp, 0) + size
+        else:
+            pending = None if not line.startswith("  ") else pending
+    return flash, ram
+
+
+def ram_symbols(elf: Path) -> list:
+    out = sh([need("arm-none-eabi-nm"), "-S", "--size-sort", elf],
+             capture_output=True, text=True).stdout
+    rows = []
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[2].lower() in ("b", "d"):
+            rows.append((parts[3], int(parts[1], 16)))
+    return sorted(rows, key=lambda r: -r[1])
+
+
+# ---- worst-case stack from -fstack-usage / -fcallgraph-info=su (.ci files)
+
+NODE_RE = re.compile(r'node: \{ title: "([^"]+)" label: "([^"]*)"')
+EDGE_RE = re.compile(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"')
+
+
+def load_callgraph(build: Path, image_dirs: list) -> tuple:
+    frames, qualifiers, edges, origin = {}, {}, {}, {}
+    ci_files = [p for p in build.rglob("*.ci")
+                if "CMakeFiles" in p.parts and
+                (not any(".dir" in part and part.split(".dir")[0] in ("hd_image", "hd_bench")
+                         for part in p.parts) or any(d in str(p) for d in image_dirs))]
+    for ci in ci_files:
+        text = ci.read_text()
+        for m in NODE_RE.finditer(text):
+            title, label = m.group(1), m.group(2)
+            sm = re.search(r"\\n(\d+) bytes \(([^)]*)\)", label)
+            if sm:
+                frames[title] = int(sm.group(1))
+                qualifiers[title] = sm.group(2)
+                origin[title] = ci
+        for m in EDGE_RE.finditer(text):
+            edges.setdefault(m.group(1), []).append(m.group(2))
+    return frames, qualifiers, edges, origin
+
+
+def library_frame(objdump_text: str, name: str) -> tuple:
+    """(stack bytes, callees) of a function without .ci data (libgcc, the
+    assembly markers), from its disassembly: pushes, sp decrements and
+    pre-decrement stores to sp, and its bl targets."""
+    m = re.search(rf"<{re.escape(name)}>:\n((?:\s+[0-9a-f]+:.*\n)+)", objdump_text)
+    if not m:
+        return 0, []
+    total = 0
+    callees = []
+    for line in m.group(1).splitlines():
+        if re.search(r"\bpush(\.w)?\s", line) or re.search(r"\bstmdb(\.w)?\s+sp!", line):
+            total += 4 * reg_count(line)
+        sm = re.search(r"\bsub(\.w)?\s+sp,\s*(?:sp,\s*)?#(\d+)", line)
+        if sm:
+            total += int(sm.group(2))
+        sm = re.search(r"\[sp,\s*#-(\d+)\]!", line)
+        if sm:
+            total += int(sm.group(1))
+        cm = re.search(r"\bbl(?:x)?(?:\.w)?\s+[0-9a-f]+\s+<([^>+]+)>", line)
+        if cm and cm.group(1) != name:
+            callees.append(cm.group(1))
+    return total, callees
+
+
+def worst_stack(elf: Path) -> dict:
+    image_dir = f"{elf.stem}.dir"
+    frames, qualifiers, edges, origin = load_callgraph(M4_BUILD, [image_dir])
+    objdump = sh([need("arm-none-eabi-objdump"), "-d", elf], capture_output=True, text=True).stdout
+    defined = set(symbols(elf))
+    # Indirect calls go through the HAL vtables and the mock's transmit hook:
+    # every function of the HAL backends linked into this image is a candidate.
+    # Vtable entries are the backends' file-local functions (titled
+    # "file:name"); the transmit hook is the one public one.
+    hal_candidates = [t for t, ci in origin.items()
+                      if ("hal_mock.dir" in str(ci) or "hal_semihost.dir" in str(ci))
+                      and t.split(":")[-1] in defined
+                      and (":" in t or t == "hal_sh_canlog_hook")]
+    memo, on_path = {}, set()
+    notes = set()
+
+    def resolve(name: str) -> str:
+        if name in frames:
+            return name
+        short = name.split(":")[-1]
+        if short in frames:
+            return short
+        return name
+
+    def cost(name: str) -> tuple:
+        name = resolve(name)
+        if name == "__indirect_call":
+            # A function reached through a pointer never calls itself back
+            # through one here (the hook is not a vtable entry and vice versa).
+            best = max((cost(c) for c in hal_candidates if resolve(c) not in on_path),
+                       default=(0, []))
+            return best[0], ["(indirect: HAL backend)"] + best[1]
+        if name in memo:
+            return memo[name]
+        if name in on_path:
+            raise TargetError(f"recursion through {name}: stack depth unbounded")
+        on_path.add(name)
+        if name in frames:
+            own = frames[name]
+            if qualifiers[name] not in ("static",):
+                notes.add(f"{name}: {qualifiers[name]} stack")
+        else:
+            own, lib_callees = library_frame(objdump, name.split(":")[-1])
+            edges.setdefault(name, []).extend(c for c in lib_callees
+                                              if c not in edges.get(name, []))
+            if own:
+                notes.add(f"{name.split(':')[-1]}: no .su data, {own} bytes from its "
+                          "disassembly")
+        best = (0, [])
+        for callee in edges.get(name, []):
+            c = cost(callee)
+            if c[0] > best[0]:
+                best = c
+        on_path.discard(name)
+        memo[name] = (own + best[0], [f"{name.split(':')[-1]} {own}"] + best[1])
+        return memo[name]
+
+    main = cost("main")
+    reset = frames.get("Reset_Handler", 0)
+    tick = cost("SysTick_Handler")
+    fault = cost("HardFault_Handler")
+    # Exception entry with an active FP context: 26 words (+ 4 bytes alignment).
+    frame = 26 * 4 + 4
+    total = reset + main[0] + frame + tick[0] + frame + fault[0]
+    return {"main": main, "reset": reset, "tick": tick, "fault": fault, "frame": frame,
+            "total": total, "notes": sorted(notes)}
+
+
+def md_table(header: list, rows: list) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def cmd_budget(a) -> int:
+    build_images()
+    run_elf, bench_elf = image("hd_image"), image("hd_bench")
+    out = []
+    p = out.append
+
+    # --- memory
+    sizes = section_sizes(run_elf)
+    flash = sizes.get(".text", 0) + sizes.get(".ARM.exidx", 0) + sizes.get(".data", 0)
+    stack_reserved = sizes.get(".stack", 0)
+    ram = sizes.get(".data", 0) + sizes.get(".bss", 0) + stack_reserved
+    p("### Memory (hd_image.elf, arm-none-eabi-size -A)\n")
+    p(md_table(["region", "used", "of", "contents"], [
+        ["flash", f"{flash} B", "512 KB", ".text (code, constants, vector table) + .data image"],
+        ["RAM", f"{ram} B", "128 KB",
+         f".data {sizes.get('.data', 0)} + .bss {sizes.get('.bss', 0)} + "
+         f"reserved stack {stack_reserved}"],
+    ]))
+    fl, rm = map_by_component(run_elf.with_suffix(".map"))
+    p("\nBy component (linker map):\n")
+    comps = sorted(set(fl) | set(rm), key=lambda c: -(fl.get(c, 0) + rm.get(c, 0)))
+    p(md_table(["component", "flash B", "RAM B (static)"],
+               [[c, fl.get(c, 0), rm.get(c, 0)] for c in comps]))
+    syms = ram_symbols(run_elf)
+    p("\nLargest RAM objects: " + ", ".join(f"`{n}` {s} B" for n, s in syms[:6]) +
+      ".  The firmware's own state is `g_fw` (hd_fw_t, two pipelines: the running "
+      "model and the one a command builds); `g_mock`, `g_stream`, `g_dump`, `g_canlog` "
+      "are the QEMU board's I/O (NVM in RAM, semihosting buffers) that a real board "
+      "replaces with peripherals.")
+
+    # --- heap
+    heap = [s for s in ("malloc", "_malloc_r", "calloc", "realloc", "free", "_free_r", "_sbrk",
+                        "_sbrk_r", "sbrk") if s in symbols(run_elf) or s in symbols(bench_elf)]
+    p("\n### Heap\n")
+    if heap:
+        p(f"FAIL: allocator symbols linked: {', '.join(heap)}")
+    else:
+        p("None.  Images link with `-nostdlib` (no libc; the board supplies memcpy/memset/"
+          "memcmp/strlen/strcmp), the linker script `ASSERT`s that malloc/free/_sbrk are "
+          "undefined, and a post-build step checks the symbol table (nm): no "
+          "malloc/calloc/realloc/free/_sbrk.")
+
+    # --- stack
+    st = worst_stack(run_elf)
+    p("\n### Worst-case stack (-fstack-usage + -fcallgraph-info call graph)\n")
+    p(md_table(["context", "bytes", "deepest path"], [
+        ["main loop (Reset_Handler + main)", st["reset"] + st["main"][0],
+         " > ".join(st["main"][1])],
+        ["exception entry, FP context (26 words + align)", st["frame"], "hardware"],
+        ["SysTick (the 1 kHz ISR)", st["tick"][0], " > ".join(st["tick"][1])],
+        ["exception entry (fault inside the ISR)", st["frame"], "hardware"],
+        ["HardFault handler", st["fault"][0], " > ".join(st["fault"][1])],
+        ["**total worst case**", f"**{st['total']}**", f"reserved: {stack_reserved} B"],
+    ]))
+    p("\nIndirect calls (HAL vtable, CAN transmit hook) are bounded by the deepest HAL "
+      "backend function linked into the image; no recursion" +
+      (("; notes: " + "; ".join(st["notes"])) if st["notes"] else "") + ".")
+    stack_ok = st["total"] <= stack_reserved
+
+    # --- instruction counts
+    sections = labelled_sections(bench_elf, [])
+    insns = disassembly(bench_elf)
+    by = {s["label"]: s for s in sections}
+    overhead = min(by["empty:-"]["intervals"])
+    loop = by["loop:-"]["intervals"]
+    loop_ok = len(loop) == 2 and loop[1] - loop[0] == 2 * 1000
+    p("\n### Instructions per call (QEMU TCG plugin, exact) and estimated cycles\n")
+    p(f"Counted by tools/qemu-plugin/hdcount.c between the image's markers, "
+      f"{len(by['kf:4']['intervals'])} calls each; marker overhead ({overhead} "
+      f"instruction) subtracted.  Counter check: hd_bench_loop(1010) - hd_bench_loop(10) = "
+      f"{loop[1] - loop[0] if len(loop) == 2 else '?'} instructions (expected 2000).  "
+      "These are **instructions, not cycles**: QEMU has no cycle model.  Cycles are "
+      "estimated from the per-instruction execution counts with the Cortex-M4 TRM timings "
+      "(ALU 1, LDR 1-2, STR 1-2, taken branch 2-4, VADD/VMUL 1, VMLA 3, VLDR/VSTR 2, "
+      "VDIV/VSQRT 14, push/pop 1+N), zero wait states; range = best..worst case.\n")
+    models = [("4", "4"), ("6", "6"), ("8", "8"), ("default", "7 (firmware default)"),
+              ("max", "17 (max)")]
+    kinds = [("kf", "hd_kf_step"), ("isr", "ISR (hd_fw_isr)"),
+             ("isrcmd", "ISR + 4 commands"), ("dense", "dense textbook KF")]
+    mhz = MCU_CLOCKS_MHZ[0][1]
+    insn_rows, cycle_rows = [], []
+    for key, states in models:
+        irow, crow = [states], [states]
+        for kind, _ in kinds:
+            s = by[f"{kind}:{key}"]
+            iv = [n - overhead for n in s["intervals"]]
+            lo, hi, _ = cycle_estimate(s["hist"], insns, len(iv))
+            lo -= overhead * 2  # the marker's bl (1 + P)
+            hi -= overhead * 4
+            worst_us = max(iv) * (hi / statistics.mean(iv)) / mhz
+            irow.append(f"{statistics.mean(iv):.0f} / {max(iv)}")
+            crow.append(f"{lo:.0f}-{hi:.0f} ({worst_us:.1f} us)")
+        insn_rows.append(irow)
+        cycle_rows.append(crow)
+    p("Instructions per call, mean / max:\n")
+    p(md_table(["states"] + [k[1] for k in kinds], insn_rows))
+    p("\nEstimated Cortex-M4 cycles per call, mean best-worst (worst-case time):\n")
+    p(md_table(["states"] + [k[1] for k in kinds], cycle_rows))
+    p(f"\nus = worst-case time at {mhz} MHz ({MCU_CLOCKS_MHZ[0][0]}; "
+      f"{MCU_CLOCKS_MHZ[1][0]} at {MCU_CLOCKS_MHZ[1][1]} MHz is within 2 %): max "
+      "instructions x worst-case cycles per instruction of that section.  The ISR budget "
+      "is 1000 us per tick.  ISR = the whole 1 kHz tick body: ADC and encoder reads "
+      "(hal_mock), calibration, encoder deltas, tracker, expected torque, filter, faults, "
+      "telemetry (2 frames at 1 kHz) and the heartbeat (tick 0); 'ISR + 4 commands' adds "
+      "the most command frames a tick handles (HD_FW_RX_PER_TICK = 4 SET_PARAM R commands "
+      "per tick, each checked, applied by rebuilding the model and answered with an ACK). "
+      "Other command mixes are not enumerated: this is a measured load, not a proof of "
+      "the worst case.")
+    text = "\n".join(out)
+    print(text)
+    if a.json:
+        counts = {s["label"]: {"states": s["states"], "calls": len(s["intervals"]),
+                               "mean": statistics.mean(s["intervals"]) - overhead,
+                               "max": max(s["intervals"]) - overhead}
+                  for s in sections if s["intervals"]}
+        Path(a.json).write_text(json.dumps({
+            "flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
+            "stack_worst_bytes": st["total"], "heap_symbols": heap,
+            "counter_check": loop[1] - loop[0] if len(loop) == 2 else None,
+            "instructions": counts}, indent=1))
+    ok = not heap and stack_ok and loop_ok
+    if not stack_ok:
+        print(f"\nFAIL: worst-case stack {st['total']} B exceeds the reserved {stack_reserved} B")
+    if not loop_ok:
+        print(f"\nFAIL: the instruction counter check failed: {loop}")
+    return 0 if ok else 1
+
+
+# --------------------------------------------------------------------- main
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="tools/target", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("build", help="build the images and the plugin")
+    r = sub.add_parser("run", help="run the firmware image on a raw stream")
+    r.add_argument("stream")
+    r.add_argument("--out", help="per-tick float dump (28-byte records)")
+    r.add_argument("--can", help="candump -l log of the transmitted frames")
+    r.add_argument("--count", help="write the plugin's instruction counts here")
+    c = sub.add_parser("compare", help="host build vs QEMU image, bit for bit")
+    c.add_argument("stream", nargs="?")
+    c.add_argument("--scenario", help="simulate this sim/ scenario (.ini) with hdsim")
+    c.add_argument("--duration", type=float, help="override the scenario's duration_s")
+    c.add_argument("--host-build", help="host build tree with target_hostref, "
+                   "hdjoint-host and hdsim (default: build/target-host, built on demand)")
+    b = sub.add_parser("budget", help="print the budget tables (markdown)")
+    b.add_argument("--markdown", action="store_true", help="(the default format)")
+    b.add_argument("--json", help="also write the numbers to this JSON file")
+    k = sub.add_parser("count", help="instruction counts between markers of an image")
+    k.add_argument("elf")
+    k.add_argument("args", nargs="*")
+    a = ap.parse_args(argv)
+    try:
+        if a.cmd == "build":
+            build_images()
+            build_plugin()
+            print(f"built {image('hd_image')}, {image('hd_bench')}, {HOST_BUILD / 'hdcount.so'}")
+            return 0
+        if a.cmd == "run":
+            return cmd_run(a)
+        if a.cmd == "compare":
+            if bool(a.stream) == bool(a.scenario):
+                ap.error("compare needs a stream or --scenario")
+            return cmd_compare(a)
+        if a.cmd == "budget":
+            return cmd_budget(a)
+        return cmd_count(a)
+    except TargetError as exc:
+        print(f"tools/target: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
