@@ -1,7 +1,8 @@
 /*
  * hal: everything the 1 kHz ISR touches, as one small interface.
  *
- * A backend fills one or more parts of an hal_t (sensors, can, nvm, clock)
+ * A backend fills one or more parts of an hal_t (sensors, can, nvm, clock,
+ * system)
  * with its context and function pointers.  Backends live in their own
  * folders (hal/mock, hal/sim, hal/replay, hal/socketcan, and the MCU ports).
  * Firmware checks for NULL before calling a part.
@@ -82,13 +83,23 @@ typedef struct {
     int (*send)(void *ctx, const hal_can_frame_t *frame);
     int (*recv)(void *ctx, hal_can_frame_t *frame);
     void (*counters)(void *ctx, hal_counters_t *out); /* may be NULL */
+    /* May be NULL.  Accept only these identifiers (HAL_CAN_ID_EXT_BIT set
+     * for 29-bit ones) from now on; n == 0 accepts everything.  Called from
+     * the firmware's background context when its node id changes, never
+     * from the ISR.  Returns HAL_OK or HAL_ERR_RANGE (too many ids). */
+    int (*set_rx_filter)(void *ctx, const uint32_t *ids, size_t n);
 } hal_can_t;
+
+/* In set_rx_filter's ids: the identifier is a 29-bit one. */
+#define HAL_CAN_ID_EXT_BIT 0x80000000u
 
 typedef struct {
     void *ctx;
-    /* Byte-addressed region of `size` bytes for the calibration record.
-     * erase sets a range to 0xFF (flash semantics); a write may be
-     * interrupted at any byte by power loss. */
+    /* Byte-addressed region of `size` bytes for the firmware's records (one
+     * A/B store: copy A at offset 0, copy B at size/2; each half is erased
+     * as a whole, so on flash each half is one erase unit).  erase sets a
+     * range to 0xFF (flash semantics); a write may be interrupted at any
+     * byte by power loss.  Called from the background context only. */
     size_t size;
     int (*read)(void *ctx, size_t offset, void *buf, size_t len);
     int (*write)(void *ctx, size_t offset, const void *buf, size_t len);
@@ -100,12 +111,44 @@ typedef struct {
     uint64_t (*time_us)(void *ctx); /* monotonic microseconds */
 } hal_clock_t;
 
+/* Why the MCU last started (bits; several may be set). */
+#define HAL_RESET_POWER_ON 0x01u
+#define HAL_RESET_PIN      0x02u
+#define HAL_RESET_SOFTWARE 0x04u  /* the firmware's REBOOT command */
+#define HAL_RESET_WATCHDOG 0x08u
+#define HAL_RESET_BROWNOUT 0x10u
+#define HAL_RESET_LOCKUP   0x20u
+#define HAL_RESET_CLOCK    0x40u  /* the clock tree fell back (e.g. HSE never ready) */
+
+/* What the board knows about the previous run, read once at boot. */
+typedef struct {
+    uint32_t reset_cause;   /* HAL_RESET_* */
+    bool fault_valid;       /* a HardFault record survived the reset */
+    uint32_t fault_pc;      /* stacked PC of the faulting instruction */
+    uint32_t fault_lr;      /* stacked LR */
+    uint32_t fault_cfsr;    /* SCB->CFSR (configurable fault status) */
+    uint32_t fault_hfsr;    /* SCB->HFSR */
+    uint32_t fault_addr;    /* SCB->BFAR or MMFAR when valid, else 0 */
+} hal_boot_info_t;
+
+typedef struct {
+    void *ctx;
+    uint32_t board_id;      /* four characters, little-endian ("HOST", "F405", ...) */
+    /* May be NULL.  Fills *out; the board clears its fault record after the
+     * first call, so a fault is reported once. */
+    void (*boot_info)(void *ctx, hal_boot_info_t *out);
+    /* May be NULL (no reboot).  Restarts the MCU (does not return there); a
+     * host runner re-initialises the firmware instead.  Background only. */
+    void (*reboot)(void *ctx);
+} hal_system_t;
+
 typedef struct {
     const char *name;
     hal_sensors_t sensors;
     hal_can_t can;
     hal_nvm_t nvm;
     hal_clock_t clock;
+    hal_system_t system;
 } hal_t;
 
 #ifdef __cplusplus
