@@ -1,5 +1,7 @@
 #include "hd_sim_scenario.h"
 
+#include "hd_hostio.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
@@ -74,6 +76,9 @@ static int parse_double(const char *tok, double *out)
     if (*s == '\0') {
         return -1;
     }
+    if (strpbrk(s, "xX") != NULL) {
+        return -1; /* strtod would take C99 hex floats: decimal only */
+    }
     char *end = NULL;
     errno = 0;
     double v = strtod(s, &end);
@@ -84,24 +89,36 @@ static int parse_double(const char *tok, double *out)
     return 0;
 }
 
+/* A decimal integer: digits only, no sign, no leading zero (strtoull with
+ * base 0 would read "01024" as octal 532 and "0x10" as hex). */
 static int parse_u64(const char *tok, uint64_t *out)
 {
     while (isspace((unsigned char)*tok)) {
         tok++;
     }
-    if (!isdigit((unsigned char)*tok)) {
+    const char *p = tok;
+    while (isdigit((unsigned char)*p)) {
+        p++;
+    }
+    const char *end = p;
+    while (isspace((unsigned char)*p)) {
+        p++;
+    }
+    if (end == tok || *p != '\0') {
         return -1;
     }
-    char *end = NULL;
-    errno = 0;
-    unsigned long long v = strtoull(tok, &end, 0);
-    while (end != NULL && isspace((unsigned char)*end)) {
-        end++;
+    if (tok[0] == '0' && end - tok > 1) {
+        return -2;
     }
-    if (errno == ERANGE || end == NULL || *end != '\0') {
-        return -1;
+    uint64_t v = 0;
+    for (const char *q = tok; q < end; q++) {
+        const uint64_t d = (uint64_t)(*q - '0');
+        if (v > (UINT64_MAX - d) / 10u) {
+            return -1;
+        }
+        v = v * 10u + d;
     }
-    *out = (uint64_t)v;
+    *out = v;
     return 0;
 }
 
@@ -345,8 +362,14 @@ static int apply(hd_sim_scenario_t *sc, const key_def_t *k, char *v, char *err, 
     case K_U64:
     case K_U32:
     case K_INT:
-        if (parse_u64(v, &u) != 0) {
-            fail(err, len, "%s: \"%s\" is not a non-negative integer", k->name, v);
+        switch (parse_u64(v, &u)) {
+        case 0:
+            break;
+        case -2:
+            fail(err, len, "%s: \"%s\" has a leading zero (integers are decimal)", k->name, v);
+            return -1;
+        default:
+            fail(err, len, "%s: \"%s\" is not a non-negative decimal integer", k->name, v);
             return -1;
         }
         if (k->type == K_U64) {
@@ -412,19 +435,64 @@ int hd_sim_scenario_set(hd_sim_scenario_t *sc, const char *key, const char *valu
     return apply(sc, k, unquote(trim(buf)), err, err_len);
 }
 
-int hd_sim_scenario_parse(hd_sim_scenario_t *sc, const char *text, const char *name,
-                          char *err, size_t err_len)
+/* Text is printable ASCII, tab, CR, or valid UTF-8 (in comments): anything
+ * else means the file is not a scenario (or is damaged).  Returns the column
+ * (1-based) of the first bad byte, or 0. */
+static size_t bad_byte(const unsigned char *p, size_t n, char *what, size_t what_len)
 {
-    unsigned char seen[N_KEYS];
-    memset(seen, 0, sizeof(seen));
+    for (size_t i = 0; i < n; i++) {
+        const unsigned char c = p[i];
+        if (c == 0u) {
+            fail(what, what_len, "NUL byte");
+            return i + 1u;
+        }
+        if ((c < 0x20u && c != '\t' && c != '\r') || c == 0x7Fu) {
+            fail(what, what_len, "control character 0x%02X", (unsigned)c);
+            return i + 1u;
+        }
+        if (c < 0x80u) {
+            continue;
+        }
+        /* UTF-8: lead byte, then 1..3 continuation bytes (no overlongs
+         * beyond the lead-byte ranges, no surrogate check: a comment). */
+        size_t more = (c >= 0xC2u && c <= 0xDFu) ? 1u
+                      : (c >= 0xE0u && c <= 0xEFu) ? 2u
+                      : (c >= 0xF0u && c <= 0xF4u) ? 3u : 0u;
+        if (more == 0u || more >= n - i) {
+            fail(what, what_len, "byte 0x%02X is not UTF-8 text", (unsigned)c);
+            return i + 1u;
+        }
+        for (size_t k = 1; k <= more; k++) {
+            if ((p[i + k] & 0xC0u) != 0x80u) {
+                fail(what, what_len, "byte 0x%02X is not UTF-8 text", (unsigned)c);
+                return i + 1u;
+            }
+        }
+        i += more;
+    }
+    return 0u;
+}
+
+int hd_sim_scenario_parse_n(hd_sim_scenario_t *sc, const char *text, size_t text_len,
+                            const char *name, char *err, size_t err_len)
+{
+    unsigned seen_line[N_KEYS];
+    memset(seen_line, 0, sizeof(seen_line));
     char line[LINE_MAX_CHARS];
     char msg[512];
     const char *p = text;
+    const char *text_end = text + text_len;
     unsigned lineno = 0;
-    while (*p != '\0') {
+    while (p < text_end) {
         lineno++;
-        const char *nl = strchr(p, '\n');
-        size_t n = nl != NULL ? (size_t)(nl - p) : strlen(p);
+        const char *nl = memchr(p, '\n', (size_t)(text_end - p));
+        size_t n = nl != NULL ? (size_t)(nl - p) : (size_t)(text_end - p);
+        size_t col = bad_byte((const unsigned char *)p, n, msg, sizeof(msg));
+        if (col != 0u) {
+            fail(err, err_len, "%s:%u: %s at column %zu: not a text file", name, lineno, msg,
+                 col);
+            return -1;
+        }
         if (n >= sizeof(line)) {
             fail(err, err_len, "%s:%u: line longer than %d characters", name, lineno,
                  LINE_MAX_CHARS - 1);
@@ -461,11 +529,14 @@ int hd_sim_scenario_parse(hd_sim_scenario_t *sc, const char *text, const char *n
             return -1;
         }
         const int is_list = (k->type == K_RIPPLE || k->type == K_WINDOW);
-        if (!is_list && seen[idx]) {
-            fail(err, err_len, "%s:%u: %s given twice", name, lineno, key);
+        if (!is_list && seen_line[idx] != 0u) {
+            fail(err, err_len, "%s:%u: %s given twice (first on line %u)", name, lineno, key,
+                 seen_line[idx]);
             return -1;
         }
-        seen[idx] = 1;
+        if (seen_line[idx] == 0u) {
+            seen_line[idx] = lineno;
+        }
         if (apply(sc, k, val, msg, sizeof(msg)) != 0) {
             fail(err, err_len, "%s:%u: %s", name, lineno, msg);
             return -1;
@@ -478,54 +549,21 @@ int hd_sim_scenario_parse(hd_sim_scenario_t *sc, const char *text, const char *n
     return 0;
 }
 
+int hd_sim_scenario_parse(hd_sim_scenario_t *sc, const char *text, const char *name,
+                          char *err, size_t err_len)
+{
+    return hd_sim_scenario_parse_n(sc, text, strlen(text), name, err, err_len);
+}
+
 int hd_sim_scenario_load(hd_sim_scenario_t *sc, const char *path, char *err, size_t err_len)
 {
-    FILE *f = fopen(path, "rb");
-    if (f == NULL) {
-        fail(err, err_len, "%s: cannot open: %s", path, strerror(errno));
-        return -1;
-    }
-    size_t cap = 4096, n = 0;
-    char *buf = malloc(cap);
-    int rc = -1;
+    size_t n = 0;
+    char *buf = hd_hostio_read_file(path, HD_HOSTIO_TEXT_MAX_BYTES, &n, err, err_len);
     if (buf == NULL) {
-        fail(err, err_len, "%s: out of memory", path);
-        fclose(f);
         return -1;
     }
-    for (;;) {
-        if (n + 1 >= cap) {
-            if (cap >= (1u << 20)) {
-                fail(err, err_len, "%s: larger than 1 MiB, not a scenario file", path);
-                goto out;
-            }
-            char *nb = realloc(buf, cap * 2);
-            if (nb == NULL) {
-                fail(err, err_len, "%s: out of memory", path);
-                goto out;
-            }
-            buf = nb;
-            cap *= 2;
-        }
-        size_t got = fread(buf + n, 1, cap - 1 - n, f);
-        n += got;
-        if (got == 0) {
-            break;
-        }
-    }
-    if (ferror(f)) {
-        fail(err, err_len, "%s: read error", path);
-        goto out;
-    }
-    buf[n] = '\0';
-    if (strlen(buf) != n) {
-        fail(err, err_len, "%s: contains a NUL byte, not a text file", path);
-        goto out;
-    }
-    rc = hd_sim_scenario_parse(sc, buf, path, err, err_len);
-out:
+    int rc = hd_sim_scenario_parse_n(sc, buf, n, path, err, err_len);
     free(buf);
-    fclose(f);
     return rc;
 }
 

@@ -3,9 +3,13 @@
  *
  * Format: one `key = value` per line, `#` starts a comment, blank lines are
  * ignored, values may be wrapped in double quotes.  Scalar keys may appear
- * once; list keys (`ripple`) may repeat and append.  Unknown keys, repeated
- * scalar keys and malformed or out-of-range values are rejected with
- * "file:line: message".  All keys, units and defaults: docs/sim.md.
+ * once; list keys (`ripple`) may repeat and append.  Integers are decimal
+ * (a leading zero is an error: "01024" is not octal), numbers have no hex
+ * form.  Unknown keys, repeated scalar keys (with the line of the first),
+ * NUL, control or non-UTF-8 bytes, lines over 4095 characters, files over
+ * 1 MiB or that are not regular files, and malformed or out-of-range values
+ * are rejected with "file:line: message".  All keys, units and defaults:
+ * docs/sim.md.
  *
  * Host-only (double precision, no allocation needed: fixed-size lists).
  */
@@ -100,6 +104,10 @@ void hd_sim_scenario_default(hd_sim_scenario_t *sc);
 int hd_sim_scenario_load(hd_sim_scenario_t *sc, const char *path, char *err, size_t err_len);
 int hd_sim_scenario_parse(hd_sim_scenario_t *sc, const char *text, const char *name,
                           char *err, size_t err_len);
+/* The same for text_len bytes that need not be NUL-terminated (a NUL byte
+ * inside is an error with its line). */
+int hd_sim_scenario_parse_n(hd_sim_scenario_t *sc, const char *text, size_t text_len,
+                            const char *name, char *err, size_t err_len);
 
 /* Apply one `key=value` (or key, value) override, e.g. from the command
  * line; scalars may be overridden.  Returns 0 or -1 with a message. */

@@ -108,7 +108,7 @@ def test_bad_command_lines(tmp_path: Path) -> None:
     r = run(s, "--csv", "-", "--set", "nope=1", check=False)
     assert r.returncode == 2 and "unknown key" in r.stderr
     r = run(s, "--csv", str(tmp_path / "missing" / "x.csv"), check=False)
-    assert r.returncode == 1 and "cannot write" in r.stderr
+    assert r.returncode == 3 and "cannot write" in r.stderr
 
 
 def test_all_example_scenarios_run(tmp_path: Path) -> None:

@@ -379,6 +379,36 @@ static void test_parser_rejects_with_line_numbers(void)
     expect_reject("encoder_cpr = 0\n", "encoder_cpr must be >= 1");
     expect_reject("ts_s = 0.0000005\n", "whole number of microseconds");
     expect_reject("noise_nm =\n", "empty value");
+    /* integers are decimal: a leading zero is not octal, no hex, no sign */
+    expect_reject("encoder_cpr = 01024\n", "bad.ini:1: encoder_cpr: \"01024\" has a leading zero");
+    expect_reject("seed = 0x10\n", "seed: \"0x10\" is not a non-negative decimal integer");
+    expect_reject("adc_bits = +16\n", "is not a non-negative decimal integer");
+    expect_reject("seed = 18446744073709551616\n", "is not a non-negative decimal integer");
+    expect_reject("noise_nm = 0x1p-3\n", "not a finite number");
+    /* a repeated key names both lines */
+    expect_reject("duration_s = 1\n# c\nduration_s = 2\n", "bad.ini:3: duration_s given twice (first on line 1)");
+    /* bytes that are not text, with their line */
+    expect_reject("duration_s = 1\nnoise_nm = 0.1\x01\n", "bad.ini:2: control character 0x01");
+    expect_reject("# caf\xe9\n", "bad.ini:1: byte 0xE9 is not UTF-8 text");
+    expect_reject("# ok\n# \xc3\n", "bad.ini:2: byte 0xC3 is not UTF-8 text");
+}
+
+static void test_parser_rejects_nul_with_its_line(void)
+{
+    static const char text[] = "duration_s = 1\nnoise_nm = 0.1\0node_id = 999\n";
+    hd_sim_scenario_t sc;
+    hd_sim_scenario_default(&sc);
+    TEST_ASSERT_EQUAL_INT(-1, hd_sim_scenario_parse_n(&sc, text, sizeof text - 1u, "nul.ini",
+                                                      err, sizeof(err)));
+    if (strstr(err, "nul.ini:2: NUL byte at column 15") == NULL) {
+        TEST_FAIL_MESSAGE(err);
+    }
+    /* UTF-8 in a comment is text */
+    hd_sim_scenario_default(&sc);
+    TEST_ASSERT_EQUAL_INT_MESSAGE(0, hd_sim_scenario_parse(&sc, "# caf\xc3\xa9 \xe2\x82\xac\n"
+                                                           "duration_s = 1\n", "u", err,
+                                                           sizeof(err)), err);
+    TEST_ASSERT_EQUAL_UINT64(1000, hd_sim_scenario_samples(&sc));
 }
 
 static void test_parser_accepts_comments_quotes_and_lists(void)
@@ -388,7 +418,7 @@ static void test_parser_accepts_comments_quotes_and_lists(void)
     const char *text = "  # comment\n\nmotor_speed_profile = \"0:0, 0.5:156\"  # trailing\n"
                        "ripple = motor:2:1.0:0.3\nripple = output : 1 : 0.5 : -0.7\n"
                        "bridge.placement_error_rad = 0.001, -0.0005, 0.0008, 0.0002\n"
-                       "seed = 0x10\n";
+                       "seed = 16\n";
     TEST_ASSERT_EQUAL_INT_MESSAGE(0, hd_sim_scenario_parse(&sc, text, "ok", err, sizeof(err)), err);
     TEST_ASSERT_EQUAL_UINT(2, sc.motor_speed.n);
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, 156.0, sc.motor_speed.value[1]);
@@ -492,6 +522,7 @@ int main(void)
     RUN_TEST(test_same_seed_same_run_other_seed_differs);
     RUN_TEST(test_parser_rejects_with_line_numbers);
     RUN_TEST(test_parser_accepts_comments_quotes_and_lists);
+    RUN_TEST(test_parser_rejects_nul_with_its_line);
     RUN_TEST(test_missing_file_is_a_clear_error);
     RUN_TEST(test_hal_backend_ticks_and_ends);
     RUN_TEST(test_hal_adc_only_loop_steps_every_read);

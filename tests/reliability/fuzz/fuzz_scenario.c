@@ -1,8 +1,9 @@
-/* Fuzz: the simulated joint's scenario reader (hd_sim_scenario_parse and
- * hd_sim_scenario_set), then a few plant samples of any accepted scenario.
- * Properties: nothing crashes; a rejected input has a "name:line: message";
- * an accepted scenario passes hd_sim_scenario_validate, the plant starts,
- * and its first samples are finite. */
+/* Fuzz: the simulated joint's scenario reader (hd_sim_scenario_parse_n on
+ * the raw bytes, not NUL-terminated, and hd_sim_scenario_set), then a few
+ * plant samples of any accepted scenario.  Properties: nothing crashes; a
+ * rejected input has a "name:line: message"; an input with a NUL byte is
+ * rejected; an accepted scenario passes hd_sim_scenario_validate, the plant
+ * starts, and its first samples are finite. */
 #include <math.h>
 #include <string.h>
 
@@ -21,10 +22,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     char err[256];
     err[0] = '\0';
     hd_sim_scenario_default(&sc);
-    int rc = hd_sim_scenario_parse(&sc, text, "fuzz", err, sizeof err);
+    int rc = hd_sim_scenario_parse_n(&sc, (const char *)data, size, "fuzz", err, sizeof err);
     if (rc != 0) {
-        FUZZ_CHECK(rc == -1 && err[0] != '\0');
+        FUZZ_CHECK(rc == -1 && strncmp(err, "fuzz", 4) == 0);
     } else {
+        FUZZ_CHECK(memchr(data, 0, size) == NULL);
         FUZZ_CHECK(hd_sim_scenario_validate(&sc, err, sizeof err) == 0);
         FUZZ_CHECK(hd_sim_plant_init(&plant, &sc, err, sizeof err) == 0);
         for (int i = 0; i < 16; i++) {
