@@ -10,12 +10,33 @@
  * on CLOCK_MONOTONIC with clock_nanosleep(TIMER_ABSTIME) and reports wake-up
  * jitter and overruns.  Prints a summary (key = value lines) at the end.
  *
+ * Nothing is lost and nothing is silent (docs/reliability.md):
+ * - the CSV and the CAN log are written under temporary names and renamed
+ *   when the run ends; a failed write ends the run with one line on stderr
+ *   and exit 3, and the old files stay as they were;
+ * - the NVM image (--nvm) is written (temporary file, fsync, rename) at the
+ *   start if the provisioning changed it and right after every change the
+ *   firmware makes (CALIB_SAVE ...), not only at exit; a missing image file
+ *   is created (erased) at the start, so an unwritable path fails at once;
+ * - SIGINT / SIGTERM end the run after the current tick: outputs flushed
+ *   and renamed with whole lines, summary printed, exit 128 + signal;
+ * - every --cmd frame is handed to the firmware (as its receive queue has
+ *   room: HD_FW_RX_PER_TICK per tick) or the run fails saying how many were
+ *   not.
+ *
+ * Exit status: 0 ok; 1 run failed (SocketCAN, commands not delivered);
+ * 2 bad command line or input file (configuration, scenario, replay, NVM
+ * image); 3 an output could not be written; 130 / 143 interrupted by
+ * SIGINT / SIGTERM (outputs whole up to the interruption).
+ *
  * Host only: uses stdio, the heap, libm and double.
  */
 #define _POSIX_C_SOURCE 200809L
 
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -25,12 +46,19 @@
 #include "hal_replay.h"
 #include "hd_config_text.h"
 #include "hd_fw.h"
+#include "hd_hostio.h"
 #ifdef HD_HAVE_SIM
 #include "hal_sim.h"
 #endif
 #ifdef HD_HAVE_SOCKETCAN
 #include "hal_socketcan.h"
 #endif
+
+#define EXIT_RUN 1
+#define EXIT_USAGE 2
+#define EXIT_WRITE 3
+
+#define HOST_PI 3.14159265358979323846
 
 /* "GAIN,OFFSET_V" -> two finite floats; strtof reports overflow (ERANGE),
  * which sscanf does not. */
@@ -47,9 +75,6 @@ static bool parse_calib_pair(const char *text, float *gain, float *offset_v)
     return end != second && *end == '\0' && errno != ERANGE;
 }
 
-#define MAX_CMDS 64
-#define HOST_PI 3.14159265358979323846
-
 typedef struct {
     const char *sensors;
     const char *can;
@@ -61,7 +86,7 @@ typedef struct {
     bool have_calib;
     float calib_gain;
     float calib_offset;
-    const char *cmds[MAX_CMDS];
+    const char **cmds;   /* argc entries at most */
     int n_cmds;
     bool quiet;
 } options_t;
@@ -72,79 +97,110 @@ static void usage(FILE *f)
           "                    [--can log:FILE | socketcan:IFNAME | none] [--config FILE]\n"
           "                    [--realtime] [--duration S] [--csv OUT.csv]\n"
           "                    [--calib GAIN_NM_PER_V,OFFSET_V] [--nvm FILE] [--cmd ID#HEX]...\n"
-          "  --sensors   sample source: the simulated joint, a recorded raw stream, or a\n"
-          "              built-in synthetic joint (mock)\n"
-          "  --can       log: write every frame as a candump -l log; socketcan: use IFNAME\n"
-          "  --config    firmware configuration text file (docs/firmware.md)\n"
-          "  --realtime  run at a real 1 kHz (default: as fast as possible)\n"
-          "  --duration  stop after S seconds of samples (default: end of the source; mock 10 s)\n"
-          "  --csv       per-sample output\n"
-          "  --calib     store this calibration record in NVM before start\n"
-          "              (sim: the scenario's nominal calibration is stored by default)\n"
-          "  --nvm       NVM image file: loaded at start (if it exists), saved at exit\n"
-          "  --cmd       command frame received before the first tick, e.g. 601#2001000000000000\n",
+          "                    [--quiet]\n"
+          "       hdjoint-host --version | --help\n"
+          "  -s, --sensors  sample source: the simulated joint, a recorded raw stream, or a\n"
+          "                 built-in synthetic joint (mock)\n"
+          "  --can          log: write every frame as a candump -l log; socketcan: use IFNAME\n"
+          "  --config       firmware configuration text file (docs/firmware.md)\n"
+          "  --realtime     run at a real 1 kHz (default: as fast as possible)\n"
+          "  --duration     stop after S seconds of samples (default: end of the source; mock 10 s)\n"
+          "  --csv          per-sample output\n"
+          "  --calib        store this calibration record in NVM before start\n"
+          "                 (sim: the scenario's nominal calibration is stored by default)\n"
+          "  --nvm          NVM image file: loaded at start (if it exists), written after\n"
+          "                 every change (temporary file, fsync, rename)\n"
+          "  --cmd          command frame for the firmware, e.g. 601#2001000000000000;\n"
+          "                 repeatable, delivered in order from the first tick (log/none CAN)\n"
+          "  -q, --quiet    no summary on stdout\n"
+          "exit status: 0 ok, 1 run failed, 2 bad command line or input, 3 write failed,\n"
+          "             130/143 interrupted by SIGINT/SIGTERM (outputs whole)\n",
           f);
 }
 
+static int bad_arg(const char *msg, const char *arg)
+{
+    fprintf(stderr, "hdjoint-host: %s%s%s (see --help)\n", msg, arg != NULL ? ": " : "",
+            arg != NULL ? arg : "");
+    return -1;
+}
+
+/* Returns 0 to run, 1 after --help/--version, -1 on a bad command line. */
 static int parse_args(int argc, char **argv, options_t *o)
 {
+    static const struct option longopts[] = {
+        {"sensors", required_argument, NULL, 's'},
+        {"can", required_argument, NULL, 'c'},
+        {"config", required_argument, NULL, 'f'},
+        {"csv", required_argument, NULL, 'o'},
+        {"nvm", required_argument, NULL, 'n'},
+        {"duration", required_argument, NULL, 'd'},
+        {"calib", required_argument, NULL, 'k'},
+        {"cmd", required_argument, NULL, 'm'},
+        {"realtime", no_argument, NULL, 'r'},
+        {"quiet", no_argument, NULL, 'q'},
+        {"help", no_argument, NULL, 'h'},
+        {"version", no_argument, NULL, 'V'},
+        {NULL, 0, NULL, 0},
+    };
     memset(o, 0, sizeof *o);
     o->can = "none";
     o->duration_s = -1.0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
-        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+    o->cmds = calloc((size_t)argc + 1u, sizeof *o->cmds);
+    if (o->cmds == NULL) {
+        return bad_arg("out of memory", NULL);
+    }
+    opterr = 0; /* our own one-line messages */
+    int c;
+    while ((c = getopt_long(argc, argv, ":s:qhV", longopts, NULL)) != -1) {
+        char *end;
+        switch (c) {
+        case 's': o->sensors = optarg; break;
+        case 'c': o->can = optarg; break;
+        case 'f': o->config = optarg; break;
+        case 'o': o->csv = optarg; break;
+        case 'n': o->nvm_file = optarg; break;
+        case 'r': o->realtime = true; break;
+        case 'q': o->quiet = true; break;
+        case 'm': o->cmds[o->n_cmds++] = optarg; break;
+        case 'h':
             usage(stdout);
-            exit(0);
-        } else if (strcmp(a, "--realtime") == 0) {
-            o->realtime = true;
-        } else if (strcmp(a, "--quiet") == 0) {
-            o->quiet = true;
-        } else if (v == NULL) {
-            fprintf(stderr, "hdjoint-host: %s needs a value (or is unknown)\n", a);
-            return -1;
-        } else if (strcmp(a, "--sensors") == 0) {
-            o->sensors = v, i++;
-        } else if (strcmp(a, "--can") == 0) {
-            o->can = v, i++;
-        } else if (strcmp(a, "--config") == 0) {
-            o->config = v, i++;
-        } else if (strcmp(a, "--csv") == 0) {
-            o->csv = v, i++;
-        } else if (strcmp(a, "--nvm") == 0) {
-            o->nvm_file = v, i++;
-        } else if (strcmp(a, "--duration") == 0) {
-            char *end;
-            o->duration_s = strtod(v, &end);
-            if (*end != '\0' || !(o->duration_s > 0.0) || !isfinite(o->duration_s)) {
-                fprintf(stderr, "hdjoint-host: --duration must be a positive number of seconds\n");
-                return -1;
+            return 1;
+        case 'V':
+            printf("hdjoint-host %s\n", hd_hostio_version());
+            return 1;
+        case 'd':
+            errno = 0;
+            o->duration_s = strtod(optarg, &end);
+            if (end == optarg || *end != '\0' || errno == ERANGE || !(o->duration_s > 0.0) ||
+                !isfinite(o->duration_s) || o->duration_s > 1e7) {
+                return bad_arg("--duration must be a positive number of seconds (<= 1e7)",
+                               optarg);
             }
-            i++;
-        } else if (strcmp(a, "--calib") == 0) {
-            if (!parse_calib_pair(v, &o->calib_gain, &o->calib_offset) ||
-                !(o->calib_gain > 0.0f) || !isfinite(o->calib_offset)) {
-                fprintf(stderr, "hdjoint-host: --calib wants GAIN,OFFSET with GAIN > 0\n");
-                return -1;
+            break;
+        case 'k':
+            if (!parse_calib_pair(optarg, &o->calib_gain, &o->calib_offset) ||
+                !(o->calib_gain > 0.0f) || !isfinite(o->calib_gain) ||
+                !isfinite(o->calib_offset)) {
+                return bad_arg("--calib wants GAIN,OFFSET with GAIN > 0", optarg);
             }
             o->have_calib = true;
-            i++;
-        } else if (strcmp(a, "--cmd") == 0) {
-            if (o->n_cmds >= MAX_CMDS) {
-                fprintf(stderr, "hdjoint-host: at most %d --cmd\n", MAX_CMDS);
-                return -1;
-            }
-            o->cmds[o->n_cmds++] = v;
-            i++;
-        } else {
-            fprintf(stderr, "hdjoint-host: unknown option %s\n", a);
-            return -1;
+            break;
+        case ':':
+            return bad_arg("option needs a value", argv[optind - 1]);
+        default:
+            return bad_arg("unknown option", argv[optind - 1]);
         }
     }
+    if (optind < argc) {
+        return bad_arg("unexpected argument", argv[optind]);
+    }
     if (o->sensors == NULL) {
-        fprintf(stderr, "hdjoint-host: --sensors is required\n");
-        return -1;
+        return bad_arg("--sensors is required", NULL);
+    }
+    if (o->n_cmds > 0 && strncmp(o->can, "socketcan:", 10) == 0) {
+        return bad_arg("--cmd needs --can log:FILE or none (on SocketCAN, send commands on "
+                       "the bus, e.g. with cansend)", NULL);
     }
     return 0;
 }
@@ -161,9 +217,13 @@ static int hex_digit(char c)
 static int parse_frame(const char *s, hal_can_frame_t *f)
 {
     memset(f, 0, sizeof *f);
+    if (hex_digit(s[0]) < 0) {
+        return -1; /* strtoul would skip spaces and take a sign */
+    }
     char *end;
+    errno = 0;
     unsigned long id = strtoul(s, &end, 16);
-    if (end == s || *end != '#' || id > 0x7FFu) {
+    if (end == s || *end != '#' || id > 0x7FFu || errno == ERANGE) {
         return -1;
     }
     const char *p = end + 1;
@@ -183,41 +243,11 @@ static int parse_frame(const char *s, hal_can_frame_t *f)
     return 0;
 }
 
-static char *read_text_file(const char *path, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    if (f == NULL) {
-        return NULL;
-    }
-    size_t cap = 4096, n = 0;
-    char *buf = malloc(cap);
-    for (;;) {
-        if (buf == NULL) {
-            fclose(f);
-            return NULL;
-        }
-        n += fread(buf + n, 1, cap - n, f);
-        if (n < cap) {
-            break;
-        }
-        cap *= 2;
-        char *nb = realloc(buf, cap);
-        if (nb == NULL) {
-            free(buf);
-            fclose(f);
-            return NULL;
-        }
-        buf = nb;
-    }
-    fclose(f);
-    *len = n;
-    return buf;
-}
-
 /* ------------------------------------------------------------ CAN logging */
 
 typedef struct {
-    FILE *f;
+    hd_out_t out;
+    bool open;
     uint64_t frames;
 } canlog_t;
 
@@ -225,8 +255,11 @@ static void log_frame(void *ctx, const hal_can_frame_t *frame, uint64_t t_us)
 {
     canlog_t *l = ctx;
     char line[200];
-    if (l->f != NULL && hal_candump_format(frame, t_us, "vcan0", line, sizeof line) > 0) {
-        fputs(line, l->f);
+    if (!l->open || hd_out_failed(&l->out)) {
+        return;
+    }
+    const int n = hal_candump_format(frame, t_us, "vcan0", line, sizeof line);
+    if (n > 0 && hd_out_write(&l->out, line, (size_t)n) == 0) {
         l->frames++;
     }
 }
@@ -313,16 +346,14 @@ static void err_add(err_t *e, double t_s, double raw, double filt, double truth)
 
 /* ------------------------------------------------------------------ NVM */
 
-static void provision_calibration(hal_t *hal, float gain, float offset)
+static int provision_calibration(hal_t *hal, float gain, float offset)
 {
     hd_calib_record_t rec;
     hd_calib_record_default(&rec);
     rec.gain_nm_per_v = gain;
     rec.offset_v = offset;
     const hd_calib_storage_t s = hd_fw_calib_storage(hal);
-    if (hd_calib_store_save(&s, &rec) != 0) {
-        fprintf(stderr, "hdjoint-host: warning: could not store the calibration record\n");
-    }
+    return hd_calib_store_save(&s, &rec) == 0 ? 0 : -1;
 }
 
 static const char *FAULT_NAMES[HD_FAULT_COUNT] = {
@@ -330,19 +361,79 @@ static const char *FAULT_NAMES[HD_FAULT_COUNT] = {
     "enc_fault", "kf_frozen", "kf_reset", "can_tx_full", "can_bus_off",
     "calib_missing", "calib_corrupt", "deadline_miss", "cmd_error", "calib_one_copy"};
 
+/* ------------------------------------------------------------------ NVM image */
+
+typedef struct {
+    const char *path;      /* NULL: no image file */
+    uint8_t saved[HAL_MOCK_NVM_BYTES];
+    bool missing;          /* no file yet: written at the start */
+    uint32_t writes;
+} nvm_file_t;
+
+/* A missing file is an erased device; anything else must be a whole image. */
+static int nvm_load(nvm_file_t *n, uint8_t *nvm, char *err, size_t err_len)
+{
+    memcpy(n->saved, nvm, sizeof n->saved);
+    if (n->path == NULL) {
+        return 0;
+    }
+    size_t len = 0;
+    char *buf = hd_hostio_read_file(n->path, HAL_MOCK_NVM_BYTES, &len, err, err_len);
+    if (buf == NULL) {
+        if (errno == ENOENT && hd_hostio_check_regular(n->path, NULL, 0) != 0 &&
+            strstr(err, "cannot open") != NULL) {
+            n->missing = true; /* starts erased; written at once (an unwritable path fails now) */
+            return 0;
+        }
+        return -1;
+    }
+    if (len != HAL_MOCK_NVM_BYTES) {
+        snprintf(err, err_len, "%s: NVM image of %zu bytes, expected %u (not written by "
+                 "hdjoint-host?)", n->path, len, (unsigned)HAL_MOCK_NVM_BYTES);
+        free(buf);
+        return -1;
+    }
+    memcpy(nvm, buf, HAL_MOCK_NVM_BYTES);
+    memcpy(n->saved, buf, HAL_MOCK_NVM_BYTES);
+    free(buf);
+    return 0;
+}
+
+/* Writes the image if it changed since the last write (or load). */
+static int nvm_sync(nvm_file_t *n, const uint8_t *nvm, char *err, size_t err_len)
+{
+    if (n->path == NULL || (!n->missing && memcmp(n->saved, nvm, sizeof n->saved) == 0)) {
+        return 0;
+    }
+    if (hd_hostio_write_atomic(n->path, nvm, HAL_MOCK_NVM_BYTES, err, err_len) != 0) {
+        return -1;
+    }
+    memcpy(n->saved, nvm, sizeof n->saved);
+    n->missing = false;
+    n->writes++;
+    return 0;
+}
+
 /* ------------------------------------------------------------------ main */
 
 static hal_mock_t g_mock;  /* large: static storage, as on the MCU */
 static hd_fw_t g_fw;
 
+static const char *signal_name(int sig)
+{
+    return sig == SIGINT ? "SIGINT" : (sig == SIGTERM ? "SIGTERM" : "a signal");
+}
+
 int main(int argc, char **argv)
 {
     options_t o;
-    if (parse_args(argc, argv, &o) != 0) {
-        usage(stderr);
-        return 2;
+    int prc = parse_args(argc, argv, &o);
+    if (prc != 0) {
+        free(o.cmds);
+        return prc > 0 ? 0 : EXIT_USAGE;
     }
-    char err[512] = "";
+    hd_hostio_catch_signals();
+    char err[600] = "";
     hal_t hal;
     hal_mock_init(&g_mock);
     hal_mock_bind(&g_mock, &hal); /* NVM, clock, CAN (log) from the mock by default */
@@ -374,16 +465,21 @@ int main(int argc, char **argv)
         }
     } else if (strncmp(o.sensors, "replay:", 7) == 0) {
         src = SRC_REPLAY;
+        /* hal_replay would block on a FIFO and read a directory as empty */
+        if (hd_hostio_check_regular(o.sensors + 7, err, sizeof err) != 0) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            return EXIT_USAGE;
+        }
         replay = hal_replay_open(o.sensors + 7, err, sizeof err);
         if (replay == NULL) {
             fprintf(stderr, "hdjoint-host: %s\n", err);
-            return 1;
+            return EXIT_USAGE;
         }
         if (hal_replay_ts_us(replay) != HD_FW_TS_US) {
             fprintf(stderr, "hdjoint-host: %s: sample period %u us, the firmware runs at %u us\n",
                     o.sensors + 7, hal_replay_ts_us(replay), HD_FW_TS_US);
             hal_replay_close(replay);
-            return 1;
+            return EXIT_USAGE;
         }
         hal_replay_bind(replay, &hal);
     } else if (strncmp(o.sensors, "sim:", 4) == 0) {
@@ -392,7 +488,7 @@ int main(int argc, char **argv)
         sim = &g_sim;
         if (hal_sim_open(sim, o.sensors + 4, err, sizeof err) != 0) {
             fprintf(stderr, "hdjoint-host: %s\n", err);
-            return 1;
+            return EXIT_USAGE;
         }
         hal_sim_bind(sim, &hal);
         have_truth = true;
@@ -401,7 +497,7 @@ int main(int argc, char **argv)
         if (nom.ts_s != 1e-3) {
             fprintf(stderr, "hdjoint-host: scenario sample period %g s, the firmware runs at 1 ms\n",
                     nom.ts_s);
-            return 1;
+            return EXIT_USAGE;
         }
         default_gain = (float)nom.gain_nm_per_v;
         default_offset = (float)nom.offset_v;
@@ -417,21 +513,20 @@ int main(int argc, char **argv)
         cfg.expected.coulomb_nm = (float)nom.coulomb_nm;
 #else
         fprintf(stderr, "hdjoint-host: built without the simulated joint (hal/sim)\n");
-        return 1;
+        return EXIT_USAGE;
 #endif
     } else {
-        fprintf(stderr, "hdjoint-host: unknown --sensors %s\n", o.sensors);
-        return 2;
+        fprintf(stderr, "hdjoint-host: unknown --sensors %s (see --help)\n", o.sensors);
+        return EXIT_USAGE;
     }
-    (void)src;
 
     /* configuration file on top of the defaults and the sensor's constants */
     if (o.config != NULL) {
         size_t len = 0;
-        char *text = read_text_file(o.config, &len);
+        char *text = hd_hostio_read_file(o.config, HD_HOSTIO_TEXT_MAX_BYTES, &len, err, sizeof err);
         if (text == NULL) {
-            fprintf(stderr, "hdjoint-host: cannot read %s: %s\n", o.config, strerror(errno));
-            return 1;
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            return EXIT_USAGE;
         }
         hd_cfgtxt_error_t ce;
         int rc = hd_config_text_parse(text, len, &cfg, &ce);
@@ -442,21 +537,61 @@ int main(int argc, char **argv)
             } else {
                 fprintf(stderr, "%s: %s\n", o.config, ce.message);
             }
-            return 1;
+            return EXIT_USAGE;
         }
     }
 
-    /* CAN */
+    /* frames given with --cmd, checked before anything is written */
+    hal_can_frame_t *cmds = calloc((size_t)o.n_cmds + 1u, sizeof *cmds);
+    if (cmds == NULL) {
+        fprintf(stderr, "hdjoint-host: out of memory\n");
+        return EXIT_RUN;
+    }
+    for (int i = 0; i < o.n_cmds; i++) {
+        if (parse_frame(o.cmds[i], &cmds[i]) != 0) {
+            fprintf(stderr, "hdjoint-host: bad --cmd %s (want ID#HEX: id <= 7FF, up to 8 bytes)\n",
+                    o.cmds[i]);
+            return EXIT_USAGE;
+        }
+    }
+
+    /* NVM: file image, then the requested or nominal calibration */
+    nvm_file_t nvm = {0};
+    nvm.path = o.nvm_file;
+    if (nvm_load(&nvm, g_mock.nvm, err, sizeof err) != 0) {
+        fprintf(stderr, "hdjoint-host: %s\n", err);
+        return EXIT_USAGE;
+    }
+    if ((o.have_calib || (o.nvm_file == NULL && isfinite(default_gain))) &&
+        provision_calibration(&hal, o.have_calib ? o.calib_gain : default_gain,
+                              o.have_calib ? o.calib_offset : default_offset) != 0) {
+        fprintf(stderr, "hdjoint-host: could not store the calibration record in NVM\n");
+        return EXIT_RUN;
+    }
+
+    int rc = hd_fw_init(&g_fw, &hal, &cfg);
+    if (rc != HD_FW_OK) {
+        fprintf(stderr, "hdjoint-host: firmware init failed: %s\n", hd_fw_err_str(rc));
+        return EXIT_USAGE;
+    }
+    if (nvm_sync(&nvm, g_mock.nvm, err, sizeof err) != 0) {
+        fprintf(stderr, "hdjoint-host: %s\n", err);
+        return EXIT_WRITE;
+    }
+
+    /* outputs: CAN log, CSV (temporary names until the end) */
     canlog_t canlog = {0};
+    hd_out_t csv = {0};
+    bool csv_open = false;
 #ifdef HD_HAVE_SOCKETCAN
     hal_socketcan_t *sock = NULL;
 #endif
     if (strncmp(o.can, "log:", 4) == 0) {
-        canlog.f = fopen(o.can + 4, "w");
-        if (canlog.f == NULL) {
-            fprintf(stderr, "hdjoint-host: cannot write %s: %s\n", o.can + 4, strerror(errno));
-            return 1;
+        if (hd_out_open(&canlog.out, o.can + 4, false, err, sizeof err) != 0) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            return EXIT_WRITE;
         }
+        canlog.open = true;
         g_mock.tx_store = false; /* the log keeps them */
         g_mock.tx_hook = log_frame;
         g_mock.tx_hook_ctx = &canlog;
@@ -466,61 +601,30 @@ int main(int argc, char **argv)
         sock = hal_socketcan_open(o.can + 10, &rx_id, 1, false, err, sizeof err);
         if (sock == NULL) {
             fprintf(stderr, "hdjoint-host: %s\n", err);
-            return 1;
+            return EXIT_RUN;
         }
         memset(&hal.can, 0, sizeof hal.can);
         hal_socketcan_bind(sock, &hal.can);
 #else
         fprintf(stderr, "hdjoint-host: built without SocketCAN support\n");
-        return 1;
+        return EXIT_USAGE;
 #endif
     } else if (strcmp(o.can, "none") == 0) {
         g_mock.tx_store = false;
     } else {
-        fprintf(stderr, "hdjoint-host: unknown --can %s\n", o.can);
-        return 2;
+        fprintf(stderr, "hdjoint-host: unknown --can %s (see --help)\n", o.can);
+        return EXIT_USAGE;
     }
-    for (int i = 0; i < o.n_cmds; i++) {
-        hal_can_frame_t f;
-        if (parse_frame(o.cmds[i], &f) != 0) {
-            fprintf(stderr, "hdjoint-host: bad --cmd %s (want ID#HEX, up to 8 bytes)\n", o.cmds[i]);
-            return 2;
-        }
-        hal_mock_push_rx(&g_mock, &f);
-        log_frame(&canlog, &f, 0u);
-    }
-
-    /* NVM: file image, then the requested or nominal calibration */
-    if (o.nvm_file != NULL) {
-        FILE *nf = fopen(o.nvm_file, "rb");
-        if (nf != NULL) {
-            size_t n = fread(g_mock.nvm, 1, sizeof g_mock.nvm, nf);
-            fclose(nf);
-            (void)n;
-        }
-    }
-    if (o.have_calib) {
-        provision_calibration(&hal, o.calib_gain, o.calib_offset);
-    } else if (o.nvm_file == NULL && isfinite(default_gain)) {
-        provision_calibration(&hal, default_gain, default_offset);
-    }
-
-    int rc = hd_fw_init(&g_fw, &hal, &cfg);
-    if (rc != HD_FW_OK) {
-        fprintf(stderr, "hdjoint-host: firmware init failed: %s\n", hd_fw_err_str(rc));
-        return 1;
-    }
-
-    FILE *csv = NULL;
     if (o.csv != NULL) {
-        csv = fopen(o.csv, "w");
-        if (csv == NULL) {
-            fprintf(stderr, "hdjoint-host: cannot write %s: %s\n", o.csv, strerror(errno));
-            return 1;
+        if (hd_out_open(&csv, o.csv, false, err, sizeof err) != 0) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            hd_out_abort(&canlog.out);
+            return EXIT_WRITE;
         }
-        fputs("t_s,bridge_counts,torque_raw_nm,torque_filtered_nm,ripple_nm,torque_expected_nm,"
-              "motor_velocity_rad_s,motor_angle_rad,faults,kf_status,torque_true_nm\n",
-              csv);
+        csv_open = true;
+        hd_out_printf(&csv, "t_s,bridge_counts,torque_raw_nm,torque_filtered_nm,ripple_nm,"
+                            "torque_expected_nm,motor_velocity_rad_s,motor_angle_rad,faults,"
+                            "kf_status,torque_true_nm\n");
     }
 
     uint64_t max_ticks = (o.duration_s > 0.0) ? (uint64_t)llround(o.duration_s * 1000.0) : UINT64_MAX;
@@ -531,10 +635,16 @@ int main(int argc, char **argv)
     uint64_t next_ns = now_ns() + period_ns;
     uint64_t wall_start_ns = now_ns();
     uint64_t k = 0;
-    for (; k < max_ticks; k++) {
+    int n_fed = 0;
+    bool nvm_failed = false;
+    for (; k < max_ticks && hd_hostio_signal() == 0; k++) {
         if (o.realtime) {
             struct timespec ts = {(time_t)(next_ns / 1000000000ull), (long)(next_ns % 1000000000ull)};
-            while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+            while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR &&
+                   hd_hostio_signal() == 0) {
+            }
+            if (hd_hostio_signal() != 0) {
+                break;
             }
             uint64_t woke = now_ns();
             double late_us = (double)(woke - next_ns) / 1000.0;
@@ -547,6 +657,11 @@ int main(int argc, char **argv)
             synth_push(&synth, &g_mock, &cfg);
         }
         g_mock.now_us = k * HD_FW_TS_US; /* time stamps of the CAN log: sample time */
+        /* --cmd frames, in order, as the receive queue has room */
+        while (n_fed < o.n_cmds && hal_mock_push_rx(&g_mock, &cmds[n_fed]) == HAL_OK) {
+            log_frame(&canlog, &cmds[n_fed], g_mock.now_us);
+            n_fed++;
+        }
         uint64_t t0 = now_ns();
         hd_fw_isr(&g_fw);
         uint64_t t1 = now_ns();
@@ -559,7 +674,10 @@ int main(int argc, char **argv)
             tm.isr_max_us = isr_us;
         }
         tm.ticks++;
-        hd_fw_background(&g_fw);
+        if (hd_fw_background(&g_fw) && nvm_sync(&nvm, g_mock.nvm, err, sizeof err) != 0) {
+            nvm_failed = true;
+            break;
+        }
 
         const hd_fw_sample_t *s = hd_fw_last_sample(&g_fw);
         double truth = NAN;
@@ -575,12 +693,15 @@ int main(int argc, char **argv)
         motor_angle += (double)s->d_motor_angle_rad;
         double t_s = (double)k * 1e-3;
         err_add(&er, t_s, (double)s->torque_raw_nm, (double)s->torque_filtered_nm, truth);
-        if (csv != NULL) {
-            fprintf(csv, "%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%u,%u,%.6g\n", t_s,
-                    (int)s->bridge_counts, (double)s->torque_raw_nm,
-                    (double)s->torque_filtered_nm, (double)s->ripple_nm,
-                    (double)s->torque_expected_nm, (double)s->motor_velocity_rad_s, motor_angle,
-                    (unsigned)s->faults, (unsigned)s->kf_status, truth);
+        if (csv_open) {
+            hd_out_printf(&csv, "%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%u,%u,%.6g\n", t_s,
+                          (int)s->bridge_counts, (double)s->torque_raw_nm,
+                          (double)s->torque_filtered_nm, (double)s->ripple_nm,
+                          (double)s->torque_expected_nm, (double)s->motor_velocity_rad_s,
+                          motor_angle, (unsigned)s->faults, (unsigned)s->kf_status, truth);
+        }
+        if ((csv_open && hd_out_failed(&csv)) || (canlog.open && hd_out_failed(&canlog.out))) {
+            break; /* reported below, with the file and the reason */
         }
         if (o.realtime) {
             next_ns += period_ns;
@@ -596,21 +717,43 @@ int main(int argc, char **argv)
         }
     }
     double wall_s = (double)(now_ns() - wall_start_ns) / 1e9;
+    const int sig = hd_hostio_signal();
+    free(cmds);
+    free(o.cmds);
 
-    if (o.nvm_file != NULL) {
-        FILE *nf = fopen(o.nvm_file, "wb");
-        if (nf == NULL || fwrite(g_mock.nvm, 1, sizeof g_mock.nvm, nf) != sizeof g_mock.nvm) {
-            fprintf(stderr, "hdjoint-host: cannot write NVM image %s\n", o.nvm_file);
-        }
-        if (nf != NULL) {
-            fclose(nf);
+    /* the end: one error line and the old outputs, or whole new outputs */
+    int exit_code = 0;
+    if (nvm_failed) {
+        fprintf(stderr, "hdjoint-host: %s\n", err);
+        exit_code = EXIT_WRITE;
+    } else if (sig == 0 && (n_fed < o.n_cmds || g_mock.rx_count != 0u)) {
+        fprintf(stderr, "hdjoint-host: %u of %d --cmd frames not handled: the run ended after "
+                "%llu ticks (%u frames per tick)\n", (unsigned)(o.n_cmds - n_fed) + g_mock.rx_count,
+                o.n_cmds, (unsigned long long)tm.ticks, (unsigned)HD_FW_RX_PER_TICK);
+        exit_code = EXIT_RUN;
+    }
+    hd_out_t *outs[2] = {csv_open ? &csv : NULL, canlog.open ? &canlog.out : NULL};
+    if (exit_code == 0) {
+        if (hd_out_commit_all(outs, 2u, err, sizeof err) != 0) {
+            fprintf(stderr, "hdjoint-host: %s\n", err);
+            exit_code = EXIT_WRITE;
         }
     }
-    if (csv != NULL) {
-        fclose(csv);
+    hd_out_abort(&csv);
+    hd_out_abort(&canlog.out);
+    if (exit_code != 0) {
+        if (replay != NULL) {
+            hal_replay_close(replay);
+        }
+#ifdef HD_HAVE_SOCKETCAN
+        hal_socketcan_close(sock);
+#endif
+        return exit_code;
     }
-    if (canlog.f != NULL) {
-        fclose(canlog.f);
+    if (sig != 0) {
+        fprintf(stderr, "hdjoint-host: interrupted by %s after %llu samples; outputs complete "
+                "up to there\n", signal_name(sig), (unsigned long long)tm.ticks);
+        exit_code = 128 + sig;
     }
 
     /* summary */
@@ -619,54 +762,67 @@ int main(int argc, char **argv)
     if (hal.can.counters != NULL) {
         hal.can.counters(hal.can.ctx, &hc);
     }
-    printf("samples = %llu\n", (unsigned long long)c->ticks);
-    printf("valid_samples = %llu\n", (unsigned long long)c->valid_samples);
-    printf("mode = %s\n", o.realtime ? "realtime" : "fast");
-    printf("wall_time_s = %.3f\n", wall_s);
-    printf("isr_mean_us = %.3f\n", tm.ticks ? tm.isr_sum_us / (double)tm.ticks : 0.0);
-    printf("isr_max_us = %.3f\n", tm.isr_max_us);
-    if (o.realtime) {
-        printf("jitter_mean_us = %.3f\n", tm.ticks ? tm.jitter_sum_us / (double)tm.ticks : 0.0);
-        printf("jitter_max_us = %.3f\n", tm.jitter_max_us);
-        printf("overruns = %llu\n", (unsigned long long)tm.overruns);
-        printf("missed_ticks = %llu\n", (unsigned long long)tm.missed_ticks);
-    }
-    printf("deadline_misses = %u\n", (unsigned)c->deadline_misses);
-    printf("fault_ticks = %u\n", (unsigned)c->fault_ticks);
-    for (unsigned b = 0; b < HD_FAULT_COUNT; b++) {
-        if (c->by_fault[b] != 0u) {
-            printf("fault_%s = %u\n", FAULT_NAMES[b], (unsigned)c->by_fault[b]);
+    if (!o.quiet) {
+        printf("samples = %llu\n", (unsigned long long)c->ticks);
+        printf("valid_samples = %llu\n", (unsigned long long)c->valid_samples);
+        printf("mode = %s\n", o.realtime ? "realtime" : "fast");
+        if (sig != 0) {
+            printf("interrupted = %s\n", signal_name(sig));
         }
-    }
-    printf("calib_status = %d\n", g_fw.calib_load_result);
-    printf("truth = %s\n", have_truth ? "yes" : "no");
-    printf("telemetry_periods = %u\n", (unsigned)c->telemetry_frames);
-    printf("commands = %u\n", (unsigned)c->commands);
-    printf("command_errors = %u\n", (unsigned)c->command_errors);
-    printf("can_tx_ok = %u\n", (unsigned)hc.can_tx_ok);
-    printf("can_tx_dropped = %u\n", (unsigned)hc.can_tx_dropped);
-    if (canlog.f != NULL) {
-        printf("can_log = %s\n", o.can + 4);
-        printf("can_log_frames = %llu\n", (unsigned long long)canlog.frames);
-    }
-    if (er.n > 0u) {
-        printf("rms_error_raw_nm = %.4f\n", sqrt(er.sum_raw2 / (double)er.n));
-        printf("rms_error_filtered_nm = %.4f\n", sqrt(er.sum_filt2 / (double)er.n));
-    }
-    if (er.n_settled > 0u) {
-        printf("rms_error_raw_after_1s_nm = %.4f\n", sqrt(er.sum_raw2_settled / (double)er.n_settled));
-        printf("rms_error_filtered_after_1s_nm = %.4f\n",
-               sqrt(er.sum_filt2_settled / (double)er.n_settled));
-    }
-    if (replay != NULL) {
-        if (hal_replay_trailing_bytes(replay) != 0u) {
+        printf("wall_time_s = %.3f\n", wall_s);
+        printf("isr_mean_us = %.3f\n", tm.ticks ? tm.isr_sum_us / (double)tm.ticks : 0.0);
+        printf("isr_max_us = %.3f\n", tm.isr_max_us);
+        if (o.realtime) {
+            printf("jitter_mean_us = %.3f\n", tm.ticks ? tm.jitter_sum_us / (double)tm.ticks : 0.0);
+            printf("jitter_max_us = %.3f\n", tm.jitter_max_us);
+            printf("overruns = %llu\n", (unsigned long long)tm.overruns);
+            printf("missed_ticks = %llu\n", (unsigned long long)tm.missed_ticks);
+        }
+        printf("deadline_misses = %u\n", (unsigned)c->deadline_misses);
+        printf("fault_ticks = %u\n", (unsigned)c->fault_ticks);
+        for (unsigned b = 0; b < HD_FAULT_COUNT; b++) {
+            if (c->by_fault[b] != 0u) {
+                printf("fault_%s = %u\n", FAULT_NAMES[b], (unsigned)c->by_fault[b]);
+            }
+        }
+        printf("calib_status = %d\n", g_fw.calib_load_result);
+        printf("truth = %s\n", have_truth ? "yes" : "no");
+        printf("telemetry_periods = %u\n", (unsigned)c->telemetry_frames);
+        printf("commands = %u\n", (unsigned)c->commands);
+        printf("command_errors = %u\n", (unsigned)c->command_errors);
+        printf("cmd_frames_given = %d\n", o.n_cmds);
+        printf("can_tx_ok = %u\n", (unsigned)hc.can_tx_ok);
+        printf("can_tx_dropped = %u\n", (unsigned)hc.can_tx_dropped);
+        if (canlog.open) {
+            printf("can_log = %s\n", o.can + 4);
+            printf("can_log_frames = %llu\n", (unsigned long long)canlog.frames);
+        }
+        if (o.nvm_file != NULL) {
+            printf("nvm_file = %s\n", o.nvm_file);
+            printf("nvm_writes = %u\n", (unsigned)nvm.writes);
+        }
+        if (er.n > 0u) {
+            printf("rms_error_raw_nm = %.4f\n", sqrt(er.sum_raw2 / (double)er.n));
+            printf("rms_error_filtered_nm = %.4f\n", sqrt(er.sum_filt2 / (double)er.n));
+        }
+        if (er.n_settled > 0u) {
+            printf("rms_error_raw_after_1s_nm = %.4f\n", sqrt(er.sum_raw2_settled / (double)er.n_settled));
+            printf("rms_error_filtered_after_1s_nm = %.4f\n",
+                   sqrt(er.sum_filt2_settled / (double)er.n_settled));
+        }
+        if (replay != NULL && hal_replay_trailing_bytes(replay) != 0u) {
             printf("replay_trailing_bytes = %u\n", hal_replay_trailing_bytes(replay));
         }
+    }
+    if (replay != NULL) {
         hal_replay_close(replay);
     }
 #ifdef HD_HAVE_SOCKETCAN
     hal_socketcan_close(sock);
 #endif
-    (void)o.quiet;
-    return 0;
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        fprintf(stderr, "hdjoint-host: stdout: write failed: %s\n", strerror(errno));
+        return EXIT_WRITE;
+    }
+    return exit_code;
 }
