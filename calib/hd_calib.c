@@ -293,12 +293,15 @@ static uint32_t group_levels(const hd_calib_experiment_t *e, float fs_nm,
     return nl;
 }
 
+/* Per-level measures; *both_nonzero = the levels other than zero that were
+ * read in both directions. */
 static void level_measures(const hd_calib_experiment_t *e, float a, float b, float fs_nm,
-                           float gain, hd_calib_fit_t *out)
+                               float gain, hd_calib_fit_t *out, uint32_t *both_nonzero)
 {
     level_t lv[HD_CALIB_MAX_POINTS];
     uint32_t nl = group_levels(e, fs_nm, lv);
     float nl_max = 0.0f, hy_max = 0.0f;
+    *both_nonzero = 0u;
     for (uint32_t j = 0; j < nl; ++j) {
         float mean_l = lv[j].count[0] ? lv[j].sum_v[0] / (float)lv[j].count[0] : 0.0f;
         float mean_u = lv[j].count[1] ? lv[j].sum_v[1] / (float)lv[j].count[1] : 0.0f;
@@ -309,6 +312,7 @@ static void level_measures(const hd_calib_experiment_t *e, float a, float b, flo
             mid = 0.5f * (mean_l + mean_u);
             float h = abs_f(mean_u - mean_l);
             hy_max = h > hy_max ? h : hy_max;
+            *both_nonzero += (lv[j].x != 0.0f) ? 1u : 0u;
         } else {
             mid = lv[j].count[0] ? mean_l : mean_u;
         }
@@ -392,7 +396,8 @@ int hd_calib_fit_experiment(const hd_calib_experiment_t *e, float alpha,
     out->offset_v = a;
     out->offset_se_v = line.se[COL_ONE];
     out->residual_rms_v = sqrtf(line.rss / (float)n);
-    level_measures(e, a, b, fs_nm, out->gain_nm_per_v, out);
+    uint32_t both_nonzero = 0u;
+    level_measures(e, a, b, fs_nm, out->gain_nm_per_v, out, &both_nonzero);
 
     /* Significance: nested F-tests in the model 1, x, x^2, x^3, branch. */
     static const uint32_t no_curve[3] = {COL_ONE, COL_X, COL_U};
@@ -404,6 +409,19 @@ int hd_calib_fit_experiment(const hd_calib_experiment_t *e, float alpha,
     fit_cols(&all, full_cols, 5u, e->bridge_v, &m_full);
     out->nonlinearity_p = nested_pvalue(&m_nc, &m_full, n);
     out->hysteresis_p = nested_pvalue(&m_nb, &m_full, n);
+    /* What the data cannot measure is NaN, never a reassuring 0.  Fewer
+     * than 3 load levels leave x^2, x^3 dependent on 1, x (any function is
+     * affine on two points): the F-test has no column to test, p is NaN. */
+    out->nonlinearity_measurable = (uint8_t)finite_f(out->nonlinearity_p);
+    out->hysteresis_measurable = (uint8_t)(both_nonzero >= 1u && finite_f(out->hysteresis_p));
+    if (!out->nonlinearity_measurable) {
+        out->nonlinearity_pct_fs = NAN;
+        out->nonlinearity_p = NAN;
+    }
+    if (!out->hysteresis_measurable) {
+        out->hysteresis_pct_fs = NAN;
+        out->hysteresis_p = NAN;
+    }
     out->nonlinearity_detected = (uint8_t)(out->nonlinearity_p < alpha &&
                                            out->nonlinearity_pct_fs >= min_detect_pct_fs);
     out->hysteresis_detected = (uint8_t)(out->hysteresis_p < alpha &&
@@ -425,6 +443,7 @@ void hd_calib_thresholds_default(hd_calib_thresholds_t *t)
     t->alpha = 0.001f;
     t->min_detect_pct_fs = 0.02f;
     t->min_experiments = 2u;
+    t->allow_unmeasurable = 0u;
 }
 
 static void position_test(const hd_calib_experiment_t *exps, uint32_t n,
@@ -463,14 +482,24 @@ static void position_test(const hd_calib_experiment_t *exps, uint32_t n,
 static void campaign_stats(uint32_t n, hd_calib_report_t *out)
 {
     float sg = 0.0f, so = 0.0f;
+    out->nonlinearity_pct_fs = NAN;
+    out->hysteresis_pct_fs = NAN;
+    out->nonlinearity_measurable = 1u;
+    out->hysteresis_measurable = 1u;
     for (uint32_t i = 0; i < n; ++i) {
         const hd_calib_fit_t *f = &out->fit[i];
         sg += f->gain_nm_per_v;
         so += f->offset_v;
-        out->nonlinearity_pct_fs = f->nonlinearity_pct_fs > out->nonlinearity_pct_fs
-                                       ? f->nonlinearity_pct_fs : out->nonlinearity_pct_fs;
-        out->hysteresis_pct_fs = f->hysteresis_pct_fs > out->hysteresis_pct_fs
-                                     ? f->hysteresis_pct_fs : out->hysteresis_pct_fs;
+        /* worst of the measurable ones (NaN compares false: skipped) */
+        if (f->nonlinearity_measurable &&
+            !(f->nonlinearity_pct_fs <= out->nonlinearity_pct_fs)) {
+            out->nonlinearity_pct_fs = f->nonlinearity_pct_fs;
+        }
+        if (f->hysteresis_measurable && !(f->hysteresis_pct_fs <= out->hysteresis_pct_fs)) {
+            out->hysteresis_pct_fs = f->hysteresis_pct_fs;
+        }
+        out->nonlinearity_measurable &= f->nonlinearity_measurable;
+        out->hysteresis_measurable &= f->hysteresis_measurable;
         out->nonlinearity_detected |= f->nonlinearity_detected;
         out->hysteresis_detected |= f->hysteresis_detected;
     }
@@ -515,6 +544,11 @@ static void decide(uint32_t n, const hd_calib_thresholds_t *t, hd_calib_report_t
     if (out->position_detected && out->position_amplitude_pct > t->max_position_pct) {
         r |= HD_CALIB_REJECT_POSITION;
     }
+    /* A limit that cannot be checked is not met. */
+    if (!t->allow_unmeasurable && (!out->nonlinearity_measurable ||
+                                   !out->hysteresis_measurable || !out->position_testable)) {
+        r |= HD_CALIB_REJECT_NOT_MEASURABLE;
+    }
     out->reject_reasons = r;
     out->accepted = (uint8_t)(r == 0u);
 }
@@ -523,7 +557,8 @@ static int thresholds_ok(const hd_calib_thresholds_t *t)
 {
     return finite_f(t->max_consistency) && finite_f(t->max_nonlinearity_pct_fs) &&
            finite_f(t->max_hysteresis_pct_fs) && finite_f(t->max_position_pct) &&
-           t->alpha > 0.0f && t->alpha < 1.0f && finite_f(t->min_detect_pct_fs);
+           t->alpha > 0.0f && t->alpha < 1.0f && finite_f(t->min_detect_pct_fs) &&
+           t->allow_unmeasurable <= 1u;
 }
 
 int hd_calib_analyze(const hd_calib_experiment_t *exps, uint32_t n_experiments,
@@ -580,6 +615,10 @@ const char *hd_calib_reason_str(uint32_t reason_bit)
     case HD_CALIB_REJECT_NONLINEAR: return "nonlinearity above limit";
     case HD_CALIB_REJECT_HYSTERESIS: return "hysteresis above limit";
     case HD_CALIB_REJECT_POSITION: return "gain depends on flexspline position";
+    case HD_CALIB_REJECT_NOT_MEASURABLE:
+        return "not measurable from this data (nonlinearity: >= 3 load levels; hysteresis: "
+               "loading and unloading at a nonzero load; position: >= 3 positions mod 180 deg "
+               "and >= 4 experiments)";
     default: return "unknown reason";
     }
 }

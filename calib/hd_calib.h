@@ -57,15 +57,21 @@ typedef struct {
     float offset_se_v;
     float residual_rms_v;         /* rms residual of the straight line */
     /* Nonlinearity: largest deviation of the per-level mean (midpoint of the
-     * loading and unloading branches) from the fitted line, % of full scale. */
+     * loading and unloading branches) from the fitted line, % of full scale.
+     * Measurable with >= 3 distinct load levels and residual degrees of
+     * freedom for its F-test; otherwise NaN (a line through two levels fits
+     * them exactly: "0 %" would be a claim the data cannot make). */
     float nonlinearity_pct_fs;
-    float nonlinearity_p;         /* p-value of the x^2,x^3 terms (NaN: not testable) */
+    float nonlinearity_p;         /* p-value of the x^2,x^3 terms (NaN: not measurable) */
     /* Hysteresis: largest |unloading - loading| at the same applied torque,
-     * % of full scale (0 if no level has both branches). */
+     * % of full scale.  Measurable when a nonzero load level was read in
+     * both directions (and its F-test has degrees of freedom); otherwise NaN. */
     float hysteresis_pct_fs;
-    float hysteresis_p;           /* p-value of the branch term (NaN: not testable) */
+    float hysteresis_p;           /* p-value of the branch term (NaN: not measurable) */
     uint8_t nonlinearity_detected; /* p < alpha and size >= min_detect_pct_fs */
     uint8_t hysteresis_detected;
+    uint8_t nonlinearity_measurable;
+    uint8_t hysteresis_measurable;
 } hd_calib_fit_t;
 
 typedef struct {
@@ -76,6 +82,10 @@ typedef struct {
     float alpha;                    /* significance level of every test; default 0.001 */
     float min_detect_pct_fs;        /* resolution floor for a detection; default 0.02 */
     uint32_t min_experiments;       /* default 2 (>= 2 always) */
+    /* 0 (default): a campaign whose nonlinearity, hysteresis (in any
+     * experiment) or position dependence cannot be measured is rejected
+     * (NOT_MEASURABLE); 1: accepted on the measures it has. */
+    uint32_t allow_unmeasurable;
 } hd_calib_thresholds_t;
 
 /* Reject reasons (bitmask in hd_calib_report_t.reject_reasons). */
@@ -84,6 +94,7 @@ typedef struct {
 #define HD_CALIB_REJECT_NONLINEAR 0x04u
 #define HD_CALIB_REJECT_HYSTERESIS 0x08u
 #define HD_CALIB_REJECT_POSITION 0x10u
+#define HD_CALIB_REJECT_NOT_MEASURABLE 0x20u
 
 typedef struct {
     uint32_t n_experiments;
@@ -92,10 +103,12 @@ typedef struct {
     float gain_std_nm_per_v;        /* sample standard deviation (n-1) */
     float consistency;              /* gain_std / gain_mean (fraction) */
     float offset_mean_v;
-    float nonlinearity_pct_fs;      /* worst experiment */
-    float hysteresis_pct_fs;        /* worst experiment */
+    float nonlinearity_pct_fs;      /* worst measurable experiment (NaN: none) */
+    float hysteresis_pct_fs;        /* worst measurable experiment (NaN: none) */
     uint8_t nonlinearity_detected;  /* in any experiment */
     uint8_t hysteresis_detected;
+    uint8_t nonlinearity_measurable; /* in every experiment */
+    uint8_t hysteresis_measurable;   /* in every experiment */
     /* gain(theta) = g0 (1 + a cos(2 theta - phase)): order 2 because the
      * elliptical wave generator is two-fold symmetric. */
     uint8_t position_testable;      /* >= 3 distinct positions (mod 180 deg) and >= 4 experiments */

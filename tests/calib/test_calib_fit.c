@@ -302,6 +302,78 @@ static void test_position_not_testable_with_two_positions(void)
     TEST_ASSERT_EQUAL_INT(HD_CALIB_OK, hd_calib_analyze(exps, 8u, &t, &r));
     TEST_ASSERT_FALSE(r.position_testable);
     TEST_ASSERT_TRUE(isnan(r.position_p));
+    /* a limit that cannot be checked is not met, unless allowed */
+    TEST_ASSERT_FALSE(r.accepted);
+    TEST_ASSERT_EQUAL_HEX32(HD_CALIB_REJECT_NOT_MEASURABLE, r.reject_reasons);
+    t.allow_unmeasurable = 1u;
+    TEST_ASSERT_EQUAL_INT(HD_CALIB_OK, hd_calib_analyze(exps, 8u, &t, &r));
+    TEST_ASSERT_TRUE(r.accepted);
+}
+
+/* Two points per experiment (0 and full scale, loading only): the gain is
+ * there, but no nonlinearity (a line fits two levels exactly), no
+ * hysteresis (one direction) and no standard error. */
+static void test_two_point_experiments_are_not_measurable(void)
+{
+    double gains[8];
+    spread_gains(gains, 0.01);
+    hd_calib_experiment_t exps[8];
+    campaign(exps, gains, 0.001, 0.0, 0.0);
+    for (unsigned i = 0; i < 8u; ++i) {
+        /* keep points 0 (0 N m, load) and 5 (+FS, load) */
+        exps[i].torque_nm[1] = exps[i].torque_nm[5];
+        exps[i].bridge_v[1] = exps[i].bridge_v[5];
+        exps[i].direction[1] = HD_CALIB_DIR_LOAD;
+        exps[i].n_points = 2u;
+    }
+    hd_calib_thresholds_t t = thr();
+    static hd_calib_report_t r;
+    TEST_ASSERT_EQUAL_INT(HD_CALIB_OK, hd_calib_analyze(exps, 8u, &t, &r));
+    for (unsigned i = 0; i < 8u; ++i) {
+        TEST_ASSERT_FALSE(r.fit[i].nonlinearity_measurable);
+        TEST_ASSERT_FALSE(r.fit[i].hysteresis_measurable);
+        TEST_ASSERT_TRUE(isnan(r.fit[i].nonlinearity_pct_fs));
+        TEST_ASSERT_TRUE(isnan(r.fit[i].hysteresis_pct_fs));
+        TEST_ASSERT_TRUE(isnan(r.fit[i].gain_se_nm_per_v));
+        TEST_ASSERT_FLOAT_WITHIN(0.01f * 6.6f * 4.0f, 6.60f, r.fit[i].gain_nm_per_v);
+    }
+    TEST_ASSERT_TRUE(isnan(r.nonlinearity_pct_fs));
+    TEST_ASSERT_TRUE(isnan(r.hysteresis_pct_fs));
+    TEST_ASSERT_FALSE(r.accepted);
+    TEST_ASSERT_EQUAL_HEX32(HD_CALIB_REJECT_NOT_MEASURABLE, r.reject_reasons);
+}
+
+/* Loading only, both torque directions (0 -> FS, 0 -> -FS): nonlinearity
+ * measurable, hysteresis not; the worst hysteresis is over the measurable
+ * experiments only. */
+static void test_one_direction_has_no_hysteresis(void)
+{
+    double gains[8];
+    spread_gains(gains, 0.0);
+    hd_calib_experiment_t exps[8];
+    campaign(exps, gains, 0.001, 0.0, 0.0);
+    hd_calib_experiment_t *e = &exps[2];
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < e->n_points; ++i) {
+        if (e->direction[i] == HD_CALIB_DIR_LOAD) {
+            e->torque_nm[n] = e->torque_nm[i];
+            e->bridge_v[n] = e->bridge_v[i];
+            e->direction[n++] = HD_CALIB_DIR_LOAD;
+        }
+    }
+    e->n_points = n; /* 11 points: 0, +-0.2 .. +-1 FS */
+    hd_calib_thresholds_t t = thr();
+    static hd_calib_report_t r;
+    TEST_ASSERT_EQUAL_INT(HD_CALIB_OK, hd_calib_analyze(exps, 8u, &t, &r));
+    TEST_ASSERT_TRUE(r.fit[2].nonlinearity_measurable);
+    TEST_ASSERT_FALSE(r.fit[2].hysteresis_measurable);
+    TEST_ASSERT_TRUE(isnan(r.fit[2].hysteresis_pct_fs));
+    TEST_ASSERT_TRUE(r.fit[1].hysteresis_measurable);
+    TEST_ASSERT_FALSE(r.hysteresis_measurable);
+    TEST_ASSERT_TRUE(r.nonlinearity_measurable);
+    TEST_ASSERT_TRUE(isfinite(r.hysteresis_pct_fs)); /* from the other seven */
+    TEST_ASSERT_FALSE(r.accepted);
+    TEST_ASSERT_EQUAL_HEX32(HD_CALIB_REJECT_NOT_MEASURABLE, r.reject_reasons);
 }
 
 static void test_nonlinearity_rejects_above_limit(void)
@@ -419,6 +491,8 @@ int main(void)
     RUN_TEST(test_table1_campaign_reports_660_and_2_percent);
     RUN_TEST(test_position_dependence_detected_with_right_size);
     RUN_TEST(test_position_not_testable_with_two_positions);
+    RUN_TEST(test_two_point_experiments_are_not_measurable);
+    RUN_TEST(test_one_direction_has_no_hysteresis);
     RUN_TEST(test_nonlinearity_rejects_above_limit);
     RUN_TEST(test_bad_input_errors);
     RUN_TEST(test_f_pvalue_against_published_tables);

@@ -129,43 +129,189 @@ def config_to_commands(text: str, db=None, token: int = 0) -> list[tuple[int, by
     return cmds
 
 
-def read_log(path: str | Path):
-    """Frames of a candump -l log, through python-can's reader."""
+LOG_MAX_BYTES = 1 << 30       # a candump log larger than 1 GiB is refused
+_FD_LENGTHS = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64}
+_CAN_ERR_FLAG = 0x20000000
+
+
+def _parse_candump_line(line: str):
+    """One `candump -l` line -> can.Message, or a reason string if malformed.
+    Forms: (ts) IF 123#0011, 12345678#.. (extended), 123#R / 123#R3 (remote),
+    123##1<data> (CAN FD with its flags nibble), an 8-digit id with the error
+    flag (error frame), classic 8 bytes with a _D raw DLC suffix."""
     import can
-    return list(can.CanutilsLogReader(str(path)))
+    parts = line.split()
+    if len(parts) != 3:
+        return f"{len(parts)} fields, expected 3 ((time) interface frame)"
+    ts, _iface, frame = parts
+    if not (ts.startswith("(") and ts.endswith(")")):
+        return "no (time stamp)"
+    try:
+        t = float(ts[1:-1])
+    except ValueError:
+        return f"time stamp {ts} is not a number"
+    if t != t or t in (float("inf"), float("-inf")):
+        return "time stamp not finite"
+    can_id, sep, data = frame.partition("#")
+    if not sep:
+        return "no '#' in the frame"
+    if len(can_id) not in (3, 8) or any(c not in "0123456789abcdefABCDEF" for c in can_id):
+        return f"identifier {can_id!r} is not 3 or 8 hex digits"
+    ident = int(can_id, 16)
+    extended = len(can_id) == 8
+    if extended and ident & _CAN_ERR_FLAG:
+        return can.Message(timestamp=t, arbitration_id=ident & 0x1FFFFFFF, is_extended_id=True,
+                           is_error_frame=True)
+    if (not extended and ident > 0x7FF) or ident > 0x1FFFFFFF:
+        return f"identifier {can_id} out of range"
+    is_fd, flags = False, 0
+    if data.startswith("#"):
+        if len(data) < 2 or data[1] not in "0123456789abcdefABCDEF":
+            return "CAN FD frame without its flags digit"
+        is_fd, flags, data = True, int(data[1], 16), data[2:]
+    elif data[:1] in ("R", "r"):
+        rest = data[1:]
+        if rest and not (len(rest) == 1 and rest.isdigit() and int(rest) <= 8):
+            return f"remote frame length {rest!r}"
+        return can.Message(timestamp=t, arbitration_id=ident, is_extended_id=extended,
+                           is_remote_frame=True, dlc=int(rest) if rest else 0)
+    elif "_" in data:
+        data, _, raw_dlc = data.partition("_")
+        if len(data) != 16 or len(raw_dlc) != 1 or raw_dlc not in "9ABCDEFabcdef":
+            return "bad raw DLC suffix"
+    if len(data) % 2:
+        return f"odd number of hex digits in the data ({len(data)}): cut short?"
+    try:
+        payload = bytes.fromhex(data)
+    except ValueError:
+        return "data is not hex"
+    if (is_fd and len(payload) not in _FD_LENGTHS) or (not is_fd and len(payload) > 8):
+        return f"{len(payload)} data bytes is not a valid {'CAN FD' if is_fd else 'CAN'} length"
+    return can.Message(timestamp=t, arbitration_id=ident, is_extended_id=extended, is_fd=is_fd,
+                       bitrate_switch=bool(flags & 1), error_state_indicator=bool(flags & 2),
+                       data=payload)
 
 
-def decode_log(path: str | Path, node_id: int = 1) -> dict:
+def read_log_lines(path: str | Path, malformed: list | None = None) -> list:
+    """(line number, can.Message) for every frame of a candump -l log.
+
+    Blank lines and '#' comments are ignored; a malformed line (cut short,
+    bad hex, wrong length, not text) is skipped and, if `malformed` is a
+    list, appended to it as (line number, reason).  A file that is not a
+    regular file or is over LOG_MAX_BYTES raises safeio.UsageError."""
+    from hdtools import safeio
+    import os
+    import stat
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise safeio.UsageError(f"{path}: cannot read: {exc.strerror}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise safeio.UsageError(f"{path}: is a directory")
+    if not stat.S_ISREG(st.st_mode):
+        raise safeio.UsageError(f"{path}: not a regular file (FIFO, device or socket)")
+    if st.st_size > LOG_MAX_BYTES:
+        raise safeio.UsageError(f"{path}: {st.st_size} bytes, more than the limit of "
+                                f"{LOG_MAX_BYTES}")
+    out = []
+    try:
+        with open(path, "rb") as f:
+            for lineno, raw in enumerate(f, start=1):
+                try:
+                    line = raw.decode("ascii").strip()
+                except UnicodeDecodeError:
+                    if malformed is not None:
+                        malformed.append((lineno, "not ASCII text"))
+                    continue
+                if not line or line.startswith("#"):
+                    continue
+                res = _parse_candump_line(line)
+                if isinstance(res, str):
+                    if malformed is not None:
+                        malformed.append((lineno, res))
+                else:
+                    out.append((lineno, res))
+    except OSError as exc:
+        raise safeio.UsageError(f"{path}: cannot read: {exc.strerror}") from None
+    return out
+
+
+def read_log(path: str | Path, malformed: list | None = None):
+    """Frames of a candump -l log (can.Message), malformed lines skipped
+    (and listed in `malformed` if given): see read_log_lines."""
+    return [msg for _, msg in read_log_lines(path, malformed)]
+
+
+def nodes_in(frames) -> dict[int, int]:
+    """Frames per node id (1..127) among the joint's identifiers."""
+    counts: dict[int, int] = {}
+    for _, msg in frames:
+        if msg.is_extended_id or msg.is_error_frame:
+            continue
+        for base in BASE_IDS.values():
+            node = msg.arbitration_id - base
+            if 1 <= node <= 127:
+                counts[node] = counts.get(node, 0) + 1
+                break
+    return counts
+
+
+def decode_log(path: str | Path, node_id: int | None = 1) -> dict:
     """Decodes a candump log: telemetry rows (paired A/B by sequence), acks,
-    heartbeats, and sequence gaps."""
+    heartbeats, commands and sequence gaps.
+
+    node_id None: the node is found in the log (exactly one node must be
+    present, else safeio.UsageError names those found).  Malformed lines and
+    frames that do not decode (wrong length for their message...) are
+    skipped and listed: "malformed" and "bad_frames" as (line, reason)."""
+    from hdtools import safeio
+    malformed: list = []
+    frames = read_log_lines(path, malformed)
+    nodes = nodes_in(frames)
+    if node_id is None:
+        if len(nodes) != 1:
+            found = ", ".join(f"{n} ({c} frames)" for n, c in sorted(nodes.items()))
+            raise safeio.UsageError(
+                f"{path}: frames of nodes {found}: choose one with --node" if nodes else
+                f"{path}: no frames of any joint node ({len(frames)} frames, "
+                f"{len(malformed)} malformed lines)")
+        node_id = next(iter(nodes))
     db = load_db(node_id)
     ids = {name: BASE_IDS[name] + node_id for name in BASE_IDS}
-    telem, acks, heartbeats, commands = [], [], [], []
+    telem, acks, heartbeats, commands, bad_frames = [], [], [], [], []
     pending_a = None
-    for msg in read_log(path):
-        if msg.is_error_frame or msg.is_remote_frame:
+    for lineno, msg in frames:
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
             continue
         data = bytes(msg.data)
-        if msg.arbitration_id == ids["TELEM_A"]:
-            pending_a = (msg.timestamp, db.decode_message(msg.arbitration_id, data, decode_choices=False))
-        elif msg.arbitration_id == ids["TELEM_B"]:
-            b = db.decode_message(msg.arbitration_id, data, decode_choices=False)
-            if pending_a is not None and pending_a[1]["SeqA"] == b["SeqB"]:
-                row = {"t_s": pending_a[0], **pending_a[1], **b}
+        ident = msg.arbitration_id
+        if ident not in ids.values():
+            continue
+        try:
+            decoded = db.decode_message(ident, data, decode_choices=(ident != ids["TELEM_A"] and
+                                                                     ident != ids["TELEM_B"]))
+        except Exception as exc:  # noqa: BLE001 - cantools raises several kinds
+            bad_frames.append((lineno, f"{ident:03X}: {str(exc).splitlines()[0]}"))
+            if ident == ids["CMD"]:  # malformed command: keep it visible
+                commands.append({"t_s": msg.timestamp, "error": str(exc), "data": data.hex()})
+            continue
+        if ident == ids["TELEM_A"]:
+            pending_a = (msg.timestamp, decoded)
+        elif ident == ids["TELEM_B"]:
+            if pending_a is not None and pending_a[1]["SeqA"] == decoded["SeqB"]:
+                row = {"t_s": pending_a[0], **pending_a[1], **decoded}
                 row["valid"] = row["TorqueRaw"] > -327.675 and row["TorqueFiltered"] > -327.675
                 telem.append(row)
             pending_a = None
-        elif msg.arbitration_id == ids["ACK"]:
-            acks.append({"t_s": msg.timestamp, **db.decode_message(msg.arbitration_id, data)})
-        elif msg.arbitration_id == ids["HEARTBEAT"]:
-            heartbeats.append({"t_s": msg.timestamp, **db.decode_message(msg.arbitration_id, data)})
-        elif msg.arbitration_id == ids["CMD"]:
-            try:
-                commands.append({"t_s": msg.timestamp, **db.decode_message(msg.arbitration_id, data)})
-            except Exception as exc:  # malformed command: keep it visible
-                commands.append({"t_s": msg.timestamp, "error": str(exc), "data": data.hex()})
+        elif ident == ids["ACK"]:
+            acks.append({"t_s": msg.timestamp, **decoded})
+        elif ident == ids["HEARTBEAT"]:
+            heartbeats.append({"t_s": msg.timestamp, **decoded})
+        elif ident == ids["CMD"]:
+            commands.append({"t_s": msg.timestamp, **decoded})
     lost = 0
     for prev, cur in zip(telem, telem[1:]):
         lost += (cur["SeqA"] - prev["SeqA"] - 1) % 256
     return {"telemetry": telem, "acks": acks, "heartbeats": heartbeats,
-            "commands": commands, "lost_telemetry": lost}
+            "commands": commands, "lost_telemetry": lost, "node": node_id, "nodes": nodes,
+            "frames": len(frames), "malformed": malformed, "bad_frames": bad_frames}

@@ -2,9 +2,13 @@
 
 Reads calibration experiments from CSV (docs/calibration.md), analyses them
 with the C library calib/ (ctypes), prints a report in the shape of Table I
-of Taghirad 1997 plus nonlinearity, hysteresis and position dependence,
-and optionally writes the 64-byte calibration record, a JSON report and a PNG.
-Exit status: 0 accepted, 1 rejected (record not written), 2 bad input.
+of Taghirad 1997 plus nonlinearity, hysteresis and position dependence
+(each "NOT MEASURABLE" when the data cannot show it, which rejects the
+calibration unless --allow-unmeasurable), and optionally writes the 64-byte
+calibration record, a JSON report and a PNG.  The output files are written
+together (temporary names, renamed when all are complete).
+Exit status: 0 accepted, 1 rejected (record not written), 2 bad input or
+command line, 3 an output could not be written (old files left as they were).
 """
 from __future__ import annotations
 
@@ -13,7 +17,47 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
+
+
+def _unix_s(text: str) -> int:
+    from hdtools.calibtool import lib as L
+    try:
+        value = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a decimal number of seconds") from None
+    if not 0 <= value <= L.UNIX_S_MAX:
+        raise argparse.ArgumentTypeError(f"{value} outside 0..{L.UNIX_S_MAX} (unsigned "
+                                         "32-bit unix seconds)")
+    return value
+
+
+def _serial(text: str) -> str:
+    from hdtools.calibtool import lib as L
+    try:
+        L.check_serial(text)
+    except L.CalibError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+    return value
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 2 <= value <= 32:
+        raise argparse.ArgumentTypeError(f"{value} outside 2..32")
+    return value
 
 
 def register(sub) -> None:
@@ -25,17 +69,21 @@ def register(sub) -> None:
                    help="write the record even if the calibration is rejected")
     p.add_argument("--png", metavar="OUT.png", help="plot data and fitted lines")
     p.add_argument("--json", metavar="OUT.json", help="write the report as JSON")
-    p.add_argument("--serial", default="", help="sensor serial (<= 15 ASCII chars)")
-    p.add_argument("--date", type=int, default=None,
-                   help="calibration date, unix seconds (default: now)")
-    p.add_argument("--counts-per-volt", type=float, default=None,
+    p.add_argument("--serial", default="", type=_serial,
+                   help="sensor serial (<= 15 printable ASCII characters)")
+    p.add_argument("--date", type=_unix_s, default=None,
+                   help="calibration date, unix seconds 0..4294967295 (default: now)")
+    p.add_argument("--counts-per-volt", type=_finite, default=None,
                    help="ADC counts per volt, when the CSV has bridge_counts")
-    p.add_argument("--max-consistency", type=float, help="limit, fraction (default 0.03)")
-    p.add_argument("--max-nonlinearity", type=float, help="limit, %% FS (default 1)")
-    p.add_argument("--max-hysteresis", type=float, help="limit, %% FS (default 1)")
-    p.add_argument("--max-position", type=float, help="limit, %% of gain (default 2)")
-    p.add_argument("--alpha", type=float, help="significance level (default 0.001)")
-    p.add_argument("--min-experiments", type=int, help="default 2")
+    p.add_argument("--max-consistency", type=_finite, help="limit, fraction (default 0.03)")
+    p.add_argument("--max-nonlinearity", type=_finite, help="limit, %% FS (default 1)")
+    p.add_argument("--max-hysteresis", type=_finite, help="limit, %% FS (default 1)")
+    p.add_argument("--max-position", type=_finite, help="limit, %% of gain (default 2)")
+    p.add_argument("--alpha", type=_finite, help="significance level (default 0.001)")
+    p.add_argument("--min-experiments", type=_count, help="default 2")
+    p.add_argument("--allow-unmeasurable", action="store_true",
+                   help="accept a campaign whose nonlinearity, hysteresis or position "
+                        "dependence cannot be measured (reported as such)")
     p.set_defaults(func=run)
 
 
@@ -49,50 +97,57 @@ def _thresholds(args):
                        ("min_experiments", "min_experiments")):
         v = getattr(args, opt)
         if v is not None:
-            if isinstance(v, float) and not math.isfinite(v):
-                raise L.CalibError(f"--{opt.replace('_', '-')} must be finite")
             setattr(t, field, v)
     if not (0.0 < t.alpha < 1.0):
         raise L.CalibError("--alpha must be in (0, 1)")
+    t.allow_unmeasurable = 1 if args.allow_unmeasurable else 0
     return t
 
 
 def run(args) -> int:
+    from hdtools import safeio
     from hdtools.calibtool import csvio, report
     from hdtools.calibtool import lib as L
-    try:
-        text = sys.stdin.read() if args.input == "-" else Path(args.input).read_text()
-    except OSError as exc:
-        print(f"hdsense calib: cannot read {args.input}: {exc.strerror}", file=sys.stderr)
-        return 2
+    if args.input == "-":
+        text = safeio.decode_text(sys.stdin.buffer.read(safeio.TEXT_MAX_BYTES + 1), "stdin")
+        if len(text) > safeio.TEXT_MAX_BYTES:
+            raise safeio.UsageError(f"stdin: more than {safeio.TEXT_MAX_BYTES} bytes")
+    else:
+        text = safeio.read_text(args.input)
     try:
         thresholds = _thresholds(args)
         exps = csvio.read_csv(text, args.counts_per_volt)
         rep, rc = L.analyze(exps, thresholds)
     except L.CalibError as exc:
-        print(f"hdsense calib: error: {exc}", file=sys.stderr)
-        return 2
-    d = report.to_dict(rep, exps, rc, thresholds)
-    sys.stdout.write(report.text(d))
-    if args.json:
-        Path(args.json).write_text(json.dumps(d, indent=2) + "\n")
-    if args.png:
-        report.plot(d, exps, args.png)
+        raise safeio.UsageError(f"error: {exc}") from None
     if rc == L.ERR_SINGLE_EXPERIMENT:
-        print(f"hdsense calib: error: {L.strerror(rc)}", file=sys.stderr)
-        return 2
-    if args.record:
-        if not d["accepted"] and not args.force_record:
-            print("hdsense calib: calibration rejected: record not written "
-                  "(--force-record to override)", file=sys.stderr)
-        else:
-            try:
-                data = L.encode_record(d["gain_nm_per_v"], d["offset_v"],
-                                       int(time.time()) if args.date is None else args.date,
-                                       args.serial, d["consistency"] or 0.0)
-            except L.CalibError as exc:
-                print(f"hdsense calib: error: {exc}", file=sys.stderr)
-                return 2
-            Path(args.record).write_bytes(data)
-            print(f"record: {args.record} ({len(data)} bytes, CRC-32 0x{data[60:64][::-1].hex()})")
+        d = report.to_dict(rep, exps, rc, thresholds)
+        sys.stdout.write(report.text(d))
+        raise safeio.UsageError(f"error: {L.strerror(rc)}")
+    d = report.to_dict(rep, exps, rc, thresholds)
+    write_record = bool(args.record) and (d["accepted"] or args.force_record)
+    record = None
+    if write_record:
+        try:
+            record = L.encode_record(d["gain_nm_per_v"], d["offset_v"],
+                                     int(time.time()) if args.date is None else args.date,
+                                     args.serial, d["consistency"] or 0.0)
+        except L.CalibError as exc:
+            raise safeio.UsageError(f"error: {exc}") from None
+    # every output staged, then all renamed together
+    with safeio.Outputs() as out:
+        if args.json:
+            out.write_text(args.json, json.dumps(d, indent=2, allow_nan=False) + "\n")
+        if args.png:
+            with out.path(args.png) as tmp:
+                report.plot(d, exps, tmp)
+        if record is not None:
+            out.write_bytes(args.record, record)
+        out.commit()
+    sys.stdout.write(report.text(d))
+    if record is not None:
+        print(f"record: {args.record} ({len(record)} bytes, CRC-32 0x{record[60:64][::-1].hex()})")
+    elif args.record:
+        print("hdsense calib: calibration rejected: record not written "
+              "(--force-record to override)", file=sys.stderr)
     return 0 if d["accepted"] else 1

@@ -3,74 +3,130 @@ configuration file into CAN commands.
 
   hdsense canlog decode out/demo/telemetry.log [--node 1] [--csv telem.csv]
   hdsense canlog commands model.cfg [--node 1]      # prints cansend lines
+
+decode: without --node the node is found in the log (a log with frames of
+several nodes needs --node).  Lines that are not candump -l frames (a line
+cut by an interrupted logger, bad hex, a wrong length) and frames that do
+not decode for their message (wrong DLC) are skipped and counted; the first
+few line numbers are named on stderr.  Exit status: 0 decoded (with or
+without skipped lines), 2 bad command line or input (no frames of the node),
+3 the CSV could not be written (an old one is left as it was).
 """
 from __future__ import annotations
 
+import argparse
 import csv
+import io
 import sys
-from pathlib import Path
 
-from hdtools import canproto
+import cantools
+
+from hdtools import canproto, safeio
+
+SHOW_LINES = 5
+
+
+def _node(text: str) -> int:
+    try:
+        node = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a decimal node id") from None
+    if not 1 <= node <= 127:
+        raise argparse.ArgumentTypeError(f"node id {node} outside 1..127")
+    return node
+
+
+def _lines(items: list) -> str:
+    shown = ", ".join(f"line {n}: {why}" for n, why in items[:SHOW_LINES])
+    more = f", ... ({len(items) - SHOW_LINES} more)" if len(items) > SHOW_LINES else ""
+    return shown + more
 
 
 def _decode(args) -> int:
-    if not Path(args.log).exists():
-        print(f"hdsense canlog: {args.log}: no such file", file=sys.stderr)
-        return 2
     res = canproto.decode_log(args.log, args.node)
+    node = res["node"]
+    others = {n: c for n, c in res["nodes"].items() if n != node}
+    if res["nodes"].get(node, 0) == 0:
+        found = ", ".join(f"{n} ({c} frames)" for n, c in sorted(others.items()))
+        raise safeio.UsageError(f"{args.log}: no frames of node {node}" +
+                                (f"; the log has nodes {found}" if found else
+                                 f" ({res['frames']} frames, {len(res['malformed'])} "
+                                 "malformed lines)"))
     telem = res["telemetry"]
-    print(f"log = {args.log}")
-    print(f"telemetry_frames = {len(telem)}")
-    print(f"lost_telemetry = {res['lost_telemetry']}")
+    out = [f"log = {args.log}",
+           f"node = {node}{'' if args.node is not None else ' (found in the log)'}",
+           f"frames = {res['frames']}",
+           f"malformed_lines = {len(res['malformed'])}",
+           f"undecodable_frames = {len(res['bad_frames'])}"]
+    if others:
+        out.append("other_nodes = " + ", ".join(f"{n} ({c} frames)"
+                                                for n, c in sorted(others.items())))
+    out += [f"telemetry_frames = {len(telem)}", f"lost_telemetry = {res['lost_telemetry']}"]
     if telem:
         valid = [r for r in telem if r["valid"]]
-        print(f"invalid_samples = {len(telem) - len(valid)}")
+        out.append(f"invalid_samples = {len(telem) - len(valid)}")
         faults = 0
         for r in telem:
             faults |= int(r["Faults"])
-        print(f"faults_seen = {canproto.faults_str(faults)}")
+        out.append(f"faults_seen = {canproto.faults_str(faults)}")
         span = telem[-1]["t_s"] - telem[0]["t_s"]
         if span > 0:
-            print(f"telemetry_rate_hz = {(len(telem) - 1) / span:.1f}")
-    print(f"heartbeats = {len(res['heartbeats'])}")
+            out.append(f"telemetry_rate_hz = {(len(telem) - 1) / span:.1f}")
+    out.append(f"heartbeats = {len(res['heartbeats'])}")
     for hb in res["heartbeats"][-1:]:
-        print(f"last_heartbeat = state {hb['State']}, faults {canproto.faults_str(int(hb['HbFaults']))}, "
-              f"calib {hb['CalibStatus']}, deadline misses {hb['DeadlineMisses']}")
+        out.append(f"last_heartbeat = state {hb['State']}, faults "
+                   f"{canproto.faults_str(int(hb['HbFaults']))}, calib {hb['CalibStatus']}, "
+                   f"deadline misses {hb['DeadlineMisses']}")
     for ack in res["acks"]:
-        print(f"ack: {ack['AckOpcode']} token {ack['AckToken']} -> {ack['AckResult']} "
-              f"(aux {ack['AckAux']}, value {ack['AckValue']:g})")
+        out.append(f"ack: {ack['AckOpcode']} token {ack['AckToken']} -> {ack['AckResult']} "
+                   f"(aux {ack['AckAux']}, value {ack['AckValue']:g})")
     if args.csv:
-        with open(args.csv, "w", newline="") as f:
-            cols = ["t_s", "SeqA", "TorqueRaw", "TorqueFiltered", "Ripple", "MotorVelocity",
-                    "Faults", "KfStatus", "valid"]
-            w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
-            w.writeheader()
-            w.writerows(telem)
-        print(f"csv = {args.csv}")
+        buf = io.StringIO(newline="")
+        cols = ["t_s", "SeqA", "TorqueRaw", "TorqueFiltered", "Ripple", "MotorVelocity",
+                "Faults", "KfStatus", "valid"]
+        w = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(telem)
+        with safeio.Outputs() as outputs:
+            outputs.write_text(args.csv, buf.getvalue())
+            outputs.commit()
+        out.append(f"csv = {args.csv}")
+    sys.stdout.write("\n".join(out) + "\n")
+    skipped = []
+    if res["malformed"]:
+        skipped.append(f"skipped {len(res['malformed'])} malformed line(s) "
+                       f"({_lines(res['malformed'])})")
+    if res["bad_frames"]:
+        skipped.append(f"{len(res['bad_frames'])} frame(s) did not decode "
+                       f"({_lines(res['bad_frames'])})")
+    if skipped:
+        print(f"hdsense canlog decode: {args.log}: warning: " + "; ".join(skipped),
+              file=sys.stderr)
     return 0
 
 
 def _commands(args) -> int:
+    text = safeio.read_text(args.config)
     try:
-        text = Path(args.config).read_text()
         frames = canproto.config_to_commands(text, canproto.load_db(args.node))
-    except (OSError, ValueError) as exc:
-        print(f"hdsense canlog commands: {args.config}: {exc}", file=sys.stderr)
-        return 2
-    for frame in frames:
-        print(canproto.cansend_str(frame))
+    except (ValueError, IndexError, KeyError, cantools.database.errors.Error) as exc:
+        raise safeio.UsageError(f"{args.config}: {exc}") from None
+    sys.stdout.write("".join(canproto.cansend_str(frame) + "\n" for frame in frames))
     return 0
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("canlog", help="decode joint CAN logs; config -> CAN commands")
+    p = subparsers.add_parser("canlog", help="decode joint CAN logs; config -> CAN commands",
+                              description=__doc__,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="canlog_command", required=True)
     d = sub.add_parser("decode", help="decode a candump -l log with firmware/hdjoint.dbc")
     d.add_argument("log")
-    d.add_argument("--node", type=int, default=1)
+    d.add_argument("--node", type=_node, default=None,
+                   help="node id 1..127 (default: the one node found in the log)")
     d.add_argument("--csv", help="write the decoded telemetry here")
     d.set_defaults(func=_decode)
     c = sub.add_parser("commands", help="print the CAN commands (cansend ID#DATA) for a config file")
     c.add_argument("config")
-    c.add_argument("--node", type=int, default=1)
+    c.add_argument("--node", type=_node, default=1)
     c.set_defaults(func=_commands)

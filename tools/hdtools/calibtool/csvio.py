@@ -8,19 +8,29 @@ import math
 from .lib import CalibError, ExperimentData
 
 REQUIRED = ["experiment", "direction", "position_deg", "torque_nm"]
+FLOAT32_MAX = 3.4028234663852886e38   # the C library computes in float32
 BRIDGE = ["bridge_v", "bridge_counts"]
 DIRECTIONS = {"load": False, "unload": True}
+
+
+def _fields(line: str, no: int) -> list[str]:
+    try:
+        return next(csv.reader(io.StringIO(line)), [])
+    except csv.Error as exc:
+        raise CalibError(f"line {no}: {exc}") from None
 
 
 def read_csv(text: str, counts_per_volt: float | None = None) -> list[ExperimentData]:
     """Parses the CSV; '#' lines are comments.  Raises CalibError with the
     line number for anything it cannot use."""
-    lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines())
+    # split on newlines only (splitlines also breaks at \f, \x1c, U+2028 ...,
+    # which would shift the line numbers in the messages)
+    lines = [(i + 1, ln.rstrip("\r")) for i, ln in enumerate(text.split("\n"))
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise CalibError("empty input: no header line")
     header_no, header = lines[0]
-    cols = [c.strip().lower() for c in next(csv.reader(io.StringIO(header)))]
+    cols = [c.strip().lower() for c in _fields(header, header_no)]
     unknown = [c for c in cols if c not in REQUIRED + BRIDGE]
     if unknown:
         raise CalibError(f"line {header_no}: unknown column(s) {', '.join(unknown)}; expected "
@@ -42,7 +52,7 @@ def read_csv(text: str, counts_per_volt: float | None = None) -> list[Experiment
     idx = {c: i for i, c in enumerate(cols)}
     exps: dict[str, ExperimentData] = {}
     for no, ln in lines[1:]:
-        row = [c.strip() for c in next(csv.reader(io.StringIO(ln)))]
+        row = [c.strip() for c in _fields(ln, no)]
         if len(row) != len(cols):
             raise CalibError(f"line {no}: {len(row)} fields, header has {len(cols)}")
         name = row[idx["experiment"]]
@@ -61,6 +71,8 @@ def read_csv(text: str, counts_per_volt: float | None = None) -> list[Experiment
         # but the line number is only known here.
         if not all(math.isfinite(x) for x in (pos, t, v)):
             raise CalibError(f"line {no}: non-finite value (NaN or Inf)")
+        if any(abs(x) > FLOAT32_MAX for x in (pos, t, v)):
+            raise CalibError(f"line {no}: value beyond the float32 range (3.4e38)")
         e = exps.get(name)
         if e is None:
             e = exps[name] = ExperimentData(name, pos, [], [], [])

@@ -15,7 +15,9 @@ DIR_LOAD, DIR_UNLOAD = 0, 1
 ERR_SINGLE_EXPERIMENT = -7
 
 REASONS = {0x01: "FEW_EXPERIMENTS", 0x02: "INCONSISTENT", 0x04: "NONLINEAR",
-           0x08: "HYSTERESIS", 0x10: "POSITION"}
+           0x08: "HYSTERESIS", 0x10: "POSITION", 0x20: "NOT_MEASURABLE"}
+SERIAL_MAX = 15          # ASCII characters (16-byte field, NUL-terminated)
+UNIX_S_MAX = 0xFFFFFFFF  # the record's date is a u32
 
 
 class Experiment(C.Structure):
@@ -31,14 +33,15 @@ class Fit(C.Structure):
                 ("offset_se_v", C.c_float), ("residual_rms_v", C.c_float),
                 ("nonlinearity_pct_fs", C.c_float), ("nonlinearity_p", C.c_float),
                 ("hysteresis_pct_fs", C.c_float), ("hysteresis_p", C.c_float),
-                ("nonlinearity_detected", C.c_uint8), ("hysteresis_detected", C.c_uint8)]
+                ("nonlinearity_detected", C.c_uint8), ("hysteresis_detected", C.c_uint8),
+                ("nonlinearity_measurable", C.c_uint8), ("hysteresis_measurable", C.c_uint8)]
 
 
 class Thresholds(C.Structure):
     _fields_ = [("max_consistency", C.c_float), ("max_nonlinearity_pct_fs", C.c_float),
                 ("max_hysteresis_pct_fs", C.c_float), ("max_position_pct", C.c_float),
                 ("alpha", C.c_float), ("min_detect_pct_fs", C.c_float),
-                ("min_experiments", C.c_uint32)]
+                ("min_experiments", C.c_uint32), ("allow_unmeasurable", C.c_uint32)]
 
 
 class Report(C.Structure):
@@ -47,6 +50,7 @@ class Report(C.Structure):
                 ("consistency", C.c_float), ("offset_mean_v", C.c_float),
                 ("nonlinearity_pct_fs", C.c_float), ("hysteresis_pct_fs", C.c_float),
                 ("nonlinearity_detected", C.c_uint8), ("hysteresis_detected", C.c_uint8),
+                ("nonlinearity_measurable", C.c_uint8), ("hysteresis_measurable", C.c_uint8),
                 ("position_testable", C.c_uint8), ("position_detected", C.c_uint8),
                 ("position_amplitude_pct", C.c_float), ("position_phase_deg", C.c_float),
                 ("position_p", C.c_float), ("accepted", C.c_uint8),
@@ -150,11 +154,28 @@ def reasons(mask: int) -> list[str]:
     return [lib().hd_calib_reason_str(bit).decode() for bit in sorted(REASONS) if mask & bit]
 
 
+def check_serial(serial: str) -> bytes:
+    """The serial as stored: printable ASCII, at most SERIAL_MAX characters."""
+    if any(not (0x20 <= ord(c) <= 0x7E) for c in serial):
+        raise CalibError(f"serial {serial!r}: printable ASCII only (0x20..0x7E)")
+    if len(serial) > SERIAL_MAX:
+        raise CalibError(f"serial {serial!r}: {len(serial)} characters, at most {SERIAL_MAX}")
+    return serial.encode("ascii")
+
+
+def check_unix_s(unix_s: int) -> int:
+    if not isinstance(unix_s, int) or not 0 <= unix_s <= UNIX_S_MAX:
+        raise CalibError(f"date {unix_s}: unix seconds must be in 0..{UNIX_S_MAX} "
+                         "(the record stores an unsigned 32-bit number)")
+    return unix_s
+
+
 def encode_record(gain: float, offset_v: float, unix_s: int, serial: str,
                   consistency: float, sequence: int = 1) -> bytes:
-    sb = serial.encode("ascii")
-    if len(sb) > 15:
-        raise CalibError(f"serial '{serial}' longer than 15 characters")
+    sb = check_serial(serial)
+    check_unix_s(unix_s)
+    if not 0 <= sequence <= 0xFFFFFFFF:
+        raise CalibError(f"sequence {sequence} outside 0..{0xFFFFFFFF}")
     r = Record(gain, offset_v, unix_s, sb, 0.0 if math.isnan(consistency) else consistency)
     buf = (C.c_uint8 * RECORD_BYTES)()
     n = lib().hd_calib_record_encode(C.byref(r), sequence, buf, RECORD_BYTES)

@@ -25,8 +25,10 @@ def to_dict(rep: L.Report, exps: list[L.ExperimentData], rc: int,
             "nonlinearity_pct_fs": num(f.nonlinearity_pct_fs),
             "nonlinearity_p": num(f.nonlinearity_p),
             "nonlinearity_detected": bool(f.nonlinearity_detected),
+            "nonlinearity_measurable": bool(f.nonlinearity_measurable),
             "hysteresis_pct_fs": num(f.hysteresis_pct_fs), "hysteresis_p": num(f.hysteresis_p),
-            "hysteresis_detected": bool(f.hysteresis_detected)})
+            "hysteresis_detected": bool(f.hysteresis_detected),
+            "hysteresis_measurable": bool(f.hysteresis_measurable)})
     return {
         "experiments": fits,
         "n_experiments": len(exps),
@@ -36,8 +38,10 @@ def to_dict(rep: L.Report, exps: list[L.ExperimentData], rc: int,
         "offset_v": num(rep.offset_mean_v),
         "nonlinearity_pct_fs": num(rep.nonlinearity_pct_fs),
         "nonlinearity_detected": bool(rep.nonlinearity_detected),
+        "nonlinearity_measurable": bool(rep.nonlinearity_measurable),
         "hysteresis_pct_fs": num(rep.hysteresis_pct_fs),
         "hysteresis_detected": bool(rep.hysteresis_detected),
+        "hysteresis_measurable": bool(rep.hysteresis_measurable),
         "position": {"testable": bool(rep.position_testable),
                      "detected": bool(rep.position_detected),
                      "amplitude_pct": num(rep.position_amplitude_pct),
@@ -63,31 +67,41 @@ def text(d: dict) -> str:
     out.append(f"  {'exp':>4} {'pos deg':>7} {'FS Nm':>7} {'gain Nm/V':>10} {'+-se':>8} "
                f"{'offset mV':>9} {'+-se':>6} {'rms mV':>7} {'nonlin %FS':>11} {'hyst %FS':>9}")
     for f in d["experiments"]:
-        nl = _f(f["nonlinearity_pct_fs"], ".3f") + ("*" if f["nonlinearity_detected"] else " ")
-        hy = _f(f["hysteresis_pct_fs"], ".3f") + ("*" if f["hysteresis_detected"] else " ")
+        nl = (_f(f["nonlinearity_pct_fs"], ".3f") + ("*" if f["nonlinearity_detected"] else " ")
+              if f["nonlinearity_measurable"] else "n/m ")
+        hy = (_f(f["hysteresis_pct_fs"], ".3f") + ("*" if f["hysteresis_detected"] else " ")
+              if f["hysteresis_measurable"] else "n/m ")
         se_off = None if f["offset_se_v"] is None else 1e3 * f["offset_se_v"]
         out.append(f"  {f['experiment']:>4} {_f(f['position_deg'], '.1f'):>7} "
                    f"{_f(f['full_scale_nm'], '.2f'):>7} {_f(f['gain_nm_per_v'], '.4f'):>10} "
                    f"{_f(f['gain_se_nm_per_v'], '.4f'):>8} {_f(1e3 * f['offset_v'], '.2f'):>9} "
                    f"{_f(se_off, '.2f'):>6} {_f(1e3 * f['residual_rms_v'], '.2f'):>7} "
                    f"{nl:>11} {hy:>9}")
-    out.append("  (* = significant at alpha and above the resolution floor)")
+    out.append("  (* = significant at alpha and above the resolution floor; n/m = not measurable "
+               "from this experiment's points)")
     out.append("")
     t = d["thresholds"]
     pos = d["position"]
     out.append("Extra measures:")
     out.append(f"  gain std            {_f(d['gain_std_nm_per_v'], '.4f')} Nm/V")
     out.append(f"  offset (mean)       {_f(1e3 * d['offset_v'], '.3f')} mV")
-    out.append(f"  nonlinearity        {_f(d['nonlinearity_pct_fs'], '.3f')} % FS (worst)  "
-               f"{'DETECTED' if d['nonlinearity_detected'] else 'none detected'}")
-    out.append(f"  hysteresis          {_f(d['hysteresis_pct_fs'], '.3f')} % FS (worst)  "
-               f"{'DETECTED' if d['hysteresis_detected'] else 'none detected'}")
+    for name, need in (("nonlinearity", ">= 3 load levels"),
+                       ("hysteresis", "loading and unloading at a nonzero load")):
+        n_unmeasured = sum(not f[f"{name}_measurable"] for f in d["experiments"])
+        label = f"  {name:<20}"
+        if d[f"{name}_pct_fs"] is None:
+            out.append(f"{label}NOT MEASURABLE in any experiment (needs {need})")
+            continue
+        verdict = "DETECTED" if d[f"{name}_detected"] else "none detected"
+        extra = (f"; NOT MEASURABLE in {n_unmeasured} of {len(d['experiments'])} experiments "
+                 f"(needs {need})" if n_unmeasured else "")
+        out.append(f"{label}{_f(d[f'{name}_pct_fs'], '.3f')} % FS (worst)  {verdict}{extra}")
     if pos["testable"]:
         out.append(f"  position dependence {_f(pos['amplitude_pct'], '.3f')} % of gain "
                    f"(order 2, peak at {_f(pos['phase_deg'], '.1f')} deg, p = {_f(pos['p'], '.3g')})  "
                    f"{'DETECTED' if pos['detected'] else 'not significant'}")
     else:
-        out.append("  position dependence not testable (need >= 3 positions mod 180 deg "
+        out.append("  position dependence NOT MEASURABLE (needs >= 3 positions mod 180 deg "
                    "and >= 4 experiments)")
     out.append("")
     out.append(f"Limits: consistency <= {100 * t['max_consistency']:.2f} %, nonlinearity <= "
@@ -140,5 +154,5 @@ def plot(d: dict, exps: list[L.ExperimentData], path: str) -> None:
     axr.set_ylabel("residual [% FS]  (o load, x unload)")
     axr.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=100, format="png")
     plt.close(fig)
