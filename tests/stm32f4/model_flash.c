@@ -90,6 +90,8 @@ static void write_reg(reg_model_t *rm, size_t off, uint32_t v)
         if ((v & STM32_FLASH_ACR_DCRST) && (m->regs.ACR & STM32_FLASH_ACR_DCEN) &&
             (v & STM32_FLASH_ACR_DCEN)) {
             violation(m, "DCRST with the data cache enabled");
+        } else if ((v & STM32_FLASH_ACR_DCRST) && !(v & STM32_FLASH_ACR_DCEN)) {
+            m->dcache_resets++;
         }
         m->regs.ACR = v;
     } else {

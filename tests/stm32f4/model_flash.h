@@ -36,6 +36,7 @@ typedef struct {
     uint32_t inject_program_error; /* SR error bit raised by the next program */
     uint32_t inject_erase_error;   /* SR error bit raised by the next erase */
     uint32_t erases, programs;
+    uint32_t dcache_resets;      /* DCRST written with the data cache disabled */
     uint32_t violations;
     const char *last_violation;
 } flash_model_t;

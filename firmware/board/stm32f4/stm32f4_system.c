@@ -1,8 +1,6 @@
 /* stm32f4_system: see stm32f4_system.h. */
 #include "stm32f4_system.h"
 
-#include "hal.h"
-
 #define IWDG_PR_MAX 6u
 #define IWDG_RELOAD_MAX 4095u
 
@@ -10,19 +8,18 @@ uint32_t stm32_reset_cause_from_csr(uint32_t csr)
 {
     uint32_t cause = 0u;
     if ((csr & (STM32_RCC_CSR_IWDGRSTF | STM32_RCC_CSR_WWDGRSTF)) != 0u) {
-        cause |= STM32_RESET_WATCHDOG;
+        cause |= HAL_RESET_WATCHDOG;
     }
     if ((csr & STM32_RCC_CSR_SFTRSTF) != 0u) {
-        cause |= STM32_RESET_SOFTWARE;
+        cause |= HAL_RESET_SOFTWARE;
     }
-    if ((csr & (STM32_RCC_CSR_PORRSTF | STM32_RCC_CSR_BORRSTF)) != 0u) {
-        cause |= STM32_RESET_POWER_ON;
-    }
-    if ((csr & STM32_RCC_CSR_LPWRRSTF) != 0u) {
-        cause |= STM32_RESET_LOW_POWER;
+    if ((csr & STM32_RCC_CSR_PORRSTF) != 0u) {
+        cause |= HAL_RESET_POWER_ON;
+    } else if ((csr & STM32_RCC_CSR_BORRSTF) != 0u) {
+        cause |= HAL_RESET_BROWNOUT;
     }
     if (cause == 0u && (csr & STM32_RCC_CSR_PINRSTF) != 0u) {
-        cause = STM32_RESET_PIN;
+        cause = HAL_RESET_PIN;
     }
     return cause;
 }

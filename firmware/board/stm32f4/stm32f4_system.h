@@ -1,10 +1,10 @@
 /*
  * stm32f4_system: what survives a reset and what causes one.
  *
- * - Reset cause from RCC_CSR (read once at boot, then cleared with RMVF).
- *   The NRST pin is driven low by every internal reset too, so PINRSTF is
- *   set after a watchdog or software reset as well: "pin" is reported only
- *   when no other cause is.
+ * - Reset cause from RCC_CSR (read once at boot, then cleared with RMVF),
+ *   as hal.h's HAL_RESET_* bits.  The NRST pin is driven low by every
+ *   internal reset too, so PINRSTF is set after a watchdog or software
+ *   reset as well: "pin" is reported only when no other cause is.
  * - HardFault record: the fault handler stores the stacked PC, LR, xPSR and
  *   the fault status registers (CFSR, HFSR, MMFAR, BFAR) in a RAM section the
  *   startup code does not clear (.noinit), then resets.  At the next boot it
@@ -20,23 +20,21 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "hal.h"
 #include "stm32f4_regs.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* Reset cause bits. */
-#define STM32_RESET_POWER_ON 0x1u  /* POR/PDR or brown-out */
-#define STM32_RESET_WATCHDOG 0x2u  /* IWDG or WWDG */
-#define STM32_RESET_SOFTWARE 0x4u  /* SYSRESETREQ (reboot, or after a HardFault) */
-#define STM32_RESET_PIN 0x8u       /* the NRST pin, and nothing else */
-#define STM32_RESET_LOW_POWER 0x10u
-
-/* Classifies RCC_CSR's flags (pure). */
+/* Classifies RCC_CSR's flags as HAL_RESET_* bits (pure):
+ *   PORRSTF -> POWER_ON; BORRSTF without PORRSTF -> BROWNOUT (a power-on
+ *   sets both); IWDGRSTF/WWDGRSTF -> WATCHDOG; SFTRSTF -> SOFTWARE (the
+ *   REBOOT command, and the reset after a HardFault, which leaves a fault
+ *   record); PINRSTF -> PIN only when nothing else is set. */
 uint32_t stm32_reset_cause_from_csr(uint32_t csr);
 
-/* Reads and clears the reset flags; returns STM32_RESET_* bits. */
+/* Reads and clears the reset flags; returns HAL_RESET_* bits. */
 uint32_t stm32_reset_cause(stm32_rcc_t *rcc);
 
 #define STM32_FAULT_MAGIC 0x48444654u /* "HDFT" */
