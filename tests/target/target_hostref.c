@@ -81,7 +81,7 @@ int main(int argc, char **argv)
     for (;; tick++) {
         g_mock.now_us = (uint64_t)tick * HD_FW_TS_US;
         hd_fw_isr(&g_fw);
-        if (g_fw.ended) {
+        if (g_fw.tick.ended) {
             break;
         }
         (void)hd_fw_background(&g_fw);

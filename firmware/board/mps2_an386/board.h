@@ -12,8 +12,16 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "hd_mark.h"
+
 #ifdef __cplusplus
 extern "C" {
+#endif
+
+/* The name in hal_t (an image of main_run.c built for another board, such
+ * as the STM32F4 port's netduinoplus2 emulator image, defines its own). */
+#ifndef BOARD_NAME
+#define BOARD_NAME "mps2-an386"
 #endif
 
 #define BOARD_CPU_HZ 25000000u  /* SysTick clock source: the processor clock */
@@ -56,18 +64,6 @@ static inline void board_wait_for_interrupt(void)
  * separated by spaces); returns the word count, or -1 if there is none. */
 int board_args(char **argv, int max);
 
-/* Instruction-count markers for the QEMU plugin (tools/qemu-plugin): three
- * distinct one-instruction functions (`bx lr`, in assembly so no compiler
- * merges them).  The plugin counts the instructions executed between a
- * call to hd_mark_begin and the next call to hd_mark_end; hd_mark_section
- * closes a group of intervals.  On hardware they cost a call and a return. */
-void hd_mark_begin(void);
-void hd_mark_end(void);
-void hd_mark_section(void);
-
-/* A loop of known length for checking the instruction counter: for n >= 1
- * it executes exactly 2 n + 1 instructions (n x `subs; bne`, then `bx lr`). */
-void hd_bench_loop(uint32_t n);
 
 #ifdef __cplusplus
 }

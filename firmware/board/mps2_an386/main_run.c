@@ -56,7 +56,7 @@ void SysTick_Handler(void)
     g_mock.now_us = (uint64_t)g_tick * HD_FW_TS_US; /* CAN log time: the sample time */
     hd_fw_isr(&g_fw);
     hd_mark_end();
-    if (g_fw.ended) {
+    if (g_fw.tick.ended) {
         board_systick_stop();
         g_done = true;
         return;
@@ -126,7 +126,7 @@ int main(void)
         g_mock.tx_hook_ctx = &g_canlog;
     }
     hal_sh_stream_bind(&g_stream, &g_hal); /* sensors and the sample clock */
-    g_hal.name = "mps2-an386";
+    g_hal.name = BOARD_NAME;
 
     hd_fw_config_t cfg;
     hd_fw_config_default(&cfg);
