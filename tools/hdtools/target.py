@@ -1,6 +1,7 @@
-"""tools/target: the Cortex-M4F firmware image under QEMU (mps2-an386).
+"""tools/target: the Cortex-M4F firmware image under QEMU, and on the board.
 
-  tools/target build              cross-build the images (preset cortex-m4),
+  tools/target build              cross-build the images (preset cortex-m4, or
+                                  stm32f4 for --board netduinoplus2/stm32f4),
                                   the instruction-count plugin and the host pieces
   tools/target run IN.hdraw [--out OUT.bin] [--can CAN.log] [--count FILE]
                                   run the firmware image on a raw sample stream
@@ -10,11 +11,19 @@
                                   flash, RAM, worst-case stack, instruction
                                   counts per filter update / ISR, cycle estimate
   tools/target count ELF [ARG...] instruction counts between the markers of
-                                  any image that uses them (board.h)
+                                  any image that uses them (hd_mark.h)
+  tools/target flash --board odrive-v3|mini-cheetah [--tool openocd|dfu]
+                     [--image ELF] [--dry-run]
+                                  program a board (ST-Link + OpenOCD, or USB DFU)
 
-Environment: HD_TARGET_BUILD (default build/cortex-m4), HD_TARGET_HOST_BUILD
-(default build/target-host).  Exit status: 0 ok, 1 check failed, 2 setup or
-usage error.  Only the Python standard library is used.
+--board (build, run, compare, budget, count): mps2-an386 (default; QEMU's
+MPS2 AN386), netduinoplus2 (QEMU's STM32F405 model running the STM32F4
+port's emulator image), stm32f4 (budget of the STM32F4 board images; the
+instruction counts run on netduinoplus2).  Environment: HD_TARGET_BUILD
+(mps2-an386 build, default build/cortex-m4), HD_TARGET_BUILD_STM32F4 (STM32F4
+build, default build/stm32f4), HD_TARGET_HOST_BUILD (default
+build/target-host).  Exit status: 0 ok, 1 check failed, 2 setup or usage
+error.  Only the Python standard library is used.
 """
 from __future__ import annotations
 
@@ -34,12 +43,46 @@ ROOT = Path(__file__).resolve().parents[2]
 M4_BUILD = Path(os.environ.get("HD_TARGET_BUILD", ROOT / "build" / "cortex-m4"))
 HOST_BUILD = Path(os.environ.get("HD_TARGET_HOST_BUILD", ROOT / "build" / "target-host"))
 BOARD_REL = Path("firmware/board/mps2_an386")
+RUN_IMAGE, BENCH_IMAGE = "hd_image", "hd_bench"
 PLUGIN_SRC = ROOT / "tools" / "qemu-plugin" / "hdcount.c"
 QEMU = "qemu-system-arm"
 QEMU_ARGS = ["-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
              "-icount", "shift=0,sleep=off"]
 DUMP_RECORD = struct.Struct("<IiIIIII")  # tick, counts, raw, filtered, ripple, faults, kf_status
 QEMU_TIMEOUT_S = 120
+
+# Board ports: the cross-build tree (and its preset), the board folder, the
+# QEMU machine and the images run and counted there.
+BOARDS = {
+    "mps2-an386": dict(env="HD_TARGET_BUILD", build="cortex-m4", cmake_board="mps2_an386",
+                       rel="firmware/board/mps2_an386", machine="mps2-an386",
+                       run="hd_image", bench="hd_bench", targets=["hd_image", "hd_bench"]),
+    "netduinoplus2": dict(env="HD_TARGET_BUILD_STM32F4", build="stm32f4", cmake_board="stm32f4",
+                          rel="firmware/board/stm32f4", machine="netduinoplus2",
+                          run="hd_nd2", bench="hd_stm32f4_bench",
+                          targets=["hd_nd2", "hd_stm32f4_bench", "hd_odrive_v3",
+                                   "hd_mini_cheetah"]),
+}
+BOARDS["stm32f4"] = BOARDS["netduinoplus2"]
+# Boards tools/target flash programs: the image, and where its two loadable
+# parts go (sector 0, then sector 3 on: sectors 1-2 hold the records and are
+# never written, see firmware/board/stm32f4/stm32f4.ld).
+FLASH_BOARDS = {"odrive-v3": "hd_odrive_v3", "mini-cheetah": "hd_mini_cheetah"}
+FLASH_BOOT_ADDR, FLASH_MAIN_ADDR = 0x08000000, 0x0800C000
+OPENOCD_CFG = ["interface/stlink.cfg", "target/stm32f4x.cfg"]
+
+
+def select_board(name: str) -> dict:
+    """Points the module's build tree, board folder, QEMU machine and image
+    names at a board port."""
+    global M4_BUILD, BOARD_REL, QEMU_ARGS, RUN_IMAGE, BENCH_IMAGE
+    b = BOARDS[name]
+    M4_BUILD = Path(os.environ.get(b["env"], ROOT / "build" / b["build"]))
+    BOARD_REL = Path(b["rel"])
+    QEMU_ARGS = ["-M", b["machine"]] + QEMU_ARGS[2:]
+    RUN_IMAGE, BENCH_IMAGE = b["run"], b["bench"]
+    return b
+
 
 # Clock frequencies of the MCU classes the image targets (for microseconds).
 MCU_CLOCKS_MHZ = [("STM32F4", 168), ("STM32G4", 170)]
@@ -83,17 +126,23 @@ def symbols(elf: Path) -> dict:
 
 # -------------------------------------------------------------------- build
 
+def current_board() -> dict:
+    return next(b for b in BOARDS.values() if Path(b["rel"]) == BOARD_REL)
+
+
 def build_images() -> None:
     need("arm-none-eabi-gcc")
     need("cmake")
+    b = current_board()
     if not (M4_BUILD / "build.ninja").exists():
-        if M4_BUILD == ROOT / "build" / "cortex-m4":
-            sh(["cmake", "--preset", "cortex-m4"], cwd=ROOT, stdout=subprocess.DEVNULL)
+        if M4_BUILD == ROOT / "build" / b["build"]:
+            sh(["cmake", "--preset", b["build"]], cwd=ROOT, stdout=subprocess.DEVNULL)
         else:
             sh(["cmake", "-S", ROOT, "-B", M4_BUILD, "-G", "Ninja",
                 f"-DCMAKE_TOOLCHAIN_FILE={ROOT / 'cmake' / 'arm-none-eabi.cmake'}",
-                "-DCMAKE_BUILD_TYPE=MinSizeRel"], stdout=subprocess.DEVNULL)
-    sh(["cmake", "--build", M4_BUILD, "-j2", "--target", "hd_image", "hd_bench"],
+                "-DCMAKE_BUILD_TYPE=MinSizeRel", f"-DHD_BOARD={b['cmake_board']}"],
+               stdout=subprocess.DEVNULL)
+    sh(["cmake", "--build", M4_BUILD, "-j2", "--target", *b["targets"]],
        stdout=subprocess.DEVNULL)
 
 
@@ -160,7 +209,7 @@ def cmd_run(a) -> int:
     out = Path(a.out).resolve() if a.out else "-"
     can = Path(a.can).resolve() if a.can else "-"
     count = Path(a.count).resolve() if a.count else None
-    rc, text = run_qemu(image("hd_image"), [Path(a.stream).resolve(), out, can], count)
+    rc, text = run_qemu(image(RUN_IMAGE), [Path(a.stream).resolve(), out, can], count)
     sys.stdout.write(text)
     if count is not None:
         isr = [n for s in parse_counts(count.read_text())[0] for n in s["intervals"]]
@@ -207,7 +256,7 @@ def compare_stream(stream: Path, tools: dict, work: Path) -> bool:
     sh([tools["hostref"], stream, h_bin], stdout=subprocess.DEVNULL)
     sh([tools["runner"], "--sensors", f"replay:{stream}", "--can", f"log:{h_log}", "--quiet"],
        stdout=subprocess.DEVNULL)
-    rc, text = run_qemu(image("hd_image"), [stream, q_bin, q_log])
+    rc, text = run_qemu(image(RUN_IMAGE), [stream, q_bin, q_log])
     if rc != 0:
         print(f"FAIL: the QEMU image exited with status {rc}\n{text}")
         return False
@@ -466,7 +515,7 @@ def load_callgraph(build: Path, image_dirs: list) -> tuple:
     frames, qualifiers, edges, origin = {}, {}, {}, {}
     ci_files = [p for p in build.rglob("*.ci")
                 if "CMakeFiles" in p.parts and
-                (not any(".dir" in part and part.split(".dir")[0] in ("hd_image", "hd_bench")
+                (not any(".dir" in part and part.split(".dir")[0] in current_board()["targets"]
                          for part in p.parts) or any(d in str(p) for d in image_dirs))]
     for ci in ci_files:
         text = ci.read_text()
@@ -506,7 +555,12 @@ def library_frame(objdump_text: str, name: str) -> tuple:
     return total, callees
 
 
-def worst_stack(elf: Path) -> dict:
+def worst_stack(elf: Path, isrs: tuple = ("SysTick_Handler",), fault_entry: str = "HardFault_Handler",
+                hal_funcs: tuple | None = None) -> dict:
+    """Deepest stack of main, of each interrupt in isrs (listed from the
+    lowest priority up: each may preempt the ones before it) and of the
+    fault handler.  hal_funcs: the functions the image puts in its hal_t
+    (default: the QEMU backends' functions)."""
     image_dir = f"{elf.stem}.dir"
     frames, qualifiers, edges, origin = load_callgraph(M4_BUILD, [image_dir])
     objdump = sh([need("arm-none-eabi-objdump"), "-d", elf], capture_output=True, text=True).stdout
@@ -519,6 +573,9 @@ def worst_stack(elf: Path) -> dict:
                       if ("hal_mock.dir" in str(ci) or "hal_semihost.dir" in str(ci))
                       and t.split(":")[-1] in defined
                       and (":" in t or t == "hal_sh_canlog_hook")]
+    if hal_funcs is not None:
+        hal_candidates = [t for t in origin if t.split(":")[-1] in hal_funcs
+                          and t.split(":")[-1] in defined]
     memo, on_path = {}, set()
     notes = set()
 
@@ -565,13 +622,13 @@ def worst_stack(elf: Path) -> dict:
 
     main = cost("main")
     reset = frames.get("Reset_Handler", 0)
-    tick = cost("SysTick_Handler")
-    fault = cost("HardFault_Handler")
+    isr_costs = [cost(n) for n in isrs]
+    fault = cost(fault_entry)
     # Exception entry with an active FP context: 26 words (+ 4 bytes alignment).
     frame = 26 * 4 + 4
-    total = reset + main[0] + frame + tick[0] + frame + fault[0]
-    return {"main": main, "reset": reset, "tick": tick, "fault": fault, "frame": frame,
-            "total": total, "notes": sorted(notes)}
+    total = reset + main[0] + sum(frame + c[0] for c in isr_costs) + frame + fault[0]
+    return {"main": main, "reset": reset, "tick": isr_costs[0], "isrs": isr_costs,
+            "fault": fault, "frame": frame, "total": total, "notes": sorted(notes)}
 
 
 def md_table(header: list, rows: list) -> str:
@@ -714,30 +771,45 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="tools/target", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("build", help="build the images and the plugin")
-    r = sub.add_parser("run", help="run the firmware image on a raw stream")
+    on = argparse.ArgumentParser(add_help=False)
+    on.add_argument("--board", choices=sorted(BOARDS), default="mps2-an386",
+                    help="board port (default mps2-an386)")
+    sub.add_parser("build", parents=[on], help="build the images and the plugin")
+    r = sub.add_parser("run", parents=[on], help="run the firmware image on a raw stream")
     r.add_argument("stream")
     r.add_argument("--out", help="per-tick float dump (28-byte records)")
     r.add_argument("--can", help="candump -l log of the transmitted frames")
     r.add_argument("--count", help="write the plugin's instruction counts here")
-    c = sub.add_parser("compare", help="host build vs QEMU image, bit for bit")
+    c = sub.add_parser("compare", parents=[on], help="host build vs QEMU image, bit for bit")
     c.add_argument("stream", nargs="?")
     c.add_argument("--scenario", help="simulate this sim/ scenario (.ini) with hdsim")
     c.add_argument("--duration", type=float, help="override the scenario's duration_s")
     c.add_argument("--host-build", help="host build tree with target_hostref, "
                    "hdjoint-host and hdsim (default: build/target-host, built on demand)")
-    b = sub.add_parser("budget", help="print the budget tables (markdown)")
+    b = sub.add_parser("budget", parents=[on], help="print the budget tables (markdown)")
     b.add_argument("--markdown", action="store_true", help="(the default format)")
     b.add_argument("--json", help="also write the numbers to this JSON file")
-    k = sub.add_parser("count", help="instruction counts between markers of an image")
+    k = sub.add_parser("count", parents=[on], help="instruction counts between markers of an image")
     k.add_argument("elf")
     k.add_argument("args", nargs="*")
+    f = sub.add_parser("flash", help="program a board over ST-Link (OpenOCD) or USB DFU")
+    f.add_argument("--board", choices=sorted(FLASH_BOARDS), required=True)
+    f.add_argument("--tool", choices=["openocd", "dfu"], default="openocd")
+    f.add_argument("--image", help="the ELF to program (default: build it)")
+    f.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     a = ap.parse_args(argv)
     try:
+        # hdtools.target_stm32f4 uses this module's helpers and board state:
+        # when run as __main__ (the launcher), it is that module.
+        sys.modules.setdefault("hdtools.target", sys.modules[__name__])
+        from hdtools import target_stm32f4
+        if a.cmd == "flash":
+            return target_stm32f4.cmd_flash(a)
+        select_board(a.board)
         if a.cmd == "build":
             build_images()
             build_plugin()
-            print(f"built {image('hd_image')}, {image('hd_bench')}, {HOST_BUILD / 'hdcount.so'}")
+            print(f"built {image(RUN_IMAGE)}, {image(BENCH_IMAGE)}, {HOST_BUILD / 'hdcount.so'}")
             return 0
         if a.cmd == "run":
             return cmd_run(a)
@@ -746,6 +818,8 @@ def main(argv=None) -> int:
                 ap.error("compare needs a stream or --scenario")
             return cmd_compare(a)
         if a.cmd == "budget":
+            if a.board != "mps2-an386":
+                return target_stm32f4.cmd_budget(a)
             return cmd_budget(a)
         return cmd_count(a)
     except TargetError as exc:

@@ -42,21 +42,10 @@ int stm32_flash_read(void *ctx, size_t offset, void *buf, size_t len)
     return HAL_OK;
 }
 
-/* Bounded wait for BSY = 0, reloading the watchdog on the way. */
+/* Bounded wait for BSY = 0. */
 static int wait_idle(stm32_flash_drv_t *drv, uint32_t polls)
 {
-    stm32_flash_t *f = drv->cfg.regs;
-    const uint32_t chunk = 1024u;
-    for (uint32_t done = 0; done < polls; done += chunk) {
-        uint32_t n = polls - done < chunk ? polls - done : chunk;
-        if (stm32_wait(&f->SR, STM32_FLASH_SR_BSY, 0u, n)) {
-            return HAL_OK;
-        }
-        if (drv->cfg.wait_hook != NULL) {
-            drv->cfg.wait_hook(drv->cfg.wait_ctx);
-        }
-    }
-    return HAL_ERR_IO;
+    return stm32_wait(&drv->cfg.regs->SR, STM32_FLASH_SR_BSY, 0u, polls) ? HAL_OK : HAL_ERR_IO;
 }
 
 static int unlock(stm32_flash_drv_t *drv)

@@ -21,9 +21,9 @@
  *
  * While a sector is erased the CPU stalls on every flash read (single-bank
  * flash: the tick interrupt's code is in flash too), up to the datasheet's
- * maximum sector erase time; the board counts the ticks it missed.
- * `wait_hook` (may be NULL) runs in the busy loops: the board reloads the
- * watchdog there.
+ * maximum sector erase time; the firmware counts the ticks it missed from
+ * the board's cycle-counter clock, and the watchdog period is longer than
+ * that stall.
  */
 #ifndef STM32F4_FLASH_H
 #define STM32F4_FLASH_H
@@ -46,8 +46,6 @@ typedef struct {
     uint32_t sector_bytes;    /* all sectors of the region are this size */
     uint32_t erase_polls;     /* bound on the BSY wait of one sector erase */
     uint32_t program_polls;   /* bound on the BSY wait of one program operation */
-    void (*wait_hook)(void *ctx);
-    void *wait_ctx;
 } stm32_flash_config_t;
 
 typedef struct {

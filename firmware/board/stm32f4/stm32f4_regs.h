@@ -450,7 +450,14 @@ typedef struct {
 #define STM32_SCB_SHCSR_FAULTS_ENA (7u << 16)  /* MemManage, BusFault, UsageFault */
 #define STM32_SCB_CFSR_MMARVALID (1u << 7)
 #define STM32_SCB_CFSR_BFARVALID (1u << 15)
+/* Data watchpoint and trace unit: the free-running cycle counter. */
+#define STM32_DEMCR (*(volatile uint32_t *)0xE000EDFCu)
+#define STM32_DEMCR_TRCENA (1u << 24)
+#define STM32_DWT_CTRL (*(volatile uint32_t *)0xE0001000u)
+#define STM32_DWT_CTRL_CYCCNTENA (1u << 0)
+#define STM32_DWT_CYCCNT (*(volatile uint32_t *)0xE0001004u)
 #define STM32_NVIC_ISER ((volatile uint32_t *)0xE000E100u)
+#define STM32_NVIC_ICER ((volatile uint32_t *)0xE000E180u)
 #define STM32_NVIC_ICPR ((volatile uint32_t *)0xE000E280u)
 #define STM32_NVIC_IPR ((volatile uint8_t *)0xE000E400u)
 
@@ -462,6 +469,7 @@ typedef struct {
 #define STM32_IRQ_CAN1_SCE 22u
 #define STM32_IRQ_TIM1_UP_TIM10 25u
 #define STM32_IRQ_TIM2 28u
+#define STM32_IRQ_TIM8_UP_TIM13 44u
 #define STM32_IRQ_COUNT 97u  /* F446: 97 vectors after the 16 system ones (F405: 82) */
 
 #ifdef __cplusplus

@@ -1,0 +1,221 @@
+"""tools/target for the STM32F4 board port: the budget of the board images
+(tools/target budget --board stm32f4) and programming a board
+(tools/target flash).  Standard library only, like hdtools.target, whose
+build, QEMU and analysis helpers this uses.
+"""
+from __future__ import annotations
+
+import json
+import re
+import shlex
+import statistics
+import subprocess
+from pathlib import Path
+
+from hdtools import target as t
+
+BOARD_SRC = t.ROOT / "firmware" / "board" / "stm32f4"
+BOARD_IMAGES = [("hd_odrive_v3", "ODrive v3.x class, STM32F405RG"),
+                ("hd_mini_cheetah", "Mini Cheetah class, STM32F446RE")]
+# The interrupts of a board image, lowest priority first (each may preempt
+# the ones before it: stm32f4_board.c, stm32_board_start).
+ISRS = ("CAN1_TX_IRQHandler", "TIM1_UP_TIM10_IRQHandler")
+FAULT_ENTRY = "stm32_fault_entry"  # HardFault_Handler is two instructions and a branch here
+FLASH_PART_KB = 512                 # the smaller part (F446RE); the F405RG has 1024
+RAM_PART_KB = 128
+BOOT_SECTOR = 16 * 1024
+TICK_RATE_WINDOW_MS = 20
+
+
+def hal_functions() -> tuple:
+    """The functions the board puts in its hal_t, read from the code that
+    binds them (stm32_board_bind, stm32_flash_bind): the candidates of the
+    firmware's indirect calls."""
+    names = set()
+    for src, func in ((BOARD_SRC / "stm32f4_board.c", "stm32_board_bind"),
+                      (BOARD_SRC / "stm32f4_flash.c", "stm32_flash_bind")):
+        text = src.read_text()
+        body = re.search(rf"\n\w[^\n]*\b{func}\([^)]*\)\n\{{(.*?)\n\}}", text, re.S)
+        if body is None:
+            raise t.TargetError(f"{src.name}: {func} not found")
+        names.update(re.findall(r"->\w+(?:\.\w+)? = (\w+);", body.group(1)))
+    return tuple(sorted(n for n in names if "_" in n))  # not the contexts (b, drv)
+
+
+def memory_rows(elf: Path) -> dict:
+    s = t.section_sizes(elf)
+    boot = s.get(".boot", 0)
+    flash = boot + s.get(".text", 0) + s.get(".ARM.exidx", 0) + s.get(".data", 0)
+    ram = s.get(".noinit", 0) + s.get(".data", 0) + s.get(".bss", 0) + s.get(".stack", 0)
+    return {"flash": flash, "boot": boot, "ram": ram, "bss": s.get(".bss", 0),
+            "data": s.get(".data", 0), "noinit": s.get(".noinit", 0),
+            "stack": s.get(".stack", 0), "nvm": s.get(".nvm", 0)}
+
+
+def tick_rate(bench: Path) -> int:
+    """TIM2 update events in TICK_RATE_WINDOW_MS of SysTick time (both
+    counted by the bench image on netduinoplus2)."""
+    rc, text = t.run_qemu(bench, ["tickrate"])
+    m = re.search(r"tickrate: (\d+)\s+per ms: (\d+)", text)
+    if rc != 0 or m is None or int(m.group(2)) != TICK_RATE_WINDOW_MS:
+        raise t.TargetError(f"{bench.name} tickrate: exit {rc}:\n{text}")
+    return int(m.group(1))
+
+
+def section_rows(bench: Path) -> tuple:
+    sections = t.labelled_sections(bench, [])
+    insns = t.disassembly(bench)
+    by = {s["label"]: s for s in sections}
+    overhead = min(by["empty:-"]["intervals"])
+    loop = by["loop:-"]["intervals"]
+    check = loop[1] - loop[0] if len(loop) == 2 else None
+    rows = {}
+    for s in sections:
+        if s["label"] in ("empty:-", "loop:-"):
+            continue
+        iv = [n - overhead for n in s["intervals"]]
+        lo, hi, _ = t.cycle_estimate(s["hist"], insns, len(iv))
+        lo -= overhead * 2  # the marker's bl (1 + P)
+        hi -= overhead * 4
+        mean = statistics.mean(iv)
+        rows[s["label"].split(":")[0]] = {
+            "states": s["states"], "calls": len(iv), "mean": mean, "max": max(iv),
+            "cycles_lo": lo, "cycles_hi": hi,
+            "worst_us": max(iv) * (hi / mean) / t.MCU_CLOCKS_MHZ[0][1]}
+    return rows, check
+
+
+SECTION_TEXT = {
+    "tick": "tick interrupt: CAN service + hd_fw_isr (ADC, encoders, filter, telemetry)",
+    "tickrx": "tick interrupt with a command frame received",
+    "tickadc": "tick interrupt, conversion missing: ADC wait to its bound",
+    "cantx": "CAN transmit interrupt: 3 queued frames into the mailboxes",
+}
+
+
+def cmd_budget(a) -> int:
+    t.build_images()
+    out = []
+    p = out.append
+    numbers = {"images": {}}
+    p("### Memory (arm-none-eabi-size -A of the board images)\n")
+    rows = []
+    for name, what in BOARD_IMAGES:
+        m = memory_rows(t.image(name))
+        numbers["images"][name] = m
+        rows.append([f"`{name}.elf` ({what})", f"{m['flash']} B", f"{m['boot']} B of 16384",
+                     f"{m['ram']} B", f".data {m['data']} + .bss {m['bss']} + .noinit "
+                     f"{m['noinit']} + stack {m['stack']}"])
+    p(t.md_table(["image", "flash (of 512 KB - 32 KB NVM)", "sector 0", "RAM (of 128 KB)",
+                  "RAM contents"], rows))
+    p(f"\nNVM: flash sectors 1 and 2 ({numbers['images']['hd_odrive_v3']['nvm']} B) reserved "
+      "by the linker script for the A/B record store; nothing is linked there.")
+
+    elf = t.image("hd_odrive_v3")
+    heap = [s for s in ("malloc", "_malloc_r", "calloc", "realloc", "free", "_free_r", "_sbrk",
+                        "_sbrk_r", "sbrk") if s in t.symbols(elf)]
+    p("\n### Heap\n")
+    p("FAIL: allocator symbols linked: " + ", ".join(heap) if heap else
+      "None (no libc; the linker script ASSERTs it and the build checks the symbol table).")
+
+    st = t.worst_stack(elf, isrs=ISRS, fault_entry=FAULT_ENTRY, hal_funcs=hal_functions())
+    stack_reserved = numbers["images"]["hd_odrive_v3"]["stack"]
+    p("\n### Worst-case stack, hd_odrive_v3.elf (-fstack-usage + -fcallgraph-info call graph)\n")
+    srows = [["main loop (Reset_Handler + main)", st["reset"] + st["main"][0],
+              " > ".join(st["main"][1])]]
+    for name, c in zip(ISRS, st["isrs"]):
+        srows.append(["exception entry, FP context (26 words + align)", st["frame"], "hardware"])
+        srows.append([name, c[0], " > ".join(c[1])])
+    srows += [["exception entry (fault inside the tick)", st["frame"], "hardware"],
+              ["fault handler", st["fault"][0], " > ".join(st["fault"][1])],
+              ["**total worst case**", f"**{st['total']}**", f"reserved: {stack_reserved} B"]]
+    p(t.md_table(["context", "bytes", "deepest path"], srows))
+    p("\nThe CAN transmit interrupt (priority 2) can be preempted by the tick (priority 1); "
+      "indirect calls are bounded by the deepest function the board puts in its hal_t" +
+      (("; notes: " + "; ".join(st["notes"])) if st["notes"] else "") + ".")
+    stack_ok = st["total"] <= stack_reserved
+
+    bench = t.image(t.BENCH_IMAGE)
+    rate = tick_rate(bench)
+    srows, check = section_rows(bench)
+    mhz = t.MCU_CLOCKS_MHZ[0][1]
+    p("\n### Instructions per interrupt (hd_stm32f4_bench.elf on QEMU netduinoplus2)\n")
+    p("The board code and drivers of the ODrive image, compiled the same way, with their "
+      "registers in RAM set to what the hardware shows (update flag, conversion done, "
+      "mailboxes empty); counted by tools/qemu-plugin between the markers, marker overhead "
+      f"subtracted; counter check: hd_bench_loop(1010) - hd_bench_loop(10) = {check} "
+      "instructions (expected 2000).  Cycles: the Cortex-M4 TRM timings per executed "
+      "instruction, zero wait states (best-worst); us = max instructions x worst cycles "
+      f"per instruction at {mhz} MHz.\n")
+    p(t.md_table(["interrupt body", "filter states", "instructions mean / max",
+                  "cycles mean (best-worst)", "worst-case us"],
+                 [[SECTION_TEXT[k], r["states"], f"{r['mean']:.0f} / {r['max']}",
+                   f"{r['cycles_lo']:.0f}-{r['cycles_hi']:.0f}", f"{r['worst_us']:.1f}"]
+                  for k, r in srows.items()]))
+    p(f"\nTick rate in the emulator: {rate} TIM2 update events in {TICK_RATE_WINDOW_MS} ms "
+      f"of SysTick time (stm32_tick_init for QEMU's 1 GHz timer clock; expected "
+      f"{TICK_RATE_WINDOW_MS}).  The budget per tick is 1000 us.")
+    print("\n".join(out))
+    numbers.update({"heap_symbols": heap, "stack_worst_bytes": st["total"],
+                    "stack_reserved_bytes": stack_reserved, "counter_check": check,
+                    "tick_rate_per_20ms": rate, "interrupts": srows})
+    if a.json:
+        Path(a.json).write_text(json.dumps(numbers, indent=1))
+    ok = not heap and stack_ok and check == 2000 and rate == TICK_RATE_WINDOW_MS
+    if not ok:
+        print("\nFAIL: heap, stack, counter check or tick rate (see above)")
+    return 0 if ok else 1
+
+
+# ------------------------------------------------------------------ flash
+
+def split_binaries(elf: Path) -> tuple:
+    """The two loadable parts of a board image as raw binaries next to it:
+    sector 0 (.boot) and sector 3 on (.text, .ARM.exidx, .data), so the
+    record sectors in between are never written."""
+    boot, main = elf.with_suffix(".boot.bin"), elf.with_suffix(".main.bin")
+    if not boot.exists() or not main.exists():
+        objcopy = t.need("arm-none-eabi-objcopy")
+        t.sh([objcopy, "-O", "binary", "-j", ".boot", elf, boot])
+        t.sh([objcopy, "-O", "binary", "-j", ".text", "-j", ".ARM.exidx", "-j", ".data",
+              elf, main])
+    return boot, main
+
+
+def flash_commands(tool: str, elf: Path) -> list:
+    if tool == "openocd":
+        cfg = [x for c in t.OPENOCD_CFG for x in ("-f", c)]
+        return [["openocd", *cfg, "-c", f"program {elf} verify reset exit"]]
+    boot, main = split_binaries(elf)
+    return [["dfu-util", "-a", "0", "-s", f"0x{t.FLASH_BOOT_ADDR:08X}", "-D", str(boot)],
+            ["dfu-util", "-a", "0", "-s", f"0x{t.FLASH_MAIN_ADDR:08X}:leave", "-D", str(main)]]
+
+
+def cmd_flash(a) -> int:
+    if a.image:
+        elf = Path(a.image).resolve()
+    else:
+        t.select_board("stm32f4")
+        elf = t.image(t.FLASH_BOARDS[a.board])
+        if not a.dry_run or not elf.exists():
+            t.build_images()
+    if not elf.is_file():
+        raise t.TargetError(f"{elf}: no such image (tools/target build --board stm32f4, "
+                            "or --image ELF)")
+    program = "openocd" if a.tool == "openocd" else "dfu-util"
+    if not a.dry_run:
+        if t.shutil.which(program) is None:
+            raise t.TargetError(f"{program} not found: install Debian's {program} "
+                                "(tools/setup installs it)")
+    cmds = flash_commands(a.tool, elf)
+    for cmd in cmds:
+        print(shlex.join(str(c) for c in cmd))
+    if a.dry_run:
+        return 0
+    for cmd in cmds:
+        rc = subprocess.run([str(c) for c in cmd]).returncode
+        if rc != 0:
+            print(f"tools/target: {program} failed with exit status {rc}", file=t.sys.stderr)
+            return 1
+    print(f"flashed {elf.name} to {a.board} with {program}")
+    return 0
