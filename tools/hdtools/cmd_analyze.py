@@ -1,12 +1,19 @@
 """`hdsense analyze`: close the loop with measured data.
 
 Replays a torque log through the firmware's own filter (C, via ctypes),
-finds structure the model lacks in the residual, traces it to an effect,
-adds the effect, re-runs, keeps it only if it helps, and reports the error
-before and after.  See docs/analyze.md."""
+finds structure the model lacks in one part of the log, traces it to an
+effect, adds the effect, re-runs, keeps it only if it helps in the part of
+the log it was not found in, and reports the error before and after, in and
+out of sample.  See docs/analyze.md."""
 from __future__ import annotations
 
+import math
 import sys
+
+from .safeio import UsageError
+
+# An order travels over CAN as hundredths in 16 bits (docs/firmware.md).
+CAN_ORDER_RANGE = (0.01, 655.35)
 
 
 def register(sub):
@@ -15,13 +22,18 @@ def register(sub):
     p.add_argument("input", nargs="?", help="CSV (t_s, torque_nm, motor_angle_rad or "
                    "output_angle_rad, ...) or candump -l log of the firmware telemetry")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
-    p.add_argument("--out", metavar="DIR", help="also write report.md, PNG plots, model.cfg, model.can")
+    p.add_argument("--out", metavar="DIR", help="also write report.md, PNG plots, model.cfg, "
+                   "model.can and profile.json")
     p.add_argument("--gear-ratio", type=float, help="gear ratio N (inferred when absent)")
     p.add_argument("--motor-orders", default="2,4", help="starting motor orders (default 2,4)")
     p.add_argument("--output-orders", default="1", help="starting output orders (default 1; '' for none)")
     p.add_argument("--inertia", type=float, default=0.0, metavar="J_kgm2",
                    help="load inertia for the expected torque [kg m^2] (default 0)")
     p.add_argument("--fs", type=float, metavar="HZ", help="sample rate when there is no t_s column")
+    p.add_argument("--time-unit", choices=("s", "ms", "us"),
+                   help="unit of the t_s column (detected from its step when absent)")
+    p.add_argument("--angle-unit", choices=("rad", "deg"),
+                   help="unit of the angle columns (detected from the speeds when absent)")
     p.add_argument("--node-id", type=int, default=1, help="CAN node id for model.can (default 1)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--bench-hour", action="store_true",
@@ -33,36 +45,53 @@ def _orders(text, name):
     try:
         vals = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise SystemExit(f"hdsense analyze: --{name}: expected comma-separated numbers, got {text!r}")
-    if any(not v > 0 for v in vals):
-        raise SystemExit(f"hdsense analyze: --{name}: orders must be > 0")
+        raise UsageError(f"--{name}: expected comma-separated numbers, got {text!r}") from None
+    lo, hi = CAN_ORDER_RANGE
+    for v in vals:
+        if not lo <= v <= hi:
+            raise UsageError(f"--{name}: order {v:g} outside {lo:g}..{hi:g} (not representable "
+                             "on CAN)")
     return vals
 
 
+def _check_args(args):
+    if not args.input:
+        raise UsageError("INPUT is required")
+    if not args.json and not args.out:
+        raise UsageError("give --json REPORT.json and/or --out DIR")
+    if not 1 <= args.node_id <= 127:
+        raise UsageError(f"--node-id must be 1..127 (got {args.node_id})")
+    for name in ("gear_ratio", "fs", "inertia"):
+        v = getattr(args, name)
+        if v is not None and not math.isfinite(v):
+            raise UsageError(f"--{name.replace('_', '-')} must be a finite number")
+    if args.gear_ratio is not None and not args.gear_ratio >= 1:
+        raise UsageError(f"--gear-ratio must be >= 1 (got {args.gear_ratio:g})")
+    if args.inertia < 0:
+        raise UsageError(f"--inertia must be >= 0 (got {args.inertia:g})")
+    if args.fs is not None and not args.fs > 0:
+        raise UsageError(f"--fs must be > 0 (got {args.fs:g})")
+
+
 def main(args) -> int:
+    """Errors are raised as hdtools.safeio errors (one line and the exit
+    status from hdtools.cli: 2 bad input, 3 an output could not be written,
+    4 internal error)."""
     if args.bench_hour:
         from .analysis import bench_speed
         return bench_speed.main()
-    if not args.input:
-        print("hdsense analyze: INPUT is required", file=sys.stderr)
-        return 2
-    if not args.json and not args.out:
-        print("hdsense analyze: give --json REPORT.json and/or --out DIR", file=sys.stderr)
-        return 2
+    _check_args(args)
+    motor = _orders(args.motor_orders, "motor-orders")
+    output = _orders(args.output_orders, "output-orders")
     from .analysis import pipeline
-    from .analysis.loading import InputError
     from .analysis.cfilter import FilterError
     log = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     try:
         report = pipeline.analyze(
-            args.input, gear_ratio=args.gear_ratio,
-            motor_orders=_orders(args.motor_orders, "motor-orders"),
-            output_orders=_orders(args.output_orders, "output-orders"),
-            inertia_kgm2=args.inertia, fs_hz=args.fs, out_dir=args.out,
-            json_path=args.json, node_id=args.node_id, log=log)
-    except (InputError, FilterError) as exc:
-        print(f"hdsense analyze: {exc}", file=sys.stderr)
-        return 2
-    s = report["summary"]
-    print(s)
+            args.input, gear_ratio=args.gear_ratio, motor_orders=motor, output_orders=output,
+            inertia_kgm2=args.inertia, fs_hz=args.fs, out_dir=args.out, json_path=args.json,
+            node_id=args.node_id, log=log, time_unit=args.time_unit, angle_unit=args.angle_unit)
+    except FilterError as exc:
+        raise UsageError(f"the filter refuses this log's model: {exc}") from None
+    print(report["summary"])
     return 0

@@ -1,32 +1,34 @@
-"""The add-and-verify loop.
+"""The add-and-verify loop, with decisions that hold out of sample.
 
-Each round: replay with the current model -> detect candidates -> try the
-strongest untried one (re-run the same C filter with it) -> keep it only if
-it helps -> repeat.
+The log is split into fold A (detect and fit) and fold B (judge): time
+blocks that alternate A, B (replay.folds).  Each round: replay with the
+current model -> detect candidates in fold A -> fit each one's parameters
+in fold A -> re-run the same C filter over the whole log with the candidate
+-> keep it only if it helps in fold B, which it never saw.  No ground truth
+is used for any decision.
 
-"Helps" (no ground truth is used for any decision):
-  * a new oscillator block (line effects): the line's least-squares
-    amplitude in the filtered torque falls by at least LINE_DROP, the
-    innovation RMS does not rise by more than INNOV_TOL, and the change of
-    the filtered torque is essentially the line (rms change <= CHANGE_FACTOR
-    x the line's rms), i.e. the block did not eat real torque;
-  * a retuned block (q x 10: ripple whose amplitude or phase moves): the
-    same line test;
-  * a load coefficient (ripple amplitude x (1 + k |T|), when the residue's
-    envelope follows the load): the innovation RMS falls by at least
-    LOAD_GAIN and the residue band around the line falls;
-  * an expected-torque term (velocity, acceleration): the innovation RMS
-    falls by at least INNOV_GAIN and the slow model residual falls;
-  * offset drift (offset state as a slowly moving sensor-zero error): only
-    when the trend dominates what the expected torque leaves (the rest of
-    the slow residual is below a quarter of the trend's excursion), since a
-    sensor drift cannot otherwise be told from real slow torque, and the
-    model residual then falls by at least a quarter.  (The innovation is no
-    guide here: a slower offset state always predicts worse.)
-Stopping rule: stop when no candidate passes detection (peak >= 30x local
-floor and >= 0.2 % of residual variance for lines; >= 2 % partial variance
-for slow terms), when every candidate has been tried once, when the filter
-has 8 blocks, or after MAX_ROUNDS rounds.
+Every change (a line, a retune, a load coefficient, friction, inertia,
+drift, the angle profile, R, nyquist_fraction) must pass two tests in fold B:
+  * the held-out innovation RMS does not grow (INNOV_EPS: float noise only);
+  * the change does what it is for, measured in fold B:
+      - a new or retuned block: the line's amplitude in the filtered torque
+        falls by at least LINE_DROP, and the filtered torque changes by no
+        more than CHANGE_FACTOR x the line's rms (the block did not eat real
+        torque);
+      - a load coefficient: the innovation falls by at least LOAD_GAIN;
+      - friction / inertia: the innovation falls by INNOV_GAIN and the model
+        residual falls; J, b, Fc stay >= 0 (the firmware's model);
+      - the angle profile (output-locked lines, geometry.py): with the
+        profile subtracted, fold B's slow residual minus a smoother of the
+        same time constant falls (the profile predicts angle-locked torque
+        it was not fitted on);
+      - drift (the offset state read as a sensor error; same q, so the
+        innovation is unchanged): the line fitted in fold A leaves less
+        than DRIFT_REST_FRACTION of its excursion in fold B;
+      - R and nyquist_fraction: fold B keeps no more of the model's own
+        motor-locked and fixed lines than before.
+Stopping rule: stop when no candidate passes detection, every candidate has
+been tried, the filter has 8 blocks, or after MAX_ROUNDS rounds.
 """
 from __future__ import annotations
 
@@ -34,17 +36,25 @@ import math
 
 import numpy as np
 
-from . import detect, replay as rp, spectra
-from .model import NOISE_FLOOR_NM, SENSOR_DRIFT_SETTLE_S, Block, Model
+from . import detect, geometry, replay as rp, spectra
+from .model import NOISE_FLOOR_NM, Block, Model, ProfileLine
 
 LINE_DROP = 0.5
-INNOV_TOL = 0.01
+INNOV_EPS = 1e-6
 INNOV_GAIN = 0.002
 CHANGE_FACTOR = 2.0
 MAX_ROUNDS = 8
 MAX_BLOCKS = 8
 RETUNE_FACTOR = 10.0
 LOAD_GAIN = 0.05
+PROFILE_GAIN = 0.01
+LINES_LEFT_TOL = 0.02
+# CAN carries an order as a uint16 of hundredths (docs/firmware.md).
+CAN_ORDER_MAX = 0xFFFF / 100.0
+
+
+def representable(order: float) -> bool:
+    return 0 < round(order * 100) <= 0xFFFF
 
 
 def apply(model: Model, c: detect.Candidate) -> Model | None:
@@ -52,8 +62,13 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
     q = Model.q_for_settle(m.r_nm2, m.ts_s, 0.05)
     if c.action == "add_block":
         if len(m.blocks) >= MAX_BLOCKS:
+            c.evidence["rejected_because"] = f"the filter has {MAX_BLOCKS} blocks"
             return None
-        lock = {"motor_order": "motor", "output_order": "output", "fixed_frequency": "fixed"}[c.kind]
+        if not representable(c.order):
+            c.evidence["rejected_because"] = (
+                f"order {c.order:g} is not representable on CAN (0.01..{CAN_ORDER_MAX:g})")
+            return None
+        lock = {"motor_order": "motor", "fixed_frequency": "fixed"}[c.kind]
         m.blocks.append(Block(lock, round(c.order, 2), q))
     elif c.action == "retune_block":
         b = m.blocks[c.evidence["existing_block"]]
@@ -76,14 +91,31 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
             return None
         m.offset_enabled = True
         m.offset_is_sensor_error = True
-        m.offset_q_nm2 = Model.q_for_settle(m.r_nm2, m.ts_s, SENSOR_DRIFT_SETTLE_S)
+    elif c.action == "set_profile":
+        m.blocks = [b for b in m.blocks if b.lock != "output"]
+        m.profile = [p for p in m.profile if p.lock != "output"] + [
+            ProfileLine("output", o["order"], o["a_nm"], o["b_nm"]) for o in c.params["profile"]]
+    elif c.action == "set_tuning":
+        for k, v in c.params.items():
+            if k == "noise_nm":
+                m = m.with_noise(v)
+            else:
+                setattr(m, k, v)
+    else:
+        return None
     return m
+
+
+def _signal(runs, raw):
+    return [(np.asarray(r.torque_nm, float) if raw else r.filtered)[r.warm:] for r in runs]
 
 
 def line_amplitude(runs, kind, order, raw=False):
     """Least-squares amplitude of the line in the filtered (or raw) torque
     (slow torque removed first, see spectra.highpass_for_line)."""
-    sig = [(np.asarray(r.torque_nm, float) if raw else r.filtered)[r.warm:] for r in runs]
+    if not runs:
+        return float("nan")
+    sig = _signal(runs, raw)
     if kind == "motor_order":
         ph = [order * r.motor_angle_rad[r.warm:] for r in runs]
     elif kind == "output_order":
@@ -96,44 +128,156 @@ def line_amplitude(runs, kind, order, raw=False):
     return amp
 
 
-def judge(c, runs0, m0, runs1, m1, view0=None, view1=None):
-    """Returns (keep, evidence).  view0/view1: analysis views of the two
-    replays (line amplitudes are measured on them)."""
-    view0 = runs0 if view0 is None else view0
-    view1 = runs1 if view1 is None else view1
-    ev = {"innovation_rms_before_nm": m0["innovation_rms_nm"],
-          "innovation_rms_after_nm": m1["innovation_rms_nm"],
-          "model_residual_rms_before_nm": m0["model_residual_rms_nm"],
-          "model_residual_rms_after_nm": m1["model_residual_rms_nm"]}
-    innov_change = m1["innovation_rms_nm"] / m0["innovation_rms_nm"] - 1.0
+def spectral_line_amplitude(runs, kind, order, raw=False):
+    """Line amplitude from the averaged order (or time) spectrum: the peak
+    within +-2 bins of the line.  Each spectral window has its own phase,
+    so this survives a slowly drifting phase (inexact gear ratio, real
+    logs) where one global least-squares fit does not; it includes the
+    noise floor in that bin."""
+    if not runs:
+        return float("nan")
+    sig = _signal(runs, raw)
+    ts = float(np.median(np.diff(runs[0].t_s))) if len(runs[0].t_s) > 1 else 1e-3
+    if kind == "fixed_frequency":
+        spec = spectra.time_spectrum(sig, ts)
+    else:
+        ang = [(r.motor_angle_rad if kind == "motor_order" else r.output_angle_rad)[r.warm:]
+               for r in runs]
+        spec = spectra.order_spectrum(sig, ang)
+    if spec is None:
+        return float("nan")
+    i = int(round((order - spec.axis[0]) / (spec.axis[1] - spec.axis[0])))
+    if i < 1 or i >= len(spec.axis) - 2:
+        return float("nan")
+    return float(np.sqrt(np.max(spec.amp2[max(i - 2, 0):i + 3])))
+
+
+def lines_left(runs, model):
+    """Sum of the averaged-spectrum amplitudes of the model's motor-locked and
+    fixed lines in the filtered torque (output-locked lines are left out: at a
+    joint's low output orders they may be real torque)."""
+    kinds = {"motor": "motor_order", "fixed": "fixed_frequency"}
+    amps = [spectral_line_amplitude(runs, kinds[b.lock], b.order)
+            for b in model.blocks if b.lock in kinds]
+    return float(np.nansum(amps)) if amps else 0.0
+
+
+# --- the angle profile ------------------------------------------------------------
+
+def profile_inputs(runs, model, which) -> geometry.Inputs:
+    """Signals for the geometry fit from a replay whose output-locked lines
+    are a fixed profile (or absent): the model residual plus that profile,
+    i.e. measured - motor-locked ripple - expected torque - feed-forward."""
+    view = rp.analysis_view(runs, which)
+    has_out = any(p.lock == "output" for p in model.profile)
+    sig = [r.residual + (rp.profile_torque(model, r.motor_angle_rad, r.output_angle_rad)
+                         if has_out else 0.0) for r in view]
+    ts = float(np.median(np.diff(view[0].t_s[:100]))) if view else 1e-3
+    return geometry.Inputs(sig, [r.output_angle_rad for r in view],
+                           [np.asarray(r.t_s, float) for r in view],
+                           [r.out["output_velocity_rad_s"].astype(float) for r in view], ts)
+
+
+def profile_candidate(runs, model, generation):
+    """The geometry-vs-load fit over fold A as a candidate profile; None if
+    it selects the model's current profile again."""
+    g = geometry.fit(profile_inputs(runs, model, rp.TRAIN))
+    now = sorted(p.order for p in model.profile if p.lock == "output")
+    new = [o["order"] for o in g["orders"]]
+    if not g.get("verifiable") or not new:
+        return None, g
+    if new == now and generation == 0:
+        return None, g
+    ev = {k: v for k, v in g.items() if k != "orders"}
+    ev["orders_before"] = now
+    fresh = [o for o in g["orders"] if o["order"] not in now]
+    lead = max(fresh or g["orders"], key=lambda o: o["amplitude_nm"])
+    c = detect.Candidate("output_order", float(lead["order"]), lead["amplitude_nm"],
+                         score=1e9, action="set_profile", evidence=ev,
+                         params={"profile": g["orders"], "tau_s": g["tau_s"]})
+    c.key_override = ("profile", tuple(new), generation)
+    return c, g
+
+
+def profile_held_out(c, runs0, model0):
+    """Fold B: slow residual after a smoother (tau of the fit) and the motion
+    nuisance, with the current and with the candidate's output profile
+    subtracted."""
+    inp = profile_inputs(runs0, model0, rp.HELD_OUT)
+    tau = c.params["tau_s"]
+    cur = [{"order": p.order, "a_nm": p.a_nm, "b_nm": p.b_nm}
+           for p in model0.profile if p.lock == "output"]
+    _, rms_cur = geometry.check(inp, cur, tau)
+    _, rms_new = geometry.check(inp, c.params["profile"], tau)
+    return rms_cur, rms_new
+
+
+# --- judging -------------------------------------------------------------------
+
+def _fold_metrics(met):
+    keys = ("innovation_rms_nm", "model_residual_rms_nm", "error_rms_nm")
+    out = {}
+    for name in rp.FOLD_NAMES.values():
+        for k in keys:
+            if f"{name}_{k}" in met:
+                out[f"{name}_{k}"] = met[f"{name}_{k}"]
+    return out
+
+
+def judge(c, runs0, m0, runs1, m1, model0, ts_s):
+    """Returns (keep, evidence); every number that decides is from fold B."""
+    B = "out_of_sample_"
+    ev = {"before": _fold_metrics(m0), "after": _fold_metrics(m1)}
+    i0, i1 = m0[B + "innovation_rms_nm"], m1[B + "innovation_rms_nm"]
+    innov_change = i1 / i0 - 1.0 if i0 > 0 else 0.0
+    ev["held_out_innovation_change"] = innov_change
     if m1.get("filter_resets", 0) > m0.get("filter_resets", 0):
         ev["rejected_because"] = "the filter reset itself with this change"
         return False, ev
+    if innov_change > INNOV_EPS:
+        ev["rejected_because"] = (f"the held-out innovation grew ({i0:.4g} -> {i1:.4g} N m)")
+        return False, ev
+    vb0, vb1 = rp.analysis_view(runs0, rp.HELD_OUT), rp.analysis_view(runs1, rp.HELD_OUT)
     if c.action == "load_scale":
         if innov_change > -LOAD_GAIN:
-            ev["rejected_because"] = "the innovation did not fall by 5 %"
+            ev["rejected_because"] = "the held-out innovation did not fall by 5 %"
             return False, ev
         return True, ev
-    if c.kind in ("motor_order", "output_order", "fixed_frequency"):
+    if c.action == "set_profile":
+        cur, new = profile_held_out(c, runs0, model0)
+        ev.update({"held_out_slow_rms_current_profile_nm": cur,
+                   "held_out_slow_rms_new_profile_nm": new})
+        if not new < (1 - PROFILE_GAIN) * cur:
+            ev["rejected_because"] = ("the profile does not predict the held-out angle-locked "
+                                      "torque better than the current one")
+            return False, ev
+        return True, ev
+    if c.action == "set_tuning":
+        a0, a1 = lines_left(vb0, model0), lines_left(vb1, apply(model0, c))
+        ev.update({"held_out_lines_left_before_nm": a0, "held_out_lines_left_after_nm": a1})
+        if a1 > a0 * (1 + LINES_LEFT_TOL) + 1e-12:
+            ev["rejected_because"] = "the held-out fold keeps more of the modelled lines"
+            return False, ev
+        return True, ev
+    if c.kind in ("motor_order", "fixed_frequency"):
         if c.evidence.get("phase_coherent_over_record") is False:
             # No common phase over the record: measure in the averaged
             # spectrum (per-window phase) instead of one global fit.
-            a0 = spectral_line_amplitude(view0, c.kind, c.order)
-            a1 = spectral_line_amplitude(view1, c.kind, c.order)
+            a0 = spectral_line_amplitude(vb0, c.kind, c.order)
+            a1 = spectral_line_amplitude(vb1, c.kind, c.order)
             ev["amplitude_measure"] = "averaged spectrum"
         else:
-            a0 = line_amplitude(view0, c.kind, c.order)
-            a1 = line_amplitude(view1, c.kind, c.order)
-        d = np.concatenate([(r1.filtered - r0.filtered)[r0.warm:] for r0, r1 in zip(runs0, runs1)])
-        change_rms = float(np.sqrt(np.mean(d ** 2)))
+            a0 = line_amplitude(vb0, c.kind, c.order)
+            a1 = line_amplitude(vb1, c.kind, c.order)
+        d = np.concatenate([(r1.filtered - r0.filtered)[r0.fold == rp.HELD_OUT]
+                            for r0, r1 in zip(runs0, runs1)])
+        change_rms = float(np.sqrt(np.mean(d ** 2))) if len(d) else 0.0
         line_rms = a0 / math.sqrt(2)
         ev.update({"line_amplitude_before_nm": a0, "line_amplitude_after_nm": a1,
                    "output_change_rms_nm": change_rms})
-        if a1 > (1 - LINE_DROP) * a0:
-            ev["rejected_because"] = "the line did not drop by half in the filtered torque"
-            return False, ev
-        if innov_change > INNOV_TOL:
-            ev["rejected_because"] = "the innovation grew"
+        if not a1 <= (1 - LINE_DROP) * a0:
+            ev["rejected_because"] = ("the line did not drop by half in the held-out filtered "
+                                      "torque")
             return False, ev
         if change_rms > CHANGE_FACTOR * line_rms + 1e-9:
             ev["rejected_because"] = "the filtered torque changed by more than the line"
@@ -141,104 +285,139 @@ def judge(c, runs0, m0, runs1, m1, view0=None, view1=None):
         return True, ev
     if c.kind in ("velocity", "acceleration"):
         if innov_change > -INNOV_GAIN:
-            ev["rejected_because"] = "the innovation did not fall"
+            ev["rejected_because"] = "the held-out innovation did not fall"
             return False, ev
-        if m1["model_residual_rms_nm"] >= m0["model_residual_rms_nm"]:
-            ev["rejected_because"] = "the model residual did not fall"
+        if m1[B + "model_residual_rms_nm"] >= m0[B + "model_residual_rms_nm"]:
+            ev["rejected_because"] = "the held-out model residual did not fall"
             return False, ev
         return True, ev
     if c.kind == "offset_drift":
-        exc = c.evidence.get("trend_excursion_nm", 0.0)
-        rest = c.evidence.get("residual_after_trend_rms_nm", float("inf"))
-        if rest > 0.25 * exc:
-            ev["rejected_because"] = ("the expected torque does not explain the rest of the "
-                                      "slow torque: a drift cannot be told from real torque")
+        h = detect.drift_held_out(c, vb0)
+        ev.update(h)
+        if not h.get("held_out_samples"):
+            ev["rejected_because"] = "no held-out samples on the drift's time base"
             return False, ev
-        if m1["model_residual_rms_nm"] > 0.75 * m0["model_residual_rms_nm"]:
-            ev["rejected_because"] = ("with the offset as a slow sensor error the slow residual "
-                                      "did not fall by a quarter")
+        if not (h["held_out_rest_after_line_rms_nm"]
+                <= detect.DRIFT_REST_FRACTION * max(h["held_out_line_excursion_nm"], 1e-12)):
+            ev["rejected_because"] = ("the line fitted in fold A does not explain fold B's slow "
+                                      "residual: not a drift")
             return False, ev
         return True, ev
     return False, ev
 
 
-def _trials(model, c, noise_estimate_nm):
-    """The models to try for candidate c.  A load coefficient removes what
-    made the starting R large (ripple lines that move with the load and that
-    the blocks then chased): it is also tried with R back at the noise
-    estimate, and the trial with the better innovation likelihood is judged
-    (R is a noise parameter: likelihood is its criterion)."""
-    first = apply(model, c)
-    if first is None or c.action != "load_scale" or not noise_estimate_nm:
-        return [first]
-    if model.r_nm2 <= 1.5 * max(noise_estimate_nm, NOISE_FLOOR_NM) ** 2:
-        return [first]
-    return [first, apply(model.with_noise(noise_estimate_nm), c)]
+# --- the loop ------------------------------------------------------------------
 
+class Session:
+    """The current model, its replay and metrics, and what was tried."""
 
-def run_loop(data, model0: Model, log=print, feedforward=None, noise_estimate_nm=None):
-    runs = rp.replay(data, model0, feedforward)
-    met = rp.metrics(runs)
-    model = model0
-    history = [{"step": 0, "change": "starting model", **met}]
-    effects = []
-    tried = set()
-    first_runs, first_met = runs, met
-    for rnd in range(1, MAX_ROUNDS + 1):
-        ctx = detect.build_context(rp.analysis_view(runs), data.ts_s, model.gear_ratio)
-        lines = detect.line_candidates(ctx, model) + detect.block_residue_candidates(ctx, model)
-        slow = detect.slow_candidates(ctx, model)
-        # Order of trial: lines (strongest first), then expected-torque
-        # terms, and drift last: a drift is only judged once everything
-        # else that could explain slow torque has been tried.
-        drift = [c for c in slow if c.kind == "offset_drift"]
-        slow = [c for c in slow if c.kind != "offset_drift"]
-        # A residue whose envelope follows the load is tried before a
-        # plain retune of the same line: it is the more specific reading.
-        cands = (sorted(lines, key=lambda c: (c.action != "load_scale", -c.score))
-                 + sorted(slow, key=lambda c: -c.score) + drift)
-        for c in cands:
-            if c.action == "report_only" and c.key() not in tried:
-                tried.add(c.key())
-                effects.append(_finding(c, False, None, None, model.gear_ratio))
-        cands = [c for c in cands if c.key() not in tried]
-        if not cands:
-            log(f"round {rnd}: nothing significant left")
-            break
-        progressed = False
-        for c in cands:
-            tried.add(c.key())
-            trials = _trials(model, c, noise_estimate_nm)
-            if trials[0] is None:
-                c.evidence.setdefault("rejected_because",
-                                      "cannot be expressed in the firmware model")
-                effects.append(_finding(c, False, None, None, model.gear_ratio))
-                continue
-            scored = []
-            for t in trials:
-                r1 = rp.replay(data, t, feedforward)
-                scored.append((rp.metrics(r1)["innovation_nll"], t, r1))
-            if len(scored) > 1:
-                c.evidence["r_variants_innovation_nll"] = [round(s[0], 4) for s in scored]
-                c.evidence["r_back_to_noise_estimate"] = bool(scored[1][0] < scored[0][0])
-            _, trial, runs1 = min(scored, key=lambda s: s[0])
-            met1 = rp.metrics(runs1)
-            keep, ev = judge(c, runs, met, runs1, met1, rp.analysis_view(runs),
-                             rp.analysis_view(runs1))
-            c.evidence.update(ev)
-            effects.append(_finding(c, keep, met, met1, model.gear_ratio))
-            log(f"round {rnd}: {c.kind} {c.order:.4g} ({c.action}) -> "
-                f"{'kept' if keep else 'rejected'}: {ev.get('rejected_because', '')}")
-            if keep:
-                model, runs, met = trial, runs1, met1
-                history.append({"step": len(history), "change": _describe(c), **met})
-                progressed = True
+    def __init__(self, data, model, log=print, noise_estimate_nm=None, output_orders=()):
+        self.data, self.log = data, log
+        self.fold = rp.folds(data)
+        self.noise_estimate_nm = noise_estimate_nm
+        self.output_orders = list(output_orders)
+        self.model = model
+        self.runs = rp.replay(data, model, self.fold)
+        self.met = rp.metrics(self.runs)
+        self.history = [{"step": 0, "change": "starting model", **self.met}]
+        self.effects = []
+        self.tuning = []        # R / nyquist_fraction trials (not effects)
+        self.tried = set()
+        self.generation = 0     # expected-torque changes so far (profile refits)
+        self.segment_t0 = {}
+        for p in data.pieces:
+            self.segment_t0[p.segment] = min(self.segment_t0.get(p.segment, p.t_s[0]), p.t_s[0])
+
+    def replay(self, model):
+        return rp.replay(self.data, model, self.fold)
+
+    def try_candidate(self, c, trials=None):
+        trials = trials or [apply(self.model, c)]
+        if trials[0] is None:
+            c.evidence.setdefault("rejected_because", "cannot be expressed in the firmware model")
+            self.effects.append(_finding(c, False, None, None, self.model.gear_ratio))
+            return False
+        scored = []
+        for t in trials:
+            r1 = self.replay(t)
+            scored.append((rp.metrics(r1, rp.TRAIN)["innovation_nll"], t, r1))
+        if len(scored) > 1:
+            # R is a noise parameter: the in-sample likelihood picks the
+            # variant; fold B then judges it like any change.
+            c.evidence["r_variants_in_sample_innovation_nll"] = [round(s[0], 4) for s in scored]
+            c.evidence["r_back_to_noise_estimate"] = bool(scored[1][0] < scored[0][0])
+        _, trial, runs1 = min(scored, key=lambda s: s[0])
+        met1 = rp.metrics(runs1)
+        keep, ev = judge(c, self.runs, self.met, runs1, met1, self.model, self.data.ts_s)
+        c.evidence.update(ev)
+        (self.tuning if c.action == "set_tuning" else self.effects).append(
+            _finding(c, keep, self.met, met1, self.model.gear_ratio))
+        self.log(f"{_describe(c)} -> {'kept' if keep else 'rejected'}"
+                 + (f": {ev['rejected_because']}" if not keep else ""))
+        if keep:
+            self.model, self.runs, self.met = trial, runs1, met1
+            self.history.append({"step": len(self.history), "change": _describe(c), **met1})
+            if c.action == "expected_torque":
+                self.generation += 1
+        return keep
+
+    def _trials(self, c):
+        """A load coefficient removes what made the starting R large (ripple
+        lines that move with the load and that the blocks then chased): it
+        is also tried with R back at the noise estimate."""
+        first = apply(self.model, c)
+        nz = self.noise_estimate_nm
+        if first is None or c.action != "load_scale" or not nz:
+            return [first]
+        if self.model.r_nm2 <= 1.5 * max(nz, NOISE_FLOOR_NM) ** 2:
+            return [first]
+        return [first, apply(self.model.with_noise(nz), c)]
+
+    def loop(self):
+        for rnd in range(1, MAX_ROUNDS + 1):
+            view = rp.analysis_view(self.runs, rp.TRAIN)
+            if not view:
                 break
-        if not progressed:
-            break
-    return {"model": model, "runs_before": first_runs, "runs_after": runs,
-            "metrics_before": first_met, "metrics_after": met, "history": history,
-            "effects": effects}
+            ctx = detect.build_context(view, self.data.ts_s, self.model.gear_ratio)
+            lines = (detect.line_candidates(ctx, self.model)
+                     + detect.block_residue_candidates(ctx, self.model))
+            prof, _ = profile_candidate(self.runs, self.model, self.generation)
+            # Output-order readings of spectral peaks are evidence for the
+            # profile fit, not blocks of their own.
+            for c in lines:
+                if c.action == "profile" and c.key() not in self.tried:
+                    self.tried.add(c.key())
+            lines = [c for c in lines if c.action != "profile"]
+            slow = detect.slow_candidates(ctx, self.model)
+            drift = detect.drift_candidate(ctx, self.model, self.data.has_feedforward,
+                                           self.segment_t0)
+            # Order of trial: the profile, lines (strongest first), then
+            # expected-torque terms, and drift last: a drift is only judged
+            # once everything else that could explain slow torque has been
+            # tried.
+            cands = ([prof] if prof else []) + sorted(
+                lines, key=lambda c: (c.action != "load_scale", -c.score)) + sorted(
+                slow, key=lambda c: -c.score) + ([drift] if drift else [])
+            for c in cands:
+                if c.action == "report_only" and _key(c) not in self.tried:
+                    self.tried.add(_key(c))
+                    self.effects.append(_finding(c, False, None, None, self.model.gear_ratio))
+            cands = [c for c in cands if c.action != "report_only" and _key(c) not in self.tried]
+            if not cands:
+                self.log(f"round {rnd}: nothing significant left")
+                break
+            progressed = False
+            for c in cands:
+                self.tried.add(_key(c))
+                if self.try_candidate(c, self._trials(c)):
+                    progressed = True
+                    break
+            if not progressed:
+                break
+
+
+def _key(c):
+    return getattr(c, "key_override", None) or c.key()
 
 
 def _describe(c):
@@ -251,6 +430,11 @@ def _describe(c):
                 f"(seen on the {c.kind} {c.order:.4g} line)")
     if c.action == "expected_torque":
         return "expected torque += " + ", ".join(f"{k} {v:+.4g}" for k, v in c.params.items())
+    if c.action == "set_profile":
+        return "output-angle profile: " + ", ".join(
+            f"order {o['order']:g} {o['amplitude_nm']:.3g} N m" for o in c.params["profile"])
+    if c.action == "set_tuning":
+        return "tuning: " + ", ".join(f"{k} {v:.4g}" for k, v in c.params.items())
     return "offset state as sensor error (slow drift)"
 
 
@@ -266,30 +450,15 @@ def _finding(c, added, m0, m1, gear_ratio):
     elif c.kind == "fixed_frequency":
         f["frequency_hz"] = c.order
     if c.params:
-        f["parameters"] = c.params
+        f["parameters"] = {k: v for k, v in c.params.items() if k != "profile"}
+        if "profile" in c.params:
+            f["profile"] = c.params["profile"]
     if m0 is not None:
-        f["metrics_before"] = m0
-        f["metrics_after"] = m1
+        f["in_sample_before"] = {k: m0.get("in_sample_" + k) for k in _MET_KEYS}
+        f["in_sample_after"] = {k: m1.get("in_sample_" + k) for k in _MET_KEYS}
+        f["out_of_sample_before"] = {k: m0.get("out_of_sample_" + k) for k in _MET_KEYS}
+        f["out_of_sample_after"] = {k: m1.get("out_of_sample_" + k) for k in _MET_KEYS}
     return f
 
 
-def spectral_line_amplitude(runs, kind, order, raw=False):
-    """Line amplitude from the averaged order (or time) spectrum: the peak
-    within +-2 bins of the line.  Each spectral window has its own phase,
-    so this survives a slowly drifting phase (inexact gear ratio, real
-    logs) where one global least-squares fit does not; it includes the
-    noise floor in that bin."""
-    sig = [(np.asarray(r.torque_nm, float) if raw else r.filtered)[r.warm:] for r in runs]
-    ts = float(np.median(np.diff(runs[0].t_s))) if len(runs[0].t_s) > 1 else 1e-3
-    if kind == "fixed_frequency":
-        spec = spectra.time_spectrum(sig, ts)
-    else:
-        ang = [(r.motor_angle_rad if kind == "motor_order" else r.output_angle_rad)[r.warm:]
-               for r in runs]
-        spec = spectra.order_spectrum(sig, ang)
-    if spec is None:
-        return float("nan")
-    i = int(round((order - spec.axis[0]) / (spec.axis[1] - spec.axis[0])))
-    if i < 1 or i >= len(spec.axis) - 2:
-        return float("nan")
-    return float(np.sqrt(np.max(spec.amp2[max(i - 2, 0):i + 3])))
+_MET_KEYS = ("innovation_rms_nm", "model_residual_rms_nm", "error_rms_nm")

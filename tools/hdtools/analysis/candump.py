@@ -8,7 +8,7 @@ DBC (firmware/hdjoint.dbc via hdtools.canproto), as analysis columns.
                   tracker velocity x gear ratio).  There is no angle in the
                   telemetry, so order lines are only as sharp as this
                   integral: small phase drift smears high orders a little.
-The node id is taken from the first TELEM_A-range identifier found."""
+The node is found in the log (canproto.decode_log)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,27 +18,19 @@ import numpy as np
 from .loading import InputError
 
 
-def _node_id(path) -> int:
-    from .. import canproto
-    for msg in canproto.read_log(path):
-        base = msg.arbitration_id & ~0x7F
-        if base == 0x100 and 1 <= msg.arbitration_id - 0x100 <= 127:
-            return msg.arbitration_id - 0x100
-    raise InputError(f"{path}: no firmware telemetry (TELEM_A, 0x101..0x17F) in this candump log")
-
-
 def read(path: str | Path) -> dict:
     from .. import canproto
+    from ..safeio import HdError
     try:
-        node = _node_id(path)
-        log = canproto.decode_log(path, node)
-    except InputError:
-        raise
+        log = canproto.decode_log(path, None)    # the node is found in the log
+    except HdError as exc:
+        raise InputError(f"no firmware telemetry: {exc}") from None
     except Exception as exc:  # python-can/cantools parse errors
         raise InputError(f"{path}: cannot read as a candump -l log: {exc}") from exc
     rows = log["telemetry"]
     if len(rows) < 2:
-        raise InputError(f"{path}: fewer than 2 paired telemetry frames (TELEM_A + TELEM_B)")
+        raise InputError(f"{path}: fewer than 2 paired telemetry frames (TELEM_A + TELEM_B) "
+                         f"of node {log['node']}: no firmware telemetry to analyse")
     t = np.array([r["t_s"] for r in rows], float)
     t -= t[0]
     torque = np.array([r["TorqueRaw"] if r["valid"] else np.nan for r in rows], float)

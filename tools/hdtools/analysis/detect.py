@@ -94,6 +94,7 @@ class Context:
     spec_motor: object = None
     spec_output: object = None
     spec_time: object = None
+    slow: list = field(default_factory=list)
 
 
 def build_context(runs, ts_s, gear_ratio) -> Context:
@@ -114,6 +115,7 @@ def build_context(runs, ts_s, gear_ratio) -> Context:
     ctx.spec_motor = spectra.order_spectrum(sig, thm)
     ctx.spec_output = spectra.order_spectrum(sig, tho)
     ctx.spec_time = spectra.time_spectrum(sig, ts_s)
+    ctx.slow = slow_series(runs)
     return ctx
 
 
@@ -221,11 +223,11 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
         elif not strong and expl < WEAK_EXPLAINED:
             continue
         ev.update({"fit_amplitude_nm": round(amp, 5), "fit_explained_fraction": round(expl, 4)})
-        action = "add_block"
+        action = "add_block" if kind != "output_order" else "profile"
         lock = {"motor_order": "motor", "output_order": "output", "fixed_frequency": "fixed"}[kind]
         for i, b in enumerate(model.blocks):
             tol = max(step, 0.01 * b.order)
-            if b.lock == lock and abs(b.order - order) <= tol:
+            if kind != "output_order" and b.lock == lock and abs(b.order - order) <= tol:
                 action = "retune_block"
                 order = b.order
                 ev["existing_block"] = i
@@ -391,7 +393,8 @@ def slow_candidates(ctx: Context, model) -> list[Candidate]:
         terms["acceleration"] = [X["acceleration"]]
     tvals = X["time"]
     if np.ptp(tvals) > 0:
-        terms["offset_drift"] = [tvals - tvals.mean()]
+        # A trend in time is a nuisance here (drift: drift_candidate).
+        nuis.append(tvals - tvals.mean())
     if not terms:
         return []
     names = list(terms)
@@ -433,11 +436,97 @@ def slow_candidates(ctx: Context, model) -> list[Candidate]:
         elif nm == "acceleration":
             c.params = {"inertia_kgm2": float(coef_of[nm][0])}
             c.action = "expected_torque"
-        else:
-            slope = float(coef_of[nm][0])
-            c.params = {"drift_nm_per_s": slope}
-            c.action = "offset_sensor_error"
-            ev["trend_excursion_nm"] = round(abs(slope) * float(np.ptp(tvals)), 5)
-            ev["residual_after_trend_rms_nm"] = round(math.sqrt(rss_full / n), 5)
         cands.append(c)
     return cands
+
+
+DRIFT_REST_FRACTION = 0.25   # what the line leaves, over its excursion
+DRIFT_MIN_PARTIAL = 0.5      # the line explains >= 50 % of the slow residual's variance
+
+
+def slow_series(runs, dec_s=0.02):
+    """20 ms means of the model residual and of time, per run, with each
+    run's time base (its segment: pieces of one segment share a clock)."""
+    out = []
+    for r in runs:
+        if len(r.t_s) - r.warm < 8:
+            continue
+        w = max(1, int(round(dec_s / float(np.median(np.diff(r.t_s[r.warm:r.warm + 100]))))))
+        m = ((len(r.t_s) - r.warm) // w) * w
+        if m < 4 * w:
+            continue
+        blk = lambda x: np.asarray(x[r.warm:r.warm + m], float).reshape(-1, w).mean(axis=1)
+        out.append((blk(r.residual), blk(r.t_s), r.segment,
+                    blk(r.out["output_velocity_rad_s"]), w * float(np.median(np.diff(r.t_s[:100])))))
+    return out
+
+
+def drift_candidate(ctx: Context, model, has_feedforward: bool,
+                    segment_t0: dict) -> Candidate | None:
+    """Sensor drift: the slow residual is a straight line in each segment's
+    time (a common slope, an intercept per time base), continuing across
+    gaps.  The firmware form is the offset state read as a sensor error,
+    which removes *all* the slow torque the expected torque misses: so it
+    is a candidate only if the line explains the slow residual (the rest is
+    below DRIFT_REST_FRACTION of the line's excursion) and, without a
+    feed-forward column, the line starts near zero (else the level is real
+    torque the model misses, which the sensor-error offset would remove)."""
+    ser = ctx.slow
+    if not ser:
+        return None
+    y = np.concatenate([s[0] for s in ser])
+    t = np.concatenate([s[1] for s in ser])
+    segs = sorted({s[2] for s in ser})
+    cols = [np.concatenate([np.full(len(s[0]), float(s[2] == g)) for s in ser]) for g in segs]
+    # The slope is fitted beside what the expected torque may still miss
+    # (velocity, acceleration): those bias it, but stay in the "rest".
+    vel = np.concatenate([s[3] for s in ser])
+    acc = np.concatenate([np.gradient(s[3], s[4]) if len(s[3]) > 1 else np.zeros(len(s[3]))
+                          for s in ser])
+    nuis = [x - x.mean() for x in (vel, acc) if np.std(x) > 0]
+    A = np.column_stack(cols + [t] + nuis)
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    slope = float(coef[len(segs)])
+    A = A[:, :len(segs) + 1]
+    coef = coef[:len(segs) + 1]
+    pred = A @ coef
+    rest = float(np.sqrt(np.mean((y - pred) ** 2)))
+    var = float(np.var(y))
+    partial = 1.0 - rest ** 2 / var if var > 0 else 0.0
+    exc = abs(slope) * float(np.ptp(t))
+    start = {g: float(coef[i] + slope * segment_t0.get(g, min(s[1][0] for s in ser if s[2] == g)))
+             for i, g in enumerate(segs)}
+    ev = {"drift_nm_per_s": slope, "trend_excursion_nm": round(exc, 5),
+          "residual_after_trend_rms_nm": round(rest, 5), "explained_fraction": round(partial, 4),
+          "level_at_segment_start_nm": {g: round(v, 4) for g, v in start.items()},
+          "intercepts_nm": {g: float(coef[i]) for i, g in enumerate(segs)}}
+    if partial < DRIFT_MIN_PARTIAL or rest > DRIFT_REST_FRACTION * exc:
+        return None
+    c = Candidate("offset_drift", amplitude_nm=exc / 2, score=partial * 100,
+                  action="offset_sensor_error", evidence=ev, params={"drift_nm_per_s": slope})
+    if not has_feedforward and max(abs(v) for v in start.values()) > DRIFT_REST_FRACTION * exc:
+        ev["not_added_because"] = (
+            "the slow residual does not start near zero: its level is torque the expected torque "
+            "misses, which the offset as a sensor error would remove (give the controller's "
+            "torque as torque_feedforward_nm)")
+        c.action = "report_only"
+    return c
+
+
+def drift_held_out(candidate: Candidate, runs_held_out) -> dict:
+    """The drift line fitted on fold A, applied to fold B's slow residual."""
+    ser = slow_series(runs_held_out)
+    ic = candidate.evidence["intercepts_nm"]
+    ys, ps = [], []
+    for y, t, g, _, _ in ser:
+        if g in ic:
+            ys.append(y)
+            ps.append(ic[g] + candidate.params["drift_nm_per_s"] * t)
+    if not ys:
+        return {"held_out_samples": 0}
+    y, p = np.concatenate(ys), np.concatenate(ps)
+    return {"held_out_samples": int(len(y)),
+            "held_out_slow_rms_nm": float(np.sqrt(np.mean((y - y.mean()) ** 2))),
+            "held_out_rest_after_line_rms_nm": float(np.sqrt(np.mean((y - p) ** 2))),
+            "held_out_line_excursion_nm": float(abs(candidate.params["drift_nm_per_s"])
+                                                * np.ptp(np.concatenate([s[1] for s in ser])))}

@@ -36,6 +36,21 @@ class Block:
 
 
 @dataclass
+class ProfileLine:
+    """One line of a fixed, angle-referenced artifact profile:
+    a cos(order alpha) + b sin(order alpha), alpha the absolute motor or
+    output angle of the log [rad] (docs/analyze.md "Profile")."""
+    lock: str          # motor | output
+    order: float       # cycles per rev of that angle
+    a_nm: float
+    b_nm: float
+
+    @property
+    def amplitude_nm(self) -> float:
+        return math.hypot(self.a_nm, self.b_nm)
+
+
+@dataclass
 class Model:
     gear_ratio: float
     ts_s: float
@@ -56,6 +71,9 @@ class Model:
     coulomb_nm: float = 0.0
     coulomb_vel_eps_rad_s: float = 0.01
     track_bandwidth_hz: float = cfilter.DEFAULT_TRACK_BANDWIDTH_HZ
+    # Output-locked lines as a fixed profile instead of adaptive blocks
+    # (replay.py runs them; not part of the C configuration).
+    profile: list[ProfileLine] = field(default_factory=list)
 
     @classmethod
     def starting(cls, gear_ratio, ts_s, noise_nm, motor_orders, output_orders,
@@ -111,6 +129,7 @@ class Model:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["blocks"] = [asdict(b) for b in self.blocks]
+        d["profile"] = [asdict(p) for p in self.profile]
         return d
 
     # --- C filter -----------------------------------------------------------

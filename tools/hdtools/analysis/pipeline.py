@@ -3,34 +3,35 @@ benchmark)."""
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
-from . import augment, gear, loading, report as rep
-from .model import Model, estimate_noise_nm, slow_step_nm
+from . import augment, gear, geometry, loading, profile as prof, replay as rp, report as rep
+from .model import Model, ProfileLine, estimate_noise_nm, slow_step_nm
 
 DEFINITIONS = {
     "residual": (
         "Residuals. The innovation e = (T_meas - T_exp) - C x_prior is the filter's one-step "
-        "prediction error: what the model cannot predict (`residual_rms_*`). The model "
+        "prediction error: what the model cannot predict (`innovation_rms`). The model "
         "residual r = T_filtered - T_expected is what is left of the measured torque after "
         "removing the estimated ripple and the expected torque; un-modelled lines, friction, "
         "inertia errors and drift end up in it (and so does real load torque). Effects are "
         "detected in r. Metrics skip each piece's first 2 s (filter convergence)."),
+    "folds": (
+        "In-sample / out-of-sample. The log is cut into time blocks that alternate between "
+        "fold A (in-sample: detection and every fitted number) and fold B (out-of-sample: "
+        "held out). A change is kept only if fold B's innovation does not grow and fold B "
+        "shows the change doing what it is for; the in-sample numbers are shown beside them."),
     "stopping_rule": (
-        "Stopping rule: a round tries candidates strongest first (lines, then expected-torque "
-        "terms, drift last) and keeps the first that helps; the loop stops when no candidate "
-        "passes detection (line: peak >= 30x the local floor and >= 0.2 % of the residual "
-        "variance; slow term: >= 2 % of the slow residual variance), when every candidate was "
+        "Stopping rule: a round tries candidates in order (the output-angle profile, lines "
+        "strongest first, expected-torque terms, drift last) and keeps the first that passes "
+        "fold B; the loop stops when no candidate passes detection, when every candidate was "
         "tried, or after 8 rounds."),
 }
 
 
 def _gear(data, given, log):
     if given is not None:
-        if not given >= 1:
-            raise loading.InputError(f"--gear-ratio must be >= 1 (got {given})")
         return {"value": float(given), "source": "given"}
     if data.has_motor and data.has_output:
         n = gear.from_encoders(data)
@@ -47,72 +48,31 @@ def _gear(data, given, log):
                       "the paper's 100 is assumed"}
 
 
-GRAVITY_DEGREE = 5
-
-
-def position_feedforward(data):
-    """Position-dependent torque (gravity) on a joint that sweeps back and
-    forth over less than a turn: a degree-5 polynomial in the output angle,
-    fitted per segment to the measured torque, used as the expected-torque
-    feed-forward (hd_pipeline's feedforward_nm).  On the robot this is the
-    controller's gravity model; here it is estimated from the log.  Returns
-    (list per piece or None, description)."""
-    if not data.has_output:
-        return None, None
-    if max(np.ptp(p.output_angle_rad) for p in data.pieces) >= 2 * np.pi:
-        return None, None   # turning joint: position torque is output-order lines
-    by_seg = {}
-    for k, p in enumerate(data.pieces):
-        by_seg.setdefault(p.segment, []).append(k)
-    ff = [None] * len(data.pieces)
-    total, explained = 0.0, 0.0
-    for seg, ks in by_seg.items():
-        th = np.concatenate([data.pieces[k].output_angle_rad for k in ks])
-        tq = np.concatenate([data.pieces[k].torque_nm for k in ks])
-        c0, sc = float(th.mean()), float(np.ptp(th) / 2) or 1.0
-        if np.ptp(th) < 1e-3 or len(th) < 10 * GRAVITY_DEGREE:
-            for k in ks:
-                ff[k] = np.zeros(len(data.pieces[k]))
-            continue
-        coef = np.polyfit((th - c0) / sc, tq, GRAVITY_DEGREE)
-        for k in ks:
-            ff[k] = np.polyval(coef, (data.pieces[k].output_angle_rad - c0) / sc)
-        fit = np.polyval(coef, (th - c0) / sc)
-        total += float(np.sum((tq - tq.mean()) ** 2))
-        explained += float(np.sum((fit - tq.mean()) ** 2))
-    desc = {"kind": f"polynomial of degree {GRAVITY_DEGREE} in the output angle, per segment",
-            "explained_fraction_of_torque_variance": explained / total if total else 0.0,
-            "note": "host-side expected torque (gravity); on the robot the controller sends "
-                    "it as feed-forward, the firmware model itself has no position term"}
-    return ff, desc
-
-
 NOISE_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
+NYQUIST_GRID = (0.9, 0.7, 0.5)
 TUNE_MAX_SAMPLES = 200_000
 
 
-def _tune_subset(data, ff):
-    """The first TUNE_MAX_SAMPLES samples (whole pieces) and their feed-forward."""
-    from .loading import Data
-    pieces, ffs, total = [], [], 0
-    for k, p in enumerate(data.pieces):
+def _tune_subset(data, fold):
+    """The first TUNE_MAX_SAMPLES samples (a long piece is cut) and their
+    folds: the grid is scored on their fold-A samples."""
+    pieces, folds, total = [], [], 0
+    for p, f in zip(data.pieces, fold):
         if total >= TUNE_MAX_SAMPLES:
             break
-        pieces.append(p)
-        ffs.append(None if ff is None else ff[k])
-        total += len(p)
-    sub = Data(pieces, data.ts_s, data.has_motor, data.has_output, data.has_truth, data.source)
-    return sub, (None if ff is None else ffs)
-
-
-def _lines_left(runs, model):
-    """Sum of the averaged-spectrum amplitudes of the model's motor-locked and
-    fixed lines in the filtered torque (output-locked lines are left out: at a
-    joint's low output orders they may be real torque)."""
-    kinds = {"motor": "motor_order", "fixed": "fixed_frequency"}
-    amps = [augment.spectral_line_amplitude(runs, kinds[b.lock], b.order)
-            for b in model.blocks if b.lock in kinds]
-    return float(np.nansum(amps)) if amps else 0.0
+        k = min(len(p), TUNE_MAX_SAMPLES - total)
+        if k < loading.MIN_PIECE:
+            break
+        sl = slice(0, k)
+        pieces.append(loading.Piece(
+            p.segment, p.t_s[sl], p.torque_nm[sl],
+            None if p.motor_angle_rad is None else p.motor_angle_rad[sl],
+            None if p.output_angle_rad is None else p.output_angle_rad[sl],
+            None if p.torque_true_nm is None else p.torque_true_nm[sl],
+            None, None if p.feedforward_nm is None else p.feedforward_nm[sl]))
+        folds.append(f[sl])
+        total += k
+    return data.subset(pieces), folds
 
 
 def _first_near_least(table):
@@ -122,56 +82,91 @@ def _first_near_least(table):
     return next(r for r in table if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
 
 
-def tune_noise(data, ff, noise, make_model, log):
-    """R of the starting model.  The third-difference noise estimate is far
-    too low on logs low-pass filtered before logging (the iiwa's), and then
-    the filter trusts every sample, lets its blocks chase torque changes and
-    injects ripple.  So R is chosen on a grid of multiples of the estimate:
-    the smallest value whose filtered torque keeps (within 25 %) the least of the model's own
-    motor-locked and fixed lines (averaged-spectrum amplitude, which does
-    not need a coherent phase), ties broken by the smaller multiple.  Uses
-    the first TUNE_MAX_SAMPLES samples.  Output-locked lines are left out
-    of the criterion: at a joint's low output orders they may be real
-    torque."""
-    from . import replay as rp
-    sub, ffs = _tune_subset(data, ff)
+def tune_grid(data, fold, model, variants, name):
+    """Each variant of the model replayed over the tuning subset; the
+    modelled ripple left in fold A's filtered torque (averaged-spectrum
+    amplitudes of the model's motor-locked and fixed lines)."""
+    sub, sfold = _tune_subset(data, fold)
     table = []
-    for f in NOISE_GRID:
-        m = make_model(noise * f)
-        runs = rp.replay(sub, m, ffs)
-        met = rp.metrics(runs)
-        table.append({"noise_nm": noise * f, "lines_left_nm": _lines_left(runs, m),
-                      "innovation_rms_nm": met["innovation_rms_nm"]})
-    best = _first_near_least(table)   # ties: keep R small
-    log(f"starting R: noise {best['noise_nm']:.3g} N m (grid of {len(NOISE_GRID)}: least "
-        "modelled ripple left in the filtered torque)")
-    return best["noise_nm"], table
+    for v, m in variants:
+        runs = rp.replay(sub, m, sfold)
+        view = rp.analysis_view(runs, rp.TRAIN)
+        table.append({name: v, "lines_left_nm": augment.lines_left(view, m),
+                      "in_sample_innovation_rms_nm": rp.metrics(runs, rp.TRAIN)[
+                          "innovation_rms_nm"]})
+    return table
 
 
-NYQUIST_GRID = (0.9, 0.7, 0.5)
-
-
-def tune_nyquist(data, ff, model, log):
-    """nyquist_fraction of the starting model.  A block whose phase advance
-    per sample nears pi is barely observable, and on logs low-pass filtered
-    before logging (the iiwa's, 200 Hz) the line there is gone while the
-    block still follows what is left: it can put a line *into* the output
-    (iiwa joint 4: order 4, 0.09 -> 2.4 mN m at 0.9).  The same criterion as
-    for R, on the same samples: the largest fraction whose filtered torque
-    keeps (within 25 %) the least of the model's own motor-locked and fixed
-    lines."""
-    from . import replay as rp
-    sub, ffs = _tune_subset(data, ff)
-    table = []
+def tune(session, noise_est, log):
+    """R and nyquist_fraction, each chosen on fold A like this: the third-
+    difference noise estimate is far too low on logs low-pass filtered before
+    logging (the iiwa's), and near the sample-rate Nyquist limit a block is
+    barely observable; either way the blocks chase torque changes and put
+    ripple *into* the output.  So each is picked on a grid (ordered by
+    preference) as the first value whose filtered torque keeps within 25 %
+    of the least of the model's own motor-locked and fixed lines, and kept
+    only if fold B agrees (augment.judge, set_tuning)."""
+    m = session.model
+    noise_table = tune_grid(session.data, session.fold, m,
+                            [(noise_est * f, m.with_noise(noise_est * f)) for f in NOISE_GRID],
+                            "noise_nm")
+    best = _first_near_least(noise_table)
+    if best is not noise_table[0]:
+        c = augment.detect.Candidate("tuning", best["noise_nm"], action="set_tuning",
+                                     params={"noise_nm": best["noise_nm"]},
+                                     evidence={"grid": noise_table})
+        session.try_candidate(c)
+    m = session.model
+    variants = []
     for f in NYQUIST_GRID:
-        m = model.copy()
-        m.nyquist_fraction = f
-        runs = rp.replay(sub, m, ffs)
-        table.append({"nyquist_fraction": f, "lines_left_nm": _lines_left(runs, m)})
-    best = _first_near_least(table)   # ties: keep the default fraction
-    if best["nyquist_fraction"] != model.nyquist_fraction:
-        log(f"starting nyquist_fraction: {best['nyquist_fraction']:g} (least modelled ripple left)")
-    return best["nyquist_fraction"], table
+        mv = m.copy()
+        mv.nyquist_fraction = f
+        variants.append((f, mv))
+    nyq_table = tune_grid(session.data, session.fold, m, variants, "nyquist_fraction")
+    best = _first_near_least(nyq_table)
+    if abs(best["nyquist_fraction"] - m.nyquist_fraction) > 1e-6:
+        c = augment.detect.Candidate("tuning", best["nyquist_fraction"], action="set_tuning",
+                                     params={"nyquist_fraction": best["nyquist_fraction"]},
+                                     evidence={"grid": nyq_table})
+        session.try_candidate(c)
+    return noise_table, nyq_table
+
+
+def starting_profile(data, fold, model, output_orders, log):
+    """The declared output orders as a fixed angle profile (geometry.fit over
+    fold A, restricted to those orders; checked on fold B).  Returns (the
+    model with its output blocks replaced by that profile, the fit)."""
+    m = model.copy()
+    m.blocks = [b for b in m.blocks if b.lock != "output"]
+    declared = sorted({int(round(o)) for o in output_orders if abs(o - round(o)) < 1e-9 and o >= 1})
+    if not declared:
+        return m, {"verifiable": False, "why": "no output orders declared", "orders": []}
+    runs = rp.replay(data, m, fold)
+    inp = augment.profile_inputs(runs, m, rp.TRAIN)
+    # Selection over every candidate order (an undeclared line must not
+    # push the time constant down), then the declared ones that it keeps,
+    # refitted with the others as nuisance.
+    g = geometry.fit(inp)
+    g["declared_orders"] = declared
+    selected = [o["order"] for o in g["orders"]]
+    keep = [o for o in selected if int(o) in declared]
+    g["selected_orders"] = selected
+    if g.get("verifiable") and keep:
+        g["orders"] = geometry.refit(inp, keep, g["tau_s"], selected)
+        hold = augment.profile_inputs(runs, m, rp.HELD_OUT)
+        without, with_ = geometry.check(hold, g["orders"], g["tau_s"], selected)
+        g["out_of_sample_rms_without_nm"], g["out_of_sample_rms_with_nm"] = without, with_
+        if with_ < (1 - augment.PROFILE_GAIN) * without:
+            m.profile = [ProfileLine("output", o["order"], o["a_nm"], o["b_nm"])
+                         for o in g["orders"]]
+        else:
+            g["rejected_because"] = "fold B: the profile does not lower the angle-locked residual"
+    else:
+        g["orders"] = []
+    log("starting profile: " + (", ".join(f"output order {p.order:g} {p.amplitude_nm:.3g} N m"
+                                          for p in m.profile) or
+                                f"none ({g.get('why') or g.get('rejected_because') or 'no declared order verified'})"))
+    return m, g
 
 
 def _merge(effects):
@@ -185,7 +180,8 @@ def _merge(effects):
                     f["parameters"][k] = f["parameters"].get(k, 0.0) + v
                 f["evidence"].setdefault("refinements", 1)
                 f["evidence"]["refinements"] += 1
-                f["metrics_after"] = e.get("metrics_after")
+                for k in ("in_sample_after", "out_of_sample_after"):
+                    f[k] = e.get(k)
                 continue
             slow[e["kind"]] = e
         out.append(e)
@@ -193,121 +189,161 @@ def _merge(effects):
 
 
 def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), inertia_kgm2=0.0,
-            fs_hz=None, out_dir=None, json_path=None, node_id=1, log=print):
+            fs_hz=None, out_dir=None, json_path=None, node_id=1, log=print, time_unit=None,
+            angle_unit=None):
     t0 = time.perf_counter()
-    data = loading.load(path, fs_hz)
+    outputs = rep.Outputs(out_dir, json_path)      # refuses unwritable places now
+    if gear_ratio is not None and not gear_ratio >= 1:
+        raise loading.InputError(f"--gear-ratio must be >= 1 (got {gear_ratio})")
+    data = loading.load(path, fs_hz, time_unit, angle_unit)
     for n in data.notes:
         log(n)
     g = _gear(data, gear_ratio, log)
-    noise = float(np.median([estimate_noise_nm(p.torque_nm) for p in data.pieces]))
-    ff, ff_desc = position_feedforward(data)
-    if ff_desc:
-        log(f"position feed-forward (gravity): {ff_desc['kind']}, explains "
-            f"{100 * ff_desc['explained_fraction_of_torque_variance']:.1f} % of the torque variance")
-    slow = float(np.median([slow_step_nm(p.torque_nm - (0 if ff is None else ff[k]), data.ts_s)
-                            for k, p in enumerate(data.pieces)]))
-    def make(nz):
-        return Model.starting(g["value"], data.ts_s, nz, motor_orders, output_orders,
-                              inertia_kgm2, slow_step_nm=slow)
-    noise_est = noise
-    noise, noise_table = tune_noise(data, ff, noise_est, make, log)
-    m0 = make(noise)
-    m0.nyquist_fraction, nyquist_table = tune_nyquist(data, ff, m0, log)
-    res = augment.run_loop(data, m0, log=log, feedforward=ff, noise_estimate_nm=noise_est)
-    from .replay import analysis_view
-    vb, va = analysis_view(res["runs_before"]), analysis_view(res["runs_after"])
-    m1 = res["model"]
-    effects = _merge(res["effects"])
-    # Every identified line: amplitude in the filtered torque with the
-    # starting and with the final model.
+    noise_est = float(np.median([estimate_noise_nm(p.torque_nm) for p in data.pieces]))
+    slow = float(np.median([slow_step_nm(p.torque_nm - (0 if p.feedforward_nm is None
+                                                        else p.feedforward_nm), data.ts_s)
+                            for p in data.pieces]))
+    fold = rp.folds(data)
+    # The paper's structure with the recommended tuning: output-locked lines
+    # as adaptive blocks (what the firmware runs today).  Reported as the
+    # reference; the analysis starts from the same model with its output
+    # lines as a fixed angle profile (geometry.py).
+    m_ref = Model.starting(g["value"], data.ts_s, noise_est, motor_orders, output_orders,
+                           inertia_kgm2, slow_step_nm=slow)
+    ref_runs = rp.replay(data, m_ref, fold)
+    ref_met = rp.metrics(ref_runs, bands=True)
+    m0, start_fit = starting_profile(data, fold, m_ref, output_orders, log)
+    session = augment.Session(data, m0, log=log, noise_estimate_nm=noise_est,
+                              output_orders=output_orders)
+    runs_before, met_before = session.runs, rp.metrics(session.runs, bands=True)
+    noise_table, nyq_table = tune(session, noise_est, log)
+    session.loop()
+    m1 = session.model
+    met_after = rp.metrics(session.runs, bands=True)
+    res = {"runs_before": runs_before, "runs_after": session.runs, "runs_reference": ref_runs,
+           "effects": session.effects}
+    effects = _merge(session.effects)
+    vb, va = rp.analysis_view(runs_before), rp.analysis_view(session.runs)
     for e in effects:
         if e["kind"] in ("motor_order", "output_order", "fixed_frequency"):
             o = e.get("order_per_motor_rev") if e["kind"] == "motor_order" else (
                 e.get("order_per_output_rev") if e["kind"] == "output_order" else e["frequency_hz"])
             e["line_amplitude_in_filtered_before_nm"] = augment.line_amplitude(vb, e["kind"], o)
             e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(va, e["kind"], o)
-    # Every line of the final model: amplitude in the raw torque and in the
-    # filtered torque with the starting and the final model.
-    kinds = {"motor": "motor_order", "output": "output_order", "fixed": "fixed_frequency"}
-    lines = []
-    for b in m1.blocks:
-        k = kinds[b.lock]
-        lines.append({"block": b.label(), "kind": k, "order": b.order,
-                      "raw_amplitude_nm": augment.line_amplitude(vb, k, b.order, True),
-                      "filtered_amplitude_before_nm": augment.line_amplitude(vb, k, b.order),
-                      "filtered_amplitude_after_nm": augment.line_amplitude(va, k, b.order),
-                      "spectral_raw_amplitude_nm": augment.spectral_line_amplitude(
-                          vb, k, b.order, True),
-                      "spectral_filtered_before_nm": augment.spectral_line_amplitude(
-                          vb, k, b.order),
-                      "spectral_filtered_after_nm": augment.spectral_line_amplitude(
-                          va, k, b.order)})
-    mb, ma = res["metrics_before"], res["metrics_after"]
+    lines = _lines_table(m_ref, m1, rp.analysis_view(ref_runs), vb, va)
+    profile_doc = prof.build(data, m1, g, session.runs, log)
     report = {
         "input": str(path),
         "gear_ratio": g,
         "data": {"samples": data.n, "pieces": len(data.pieces), "ts_s": data.ts_s,
                  "has_motor_angle": data.has_motor, "has_output_angle": data.has_output,
-                 "has_truth": data.has_truth, "source": data.source, "notes": data.notes,
-                 "cleaning": data.cleaning, "noise_nm": noise, "noise_estimate_nm": noise_est,
-                 "noise_tuning": noise_table, "nyquist_tuning": nyquist_table,
-                 "slow_step_nm": slow,
-                 "torque_std_nm": float(np.std(np.concatenate([p.torque_nm for p in data.pieces])))},
+                 "has_truth": data.has_truth, "has_feedforward": data.has_feedforward,
+                 "has_motor_current": data.has_current, "units": data.units,
+                 "source": data.source, "notes": data.notes, "cleaning": data.cleaning,
+                 "noise_estimate_nm": noise_est, "noise_nm": _noise_of(m1),
+                 "noise_tuning": noise_table, "nyquist_tuning": nyq_table, "slow_step_nm": slow,
+                 "folds": _fold_summary(session),
+                 "torque_std_nm": float(np.std(np.concatenate([p.torque_nm
+                                                               for p in data.pieces])))},
+        "model_reference": m_ref.to_dict(),
         "model_before": m0.to_dict(),
         "model_after": m1.to_dict(),
+        "starting_profile_fit": start_fit,
         "effects": effects,
+        "tuning": session.tuning,
         "lines": lines,
-        "position_feedforward": ff_desc,
-        "residual_rms_before_nm": mb["innovation_rms_nm"],
-        "residual_rms_after_nm": ma["innovation_rms_nm"],
-        "model_residual_rms_before_nm": mb["model_residual_rms_nm"],
-        "model_residual_rms_after_nm": ma["model_residual_rms_nm"],
-        "history": res["history"],
+        "profile": profile_doc,
+        "metrics_reference": ref_met,
+        "metrics_before": met_before,
+        "metrics_after": met_after,
+        "history": session.history,
         "config_before": m0.config_text(),
         "config_after": m1.config_text(),
-        "can_commands": m1.can_commands(node_id),
-        "can_not_settable": m1.not_settable_over_can(),
         "definitions": DEFINITIONS,
     }
-    if "error_rms_nm" in mb:
-        report["error_rms_before_nm"] = mb["error_rms_nm"]
-        report["error_rms_after_nm"] = ma["error_rms_nm"]
-        report["raw_error_rms_nm"] = mb["raw_error_rms_nm"]
-        if "error_fast_rms_nm" in mb:
-            # The error split at error_split_hz (replay.error_bands): the
-            # ripple band and the slow band (output-locked lines, offset).
-            report["error_split_hz"] = mb["error_split_hz"]
-            for band in ("fast", "slow"):
-                report[f"error_{band}_rms_before_nm"] = mb[f"error_{band}_rms_nm"]
-                report[f"error_{band}_rms_after_nm"] = ma[f"error_{band}_rms_nm"]
+    try:
+        report["can_commands"] = m1.can_commands(node_id)
+    except ValueError as exc:    # an order CAN cannot carry (checked before adding)
+        report["can_commands"] = []
+        report["can_error"] = str(exc)
+    report["can_not_settable"] = m1.not_settable_over_can()
+    for when, met in (("before", met_before), ("after", met_after)):
+        report[f"residual_rms_{when}_nm"] = met["innovation_rms_nm"]
+        report[f"model_residual_rms_{when}_nm"] = met["model_residual_rms_nm"]
+        for f in ("in_sample", "out_of_sample"):
+            report[f"{f}_residual_rms_{when}_nm"] = met[f"{f}_innovation_rms_nm"]
+        if "error_rms_nm" in met:
+            report[f"error_rms_{when}_nm"] = met["error_rms_nm"]
+            for f in ("in_sample", "out_of_sample"):
+                report[f"{f}_error_rms_{when}_nm"] = met[f"{f}_error_rms_nm"]
+            if "error_fast_rms_nm" in met:
+                report["error_split_hz"] = met["error_split_hz"]
+                for band in ("fast", "slow"):
+                    report[f"error_{band}_rms_{when}_nm"] = met[f"error_{band}_rms_nm"]
+    if "error_rms_nm" in met_before:
+        report["raw_error_rms_nm"] = met_before["raw_error_rms_nm"]
     added = [e for e in effects if e["added"]]
-    s = (f"gear ratio {g['value']:g} ({g['source']}); {len(added)} effect(s) added: "
+    s = (f"gear ratio {g['value']:g} ({g['source']}); {len(added)} change(s) kept: "
          + (", ".join(_label(e) for e in added) or "none")
-         + f"; residual RMS {mb['innovation_rms_nm']:.4g} -> {ma['innovation_rms_nm']:.4g} N m")
-    if "error_rms_nm" in mb:
-        s += f"; error vs truth {mb['error_rms_nm']:.4g} -> {ma['error_rms_nm']:.4g} N m"
+         + f"; innovation RMS in/out of sample {met_before['in_sample_innovation_rms_nm']:.4g}"
+           f"/{met_before['out_of_sample_innovation_rms_nm']:.4g} -> "
+           f"{met_after['in_sample_innovation_rms_nm']:.4g}"
+           f"/{met_after['out_of_sample_innovation_rms_nm']:.4g} N m")
+    if "error_rms_nm" in met_before:
+        s += f"; error vs truth {met_before['error_rms_nm']:.4g} -> {met_after['error_rms_nm']:.4g} N m"
     report["summary"] = s
     report["elapsed_s"] = time.perf_counter() - t0
-    if out_dir:
-        od = Path(out_dir)
-        od.mkdir(parents=True, exist_ok=True)
-        files = rep.plots(od, res, data, m0, m1, title=Path(path).stem)
-        (od / "model.cfg").write_text(m1.config_text())
-        (od / "model.can").write_text(
-            "# CAN commands (candump notation, node %d); send with cansend IFACE FRAME\n" % node_id
-            + "".join(f"{c['candump']}  # {c['what']}\n" for c in report["can_commands"]))
-        (od / "report.md").write_text(rep.markdown(report, files))
-        report["files"] = ["report.md", "model.cfg", "model.can"] + files
-    if json_path:
-        rep.write_json(json_path, report)
+    outputs.write(report, res, data, m0, m1, title=_stem(path), node_id=node_id)
     return report
+
+
+def _stem(path):
+    from pathlib import Path
+    return Path(str(path)).stem
+
+
+def _noise_of(model):
+    return float(np.sqrt(model.r_nm2))
+
+
+def _fold_summary(session):
+    f = np.concatenate([x for x in session.fold])
+    ts = session.data.ts_s
+    return {"in_sample_s": float(np.sum(f == rp.TRAIN) * ts),
+            "out_of_sample_s": float(np.sum(f == rp.HELD_OUT) * ts),
+            "warmup_s": float(np.sum(f == rp.WARMUP) * ts),
+            "block_s_min": rp.MIN_BLOCK_S, "max_blocks": rp.MAX_BLOCKS}
+
+
+def _lines_table(m_ref, m1, vr, vb, va):
+    """Every line of the reference and final models: amplitude in the raw
+    torque and in the filtered torque of the reference, starting and final
+    models."""
+    kinds = {"motor": "motor_order", "output": "output_order", "fixed": "fixed_frequency"}
+    seen, out = set(), []
+    entries = [(b.lock, b.order, b.label()) for b in m_ref.blocks + m1.blocks] + [
+        (p.lock, p.order, f"{p.lock} {p.order:g}/rev (profile)") for p in m1.profile]
+    for lock, order, label in entries:
+        if (lock, round(order, 4)) in seen:
+            continue
+        seen.add((lock, round(order, 4)))
+        k = kinds[lock]
+        out.append({"block": label, "kind": k, "order": order,
+                    "raw_amplitude_nm": augment.line_amplitude(vb, k, order, True),
+                    "filtered_amplitude_reference_nm": augment.line_amplitude(vr, k, order),
+                    "filtered_amplitude_before_nm": augment.line_amplitude(vb, k, order),
+                    "filtered_amplitude_after_nm": augment.line_amplitude(va, k, order),
+                    "spectral_raw_amplitude_nm": augment.spectral_line_amplitude(vb, k, order, True),
+                    "spectral_filtered_before_nm": augment.spectral_line_amplitude(vb, k, order),
+                    "spectral_filtered_after_nm": augment.spectral_line_amplitude(va, k, order)})
+    return out
 
 
 def _label(e):
     if e["kind"] == "motor_order":
         return f"motor order {e['order_per_motor_rev']:.4g}"
     if e["kind"] == "output_order":
-        return f"output order {e['order_per_output_rev']:.4g}"
+        return f"output order {e['order_per_output_rev']:.4g} (profile)"
     if e["kind"] == "fixed_frequency":
         return f"{e['frequency_hz']:.4g} Hz line"
     if e["kind"] == "offset_drift":

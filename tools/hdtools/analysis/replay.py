@@ -1,5 +1,6 @@
-"""Replay cleaned data through the C pipeline with a given model, and the
-residuals the analysis works on.
+"""Replay cleaned data through the C pipeline with a given model, the
+residuals the analysis works on, and the split of the log into a part that
+detects and fits (fold A) and a held-out part that judges (fold B).
 
 Residuals (per piece, after a warm-up):
   innovation  e = y - C x_prior  (hd_kf_output_t.innovation_nm): what the
@@ -9,6 +10,18 @@ Residuals (per piece, after a warm-up):
               torque are removed.  Un-modelled lines, friction, inertia
               errors and drift all end up here (and so does real load
               torque, which is why detection looks for *structure*).
+
+Feed-forward: the log's `torque_feedforward_nm` column (the robot
+controller's expected torque) goes into hd_pipeline_run's feedforward_nm,
+which adds it to T_exp exactly as the firmware adds the CAN feed-forward.
+
+Fixed angle profile (model.profile, docs/analyze.md "Profile"): output-locked
+lines the geometry fit found are a fixed function of the absolute output
+angle, not adaptive blocks.  The C filter runs them as a known part of the
+expected torque (feedforward_nm += profile), and the profile is then moved
+from the expected torque to the ripple (filtered -= profile).  This is the
+same arithmetic as an output block whose state is loaded from the profile
+and never updated (q = 0, P = 0): y - C x is identical.
 """
 from __future__ import annotations
 
@@ -20,6 +33,13 @@ from . import cfilter
 from .loading import Data
 from .model import Model
 
+TRAIN, HELD_OUT, WARMUP = 0, 1, -1
+FOLD_NAMES = {TRAIN: "in_sample", HELD_OUT: "out_of_sample"}
+# Blocks of the timeline alternate A, B, A, B...: at least MIN_BLOCK_S long,
+# at most MAX_BLOCKS of them.
+MIN_BLOCK_S = 8.0
+MAX_BLOCKS = 8
+
 
 @dataclass
 class PieceRun:
@@ -30,6 +50,9 @@ class PieceRun:
     torque_true_nm: np.ndarray | None
     out: dict
     warm: int
+    fold: np.ndarray | None = None      # TRAIN / HELD_OUT / WARMUP per sample
+    feedforward_nm: np.ndarray | None = None
+    segment: str = ""                   # pieces of one segment share a time base
 
     @property
     def filtered(self):
@@ -56,44 +79,101 @@ def warmup_samples(n, ts_s):
     return int(min(n // 4, max(2.0 / ts_s, 50)))
 
 
-def replay(data: Data, model: Model, feedforward=None) -> list[PieceRun]:
+def folds(data: Data) -> list[np.ndarray]:
+    """Per piece, each sample's fold: the usable samples (after each piece's
+    warm-up), laid end to end, are cut into 2 m blocks of equal length
+    (m = the most that keeps a block >= MIN_BLOCK_S, at least 1, at most
+    MAX_BLOCKS / 2) that alternate TRAIN, HELD_OUT.  Deterministic in the
+    piece lengths."""
+    warm = [warmup_samples(len(p), data.ts_s) for p in data.pieces]
+    usable = sum(len(p) - w for p, w in zip(data.pieces, warm))
+    m = int(np.clip(usable * data.ts_s // (2 * MIN_BLOCK_S), 1, MAX_BLOCKS // 2))
+    edges = np.linspace(0, usable, 2 * m + 1)
+    out, pos = [], 0
+    for p, w in zip(data.pieces, warm):
+        f = np.full(len(p), WARMUP, np.int8)
+        k = np.arange(len(p) - w) + pos
+        f[w:] = (np.searchsorted(edges, k, side="right") - 1) % 2
+        pos += len(p) - w
+        out.append(f)
+    return out
+
+
+def profile_torque(model: Model, th_m, th_o):
+    """The model's fixed angle profile at these angles [N m]."""
+    x = np.zeros(len(th_o))
+    for ln in model.profile:
+        ph = ln.order * (th_o if ln.lock == "output" else th_m)
+        x += ln.a_nm * np.cos(ph) + ln.b_nm * np.sin(ph)
+    return x
+
+
+def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
     cfg = model.kf_config(data.ts_s)
     cfilter.check(cfg)
     exp = model.expected_config()
+    fold = folds(data) if fold is None else fold
     runs = []
     for k, p in enumerate(data.pieces):
         th_m, th_o = angles(p, model.gear_ratio, data.has_motor, data.has_output)
         dm = np.diff(th_m, prepend=th_m[0])
         do = np.diff(th_o, prepend=th_o[0])
-        ff = None if feedforward is None else feedforward[k]
-        out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff,
+        ff = p.feedforward_nm
+        prof = profile_torque(model, th_m, th_o) if model.profile else None
+        ff_c = ff if prof is None else (prof if ff is None else ff + prof)
+        out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff_c,
                           track_bandwidth_hz=model.track_bandwidth_hz)
+        if prof is not None:
+            pf = prof.astype(np.float32)
+            out["torque_filtered_nm"] -= pf
+            out["torque_expected_nm"] -= pf
+            out["ripple_nm"] += pf
         runs.append(PieceRun(p.t_s, th_m, th_o, p.torque_nm, p.torque_true_nm, out,
-                             warmup_samples(len(p), data.ts_s)))
+                             warmup_samples(len(p), data.ts_s), fold[k], ff, p.segment))
     return runs
 
 
-def _cat(runs, fn):
-    parts = [fn(r)[r.warm:] for r in runs]
-    return np.concatenate(parts) if parts else np.zeros(0)
+def _rms(x):
+    return float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")
 
 
-def metrics(runs: list[PieceRun]) -> dict:
-    e = _cat(runs, lambda r: r.out["innovation_nm"].astype(float))
-    s = _cat(runs, lambda r: r.out["innovation_var_nm2"].astype(float))
-    res = _cat(runs, lambda r: r.residual)
-    m = {"innovation_rms_nm": float(np.sqrt(np.mean(e ** 2))),
-         "innovation_nll": float(0.5 * np.mean(np.log(s) + e ** 2 / s)),
-         "model_residual_rms_nm": float(np.sqrt(np.mean((res - res.mean()) ** 2))),
-         "samples": int(len(e)),
-         "filter_resets": int(sum(r.out["reset_count"] for r in runs)),
-         "frozen_fraction": float(np.mean(_cat(
-             runs, lambda r: (r.out["status"] & cfilter.STATUS_FROZEN) != 0)))}
-    if all(r.torque_true_nm is not None for r in runs):
-        err = _cat(runs, lambda r: r.filtered - r.torque_true_nm)
-        raw = _cat(runs, lambda r: r.torque_nm - r.torque_true_nm)
-        m["error_rms_nm"] = float(np.sqrt(np.mean(err ** 2)))
-        m["raw_error_rms_nm"] = float(np.sqrt(np.mean(raw ** 2)))
+def _summary(e, s, res, err, raw):
+    m = {"innovation_rms_nm": _rms(e),
+         "innovation_nll": float(0.5 * np.mean(np.log(s) + e ** 2 / s)) if len(e) else float("nan"),
+         "model_residual_rms_nm": _rms(res - res.mean()) if len(res) else float("nan"),
+         "samples": int(len(e))}
+    if err is not None:
+        m["error_rms_nm"] = _rms(err)
+        m["raw_error_rms_nm"] = _rms(raw)
+    return m
+
+
+def metrics(runs: list[PieceRun], which=None, bands: bool = False) -> dict:
+    """RMS metrics over every sample after the warm-up, and per fold as
+    in_sample_* (fold A) and out_of_sample_* (fold B); with `which`, the
+    plain keys are those of that fold.  bands: also the error against truth
+    split into frequency bands (error_bands; slower)."""
+    def cat(fn):
+        return np.concatenate([np.asarray(fn(r), float)[r.warm:] for r in runs])
+    fold = np.concatenate([r.fold[r.warm:] for r in runs])
+    e = cat(lambda r: r.out["innovation_nm"])
+    s = cat(lambda r: r.out["innovation_var_nm2"])
+    res = cat(lambda r: r.out["torque_filtered_nm"] - r.out["torque_expected_nm"])
+    truth = all(r.torque_true_nm is not None for r in runs)
+    err = cat(lambda r: r.filtered - r.torque_true_nm) if truth else None
+    raw = cat(lambda r: r.torque_nm - r.torque_true_nm) if truth else None
+
+    def part(mask):
+        pick = (lambda x: None if x is None else x[mask]) if mask is not None else (lambda x: x)
+        return _summary(pick(e), pick(s), pick(res), pick(err), pick(raw))
+    m = part(None if which is None else fold == which)
+    m["filter_resets"] = int(sum(r.out["reset_count"] for r in runs))
+    m["frozen_fraction"] = float(np.mean(np.concatenate(
+        [(r.out["status"][r.warm:] & cfilter.STATUS_FROZEN) != 0 for r in runs])))
+    for f, name in FOLD_NAMES.items():
+        for k, v in part(fold == f).items():
+            m[f"{name}_{k}"] = v
+    if bands and truth:
         m.update(error_bands(runs))
     return m
 
@@ -130,20 +210,39 @@ ANALYSIS_MAX_SAMPLES = 600_000
 ANALYSIS_CHUNK = 100_000
 
 
-def analysis_view(runs: list[PieceRun], max_total: int = ANALYSIS_MAX_SAMPLES,
+def _slice_run(r: PieceRun, a: int, b: int) -> PieceRun:
+    sl = slice(a, b)
+    o = {k: (v[sl] if isinstance(v, np.ndarray) and len(v) == len(r.t_s) else v)
+         for k, v in r.out.items()}
+    return PieceRun(r.t_s[sl], r.motor_angle_rad[sl], r.output_angle_rad[sl], r.torque_nm[sl],
+                    None if r.torque_true_nm is None else r.torque_true_nm[sl], o, 0,
+                    None if r.fold is None else r.fold[sl],
+                    None if r.feedforward_nm is None else r.feedforward_nm[sl], r.segment)
+
+
+def analysis_view(runs: list[PieceRun], which=None, max_total: int = ANALYSIS_MAX_SAMPLES,
                   chunk: int = ANALYSIS_CHUNK) -> list[PieceRun]:
-    """Spectra and fits need not see every sample of a long record: evenly
-    spaced contiguous chunks (after each piece's warm-up) totalling at most
-    max_total samples.  Deterministic in the run lengths, so views of two
-    replays of the same data cover the same samples.  Metrics (RMS values)
-    always use all samples."""
+    """The samples spectra and fits look at: after each piece's warm-up, of
+    one fold if `which` is given (TRAIN for detection and fitting, HELD_OUT
+    for judging), as contiguous stretches; a long record is thinned to
+    evenly spaced contiguous chunks totalling at most max_total samples.
+    Deterministic in the run lengths, so views of two replays of the same
+    data cover the same samples.  Metrics (RMS values) always use all
+    samples of their fold."""
     spans = []
     for i, r in enumerate(runs):
-        a, n = r.warm, len(r.t_s)
-        while a < n:
-            b = min(a + chunk, n)
-            spans.append((i, a, b))
-            a = b
+        if which is None or r.fold is None:
+            stretches = [(r.warm, len(r.t_s))]
+        else:
+            m = (r.fold == which).astype(np.int8)
+            d = np.diff(np.r_[0, m, 0])
+            stretches = list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+        for a, n in stretches:
+            while a < n:
+                b = min(a + chunk, n)
+                if b - a >= 64:
+                    spans.append((i, a, b))
+                a = b
     total = sum(b - a for _, a, b in spans)
     if total <= max_total:
         keep = spans
@@ -151,13 +250,4 @@ def analysis_view(runs: list[PieceRun], max_total: int = ANALYSIS_MAX_SAMPLES,
         k = max(1, int(max_total // chunk))
         idx = np.unique(np.linspace(0, len(spans) - 1, k).round().astype(int))
         keep = [spans[j] for j in idx]
-    out = []
-    for i, a, b in keep:
-        r = runs[i]
-        sl = slice(a, b)
-        o = {k: (v[sl] if isinstance(v, np.ndarray) and len(v) == len(r.t_s) else v)
-             for k, v in r.out.items()}
-        out.append(PieceRun(r.t_s[sl], r.motor_angle_rad[sl], r.output_angle_rad[sl],
-                            r.torque_nm[sl],
-                            None if r.torque_true_nm is None else r.torque_true_nm[sl], o, 0))
-    return out
+    return [_slice_run(runs[i], a, b) for i, a, b in keep]

@@ -1,0 +1,337 @@
+"""Geometry versus load: which part of the slow torque is an artifact locked
+to the output angle, and which is real load.
+
+An artifact of the gear's geometry (misalignment, flexspline eccentricity,
+any output order k) is a fixed function of the absolute output angle: it
+repeats with the angle across revolutions, speeds and directions.  A load
+(payload, contact, process torque) is a function of time that does not.
+So the slow residual z (measured torque minus the motor-locked ripple the
+C filter removes, minus the expected torque and the feed-forward) is fitted
+jointly as
+
+    z(t) = sum_k a_k cos(k theta(t)) + b_k sin(k theta(t)) + s(t) + noise
+
+with s a smooth function of time per stretch (a Whittaker smoother: second
+differences penalised with lambda, i.e. a low-pass of time constant tau)
+and the profile (a_k, b_k) common to the whole record.  What decides:
+
+  * tau and the orders are chosen by cross-validation over short time
+    blocks (INNER_FOLDS folds, blocks of INNER_BLOCK_S): the smoother is
+    fitted with the held-out block's weights at zero (it interpolates the
+    load across it), the profile without the held-out block, and both
+    predict the held-out samples;
+  * an order joins the profile (forward selection) only if it lowers the
+    held-out error in a paired test over blocks (t >= MIN_T on the per-block
+    log ratio of the squared errors) and by at least MIN_GAIN in total;
+  * only when the output angle covers whole revolutions (every bin of a
+    turn visited, at least MIN_REVS turns of travel): over part of a turn a
+    function of the angle cannot be told from gravity or any other
+    posture-dependent load, so nothing is claimed.
+
+Friction and inertia the expected torque may still miss are functions of
+the motion, not of the angle or of time: velocity, its sign and the
+acceleration are fitted alongside as free nuisance columns (never part of
+the profile).  Everything runs on block averages of DEC_S (the motor-locked
+lines are already removed by the filter; block-averaging the basis as well
+keeps the model exact for the decimated samples).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solve_banded, solveh_banded
+
+DEC_S = 0.02
+TAU_GRID_S = (1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+MAX_OUTPUT_ORDER = 12
+INNER_FOLDS = 5
+INNER_BLOCK_S = 0.5
+MIN_T = 3.0
+MIN_GAIN = 0.002            # and at least 0.2 % of the held-out error
+COVERAGE_BINS = 36
+MIN_COVERAGE = 0.9
+MIN_REVS = 1.5
+
+
+@dataclass
+class Inputs:
+    """Per stretch: the slow residual z (measured - motor-locked ripple -
+    expected torque - feed-forward), the output angle, time and the output
+    velocity (for the motion nuisance; None: no motion columns)."""
+    signals: list
+    angles: list
+    times: list
+    velocities: list | None
+    ts_s: float
+
+    def minus(self, lines):
+        return Inputs([np.asarray(z, float) - profile_at(lines, th)
+                       for z, th in zip(self.signals, self.angles)],
+                      self.angles, self.times, self.velocities, self.ts_s)
+
+
+N_MOTION = 3
+VEL_EPS_RAD_S = 0.01
+
+
+def _blockmean(x, w):
+    m = (len(x) // w) * w
+    return np.asarray(x[:m], float).reshape(-1, w).mean(axis=1)
+
+
+def series(inp: Inputs, orders):
+    """Decimated stretches [(z, t, A)]: A's columns are cos, sin of each
+    order (block-averaged like z), then N_MOTION motion columns (velocity,
+    its smoothed sign, acceleration; zero without velocities).  Returns
+    (parts, decimated step)."""
+    w = max(1, int(round(DEC_S / inp.ts_s)))
+    out = []
+    vels = inp.velocities or [None] * len(inp.signals)
+    for z, th, t, v in zip(inp.signals, inp.angles, inp.times, vels):
+        if len(z) < 8 * w:
+            continue
+        cols = []
+        for k in orders:
+            cols += [_blockmean(np.cos(k * th), w), _blockmean(np.sin(k * th), w)]
+        n = len(z) // w
+        if v is not None:
+            vb = _blockmean(v, w)
+            cols += [vb, vb / (np.abs(vb) + VEL_EPS_RAD_S),
+                     np.gradient(vb, w * inp.ts_s) if n > 1 else np.zeros(n)]
+        else:
+            cols += [np.zeros(n)] * N_MOTION
+        out.append((_blockmean(z, w), _blockmean(t, w), np.column_stack(cols)))
+    return out, w * inp.ts_s
+
+
+def coverage(angles):
+    """(fraction of the COVERAGE_BINS bins of a turn visited, revolutions of
+    travel)."""
+    th = np.concatenate([np.asarray(a, float) for a in angles]) if angles else np.zeros(0)
+    if len(th) < 2:
+        return 0.0, 0.0
+    bins = np.unique(np.floor(np.mod(th, 2 * math.pi) / (2 * math.pi) * COVERAGE_BINS))
+    travel = sum(float(np.sum(np.abs(np.diff(a)))) for a in angles) / (2 * math.pi)
+    return len(bins) / COVERAGE_BINS, travel
+
+
+def _banded(n, lam, w):
+    """Upper banded form of diag(w) + lam D'D (D: second differences)."""
+    ab = np.zeros((3, n))
+    main = np.full(n, 6.0)
+    main[[0, -1]] = 1.0
+    if n > 2:
+        main[[1, -2]] = 5.0
+    off1 = np.full(n - 1, -4.0)
+    off1[[0, -1]] = -2.0
+    ab[2] = w + lam * main
+    ab[1, 1:] = lam * off1
+    ab[0, 2:] = lam
+    return ab
+
+
+def _lam(tau_s, dt_s):
+    # Half-power period of the Whittaker smoother: 2 pi lam^(1/4) samples.
+    return (tau_s / (2 * math.pi * dt_s)) ** 4
+
+
+def _smooth_solve(n, lam, w, rhs):
+    """(diag(w) + lam D'D)^-1 rhs; Cholesky, or LU if rounding defeats it."""
+    ab = _banded(n, lam, w)
+    try:
+        return solveh_banded(ab, rhs, check_finite=False)
+    except np.linalg.LinAlgError:
+        full = np.zeros((5, n))
+        full[0], full[1], full[2] = ab[0], ab[1], ab[2]
+        full[3, :-1], full[4, :-2] = ab[1, 1:], ab[0, 2:]
+        return solve_banded((2, 2), full, rhs, check_finite=False)
+
+
+class _Fit:
+    """Per stretch and weight vector: the smoother's solve of [z, A].  A
+    stretch with fewer than 3 weighted samples cannot anchor the smoother:
+    it is left out (its residuals are NaN)."""
+
+    def __init__(self, parts, lam, weights):
+        self.parts = parts
+        self.rows = []
+        for (z, t, A), w in zip(parts, weights):
+            n = len(z)
+            if n <= 3 or np.count_nonzero(w) < 3:
+                self.rows.append((np.zeros(n), None))
+                continue
+            rhs = np.column_stack([z, A]) * w[:, None]
+            self.rows.append((w, _smooth_solve(n, lam, w, rhs)))
+
+    def coef(self, cols):
+        """Profile coefficients for the column subset (indices into A)."""
+        k = len(cols)
+        if k == 0:
+            return np.zeros(0)
+        G = np.zeros((k, k))
+        h = np.zeros(k)
+        for (z, t, A), (w, sol) in zip(self.parts, self.rows):
+            if sol is None:
+                continue
+            Ac = A[:, cols]
+            MA = w[:, None] * (Ac - sol[:, 1:][:, cols])
+            Mz = w * (z - sol[:, 0])
+            G += Ac.T @ MA
+            h += Ac.T @ Mz
+        try:
+            return np.linalg.solve(G + 1e-12 * np.trace(G) * np.eye(k), h)
+        except np.linalg.LinAlgError:
+            return np.zeros(k)
+
+    def residuals(self, cols, beta):
+        """z - (A beta + s) per stretch, s the smoother of z - A beta."""
+        out = []
+        for (z, t, A), (w, sol) in zip(self.parts, self.rows):
+            if sol is None:
+                out.append(np.full(len(z), np.nan))
+                continue
+            s = sol[:, 0] - (sol[:, 1:][:, cols] @ beta if len(cols) else 0.0)
+            out.append(z - s - (A[:, cols] @ beta if len(cols) else 0.0))
+        return out
+
+
+def _inner_blocks(parts, dt_s):
+    """Per stretch, each sample's inner block id (global numbering)."""
+    L = max(4, int(round(INNER_BLOCK_S / dt_s)))
+    ids, base = [], 0
+    for z, _, _ in parts:
+        b = np.arange(len(z)) // L + base
+        ids.append(b)
+        base = int(b[-1]) + 1 if len(b) else base
+    return ids, base
+
+
+def _cv_block_sse(parts, lam, ids, nblocks, cols_sets):
+    """Held-out SSE per block for each column set (list of index lists)."""
+    sse = np.zeros((len(cols_sets), nblocks))
+    for f in range(INNER_FOLDS):
+        weights = [(b % INNER_FOLDS != f).astype(float) for b in ids]
+        fit = _Fit(parts, lam, weights)
+        for j, cols in enumerate(cols_sets):
+            beta = fit.coef(cols)
+            for res, b, w in zip(fit.residuals(cols, beta), ids, weights):
+                ho = (w == 0) & np.isfinite(res)
+                np.add.at(sse[j], b[ho], res[ho] ** 2)
+    return sse
+
+
+def _cols_of(order_idx, n_orders):
+    """Columns of these orders plus the motion nuisance (always in)."""
+    return [c for i in order_idx for c in (2 * i, 2 * i + 1)] + list(
+        range(2 * n_orders, 2 * n_orders + N_MOTION))
+
+
+def fit(inp: Inputs, orders=None):
+    """The geometry-vs-load fit over the candidate output orders (default
+    1..MAX_OUTPUT_ORDER).  Returns a dict: verifiable (bool), why (if not),
+    orders (the selected ones, with a_nm, b_nm), tau_s, selection (each
+    order's held-out gain and paired t), the held-out error with and
+    without the profile."""
+    cov, revs = coverage(inp.angles)
+    res = {"angle_coverage": round(cov, 3), "revolutions": round(revs, 2), "orders": []}
+    if cov < MIN_COVERAGE or revs < MIN_REVS:
+        res["verifiable"] = False
+        res["why"] = (f"the output angle covers {100 * cov:.0f} % of a turn and {revs:.2g} "
+                      f"revolutions (needs {100 * MIN_COVERAGE:.0f} % and {MIN_REVS:g}): over part "
+                      "of a turn a function of the angle cannot be told from gravity or any other "
+                      "posture-dependent load")
+        return res
+    orders = list(orders or range(1, MAX_OUTPUT_ORDER + 1))
+    no = len(orders)
+    parts, dt = series(inp, orders)
+    if not parts or sum(len(p[0]) for p in parts) < 20 * INNER_FOLDS:
+        res["verifiable"] = False
+        res["why"] = "too few samples for the cross-validated fit"
+        return res
+    ids, nblocks = _inner_blocks(parts, dt)
+    best = None
+    for tau in TAU_GRID_S:
+        lam = _lam(tau, dt)
+        chosen = []
+        base = _cv_block_sse(parts, lam, ids, nblocks, [_cols_of([], no)])[0]
+        base_tau = base.sum()
+        steps = []
+        while len(chosen) < no:
+            rest = [i for i in range(no) if i not in chosen]
+            sse = _cv_block_sse(parts, lam, ids, nblocks, [_cols_of(chosen + [i], no) for i in rest])
+            # Paired over blocks, on the log ratio: blocks at a stretch's
+            # ends (the smoother extrapolates) must not dominate.
+            used = base > 0
+            nb = max(int(used.sum()), 2)
+            ratio = np.log((base[None, used] + 1e-30) / (sse[:, used] + 1e-30))
+            se = ratio.std(axis=1, ddof=1) / math.sqrt(nb) + 1e-300
+            tstat = ratio.mean(axis=1) / se
+            j = int(np.argmax(tstat))
+            gain = 1.0 - sse[j].sum() / base.sum()
+            if not (tstat[j] >= MIN_T and gain >= MIN_GAIN):
+                break
+            chosen.append(rest[j])
+            steps.append({"order": orders[rest[j]], "t": round(float(tstat[j]), 2),
+                          "held_out_gain_fraction": round(float(gain), 4)})
+            base = sse[j]
+        total = float(base.sum())
+        if best is None or total < best[0]:
+            best = (total, tau, chosen, steps, base_tau)
+    total, tau, chosen, steps, base0 = best
+    beta = _Fit(parts, _lam(tau, dt), [np.ones(len(p[0])) for p in parts]).coef(
+        _cols_of(chosen, no))
+    n_dec = sum(len(p[0]) for p in parts)
+    res.update({"verifiable": True, "tau_s": tau, "decimation_s": dt,
+                "held_out_rms_without_nm": math.sqrt(base0 / n_dec),
+                "held_out_rms_with_nm": math.sqrt(total / n_dec),
+                "selection": steps})
+    for n, i in enumerate(chosen):
+        a, b = float(beta[2 * n]), float(beta[2 * n + 1])
+        res["orders"].append({"order": float(orders[i]), "a_nm": a, "b_nm": b,
+                              "amplitude_nm": math.hypot(a, b)})
+    res["orders"].sort(key=lambda o: o["order"])
+    return res
+
+
+def refit(inp: Inputs, orders, tau_s, nuisance_orders=()):
+    """The profile of exactly these orders at time constant tau_s, fitted on
+    all the given samples (nuisance_orders fitted alongside and dropped):
+    [{order, a_nm, b_nm, amplitude_nm}]."""
+    allo = list(orders) + [o for o in nuisance_orders if o not in orders]
+    parts, dt = series(inp, allo)
+    if not parts or not orders:
+        return []
+    beta = _Fit(parts, _lam(tau_s, dt), [np.ones(len(p[0])) for p in parts]).coef(
+        _cols_of(range(len(allo)), len(allo)))
+    return [{"order": float(o), "a_nm": float(beta[2 * i]), "b_nm": float(beta[2 * i + 1]),
+             "amplitude_nm": float(math.hypot(beta[2 * i], beta[2 * i + 1]))}
+            for i, o in enumerate(orders)]
+
+
+def profile_at(lines, th):
+    """sum a cos(order th) + b sin(order th) over the lines (dicts)."""
+    x = np.zeros(len(th))
+    for ln in lines:
+        x += ln["a_nm"] * np.cos(ln["order"] * th) + ln["b_nm"] * np.sin(ln["order"] * th)
+    return x
+
+
+def check(inp: Inputs, lines, tau_s, nuisance_orders=()):
+    """Out-of-sample check of a fitted profile on data it was not fitted on:
+    the residual z after a smoother of time constant tau_s (the load), the
+    motion nuisance and any nuisance_orders (other lines, free), with and
+    without the profile subtracted first.  Returns (rms_without, rms_with)."""
+    nuis = [o for o in nuisance_orders if o not in [ln["order"] for ln in lines]]
+    out = []
+    for x in (inp, inp.minus(lines)):
+        parts, dt = series(x, nuis)
+        if not parts:
+            return float("nan"), float("nan")
+        f = _Fit(parts, _lam(tau_s, dt), [np.ones(len(p[0])) for p in parts])
+        cols = _cols_of(range(len(nuis)), len(nuis))
+        res = [r[np.isfinite(r)] for r in f.residuals(cols, f.coef(cols))]
+        n = sum(len(r) for r in res)
+        out.append(math.sqrt(sum(float(r @ r) for r in res) / n) if n else float("nan"))
+    return out[0], out[1]
