@@ -8,8 +8,10 @@ from __future__ import annotations
 import json
 import re
 import shlex
+import shutil
 import statistics
 import subprocess
+import sys
 from pathlib import Path
 
 from hdtools import target as t
@@ -204,7 +206,7 @@ def cmd_flash(a) -> int:
                             "or --image ELF)")
     program = "openocd" if a.tool == "openocd" else "dfu-util"
     if not a.dry_run:
-        if t.shutil.which(program) is None:
+        if shutil.which(program) is None:
             raise t.TargetError(f"{program} not found: install Debian's {program} "
                                 "(tools/setup installs it)")
     cmds = flash_commands(a.tool, elf)
@@ -213,9 +215,14 @@ def cmd_flash(a) -> int:
     if a.dry_run:
         return 0
     for cmd in cmds:
-        rc = subprocess.run([str(c) for c in cmd]).returncode
-        if rc != 0:
-            print(f"tools/target: {program} failed with exit status {rc}", file=t.sys.stderr)
+        proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
+        sys.stdout.write(proc.stdout)
+        if proc.returncode != 0:
+            lines = [ln.strip() for ln in proc.stderr.splitlines() if ln.strip()]
+            why = next((ln for ln in reversed(lines) if "rror" in ln or "No DFU" in ln),
+                       lines[-1] if lines else "no message")
+            print(f"tools/target: {program} failed (exit status {proc.returncode}): {why}",
+                  file=sys.stderr)
             return 1
     print(f"flashed {elf.name} to {a.board} with {program}")
     return 0
