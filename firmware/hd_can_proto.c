@@ -1,48 +1,34 @@
-/* hd_can_proto: see hd_can_proto.h.  Byte layouts are documented in
- * docs/firmware.md and firmware/hdjoint.dbc; keep all three in step. */
+/* hd_can_proto: see hd_can_proto.h.  Byte layouts: docs/protocol.md and
+ * firmware/hdjoint.dbc (checked against this file by the tests). */
 #include "hd_can_proto.h"
 
 #include <math.h>   /* isfinite (a compiler builtin, no libm call) */
 #include <string.h>
 
-void hd_can_put_u16(uint8_t *p, uint16_t v)
+#include "hd_record_store.h" /* little-endian helpers, record status codes */
+
+/* The record status codes travel on CAN as hd_record_status_t values. */
+#define HD_RECORD_STATUS(code, NAME, doc) \
+    _Static_assert((int)HD_RECORD_##NAME == (code), "record status " #NAME);
+#include "hd_protocol.def"
+
+uint32_t hd_can_id(hd_can_frame_type_t type, uint8_t node_id)
 {
-    p[0] = (uint8_t)(v & 0xFFu);
-    p[1] = (uint8_t)(v >> 8);
+    return HD_CAN_ID_PREFIX | ((uint32_t)type << 8) | node_id;
 }
 
-void hd_can_put_u32(uint8_t *p, uint32_t v)
+bool hd_can_id_parse(uint32_t id, uint8_t flags, uint8_t *type, uint8_t *node_id)
 {
-    p[0] = (uint8_t)(v & 0xFFu);
-    p[1] = (uint8_t)((v >> 8) & 0xFFu);
-    p[2] = (uint8_t)((v >> 16) & 0xFFu);
-    p[3] = (uint8_t)(v >> 24);
-}
-
-void hd_can_put_f32(uint8_t *p, float v)
-{
-    uint32_t bits;
-    memcpy(&bits, &v, sizeof bits); /* IEEE-754 binary32 on every target we build */
-    hd_can_put_u32(p, bits);
-}
-
-uint16_t hd_can_get_u16(const uint8_t *p)
-{
-    return (uint16_t)((uint16_t)p[0] | (uint16_t)((uint16_t)p[1] << 8));
-}
-
-uint32_t hd_can_get_u32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) |
-           ((uint32_t)p[3] << 24);
-}
-
-float hd_can_get_f32(const uint8_t *p)
-{
-    uint32_t bits = hd_can_get_u32(p);
-    float v;
-    memcpy(&v, &bits, sizeof v);
-    return v;
+    if ((flags & HAL_CAN_FLAG_EXT) == 0u || (id & HD_CAN_ID_PREFIX_MASK) != HD_CAN_ID_PREFIX) {
+        return false;
+    }
+    uint8_t node = (uint8_t)(id & 0xFFu);
+    if (node < HD_CAN_NODE_MIN || node > HD_CAN_NODE_MAX) {
+        return false;
+    }
+    *type = (uint8_t)((id >> 8) & 0xFFu);
+    *node_id = node;
+    return true;
 }
 
 int16_t hd_can_scale_i16(float value, float lsb)
@@ -60,103 +46,207 @@ int16_t hd_can_scale_i16(float value, float lsb)
     return (int16_t)(q >= 0.0f ? q + 0.5f : q - 0.5f);
 }
 
-int32_t hd_can_scale_i32(float value, float lsb)
+int32_t hd_can_scale_i24(float value, float lsb)
 {
     if (!isfinite(value)) {
-        return INT32_MIN;
+        return -HD_CAN_INT24_MAX - 1;
     }
     float q = value / lsb;
-    /* 2147483520 is the largest float below 2^31 */
-    if (q >= 2147483520.0f) {
-        return INT32_MAX;
+    if (q >= (float)HD_CAN_INT24_MAX) {
+        return HD_CAN_INT24_MAX;
     }
-    if (q <= -2147483520.0f) {
-        return -INT32_MAX;
+    if (q <= -(float)HD_CAN_INT24_MAX) {
+        return -HD_CAN_INT24_MAX;
     }
     return (int32_t)(q >= 0.0f ? q + 0.5f : q - 0.5f);
 }
 
-static void frame_init(hal_can_frame_t *f, uint32_t id)
+static void put_u24(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)(v & 0xFFu);
+    p[1] = (uint8_t)((v >> 8) & 0xFFu);
+    p[2] = (uint8_t)((v >> 16) & 0xFFu);
+}
+
+static uint32_t get_u24(const uint8_t *p)
+{
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16);
+}
+
+static int32_t get_i24(const uint8_t *p)
+{
+    uint32_t u = get_u24(p);
+    return (u & 0x800000u) ? (int32_t)(u | 0xFF000000u) : (int32_t)u;
+}
+
+static void frame_init(hal_can_frame_t *f, hd_can_frame_type_t type, uint8_t node_id)
 {
     memset(f, 0, sizeof *f);
-    f->id = id;
+    f->id = hd_can_id(type, node_id);
+    f->flags = HAL_CAN_FLAG_EXT;
     f->len = HD_CAN_DLC;
+}
+
+/* A frame of ours, of this type, 8 bytes, classic data frame. */
+static bool frame_is(const hal_can_frame_t *f, hd_can_frame_type_t type, uint8_t *node)
+{
+    uint8_t t = 0u;
+    uint8_t n = 0u;
+    if (!hd_can_id_parse(f->id, f->flags, &t, &n) || t != (uint8_t)type ||
+        f->len != HD_CAN_DLC ||
+        (f->flags & (HAL_CAN_FLAG_RTR | HAL_CAN_FLAG_ERR | HAL_CAN_FLAG_FD)) != 0u) {
+        return false;
+    }
+    if (node != NULL) {
+        *node = n;
+    }
+    return true;
 }
 
 void hd_can_encode_telem(uint8_t node_id, const hd_can_telem_t *t,
                          hal_can_frame_t *a, hal_can_frame_t *b)
 {
-    frame_init(a, HD_CAN_ID_TELEM_A + node_id);
+    frame_init(a, HD_CAN_FRAME_TELEM_A, node_id);
     int16_t filt = t->torque_valid ? hd_can_scale_i16(t->torque_filtered_nm, HD_CAN_TORQUE_LSB_NM)
                                    : HD_CAN_INT16_NA;
     int16_t raw = t->torque_valid ? hd_can_scale_i16(t->torque_raw_nm, HD_CAN_TORQUE_LSB_NM)
                                   : HD_CAN_INT16_NA;
-    hd_can_put_u16(&a->data[0], (uint16_t)filt);
-    hd_can_put_u16(&a->data[2], (uint16_t)raw);
-    hd_can_put_u16(&a->data[4], (uint16_t)hd_can_scale_i16(t->ripple_nm, HD_CAN_RIPPLE_LSB_NM));
+    hd_le_put_u16(&a->data[0], (uint16_t)filt);
+    hd_le_put_u16(&a->data[2], (uint16_t)raw);
+    hd_le_put_u16(&a->data[4], (uint16_t)hd_can_scale_i16(t->ripple_nm, HD_CAN_RIPPLE_LSB_NM));
     a->data[6] = t->seq;
     a->data[7] = 0;
 
-    frame_init(b, HD_CAN_ID_TELEM_B + node_id);
-    hd_can_put_u32(&b->data[0],
-                   (uint32_t)hd_can_scale_i32(t->motor_velocity_rad_s, HD_CAN_VELOCITY_LSB_RAD_S));
-    hd_can_put_u16(&b->data[4], t->faults);
+    frame_init(b, HD_CAN_FRAME_TELEM_B, node_id);
+    put_u24(&b->data[0],
+            (uint32_t)hd_can_scale_i24(t->motor_velocity_rad_s, HD_CAN_VELOCITY_LSB_RAD_S));
+    put_u24(&b->data[3], t->faults & 0xFFFFFFu);
     b->data[6] = t->kf_status;
     b->data[7] = t->seq;
 }
 
 static float i16_to_float(uint16_t raw, float lsb)
 {
-    int16_t v = (int16_t)raw;
-    return (float)v * lsb;
+    return (float)(int16_t)raw * lsb;
 }
 
 int hd_can_decode_telem(const hal_can_frame_t *a, const hal_can_frame_t *b,
                         hd_can_telem_t *out)
 {
-    if (a->len != HD_CAN_DLC || b->len != HD_CAN_DLC || a->id < HD_CAN_ID_TELEM_A ||
-        a->id > HD_CAN_ID_TELEM_A + HD_CAN_NODE_MAX ||
-        b->id - HD_CAN_ID_TELEM_B != a->id - HD_CAN_ID_TELEM_A || a->data[6] != b->data[7]) {
+    uint8_t na = 0u;
+    uint8_t nb = 0u;
+    if (!frame_is(a, HD_CAN_FRAME_TELEM_A, &na) || !frame_is(b, HD_CAN_FRAME_TELEM_B, &nb) ||
+        na != nb || a->data[6] != b->data[7]) {
         return -1;
     }
     memset(out, 0, sizeof *out);
-    uint16_t filt = hd_can_get_u16(&a->data[0]);
-    uint16_t raw = hd_can_get_u16(&a->data[2]);
+    uint16_t filt = hd_le_get_u16(&a->data[0]);
+    uint16_t raw = hd_le_get_u16(&a->data[2]);
     out->torque_valid = (int16_t)filt != HD_CAN_INT16_NA && (int16_t)raw != HD_CAN_INT16_NA;
     out->torque_filtered_nm = i16_to_float(filt, HD_CAN_TORQUE_LSB_NM);
     out->torque_raw_nm = i16_to_float(raw, HD_CAN_TORQUE_LSB_NM);
-    out->ripple_nm = i16_to_float(hd_can_get_u16(&a->data[4]), HD_CAN_RIPPLE_LSB_NM);
+    out->ripple_nm = i16_to_float(hd_le_get_u16(&a->data[4]), HD_CAN_RIPPLE_LSB_NM);
     out->seq = a->data[6];
-    out->motor_velocity_rad_s =
-        (float)(int32_t)hd_can_get_u32(&b->data[0]) * HD_CAN_VELOCITY_LSB_RAD_S;
-    out->faults = hd_can_get_u16(&b->data[4]);
+    out->motor_velocity_rad_s = (float)get_i24(&b->data[0]) * HD_CAN_VELOCITY_LSB_RAD_S;
+    out->faults = get_u24(&b->data[3]);
     out->kf_status = b->data[6];
+    return 0;
+}
+
+void hd_can_encode_angle(uint8_t node_id, const hd_can_angle_t *c, hal_can_frame_t *f)
+{
+    frame_init(f, HD_CAN_FRAME_TELEM_C, node_id);
+    hd_le_put_u32(&f->data[0], c->motor_counts);
+    uint32_t out = c->has_output ? ((c->output_counts & HD_CAN_OUTPUT_COUNTS_MASK) | 0x800000u) : 0u;
+    put_u24(&f->data[4], out);
+    f->data[7] = c->seq;
+}
+
+int hd_can_decode_angle(const hal_can_frame_t *f, hd_can_angle_t *out)
+{
+    if (!frame_is(f, HD_CAN_FRAME_TELEM_C, NULL)) {
+        return -1;
+    }
+    out->motor_counts = hd_le_get_u32(&f->data[0]);
+    uint32_t o = get_u24(&f->data[4]);
+    out->has_output = (o & 0x800000u) != 0u;
+    out->output_counts = o & HD_CAN_OUTPUT_COUNTS_MASK;
+    out->seq = f->data[7];
     return 0;
 }
 
 void hd_can_encode_heartbeat(uint8_t node_id, const hd_can_heartbeat_t *h,
                              hal_can_frame_t *f)
 {
-    frame_init(f, HD_CAN_ID_HEARTBEAT + node_id);
+    frame_init(f, HD_CAN_FRAME_HEARTBEAT, node_id);
     f->data[0] = h->state;
-    hd_can_put_u16(&f->data[1], h->faults);
-    hd_can_put_u16(&f->data[3], h->deadline_misses);
-    hd_can_put_u16(&f->data[5], h->fault_ticks);
-    f->data[7] = h->calib_status;
+    put_u24(&f->data[1], h->faults & 0xFFFFFFu);
+    hd_le_put_u16(&f->data[4], h->deadline_misses);
+    f->data[6] = (uint8_t)((h->calib_status & 0x0Fu) | ((h->config_status & 0x0Fu) << 4));
+    f->data[7] = h->profile_status;
 }
 
 int hd_can_decode_heartbeat(const hal_can_frame_t *f, hd_can_heartbeat_t *out)
 {
-    if (f->len != HD_CAN_DLC || f->id < HD_CAN_ID_HEARTBEAT ||
-        f->id > HD_CAN_ID_HEARTBEAT + HD_CAN_NODE_MAX) {
+    if (!frame_is(f, HD_CAN_FRAME_HEARTBEAT, NULL)) {
         return -1;
     }
     out->state = f->data[0];
-    out->faults = hd_can_get_u16(&f->data[1]);
-    out->deadline_misses = hd_can_get_u16(&f->data[3]);
-    out->fault_ticks = hd_can_get_u16(&f->data[5]);
-    out->calib_status = f->data[7];
+    out->faults = get_u24(&f->data[1]);
+    out->deadline_misses = hd_le_get_u16(&f->data[4]);
+    out->calib_status = f->data[6] & 0x0Fu;
+    out->config_status = (uint8_t)(f->data[6] >> 4);
+    out->profile_status = f->data[7];
     return 0;
+}
+
+void hd_can_encode_boot(uint8_t node_id, const hd_can_boot_t *b, hal_can_frame_t *f)
+{
+    frame_init(f, HD_CAN_FRAME_BOOT, node_id);
+    f->data[0] = b->reset_cause;
+    f->data[1] = (uint8_t)((b->fault_valid ? 1u : 0u) | (b->config_from_record ? 2u : 0u));
+    hd_le_put_u32(&f->data[2], b->fault_pc);
+    f->data[6] = b->protocol_version;
+    f->data[7] = b->config_status;
+}
+
+int hd_can_decode_boot(const hal_can_frame_t *f, hd_can_boot_t *out)
+{
+    if (!frame_is(f, HD_CAN_FRAME_BOOT, NULL)) {
+        return -1;
+    }
+    out->reset_cause = f->data[0];
+    out->fault_valid = (f->data[1] & 1u) != 0u;
+    out->config_from_record = (f->data[1] & 2u) != 0u;
+    out->fault_pc = hd_le_get_u32(&f->data[2]);
+    out->protocol_version = f->data[6];
+    out->config_status = f->data[7];
+    return 0;
+}
+
+void hd_can_encode_feedforward(uint8_t node_id, const hd_can_feedforward_t *ff,
+                               hal_can_frame_t *f)
+{
+    frame_init(f, HD_CAN_FRAME_FEEDFORWARD, node_id);
+    hd_le_put_f32(&f->data[0], ff->torque_nm);
+    f->data[4] = ff->seq;
+}
+
+int hd_can_decode_feedforward(const hal_can_frame_t *f, hd_can_feedforward_t *out)
+{
+    if ((f->flags & (HAL_CAN_FLAG_RTR | HAL_CAN_FLAG_ERR | HAL_CAN_FLAG_FD)) != 0u) {
+        return HD_CAN_RES_BAD_FRAME;
+    }
+    if (f->len != HD_CAN_DLC) {
+        return HD_CAN_RES_BAD_LENGTH;
+    }
+    float v = hd_le_get_f32(&f->data[0]);
+    if (!isfinite(v)) {
+        return HD_CAN_RES_NOT_FINITE;
+    }
+    out->torque_nm = v;
+    out->seq = f->data[4];
+    return HD_CAN_RES_OK;
 }
 
 static bool is_add_opcode(uint8_t op)
@@ -166,20 +256,31 @@ static bool is_add_opcode(uint8_t op)
 
 void hd_can_encode_cmd(uint8_t node_id, const hd_can_cmd_t *c, hal_can_frame_t *f)
 {
-    frame_init(f, HD_CAN_ID_CMD + node_id);
+    frame_init(f, HD_CAN_FRAME_CMD, node_id);
     f->data[0] = c->opcode;
     f->data[1] = c->token;
     if (is_add_opcode(c->opcode)) {
         float scaled = c->order * 100.0f + 0.5f;
         uint16_t u = (scaled <= 0.0f) ? 0u : (scaled >= 65535.0f ? 65535u : (uint16_t)scaled);
-        hd_can_put_u16(&f->data[2], u);
-        hd_can_put_f32(&f->data[4], c->value);
+        hd_le_put_u16(&f->data[2], u);
+        hd_le_put_f32(&f->data[4], c->value);
     } else if (c->opcode == HD_CMD_CALIB_SAVE) {
-        hd_can_put_u32(&f->data[4], c->arg_u32);
+        hd_le_put_u32(&f->data[4], c->arg_u32);
     } else {
         f->data[2] = c->arg_u8[0];
         f->data[3] = c->arg_u8[1];
-        hd_can_put_f32(&f->data[4], c->value);
+        hd_le_put_f32(&f->data[4], c->value);
+    }
+}
+
+static bool opcode_known(uint8_t op)
+{
+    switch (op) {
+#define HD_OPCODE(code, NAME, doc) case code:
+#include "hd_protocol.def"
+        return true;
+    default:
+        return false;
     }
 }
 
@@ -192,107 +293,90 @@ int hd_can_decode_cmd(const hal_can_frame_t *f, hd_can_cmd_t *cmd)
     if (f->len > 1u) {
         cmd->token = f->data[1];
     }
-    if ((f->flags & (HAL_CAN_FLAG_EXT | HAL_CAN_FLAG_RTR | HAL_CAN_FLAG_ERR | HAL_CAN_FLAG_FD)) != 0u) {
+    if ((f->flags & (HAL_CAN_FLAG_RTR | HAL_CAN_FLAG_ERR | HAL_CAN_FLAG_FD)) != 0u) {
         return HD_CAN_RES_BAD_FRAME;
     }
     if (f->len != HD_CAN_DLC) {
         return HD_CAN_RES_BAD_LENGTH;
     }
-    cmd->arg_u8[0] = f->data[2];
-    cmd->arg_u8[1] = f->data[3];
-    cmd->arg_u32 = hd_can_get_u32(&f->data[4]);
-    switch (cmd->opcode) {
-    case HD_CMD_ADD_MOTOR:
-    case HD_CMD_ADD_OUTPUT:
-    case HD_CMD_ADD_FIXED:
-        cmd->order = (float)hd_can_get_u16(&f->data[2]) / 100.0f;
-        cmd->value = hd_can_get_f32(&f->data[4]);
-        if (!isfinite(cmd->value)) {
-            return HD_CAN_RES_NOT_FINITE;
-        }
-        return HD_CAN_RES_OK;
-    case HD_CMD_SET_PARAM:
-        cmd->value = hd_can_get_f32(&f->data[4]);
-        if (!isfinite(cmd->value)) {
-            return HD_CAN_RES_NOT_FINITE;
-        }
-        return HD_CAN_RES_OK;
-    case HD_CMD_FILTER_ENABLE:
-    case HD_CMD_BLOCK_ENABLE:
-    case HD_CMD_BLOCKS_CLEAR:
-    case HD_CMD_GET_PARAM:
-    case HD_CMD_TARE:
-    case HD_CMD_CALIB_SAVE:
-    case HD_CMD_CALIB_LOAD:
-    case HD_CMD_FILTER_RESET:
-        return HD_CAN_RES_OK;
-    default:
+    if (!opcode_known(cmd->opcode)) {
         return HD_CAN_RES_UNKNOWN_OPCODE;
     }
+    cmd->arg_u8[0] = f->data[2];
+    cmd->arg_u8[1] = f->data[3];
+    cmd->arg_u32 = hd_le_get_u32(&f->data[4]);
+    if (is_add_opcode(cmd->opcode)) {
+        cmd->order = (float)hd_le_get_u16(&f->data[2]) / 100.0f;
+    }
+    if (is_add_opcode(cmd->opcode) || cmd->opcode == HD_CMD_SET_PARAM) {
+        cmd->value = hd_le_get_f32(&f->data[4]);
+        if (!isfinite(cmd->value)) {
+            return HD_CAN_RES_NOT_FINITE;
+        }
+    }
+    return HD_CAN_RES_OK;
+}
+
+bool hd_can_ack_is_u32(uint8_t opcode)
+{
+    return opcode == HD_CMD_VERSION || opcode == HD_CMD_INFO;
 }
 
 void hd_can_encode_ack(uint8_t node_id, const hd_can_ack_t *a, hal_can_frame_t *f)
 {
-    frame_init(f, HD_CAN_ID_ACK + node_id);
+    frame_init(f, HD_CAN_FRAME_ACK, node_id);
     f->data[0] = a->opcode;
     f->data[1] = a->token;
     f->data[2] = a->result;
     f->data[3] = a->aux;
-    hd_can_put_f32(&f->data[4], a->value);
+    if (hd_can_ack_is_u32(a->opcode)) {
+        hd_le_put_u32(&f->data[4], a->value_u32);
+    } else {
+        hd_le_put_f32(&f->data[4], a->value);
+    }
 }
 
 int hd_can_decode_ack(const hal_can_frame_t *f, hd_can_ack_t *out)
 {
-    if (f->len != HD_CAN_DLC || f->id < HD_CAN_ID_ACK || f->id > HD_CAN_ID_ACK + HD_CAN_NODE_MAX) {
+    if (!frame_is(f, HD_CAN_FRAME_ACK, NULL)) {
         return -1;
     }
+    memset(out, 0, sizeof *out);
     out->opcode = f->data[0];
     out->token = f->data[1];
     out->result = f->data[2];
     out->aux = f->data[3];
-    out->value = hd_can_get_f32(&f->data[4]);
+    if (hd_can_ack_is_u32(out->opcode)) {
+        out->value_u32 = hd_le_get_u32(&f->data[4]);
+    } else {
+        out->value = hd_le_get_f32(&f->data[4]);
+    }
     return 0;
 }
 
 const char *hd_can_result_str(int result)
 {
     switch (result) {
-    case HD_CAN_RES_OK: return "ok";
-    case HD_CAN_RES_UNKNOWN_OPCODE: return "unknown opcode";
-    case HD_CAN_RES_BAD_LENGTH: return "bad length";
-    case HD_CAN_RES_BAD_FRAME: return "bad frame type";
-    case HD_CAN_RES_OUT_OF_RANGE: return "out of range";
-    case HD_CAN_RES_NOT_FINITE: return "not finite";
-    case HD_CAN_RES_UNKNOWN_PARAM: return "unknown parameter";
-    case HD_CAN_RES_READ_ONLY: return "read only";
-    case HD_CAN_RES_NO_SPACE: return "no free filter block";
-    case HD_CAN_RES_BAD_INDEX: return "no such filter block";
-    case HD_CAN_RES_REJECTED: return "model rejected by the filter";
-    case HD_CAN_RES_BUSY: return "busy";
-    case HD_CAN_RES_NVM_ERROR: return "NVM error";
-    case HD_CAN_RES_NO_DATA: return "no valid samples";
-    default: return "unknown result";
+#define HD_RESULT(code, NAME, doc) case code: return #NAME;
+#include "hd_protocol.def"
+    default: return "UNKNOWN_RESULT";
     }
 }
 
-const char *hd_can_param_str(int param)
+const char *hd_can_opcode_str(int opcode)
 {
-    switch (param) {
-    case HD_PARAM_R_NM2: return "r_nm2";
-    case HD_PARAM_GEAR_RATIO: return "gear_ratio";
-    case HD_PARAM_INERTIA_KGM2: return "inertia_kgm2";
-    case HD_PARAM_VISCOUS_NM_S_RAD: return "viscous_nm_s_rad";
-    case HD_PARAM_COULOMB_NM: return "coulomb_nm";
-    case HD_PARAM_OFFSET_ENABLED: return "offset";
-    case HD_PARAM_OFFSET_Q_NM2: return "offset_q_nm2";
-    case HD_PARAM_P0_NM2: return "p0_nm2";
-    case HD_PARAM_TRACK_BANDWIDTH_HZ: return "track_bandwidth_hz";
-    case HD_PARAM_TELEMETRY_RATE_HZ: return "telemetry_rate_hz";
-    case HD_PARAM_NODE_ID: return "node_id";
-    case HD_PARAM_CALIB_GAIN_NM_PER_V: return "calib_gain_nm_per_v";
-    case HD_PARAM_CALIB_OFFSET_V: return "calib_offset_v";
-    case HD_PARAM_BLOCK_COUNT: return "block_count";
-    case HD_PARAM_FILTER_ENABLED: return "filter";
-    default: return "unknown";
+    switch (opcode) {
+#define HD_OPCODE(code, NAME, doc) case code: return #NAME;
+#include "hd_protocol.def"
+    default: return "UNKNOWN_OPCODE";
+    }
+}
+
+const char *hd_can_fault_str(unsigned bit)
+{
+    switch (bit) {
+#define HD_FAULT(b, NAME, doc) case b: return #NAME;
+#include "hd_protocol.def"
+    default: return "UNKNOWN_FAULT";
     }
 }

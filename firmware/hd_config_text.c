@@ -4,6 +4,8 @@
 #include <math.h> /* isfinite (builtin) */
 #include <string.h>
 
+#include "hd_params.h"
+
 typedef struct {
     const char *s; /* token start */
     size_t n;      /* token length */
@@ -111,9 +113,10 @@ int hd_config_parse_float(const char *s, size_t n, float *out)
     return 0;
 }
 
-static int parse_uint(tok_t t, uint32_t max, uint32_t *out)
+/* Decimal, no sign, no leading zero (so 01024 is not octal 532 in disguise). */
+static int parse_uint(tok_t t, uint32_t *out)
 {
-    if (t.n == 0u || t.n > 10u) {
+    if (t.n == 0u || t.n > 10u || (t.n > 1u && t.s[0] == '0')) {
         return -1;
     }
     uint64_t v = 0;
@@ -123,8 +126,8 @@ static int parse_uint(tok_t t, uint32_t max, uint32_t *out)
         }
         v = v * 10u + (uint64_t)(t.s[i] - '0');
     }
-    if (v > max) {
-        return -2;
+    if (v > 0xFFFFFFFFu) {
+        return -1;
     }
     *out = (uint32_t)v;
     return 0;
@@ -163,43 +166,13 @@ static size_t split(const char *s, size_t n, tok_t *toks, size_t max)
     return count;
 }
 
-typedef enum { V_POS, V_NONNEG, V_ANY } float_rule_t;
-
-typedef struct {
-    const char *key;
-    float_rule_t rule;
-    size_t offset; /* of the float inside hd_fw_config_t */
-} float_key_t;
-
-#define FKEY(name, rule, field) {name, rule, offsetof(hd_fw_config_t, field)}
-static const float_key_t FLOAT_KEYS[] = {
-    FKEY("gear_ratio", V_POS, gear_ratio),
-    FKEY("r_nm2", V_POS, kf.r_nm2),
-    FKEY("p0_nm2", V_NONNEG, kf.p0_nm2),
-    FKEY("p_max_nm2", V_POS, kf.p_max_nm2),
-    FKEY("nyquist_fraction", V_POS, kf.nyquist_fraction),
-    FKEY("offset_q_nm2", V_NONNEG, kf.offset_q_nm2),
-    FKEY("output_p0_nm2", V_NONNEG, kf.output_p0_nm2),
-    FKEY("offset_jump_nm", V_NONNEG, kf.offset_jump_nm),
-    FKEY("q_motion_ref_rad", V_NONNEG, kf.q_motion_ref_rad),
-    FKEY("ripple_load_coeff_per_nm", V_NONNEG, kf.ripple_load_coeff_per_nm),
-    FKEY("inertia_kgm2", V_NONNEG, expected.inertia_kgm2),
-    FKEY("viscous_nm_s_rad", V_NONNEG, expected.viscous_nm_s_rad),
-    FKEY("coulomb_nm", V_NONNEG, expected.coulomb_nm),
-    FKEY("coulomb_vel_eps_rad_s", V_POS, expected.coulomb_vel_eps_rad_s),
-    FKEY("track_bandwidth_hz", V_POS, track_bandwidth_hz),
-    FKEY("adc_volts_per_count", V_POS, adc_volts_per_count),
-    FKEY("torque_limit_nm", V_POS, torque_limit_nm),
-    FKEY("max_motor_speed_rad_s", V_POS, max_motor_speed_rad_s),
-};
-
 static int fail(hd_cfgtxt_error_t *err, int code, unsigned line, const char *msg)
 {
     if (err != NULL) {
+        memset(err, 0, sizeof *err);
         err->code = code;
         err->line = line;
         err->message = msg;
-        err->fw_err = 0;
     }
     return code;
 }
@@ -260,7 +233,96 @@ static int parse_block(hd_fw_config_t *c, const tok_t *v, size_t nv, bool *block
     return HD_CFGTXT_OK;
 }
 
-static int parse_line(hd_fw_config_t *c, const char *s, size_t n, bool *blocks_seen,
+/* Lines on which each table row was set (0 = not yet), for duplicates. */
+typedef struct {
+    bool blocks_seen;
+    unsigned line_of[64];
+} seen_t;
+
+static int parse_value(const hd_param_info_t *p, tok_t t, float *v)
+{
+    if (p->type == HD_PT_BOOL) {
+        uint8_t on;
+        if (parse_on_off(t, &on) != 0) {
+            return -1;
+        }
+        *v = (float)on;
+        return 0;
+    }
+    if (p->type == HD_PT_F32) {
+        return hd_config_parse_float(t.s, t.n, v);
+    }
+    uint32_t u;
+    if (parse_uint(t, &u) != 0) {
+        return -1;
+    }
+    *v = (float)u;
+    return 0;
+}
+
+static int parse_param(hd_fw_config_t *c, tok_t key, tok_t value, seen_t *seen,
+                       hd_cfgtxt_error_t *err, unsigned line)
+{
+    const hd_param_info_t *p = hd_param_by_key(key.s, key.n);
+    if (p == NULL) {
+        return fail(err, HD_CFGTXT_ERR_UNKNOWN_KEY, line, "unknown key");
+    }
+    if (p->flags & HD_PF_RO) {
+        return fail(err, HD_CFGTXT_ERR_READ_ONLY, line, "read-only parameter");
+    }
+    size_t row = (size_t)(p - hd_param_at(0));
+    if (row < sizeof seen->line_of / sizeof seen->line_of[0]) {
+        if (seen->line_of[row] != 0u) {
+            int rc = fail(err, HD_CFGTXT_ERR_DUPLICATE, line, "key given twice");
+            if (err != NULL) {
+                err->first_line = seen->line_of[row];
+            }
+            return rc;
+        }
+        seen->line_of[row] = line;
+    }
+    float v;
+    if (parse_value(p, value, &v) != 0) {
+        return fail(err, HD_CFGTXT_ERR_SYNTAX, line,
+                    p->type == HD_PT_BOOL  ? "value must be on or off"
+                    : p->type == HD_PT_F32 ? "value is not a finite decimal number"
+                                           : "value must be a whole decimal number without a leading zero");
+    }
+    hd_param_err_t rc = hd_param_set(p, c, v);
+    if (rc != HD_PARAM_OK) {
+        int code = fail(err, HD_CFGTXT_ERR_RANGE, line, "value outside the parameter's range");
+        if (err != NULL) {
+            err->param_id = p->id;
+        }
+        return code;
+    }
+    return HD_CFGTXT_OK;
+}
+
+/* Bytes a configuration may hold outside comments: printable ASCII, tab, CR. */
+static bool text_byte(unsigned char ch)
+{
+    return ch == '\t' || ch == '\r' || (ch >= 0x20u && ch < 0x7Fu);
+}
+
+static int check_bytes(const char *s, size_t n, hd_cfgtxt_error_t *err, unsigned line)
+{
+    bool comment = false;
+    for (size_t i = 0; i < n; i++) {
+        unsigned char ch = (unsigned char)s[i];
+        comment = comment || ch == '#';
+        if (ch == 0u) {
+            return fail(err, HD_CFGTXT_ERR_BYTES, line, "NUL byte");
+        }
+        if (!text_byte(ch) && !(comment && ch >= 0x80u)) {
+            return fail(err, HD_CFGTXT_ERR_BYTES, line,
+                        ch >= 0x80u ? "non-ASCII byte outside a comment" : "control byte");
+        }
+    }
+    return HD_CFGTXT_OK;
+}
+
+static int parse_line(hd_fw_config_t *c, const char *s, size_t n, seen_t *seen,
                       hd_cfgtxt_error_t *err, unsigned line)
 {
     /* strip the comment */
@@ -298,68 +360,12 @@ static int parse_line(hd_fw_config_t *c, const char *s, size_t n, bool *blocks_s
         return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "too many values");
     }
     if (tok_eq(key, "block")) {
-        return parse_block(c, v, nv, blocks_seen, err, line);
+        return parse_block(c, v, nv, &seen->blocks_seen, err, line);
     }
     if (nv != 1u) {
         return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "this key takes one value");
     }
-    for (size_t f = 0; f < sizeof FLOAT_KEYS / sizeof FLOAT_KEYS[0]; f++) {
-        if (!tok_eq(key, FLOAT_KEYS[f].key)) {
-            continue;
-        }
-        float x;
-        if (hd_config_parse_float(v[0].s, v[0].n, &x) != 0) {
-            return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "value is not a finite number");
-        }
-        if ((FLOAT_KEYS[f].rule == V_POS && !(x > 0.0f)) ||
-            (FLOAT_KEYS[f].rule == V_NONNEG && !(x >= 0.0f))) {
-            return fail(err, HD_CFGTXT_ERR_RANGE, line,
-                        FLOAT_KEYS[f].rule == V_POS ? "value must be > 0" : "value must be >= 0");
-        }
-        memcpy((char *)c + FLOAT_KEYS[f].offset, &x, sizeof x);
-        return HD_CFGTXT_OK;
-    }
-    if (tok_eq(key, "offset") || tok_eq(key, "offset_is_sensor_error") || tok_eq(key, "filter")) {
-        uint8_t on;
-        if (parse_on_off(v[0], &on) != 0) {
-            return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "value must be on or off");
-        }
-        if (tok_eq(key, "offset")) {
-            c->kf.offset_enabled = on;
-        } else if (tok_eq(key, "filter")) {
-            c->filter_enabled = on;
-        } else {
-            c->kf.offset_is_sensor_error = on;
-        }
-        return HD_CFGTXT_OK;
-    }
-    uint32_t u;
-    if (tok_eq(key, "telemetry_rate_hz") || tok_eq(key, "node_id") || tok_eq(key, "motor_cpr") ||
-        tok_eq(key, "output_cpr")) {
-        bool rate = tok_eq(key, "telemetry_rate_hz");
-        bool node = tok_eq(key, "node_id");
-        uint32_t max = rate ? HD_FW_TICK_HZ : (node ? HD_CAN_NODE_MAX : 0x7FFFFFFFu);
-        int rc = parse_uint(v[0], max, &u);
-        if (rc == -1) {
-            return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "value must be a non-negative integer");
-        }
-        if (rc == -2 || (node && u < HD_CAN_NODE_MIN) || (!rate && !node && u == 0u)) {
-            return fail(err, HD_CFGTXT_ERR_RANGE, line,
-                        rate ? "telemetry_rate_hz must be 0..1000"
-                             : (node ? "node_id must be 1..127" : "encoder cpr must be >= 1"));
-        }
-        if (rate) {
-            c->telemetry_rate_hz = (uint16_t)u;
-        } else if (node) {
-            c->node_id = (uint8_t)u;
-        } else if (tok_eq(key, "motor_cpr")) {
-            c->motor_cpr = u;
-        } else {
-            c->output_cpr = u;
-        }
-        return HD_CFGTXT_OK;
-    }
-    return fail(err, HD_CFGTXT_ERR_UNKNOWN_KEY, line, "unknown key");
+    return parse_param(c, key, v[0], seen, err, line);
 }
 
 int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
@@ -368,42 +374,43 @@ int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
     if (cfg == NULL || (text == NULL && len > 0u)) {
         return fail(err, HD_CFGTXT_ERR_NULL, 0u, "null argument");
     }
+    if (len > HD_CFGTXT_MAX_BYTES) {
+        return fail(err, HD_CFGTXT_ERR_TOO_LONG, 0u, "file larger than 16384 bytes");
+    }
     hd_fw_config_t work = *cfg; /* all or nothing: *cfg changes only on success */
-    bool blocks_seen = false;
+    seen_t seen;
+    memset(&seen, 0, sizeof seen);
     unsigned line = 1;
     size_t start = 0;
     while (start < len) {
         size_t end = start;
-        while (end < len && text[end] != '\n' && text[end] != '\0') {
+        while (end < len && text[end] != '\n') {
             end++;
         }
         if (end - start > HD_CFGTXT_MAX_LINE) {
             return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "line too long");
         }
-        int rc = parse_line(&work, text + start, end - start, &blocks_seen, err, line);
+        int rc = check_bytes(text + start, end - start, err, line);
+        if (rc == HD_CFGTXT_OK) {
+            rc = parse_line(&work, text + start, end - start, &seen, err, line);
+        }
         if (rc != HD_CFGTXT_OK) {
             return rc;
-        }
-        if (end < len && text[end] == '\0') {
-            break;
         }
         start = end + 1u;
         line++;
     }
-    int frc = hd_fw_config_check(&work);
+    unsigned bad = 0u;
+    int frc = hd_fw_config_check(&work, &bad);
     if (frc != HD_FW_OK) {
         fail(err, HD_CFGTXT_ERR_CONFIG, 0u, hd_fw_err_str(frc));
         if (err != NULL) {
             err->fw_err = frc;
+            err->param_id = bad;
         }
         return HD_CFGTXT_ERR_CONFIG;
     }
     *cfg = work;
-    if (err != NULL) {
-        err->code = HD_CFGTXT_OK;
-        err->line = 0u;
-        err->message = "ok";
-        err->fw_err = 0;
-    }
+    fail(err, HD_CFGTXT_OK, 0u, "ok");
     return HD_CFGTXT_OK;
 }

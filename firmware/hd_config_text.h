@@ -9,9 +9,17 @@
  *   block = output 1 1000
  *
  * One `key = value` per line ('=' optional), '#' starts a comment.  The
- * first `block` line drops the blocks inherited from the base configuration;
- * each further one appends.  Parsing is all or nothing: on any error the
- * configuration is unchanged and the error names the line.
+ * keys are the rows of hd_params.def (key column; read-only ones are
+ * refused) plus `block`.  The first `block` line drops the blocks inherited
+ * from the base configuration; each further one appends.  Values: numbers
+ * in decimal (integer parameters take whole numbers without a leading zero,
+ * so `01024` is an error, not octal), on/off/1/0/yes/no for flags; each is
+ * checked against its table range.  A key given twice is an error naming
+ * both lines.  The text must be printable: a NUL or other control byte
+ * (except tab and CR) is an error with its line; bytes >= 0x80 are allowed
+ * only in comments.  At most HD_CFGTXT_MAX_BYTES bytes.  Parsing is all or
+ * nothing: on any error the configuration is unchanged and the error names
+ * the line.
  *
  * Pure C: parses from a caller-provided buffer, no heap, no stdio, no libm
  * (a small decimal parser replaces strtod, which allocates in newlib).
@@ -35,6 +43,10 @@ typedef enum {
     HD_CFGTXT_ERR_RANGE = -4,       /* value outside the key's range */
     HD_CFGTXT_ERR_TOO_MANY_BLOCKS = -5,
     HD_CFGTXT_ERR_CONFIG = -6,      /* the whole configuration failed hd_fw_config_check */
+    HD_CFGTXT_ERR_DUPLICATE = -7,   /* a key given twice (first_line has the first) */
+    HD_CFGTXT_ERR_BYTES = -8,       /* NUL, control or non-ASCII byte outside a comment */
+    HD_CFGTXT_ERR_TOO_LONG = -9,    /* more than HD_CFGTXT_MAX_BYTES */
+    HD_CFGTXT_ERR_READ_ONLY = -10,  /* a read-only parameter */
 } hd_cfgtxt_err_t;
 
 typedef struct {
@@ -42,9 +54,12 @@ typedef struct {
     unsigned line;        /* 1-based line of the error; 0 for whole-file errors */
     const char *message;  /* static string */
     int fw_err;           /* hd_fw_err_t when code == HD_CFGTXT_ERR_CONFIG */
+    unsigned first_line;  /* HD_CFGTXT_ERR_DUPLICATE: the key's first line */
+    unsigned param_id;    /* HD_CFGTXT_ERR_CONFIG with a range error: the parameter */
 } hd_cfgtxt_error_t;
 
 #define HD_CFGTXT_MAX_LINE 200u
+#define HD_CFGTXT_MAX_BYTES 16384u
 
 /* Applies the text (len bytes, need not be NUL-terminated) on top of *cfg.
  * Returns HD_CFGTXT_OK, or an error with *cfg unchanged; err may be NULL. */

@@ -33,6 +33,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 
+#include <ctype.h>
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -110,7 +111,7 @@ static void usage(FILE *f)
           "                 (sim: the scenario's nominal calibration is stored by default)\n"
           "  --nvm          NVM image file: loaded at start (if it exists), written after\n"
           "                 every change (temporary file, fsync, rename)\n"
-          "  --cmd          command frame for the firmware, e.g. 601#2001000000000000;\n"
+          "  --cmd          command frame for the firmware, e.g. 01D01001#2100020000000000;\n"
           "                 repeatable, delivered in order from the first tick (log/none CAN)\n"
           "  -q, --quiet    no summary on stdout\n"
           "exit status: 0 ok, 1 run failed, 2 bad command line or input, 3 write failed,\n"
@@ -223,8 +224,14 @@ static int parse_frame(const char *s, hal_can_frame_t *f)
     char *end;
     errno = 0;
     unsigned long id = strtoul(s, &end, 16);
-    if (end == s || *end != '#' || id > 0x7FFu || errno == ERANGE) {
+    /* cansend notation: 3 hex digits for 11 bits, 8 for 29 bits */
+    const size_t digits = (size_t)(end - s);
+    if (end == s || *end != '#' || errno == ERANGE || (digits != 3u && digits != 8u) ||
+        (digits == 3u && id > 0x7FFu) || (digits == 8u && id > 0x1FFFFFFFu)) {
         return -1;
+    }
+    if (digits == 8u) {
+        f->flags = HAL_CAN_FLAG_EXT;
     }
     const char *p = end + 1;
     size_t n = strlen(p);
@@ -352,14 +359,21 @@ static int provision_calibration(hal_t *hal, float gain, float offset)
     hd_calib_record_default(&rec);
     rec.gain_nm_per_v = gain;
     rec.offset_v = offset;
-    const hd_calib_storage_t s = hd_fw_calib_storage(hal);
-    return hd_calib_store_save(&s, &rec) == 0 ? 0 : -1;
+    static uint8_t work[HD_STORE_IMAGE_MAX];
+    const hd_calib_storage_t s = hd_fw_store_io(hal, work, sizeof work);
+    return hd_calib_store_save(&s, &rec) == HD_RECORD_OK ? 0 : -1;
 }
 
-static const char *FAULT_NAMES[HD_FAULT_COUNT] = {
-    "adc_error", "adc_saturated", "open_bridge", "torque_range", "enc_glitch",
-    "enc_fault", "kf_frozen", "kf_reset", "can_tx_full", "can_bus_off",
-    "calib_missing", "calib_corrupt", "deadline_miss", "cmd_error", "calib_one_copy"};
+/* "fault_<name> = count" in the summary: the protocol's fault name, lower case. */
+static void print_fault_count(unsigned bit, uint32_t count)
+{
+    const char *name = hd_can_fault_str(bit);
+    printf("fault_");
+    for (const char *c = name; *c != '\0'; c++) {
+        putchar(tolower((unsigned char)*c));
+    }
+    printf(" = %u\n", (unsigned)count);
+}
 
 /* ------------------------------------------------------------------ NVM image */
 
@@ -549,7 +563,7 @@ int main(int argc, char **argv)
     }
     for (int i = 0; i < o.n_cmds; i++) {
         if (parse_frame(o.cmds[i], &cmds[i]) != 0) {
-            fprintf(stderr, "hdjoint-host: bad --cmd %s (want ID#HEX: id <= 7FF, up to 8 bytes)\n",
+            fprintf(stderr, "hdjoint-host: bad --cmd %s (want ID#HEX as cansend: 3 or 8 id digits, up to 8 bytes)\n",
                     o.cmds[i]);
             return EXIT_USAGE;
         }
@@ -597,8 +611,8 @@ int main(int argc, char **argv)
         g_mock.tx_hook_ctx = &canlog;
     } else if (strncmp(o.can, "socketcan:", 10) == 0) {
 #ifdef HD_HAVE_SOCKETCAN
-        uint32_t rx_id = HD_CAN_ID_CMD + cfg.node_id;
-        sock = hal_socketcan_open(o.can + 10, &rx_id, 1, false, err, sizeof err);
+        /* The firmware narrows the filter to its node at init (set_rx_filter). */
+        sock = hal_socketcan_open(o.can + 10, NULL, 0, false, err, sizeof err);
         if (sock == NULL) {
             fprintf(stderr, "hdjoint-host: %s\n", err);
             return EXIT_RUN;
@@ -665,7 +679,7 @@ int main(int argc, char **argv)
         uint64_t t0 = now_ns();
         hd_fw_isr(&g_fw);
         uint64_t t1 = now_ns();
-        if (g_fw.ended) {
+        if (g_fw.tick.ended) {
             break;
         }
         double isr_us = (double)(t1 - t0) / 1000.0;
@@ -782,10 +796,11 @@ int main(int argc, char **argv)
         printf("fault_ticks = %u\n", (unsigned)c->fault_ticks);
         for (unsigned b = 0; b < HD_FAULT_COUNT; b++) {
             if (c->by_fault[b] != 0u) {
-                printf("fault_%s = %u\n", FAULT_NAMES[b], (unsigned)c->by_fault[b]);
+                print_fault_count(b, c->by_fault[b]);
             }
         }
-        printf("calib_status = %d\n", g_fw.calib_load_result);
+        printf("calib_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CALIB));
+        printf("config_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CONFIG));
         printf("truth = %s\n", have_truth ? "yes" : "no");
         printf("telemetry_periods = %u\n", (unsigned)c->telemetry_frames);
         printf("commands = %u\n", (unsigned)c->commands);

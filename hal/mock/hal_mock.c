@@ -145,6 +145,18 @@ void hal_mock_bind_can(hal_mock_t *m, hal_can_t *can)
     can->counters = can_counters;
 }
 
+static void boot_info(void *ctx, hal_boot_info_t *out)
+{
+    const hal_mock_t *m = (const hal_mock_t *)ctx;
+    *out = m->boot;
+}
+
+static void reboot(void *ctx)
+{
+    hal_mock_t *m = (hal_mock_t *)ctx;
+    m->reboots++;
+}
+
 void hal_mock_bind(hal_mock_t *m, hal_t *hal)
 {
     memset(hal, 0, sizeof *hal);
@@ -160,6 +172,10 @@ void hal_mock_bind(hal_mock_t *m, hal_t *hal)
     hal->nvm.erase = nvm_erase;
     hal->clock.ctx = m;
     hal->clock.time_us = time_us;
+    hal->system.ctx = m;
+    hal->system.board_id = m->board_id;
+    hal->system.boot_info = boot_info;
+    hal->system.reboot = m->reboot_supported ? reboot : NULL;
 }
 
 int hal_mock_push_sample(hal_mock_t *m, const hal_mock_sample_t *s)

@@ -32,7 +32,7 @@ extern "C" {
 #define HAL_MOCK_QUEUE 256u
 #define HAL_MOCK_TX_CAP 512u
 #define HAL_MOCK_RX_CAP 32u
-#define HAL_MOCK_NVM_BYTES 256u
+#define HAL_MOCK_NVM_BYTES 4096u  /* two halves of the record store (hd_record_store.h) */
 
 typedef struct {
     int adc_rc;                /* returned by adc_read (HAL_OK or an injected error) */
@@ -73,6 +73,12 @@ typedef struct {
     /* NVM */
     uint8_t nvm[HAL_MOCK_NVM_BYTES];
     bool nvm_fail;             /* every NVM call returns HAL_ERR_IO */
+
+    /* system */
+    uint32_t board_id;         /* hal_system_t.board_id (0 by default), read at bind */
+    hal_boot_info_t boot;      /* what boot_info reports */
+    bool reboot_supported;     /* read at bind: false leaves system.reboot NULL */
+    uint32_t reboots;          /* system.reboot calls */
 
     /* clock */
     uint64_t now_us;

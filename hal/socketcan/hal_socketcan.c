@@ -227,12 +227,32 @@ static void can_counters(void *ctx, hal_counters_t *out)
     hal_socketcan_counters(ctx, out);
 }
 
+/* hal_can_t.set_rx_filter: the firmware narrows the kernel filter to its
+ * node's frames (at init and after a node-id change). */
+static int can_set_rx_filter(void *ctx, const uint32_t *ids, size_t n)
+{
+    hal_socketcan_t *s = (hal_socketcan_t *)ctx;
+    struct can_filter filters[HAL_SOCKETCAN_MAX_RX_IDS];
+    if (n == 0u) {
+        return setsockopt(s->sock, SOL_CAN_RAW, CAN_RAW_FILTER, NULL, 0) == 0 ? HAL_OK
+                                                                            : HAL_ERR_IO;
+    }
+    if (hsc_build_filters(ids, n, filters) != n) {
+        return HAL_ERR_RANGE;
+    }
+    return setsockopt(s->sock, SOL_CAN_RAW, CAN_RAW_FILTER, filters,
+                      (socklen_t)(n * sizeof(filters[0]))) == 0
+               ? HAL_OK
+               : HAL_ERR_IO;
+}
+
 void hal_socketcan_bind(hal_socketcan_t *s, hal_can_t *can)
 {
     can->ctx = s;
     can->send = can_send;
     can->recv = can_recv;
     can->counters = can_counters;
+    can->set_rx_filter = can_set_rx_filter;
 }
 
 void hal_socketcan_close(hal_socketcan_t *s)

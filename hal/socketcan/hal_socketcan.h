@@ -41,7 +41,7 @@ typedef struct hal_socketcan hal_socketcan_t; /* opaque; allocated by open */
  * accepts (standard 11-bit unless HAL_SOCKETCAN_ID_EXT is or-ed in); n_rx_ids
  * == 0 accepts every frame.  Returns NULL and writes a message into err on
  * failure (no PF_CAN in the kernel, no such interface, too many IDs, ...). */
-#define HAL_SOCKETCAN_ID_EXT 0x80000000u
+#define HAL_SOCKETCAN_ID_EXT HAL_CAN_ID_EXT_BIT
 hal_socketcan_t *hal_socketcan_open(const char *ifname, const uint32_t *rx_ids,
                                     size_t n_rx_ids, bool fd, char *err,
                                     size_t errlen);

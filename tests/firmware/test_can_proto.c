@@ -1,10 +1,13 @@
 /* CAN protocol: byte layouts checked against hand-computed bytes from the
- * tables in docs/firmware.md, round trips, saturation, malformed frames. */
+ * tables in docs/protocol.md, identifiers, round trips, saturation,
+ * malformed frames. */
 #include <math.h>
 #include <string.h>
 
 #include "hal_mock.h"
 #include "hd_can_proto.h"
+#include "hd_params.h"
+#include "hd_record_store.h"
 #include "unity.h"
 
 void setUp(void) {}
@@ -18,15 +21,16 @@ static void test_telem_bytes_match_the_documented_layout(void)
     t.ripple_nm = 0.25f;             /* 250 = 0x00FA at 1 mNm */
     t.torque_valid = true;
     t.motor_velocity_rad_s = 156.0f; /* 156000 = 0x00026160 */
-    t.faults = 0x0410u;
+    t.faults = 0x018410u;           /* a fault bit above 16 travels too */
     t.kf_status = 0x05u;
     t.seq = 0x7Fu;
     hal_can_frame_t a, b;
     hd_can_encode_telem(3, &t, &a, &b);
     const uint8_t ea[8] = {0xD2, 0x04, 0x6A, 0xFF, 0xFA, 0x00, 0x7F, 0x00};
-    const uint8_t eb[8] = {0x60, 0x61, 0x02, 0x00, 0x10, 0x04, 0x05, 0x7F};
-    TEST_ASSERT_EQUAL_HEX32(0x103u, a.id);
-    TEST_ASSERT_EQUAL_HEX32(0x183u, b.id);
+    const uint8_t eb[8] = {0x60, 0x61, 0x02, 0x10, 0x84, 0x01, 0x05, 0x7F};
+    TEST_ASSERT_EQUAL_HEX32(0x01D00203u, a.id); /* prefix 0x01D0, type 0x02, node 3 */
+    TEST_ASSERT_EQUAL_HEX32(0x01D00303u, b.id);
+    TEST_ASSERT_EQUAL_UINT8(HAL_CAN_FLAG_EXT, a.flags);
     TEST_ASSERT_EQUAL_UINT8(8, a.len);
     TEST_ASSERT_EQUAL_MEMORY(ea, a.data, 8);
     TEST_ASSERT_EQUAL_MEMORY(eb, b.data, 8);
@@ -38,7 +42,7 @@ static void test_telem_bytes_match_the_documented_layout(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-5, -1.5, d.torque_raw_nm);
     TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.25, d.ripple_nm);
     TEST_ASSERT_FLOAT_WITHIN(1e-3, 156.0, d.motor_velocity_rad_s);
-    TEST_ASSERT_EQUAL_UINT16(0x0410u, d.faults);
+    TEST_ASSERT_EQUAL_HEX32(0x018410u, d.faults);
     TEST_ASSERT_EQUAL_UINT8(0x7Fu, d.seq);
 }
 
@@ -66,7 +70,7 @@ static void test_telem_saturates_and_marks_not_available(void)
 
 static void test_command_bytes_match_the_documented_example(void)
 {
-    /* docs/firmware.md: 601#1007C80000007A44 adds motor order 2, q = 1000 */
+    /* docs/protocol.md: 01D01001#1007C80000007A44 adds motor order 2, q = 1000 */
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_ADD_MOTOR;
     c.token = 7;
@@ -75,7 +79,7 @@ static void test_command_bytes_match_the_documented_example(void)
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &c, &f);
     const uint8_t e[8] = {0x10, 0x07, 0xC8, 0x00, 0x00, 0x00, 0x7A, 0x44};
-    TEST_ASSERT_EQUAL_HEX32(0x601u, f.id);
+    TEST_ASSERT_EQUAL_HEX32(0x01D01001u, f.id);
     TEST_ASSERT_EQUAL_MEMORY(e, f.data, 8);
     hd_can_cmd_t d;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
@@ -139,46 +143,97 @@ static void test_malformed_commands_are_classified(void)
     f.len = 0;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_LENGTH, hd_can_decode_cmd(&f, &d));
     f = good;
-    f.flags = HAL_CAN_FLAG_RTR;
+    f.flags = HAL_CAN_FLAG_EXT | HAL_CAN_FLAG_RTR;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
     f = good;
-    f.flags = HAL_CAN_FLAG_EXT;
-    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
-    f = good;
-    f.flags = HAL_CAN_FLAG_FD;
+    f.flags = HAL_CAN_FLAG_EXT | HAL_CAN_FLAG_FD;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
     f = good;
     f.data[0] = 0x99;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_UNKNOWN_OPCODE, hd_can_decode_cmd(&f, &d));
     f = good;
-    hd_can_put_f32(&f.data[4], NAN);
+    hd_le_put_f32(&f.data[4], NAN);
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_NOT_FINITE, hd_can_decode_cmd(&f, &d));
     f = good;
     f.data[0] = HD_CMD_ADD_OUTPUT;
-    hd_can_put_f32(&f.data[4], -INFINITY);
+    hd_le_put_f32(&f.data[4], -INFINITY);
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_NOT_FINITE, hd_can_decode_cmd(&f, &d));
 }
 
 static void test_ack_and_heartbeat_layouts(void)
 {
-    hd_can_ack_t a = {HD_CMD_GET_PARAM, 9, HD_CAN_RES_OK, HD_PARAM_R_NM2, 0.5f};
+    hd_can_ack_t a = {HD_CMD_GET_PARAM, 9, HD_CAN_RES_OK, HD_PARAM_R_NM2, 0.5f, 0u};
     hal_can_frame_t f;
     hd_can_encode_ack(1, &a, &f);
     const uint8_t e[8] = {0x21, 0x09, 0x00, 0x01, 0x00, 0x00, 0x00, 0x3F}; /* 0.5f = 0x3F000000 */
-    TEST_ASSERT_EQUAL_HEX32(0x581u, f.id);
+    TEST_ASSERT_EQUAL_HEX32(0x01D01101u, f.id);
     TEST_ASSERT_EQUAL_MEMORY(e, f.data, 8);
     hd_can_ack_t d;
     TEST_ASSERT_EQUAL_INT(0, hd_can_decode_ack(&f, &d));
     TEST_ASSERT_EQUAL_FLOAT(0.5f, d.value);
+    /* VERSION answers carry a u32, not a float */
+    hd_can_ack_t v = {HD_CMD_VERSION, 1, HD_CAN_RES_OK, 2, 0.0f, 0x00010203u};
+    hd_can_encode_ack(1, &v, &f);
+    const uint8_t ev[8] = {0x60, 0x01, 0x00, 0x02, 0x03, 0x02, 0x01, 0x00};
+    TEST_ASSERT_EQUAL_MEMORY(ev, f.data, 8);
+    TEST_ASSERT_EQUAL_INT(0, hd_can_decode_ack(&f, &d));
+    TEST_ASSERT_EQUAL_HEX32(0x00010203u, d.value_u32);
 
-    hd_can_heartbeat_t h = {HD_STATE_DEGRADED, 0x0401u, 3u, 0x1234u, 2u};
+    hd_can_heartbeat_t h = {HD_STATE_DEGRADED, 0x020401u, 0x1234u, 2u, 4u, 6u};
     hd_can_encode_heartbeat(127, &h, &f);
-    const uint8_t eh[8] = {0x02, 0x01, 0x04, 0x03, 0x00, 0x34, 0x12, 0x02};
-    TEST_ASSERT_EQUAL_HEX32(0x77Fu, f.id);
+    const uint8_t eh[8] = {0x02, 0x01, 0x04, 0x02, 0x34, 0x12, 0x42, 0x06};
+    TEST_ASSERT_EQUAL_HEX32(0x01D0207Fu, f.id);
     TEST_ASSERT_EQUAL_MEMORY(eh, f.data, 8);
     hd_can_heartbeat_t hd;
     TEST_ASSERT_EQUAL_INT(0, hd_can_decode_heartbeat(&f, &hd));
-    TEST_ASSERT_EQUAL_UINT16(0x1234u, hd.fault_ticks);
+    TEST_ASSERT_EQUAL_UINT16(0x1234u, hd.deadline_misses);
+    TEST_ASSERT_EQUAL_UINT8(4u, hd.config_status);
+    TEST_ASSERT_EQUAL_HEX32(0x020401u, hd.faults);
+}
+
+static void test_angle_boot_and_feedforward_layouts(void)
+{
+    hd_can_angle_t c = {0x89ABCDEFu, 0x12345678u, true, 9u};
+    hal_can_frame_t f;
+    hd_can_encode_angle(2, &c, &f);
+    /* motor counts as u32; the output's low 23 bits with bit 23 = present */
+    const uint8_t ec[8] = {0xEF, 0xCD, 0xAB, 0x89, 0x78, 0x56, 0xB4, 0x09};
+    TEST_ASSERT_EQUAL_HEX32(0x01D00402u, f.id);
+    TEST_ASSERT_EQUAL_MEMORY(ec, f.data, 8);
+    hd_can_angle_t cd;
+    TEST_ASSERT_EQUAL_INT(0, hd_can_decode_angle(&f, &cd));
+    TEST_ASSERT_TRUE(cd.has_output);
+    TEST_ASSERT_EQUAL_HEX32(0x345678u, cd.output_counts);
+
+    hd_can_boot_t b = {HAL_RESET_WATCHDOG, true, false, 0x08001234u, 2u, 3u};
+    hd_can_encode_boot(1, &b, &f);
+    const uint8_t eb[8] = {0x08, 0x01, 0x34, 0x12, 0x00, 0x08, 0x02, 0x03};
+    TEST_ASSERT_EQUAL_HEX32(0x01D02101u, f.id);
+    TEST_ASSERT_EQUAL_MEMORY(eb, f.data, 8);
+
+    hd_can_feedforward_t ff = {-2.5f, 7u};
+    hd_can_encode_feedforward(1, &ff, &f);
+    const uint8_t ef[8] = {0x00, 0x00, 0x20, 0xC0, 0x07, 0x00, 0x00, 0x00}; /* -2.5f = 0xC0200000 */
+    TEST_ASSERT_EQUAL_HEX32(0x01D00101u, f.id);
+    TEST_ASSERT_EQUAL_MEMORY(ef, f.data, 8);
+    hd_can_feedforward_t fd;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_feedforward(&f, &fd));
+    TEST_ASSERT_EQUAL_FLOAT(-2.5f, fd.torque_nm);
+    hd_le_put_f32(&f.data[0], NAN);
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_NOT_FINITE, hd_can_decode_feedforward(&f, &fd));
+}
+
+static void test_identifiers_are_ours_only(void)
+{
+    uint8_t type = 0, node = 0;
+    TEST_ASSERT_TRUE(hd_can_id_parse(0x01D0107Fu, HAL_CAN_FLAG_EXT, &type, &node));
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_FRAME_CMD, type);
+    TEST_ASSERT_EQUAL_UINT8(127, node);
+    TEST_ASSERT_FALSE(hd_can_id_parse(0x01D0107Fu, 0u, &type, &node));      /* 11-bit flag */
+    TEST_ASSERT_FALSE(hd_can_id_parse(0x01D01000u, HAL_CAN_FLAG_EXT, &type, &node)); /* node 0 */
+    TEST_ASSERT_FALSE(hd_can_id_parse(0x01D01080u, HAL_CAN_FLAG_EXT, &type, &node)); /* 128 */
+    TEST_ASSERT_FALSE(hd_can_id_parse(0x01D11001u, HAL_CAN_FLAG_EXT, &type, &node)); /* prefix */
+    TEST_ASSERT_FALSE(hd_can_id_parse(0x601u, 0u, &type, &node));            /* CANopen SDO */
 }
 
 static void test_candump_line_format(void)
@@ -217,6 +272,8 @@ int main(void)
     RUN_TEST(test_command_round_trips);
     RUN_TEST(test_malformed_commands_are_classified);
     RUN_TEST(test_ack_and_heartbeat_layouts);
+    RUN_TEST(test_angle_boot_and_feedforward_layouts);
+    RUN_TEST(test_identifiers_are_ours_only);
     RUN_TEST(test_candump_line_format);
     return UNITY_END();
 }

@@ -1,9 +1,11 @@
 /* Configuration text parser: good files, malformed files (error + line,
  * configuration unchanged), number parsing against strtod. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "hd_config_text.h"
+#include "hd_params.h"
 #include "unity.h"
 
 static hd_fw_config_t base;
@@ -110,10 +112,21 @@ static void test_malformed_files_report_the_line_and_change_nothing(void)
          "block = motor 5 1\nblock = motor 6 1\nblock = motor 7 1\nblock = motor 8 1\n"
          "block = motor 9 1\n",
          HD_CFGTXT_ERR_TOO_MANY_BLOCKS, 9},
-        /* parses, but the whole configuration is invalid */
-        {"gear_ratio = 0.5\n", HD_CFGTXT_ERR_CONFIG, 0},
-        {"track_bandwidth_hz = 200\n", HD_CFGTXT_ERR_CONFIG, 0},
-        {"nyquist_fraction = 1.5\n", HD_CFGTXT_ERR_CONFIG, 0},
+        /* outside a table range: the line says so */
+        {"gear_ratio = 0.5\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"track_bandwidth_hz = 200\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"\nnyquist_fraction = 1.5\n", HD_CFGTXT_ERR_RANGE, 2},
+        {"telemetry_rate_hz = 2.5\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        /* each line fine, the whole refused (p0 / R beyond float32) */
+        {"r_nm2 = 1e-6\np0_nm2 = 100\n", HD_CFGTXT_ERR_CONFIG, 0},
+        /* decimal only: a leading zero is not octal, it is an error */
+        {"motor_cpr = 01024\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"node_id = 0x10\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        /* a key twice: the second line, naming the first */
+        {"gear_ratio = 80\nr_nm2 = 1\ngear_ratio = 90\n", HD_CFGTXT_ERR_DUPLICATE, 3},
+        {"block_count = 3\n", HD_CFGTXT_ERR_READ_ONLY, 1},
+        {"gear_ratio = 80\x01\n", HD_CFGTXT_ERR_BYTES, 1},
+        {"# ok: \xc3\xa9 in a comment\ngear_ratio = 8\xc3\xa9" "0\n", HD_CFGTXT_ERR_BYTES, 2},
     };
     for (unsigned i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         hd_fw_config_t cfg = base;
@@ -125,6 +138,70 @@ static void test_malformed_files_report_the_line_and_change_nothing(void)
         TEST_ASSERT_NOT_NULL(err.message);
         TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&base, &cfg, sizeof cfg, cases[i].text);
     }
+}
+
+static void test_duplicate_names_both_lines(void)
+{
+    hd_fw_config_t cfg = base;
+    hd_cfgtxt_error_t err;
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_DUPLICATE,
+                          parse("node_id = 3\n\n# x\nnode_id = 4\n", &cfg, &err));
+    TEST_ASSERT_EQUAL_UINT(4, err.line);
+    TEST_ASSERT_EQUAL_UINT(1, err.first_line);
+}
+
+static void test_nul_byte_stops_nothing_silently(void)
+{
+    /* Text after a NUL used to be ignored (node_id = 999 included). */
+    static const char text[] = "gear_ratio = 80\n\0node_id = 999\n";
+    hd_fw_config_t cfg = base;
+    hd_cfgtxt_error_t err;
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_BYTES, hd_config_text_parse(text, sizeof text - 1, &cfg, &err));
+    TEST_ASSERT_EQUAL_UINT(2, err.line);
+    TEST_ASSERT_EQUAL_MEMORY(&base, &cfg, sizeof cfg);
+}
+
+static void test_size_limit(void)
+{
+    static char text[HD_CFGTXT_MAX_BYTES + 2];
+    memset(text, '\n', sizeof text);
+    hd_fw_config_t cfg = base;
+    hd_cfgtxt_error_t err;
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_OK, hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES, &cfg, &err));
+    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_TOO_LONG,
+                          hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES + 1u, &cfg, &err));
+}
+
+/* Every writable row of hd_params.def is a key: set it to its upper bound
+ * (or on) in a file and read it back through the table. */
+static void test_every_table_row_is_a_key(void)
+{
+    unsigned n = 0;
+    for (size_t i = 0; i < hd_param_count(); i++) {
+        const hd_param_info_t *p = hd_param_at(i);
+        if (p->flags & HD_PF_RO) {
+            continue;
+        }
+        char text[128];
+        float want = p->hi;
+        if (p->type == HD_PT_BOOL) {
+            snprintf(text, sizeof text, "%s = on\n", p->key);
+        } else if (p->type == HD_PT_F32) {
+            snprintf(text, sizeof text, "%s = %.9g\n", p->key, (double)want);
+        } else {
+            snprintf(text, sizeof text, "%s = %lu\n", p->key, (unsigned long)want);
+        }
+        hd_fw_config_t cfg = base;
+        hd_cfgtxt_error_t err;
+        int rc = parse(text, &cfg, &err);
+        if (rc == HD_CFGTXT_ERR_CONFIG) {
+            continue; /* the bound alone is a refused model (e.g. p0 / R) */
+        }
+        TEST_ASSERT_EQUAL_INT_MESSAGE(HD_CFGTXT_OK, rc, text);
+        TEST_ASSERT_EQUAL_FLOAT_MESSAGE(want, hd_param_get(p, &cfg), text);
+        n++;
+    }
+    TEST_ASSERT_TRUE(n >= 20u);
 }
 
 static void test_long_line_and_null_are_rejected(void)
@@ -166,6 +243,10 @@ int main(void)
     RUN_TEST(test_good_file_sets_every_key);
     RUN_TEST(test_empty_file_keeps_the_base);
     RUN_TEST(test_malformed_files_report_the_line_and_change_nothing);
+    RUN_TEST(test_duplicate_names_both_lines);
+    RUN_TEST(test_nul_byte_stops_nothing_silently);
+    RUN_TEST(test_size_limit);
+    RUN_TEST(test_every_table_row_is_a_key);
     RUN_TEST(test_long_line_and_null_are_rejected);
     RUN_TEST(test_number_parser_agrees_with_strtod);
     return UNITY_END();

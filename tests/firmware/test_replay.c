@@ -136,18 +136,19 @@ static void test_isr_runs_from_a_recording(void)
     hd_calib_record_default(&rec);
     rec.gain_nm_per_v = 5.0f;
     rec.offset_v = 0.0f;
-    hd_calib_storage_t s = {hal.nvm.ctx, hal.nvm.size, hal.nvm.read, hal.nvm.write, hal.nvm.erase};
-    TEST_ASSERT_EQUAL_INT(0, hd_calib_store_save(&s, &rec));
+    static uint8_t work[HD_STORE_IMAGE_MAX];
+    hd_calib_storage_t s = hd_fw_store_io(&hal, work, sizeof work);
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_calib_store_save(&s, &rec));
     hd_fw_config_t cfg;
     hd_fw_config_default(&cfg);
     cfg.filter_enabled = 0;
     static hd_fw_t fw;
     TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
     unsigned ticks = 0;
-    for (; ticks < 10 && !fw.ended; ticks++) {
+    for (; ticks < 10 && !fw.tick.ended; ticks++) {
         hd_fw_isr(&fw);
         const hd_fw_sample_t *smp = hd_fw_last_sample(&fw);
-        if (fw.ended) {
+        if (fw.tick.ended) {
             break;
         }
         if (ticks == 2) {
@@ -160,7 +161,7 @@ static void test_isr_runs_from_a_recording(void)
         }
         TEST_ASSERT_EQUAL_UINT64((uint64_t)ticks * 1000u, smp->t_us);
     }
-    TEST_ASSERT_TRUE(fw.ended);
+    TEST_ASSERT_TRUE(fw.tick.ended);
     TEST_ASSERT_EQUAL_UINT(6, ticks);
     TEST_ASSERT_EQUAL_UINT32(6, hd_fw_counters(&fw)->ticks);
     TEST_ASSERT_EQUAL_UINT32(0, hd_fw_counters(&fw)->deadline_misses);

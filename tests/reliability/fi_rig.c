@@ -85,18 +85,23 @@ static int inj_encoder_read(void *ctx, hal_encoder_sample_t *out)
 
 /* ------------------------------------------------------- telemetry decoding */
 
-static uint16_t u16le(const uint8_t *p)
+static uint32_t u24le(const uint8_t *p)
 {
-    return (uint16_t)(p[0] | (p[1] << 8));
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16);
 }
 
-/* Decodes by the byte layout of docs/firmware.md (not with hd_can_proto). */
+/* Decodes by the byte layout of docs/protocol.md (not with hd_can_proto):
+ * 29-bit identifier 0x01D0TTNN, TT the frame type, NN the node. */
 static void tx_hook(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
 {
     fi_rig_t *r = ctx;
     (void)t_us;
-    const uint32_t node = r->fw.cfg.node_id;
-    if (f->id == 0x100u + node) {
+    const uint32_t node = hd_fw_config(&r->fw)->node_id;
+    if ((f->flags & HAL_CAN_FLAG_EXT) == 0u || (f->id & 0x1FFF00FFu) != (0x01D00000u | node)) {
+        return;
+    }
+    const uint32_t type = (f->id >> 8) & 0xFFu;
+    if (type == 0x02u) {
         uint8_t seq = f->data[6];
         if (r->have_seq && (uint8_t)(seq - r->last_seq) != 1u) {
             r->seq_gaps += (uint8_t)(seq - r->last_seq) - 1u;
@@ -104,15 +109,15 @@ static void tx_hook(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
         r->last_seq = seq;
         r->have_seq = true;
         r->telem_a++;
-    } else if (f->id == 0x180u + node) {
-        r->telem_faults_or |= u16le(&f->data[4]);
+    } else if (type == 0x03u) {
+        r->telem_faults_or |= u24le(&f->data[3]);
         r->telem_b++;
-    } else if (f->id == 0x700u + node) {
+    } else if (type == 0x20u) {
         r->heartbeats++;
-        r->last_hb_faults = u16le(&f->data[1]);
+        r->last_hb_faults = u24le(&f->data[1]);
         r->hb_faults_or |= r->last_hb_faults;
-        r->last_hb_calib_status = f->data[7];
-    } else if (f->id == 0x580u + node) {
+        r->last_hb_calib_status = f->data[6] & 0x0Fu;
+    } else if (type == 0x11u) {
         r->acks++;
         memcpy(r->last_ack, f->data, 8);
     }
@@ -161,9 +166,9 @@ void fi_rig_init(fi_rig_t *r, const char *extra)
     hd_calib_record_default(&rec);
     rec.gain_nm_per_v = (float)r->nom.gain_nm_per_v;
     rec.offset_v = (float)r->nom.offset_v;
-    hd_calib_storage_t st = {r->hal.nvm.ctx, r->hal.nvm.size, r->hal.nvm.read, r->hal.nvm.write,
-                             r->hal.nvm.erase};
-    TEST_ASSERT_EQUAL_INT(0, hd_calib_store_save(&st, &rec));
+    static uint8_t work[HD_STORE_IMAGE_MAX];
+    hd_calib_storage_t st = hd_fw_store_io(&r->hal, work, sizeof work);
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_calib_store_save(&st, &rec));
 
     hd_fw_config_default(&r->cfg);
     r->cfg.adc_volts_per_count = (float)r->nom.adc_v_per_count;
@@ -181,7 +186,7 @@ void fi_rig_init(fi_rig_t *r, const char *extra)
 
 static void check_tick(fi_rig_t *r, const hd_fw_sample_t *s)
 {
-    const hd_fw_config_t *c = &r->fw.cfg;
+    const hd_fw_config_t *c = hd_fw_config(&r->fw);
     if (!isfinite(s->ripple_nm) || !isfinite(s->motor_velocity_rad_s) ||
         !isfinite(s->torque_expected_nm) || (s->valid && !isfinite(s->torque_filtered_nm))) {
         r->non_finite++;
@@ -269,9 +274,9 @@ double fi_rms_err(const fi_rig_t *r, uint64_t a, uint64_t b)
     return n > 0 ? sqrt(s / (double)n) : (double)NAN;
 }
 
-uint16_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b)
+uint32_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b)
 {
-    uint16_t f = 0;
+    uint32_t f = 0;
     for (uint64_t t = a; t < b && t < r->tick; t++) {
         f |= r->faults[t];
     }
@@ -284,7 +289,7 @@ void fi_push_cmd(fi_rig_t *r, const uint8_t data[8], uint8_t len, uint8_t flags,
     memset(&f, 0, sizeof f);
     f.id = id;
     f.len = len;
-    f.flags = flags;
+    f.flags = (uint8_t)(flags | (id > 0x7FFu ? HAL_CAN_FLAG_EXT : 0u)); /* 29-bit ids */
     memcpy(f.data, data, len <= 8u ? len : 8u);
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&r->mock, &f));
 }

@@ -64,17 +64,17 @@ typedef struct {
     uint64_t n_ticks;
     /* per tick (index = tick) */
     float err_nm[FI_MAX_TICKS];   /* filtered - truth; NaN when the sample was invalid */
-    uint16_t faults[FI_MAX_TICKS];/* HD_FAULT_* raised on the tick (hd_fw_sample_t) */
+    uint32_t faults[FI_MAX_TICKS];/* HD_FAULT_* raised on the tick (hd_fw_sample_t) */
     /* telemetry decoded from the frames sent (docs/firmware.md layout) */
     uint32_t telem_a, telem_b, heartbeats, acks;
-    uint16_t telem_faults_or;     /* OR of TELEM_B.Faults over all frames */
-    uint16_t hb_faults_or;        /* OR of HEARTBEAT.HbFaults */
+    uint32_t telem_faults_or;     /* OR of TELEM_B.Faults over all frames */
+    uint32_t hb_faults_or;        /* OR of HEARTBEAT.HbFaults */
     uint8_t last_ack[8];
     uint8_t last_seq;
     bool have_seq;
     uint32_t seq_gaps;            /* telemetry periods lost (sequence jumps) */
     uint8_t last_hb_calib_status;
-    uint16_t last_hb_faults;
+    uint32_t last_hb_faults;
     /* invariant violations (the tests assert these are 0) */
     uint32_t bad_steps;           /* a call did not advance the tick counter by one */
     uint32_t non_finite;          /* ripple / velocity / valid torque not finite */
@@ -101,7 +101,7 @@ double fi_max_abs_err(const fi_rig_t *r, uint64_t a, uint64_t b);
 /* RMS of err over valid ticks in [a, b). */
 double fi_rms_err(const fi_rig_t *r, uint64_t a, uint64_t b);
 /* OR of per-tick faults over [a, b). */
-uint16_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b);
+uint32_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b);
 
 /* Queues a command frame for node 1 (opcode, token, args). */
 void fi_push_cmd(fi_rig_t *r, const uint8_t data[8], uint8_t len, uint8_t flags, uint32_t id);

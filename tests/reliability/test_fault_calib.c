@@ -54,8 +54,16 @@ static uint32_t crc32_ref(const uint8_t *p, size_t n)
 
 static hd_calib_storage_t storage(const hal_t *h)
 {
-    hd_calib_storage_t s = {h->nvm.ctx, h->nvm.size, h->nvm.read, h->nvm.write, h->nvm.erase};
-    return s;
+    static uint8_t work[HD_STORE_IMAGE_MAX];
+    return hd_fw_store_io(h, work, sizeof work);
+}
+
+/* Where copy `copy`'s calibration payload starts (its directory entry). */
+static uint8_t *calib_payload(unsigned copy)
+{
+    uint8_t *c = &mock.nvm[copy * (HAL_MOCK_NVM_BYTES / 2u)];
+    TEST_ASSERT_EQUAL_UINT8(HD_RECORD_KIND_CALIB, c[16]);
+    return c + (c[20] | (c[21] << 8));
 }
 
 static void store(float gain, float offset)
@@ -65,7 +73,7 @@ static void store(float gain, float offset)
     rec.gain_nm_per_v = gain;
     rec.offset_v = offset;
     hd_calib_storage_t s = storage(&hal);
-    TEST_ASSERT_EQUAL_INT(0, hd_calib_store_save(&s, &rec));
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_calib_store_save(&s, &rec));
 }
 
 static void tick(unsigned n)
@@ -83,12 +91,12 @@ static uint8_t last_heartbeat_calib_status(void)
 {
     const hal_can_frame_t *hb = NULL;
     for (uint32_t i = 0; i < hal_mock_tx_count(&mock); i++) {
-        if (hal_mock_tx(&mock, i)->id == 0x701u) {
+        if (hal_mock_tx(&mock, i)->id == hd_can_id(HD_CAN_FRAME_HEARTBEAT, 1)) {
             hb = hal_mock_tx(&mock, i);
         }
     }
     TEST_ASSERT_NOT_NULL(hb);
-    return hb->data[7];
+    return hb->data[6] & 0x0Fu;
 }
 
 /* Init, run a few ticks, check flag, heartbeat status and the torque the
@@ -98,7 +106,7 @@ static void check_boot(uint16_t flag, uint8_t status, double gain, double offset
     TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
     tick(5);
     const hd_fw_sample_t *s = hd_fw_last_sample(&fw);
-    TEST_ASSERT_EQUAL_UINT16(flag, s->faults & (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT |
+    TEST_ASSERT_EQUAL_UINT32(flag, s->faults & (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT |
                                                 HD_FAULT_CALIB_ONE_COPY));
     TEST_ASSERT_EQUAL_UINT8(status, last_heartbeat_calib_status());
     TEST_ASSERT_EQUAL_UINT32(5, fw.counters.by_fault[flag == HD_FAULT_CALIB_MISSING   ? 10
@@ -113,18 +121,20 @@ static void check_boot(uint16_t flag, uint8_t status, double gain, double offset
 static void check_recovery_by_save(void)
 {
     TEST_ASSERT_EQUAL_UINT8(0, mock.nvm_fail); /* caller made the NVM writable */
-    hal_can_frame_t f = {0x601u, 8, 0, {0x31, 0x42, 0, 0, 0x10, 0x20, 0x30, 0x40}};
+    hal_can_frame_t f = {0x01D01001u, 8, HAL_CAN_FLAG_EXT, {0x31, 0x42, 0, 0, 0x10, 0x20, 0x30, 0x40}};
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
-    tick(1); /* the command is taken in this tick, the write after it */
-    tick(1);
-    TEST_ASSERT_EQUAL_UINT16(0, hd_fw_last_sample(&fw)->faults);
+    tick(1); /* the command is queued in this tick, written in the background after it */
+    tick(1); /* and the cleared flag is live from this one */
+    TEST_ASSERT_EQUAL_UINT32(0, hd_fw_last_sample(&fw)->faults &
+                                    (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT |
+                                     HD_FAULT_CALIB_ONE_COPY));
     hd_calib_storage_t s = storage(&hal);
     hd_calib_record_t back;
     uint32_t seq;
     /* the save rewrote the older or damaged slot; if both were damaged the
      * other one stays damaged until the next save (a warning, not a fault) */
     int rc = hd_calib_store_load(&s, &back, &seq);
-    TEST_ASSERT_TRUE(rc == HD_CALIB_LOAD_OK || rc == HD_CALIB_LOAD_ONE_COPY_BAD);
+    TEST_ASSERT_TRUE(rc == HD_RECORD_OK || rc == HD_RECORD_ONE_COPY_BAD);
     TEST_ASSERT_EQUAL_UINT32(0x40302010u, back.calibrated_unix_s);
 }
 
@@ -138,8 +148,8 @@ static void test_crc_corrupt_both_copies(void)
 {
     store(STORED_GAIN, STORED_OFFSET);
     store(STORED_GAIN, STORED_OFFSET); /* both copies written */
-    mock.nvm[14] ^= 0x01u;             /* a gain byte of copy A */
-    mock.nvm[HAL_MOCK_NVM_BYTES / 2u + 14u] ^= 0x80u;
+    calib_payload(0)[14] ^= 0x01u;     /* a gain byte of copy A */
+    calib_payload(1)[14] ^= 0x80u;     /* and of copy B */
     check_boot(HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
     check_recovery_by_save();
 }
@@ -148,30 +158,29 @@ static void test_one_copy_corrupt(void)
 {
     store(STORED_GAIN, STORED_OFFSET);
     store(STORED_GAIN, STORED_OFFSET);
-    mock.nvm[HAL_MOCK_NVM_BYTES / 2u + 30u] ^= 0x10u; /* copy B, serial byte */
+    calib_payload(1)[30] ^= 0x10u; /* copy B, a serial byte */
     check_boot(HD_FAULT_CALIB_ONE_COPY, 1, STORED_GAIN, STORED_OFFSET);
 }
 
 static void test_wrong_version(void)
 {
     store(STORED_GAIN, STORED_OFFSET);
-    store(STORED_GAIN, STORED_OFFSET);
-    for (unsigned copy = 0; copy < 2u; copy++) {
-        uint8_t *p = &mock.nvm[copy * (HAL_MOCK_NVM_BYTES / 2u)];
-        TEST_ASSERT_EQUAL_UINT32(crc32_ref(p, 60), (uint32_t)(p[60] | p[61] << 8 | p[62] << 16 |
-                                                              (uint32_t)p[63] << 24));
-        /* an intact record of format version 2 (flash: rewrite the copy) */
-        uint8_t rec[64];
-        memcpy(rec, p, 64);
-        rec[4] = 2;
-        rec[5] = 0;
-        uint32_t c = crc32_ref(rec, 60);
-        rec[60] = (uint8_t)c;
-        rec[61] = (uint8_t)(c >> 8);
-        rec[62] = (uint8_t)(c >> 16);
-        rec[63] = (uint8_t)(c >> 24);
-        memcpy(p, rec, 64);
-    }
+    uint8_t *p = calib_payload(0);
+    TEST_ASSERT_EQUAL_UINT32(crc32_ref(p, 60), (uint32_t)(p[60] | p[61] << 8 | p[62] << 16 |
+                                                          (uint32_t)p[63] << 24));
+    /* an intact record of format version 2, stored as the store stores any */
+    uint8_t rec[64];
+    memcpy(rec, p, 64);
+    rec[4] = 2;
+    rec[5] = 0;
+    uint32_t c = crc32_ref(rec, 60);
+    rec[60] = (uint8_t)c;
+    rec[61] = (uint8_t)(c >> 8);
+    rec[62] = (uint8_t)(c >> 16);
+    rec[63] = (uint8_t)(c >> 24);
+    hd_calib_storage_t st = storage(&hal);
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_store_save(&st, HD_RECORD_KIND_CALIB,
+                                                      HD_CALIB_RECORD_VERSION, rec, sizeof rec));
     check_boot(HD_FAULT_CALIB_CORRUPT, 4, NOMINAL_GAIN, 0.0);
     check_recovery_by_save();
 }
@@ -271,14 +280,17 @@ static long save_with_power_cut(long budget)
     uint8_t set[8] = {0x20, 1, 12, 0, 0, 0, 0, 0};
     float g = NEW_GAIN;
     memcpy(&set[4], &g, 4); /* little-endian host */
-    hal_can_frame_t f = {0x601u, 8, 0, {0}};
+    hal_can_frame_t f = {0x01D01001u, 8, HAL_CAN_FLAG_EXT, {0}};
     memcpy(f.data, set, 8);
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
-    hal_can_frame_t save = {0x601u, 8, 0, {0x31, 2, 0, 0, 1, 0, 0, 0}};
+    hal_can_frame_t save = {0x01D01001u, 8, HAL_CAN_FLAG_EXT, {0x31, 2, 0, 0, 1, 0, 0, 0}};
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &save));
-    cut.budget = budget;
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push(&mock, COUNTS, 0));
-    hd_fw_isr(&fw);          /* takes both commands */
+    hd_fw_isr(&fw);          /* queues both commands */
+    hd_fw_background(&fw);   /* the new gain, waiting for the tick */
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push(&mock, COUNTS, 0));
+    hd_fw_isr(&fw);          /* makes it live */
+    cut.budget = budget;
     hd_fw_background(&fw);   /* the write, cut by the power loss */
     return cut.used;
 }
@@ -293,19 +305,21 @@ static void test_power_loss_at_every_byte_of_a_save(void)
         save_with_power_cut(k);
         /* reboot on the plain NVM */
         TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
-        TEST_ASSERT_TRUE(fw.calib_load_result == HD_CALIB_LOAD_OK ||
-                         fw.calib_load_result == HD_CALIB_LOAD_ONE_COPY_BAD);
-        TEST_ASSERT_EQUAL_UINT16(0, fw.calib_faults & (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT));
-        if (fw.calib.gain_nm_per_v == STORED_GAIN) {
+        int st = hd_fw_record_status(&fw, HD_RECORD_KIND_CALIB);
+        TEST_ASSERT_TRUE(st == HD_RECORD_OK || st == HD_RECORD_ONE_COPY_BAD);
+        TEST_ASSERT_EQUAL_UINT32(0, fw.settings[fw.live_settings].record_faults &
+                                        (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT));
+        const float gain = hd_fw_config(&fw)->calib_gain_nm_per_v;
+        if (gain == STORED_GAIN) {
             TEST_ASSERT_FALSE_MESSAGE(switched, "old record came back after the new one");
             old_seen++;
         } else {
-            TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, fw.calib.gain_nm_per_v);
+            TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, gain);
             switched = true;
             new_seen++;
         }
     }
-    TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, fw.calib.gain_nm_per_v); /* complete save */
+    TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, hd_fw_config(&fw)->calib_gain_nm_per_v); /* complete save */
     TEST_ASSERT_TRUE(old_seen > 0 && new_seen > 0);
     printf("RECOVERY %-28s ticks=0 cut_points=%ld old=%u new=%u\n", "calib_power_loss", total + 1,
            old_seen, new_seen);

@@ -19,7 +19,7 @@
 static fi_rig_t rig;
 
 #define T0 12000u
-#define NODE_CMD_ID 0x601u
+#define NODE_CMD_ID 0x01D01001u /* CMD of node 1 (29-bit; fi_push_cmd sets the flag) */
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -127,9 +127,7 @@ static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name
     start_converged();
     /* memcpy, not assignment: the comparison below includes padding */
     hd_fw_config_t cfg_before;
-    hd_calib_record_t cal_before;
-    memcpy(&cfg_before, &rig.fw.cfg, sizeof cfg_before);
-    memcpy(&cal_before, &rig.fw.calib, sizeof cal_before);
+    memcpy(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before);
     uint32_t telem_before = rig.telem_a;
     uint64_t from = rig.tick;
     for (unsigned i = 0; i < n; i++) {
@@ -137,7 +135,7 @@ static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name
         uint32_t acks = rig.acks;
         uint32_t errors = rig.fw.counters.command_errors;
         fi_push_cmd(&rig, c->data, c->len, c->flags, c->id);
-        fi_rig_run(&rig, 1);
+        fi_rig_run(&rig, 2); /* queued, executed, answered on the next tick */
         if (c->result < 0) {
             TEST_ASSERT_EQUAL_UINT32_MESSAGE(acks, rig.acks, c->what);
             TEST_ASSERT_EQUAL_UINT32_MESSAGE(errors, rig.fw.counters.command_errors, c->what);
@@ -152,8 +150,8 @@ static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name
                                              rig.faults[rig.tick - 1u] & HD_FAULT_CMD_ERROR,
                                              c->what);
         }
-        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&cfg_before, &rig.fw.cfg, sizeof cfg_before, c->what);
-        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&cal_before, &rig.fw.calib, sizeof cal_before, c->what);
+        TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before,
+                                         c->what);
     }
     fi_rig_run(&rig, 500);
     assert_core_invariants();
@@ -169,7 +167,8 @@ static void test_error_frames_and_other_ids_are_ignored(void)
     const bad_cmd_t cmds[] = {
         {"error frame on the command id", NODE_CMD_ID, 8, HAL_CAN_FLAG_ERR, {0x20, 1, 2, 0, 0, 0, 0, 0}, -1},
         {"error frame, dlc 0", 0x20000004u, 0, HAL_CAN_FLAG_ERR, {0}, -1},
-        {"command for node 2", 0x602u, 8, 0, {0x01, 1, 0, 0, 0, 0, 0, 0}, -1},
+        {"command for node 2", 0x01D01002u, 8, 0, {0x01, 1, 0, 0, 0, 0, 0, 0}, -1},
+        {"11-bit 0x601 (a CANopen SDO)", 0x601u, 8, 0, {0x01, 1, 0, 0, 0, 0, 0, 0}, -1},
         {"telemetry id", 0x101u, 8, 0, {0}, -1},
         {"id 0x7FF", 0x7FFu, 8, 0, {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}, -1},
     };
@@ -183,7 +182,6 @@ static void test_malformed_and_unknown_commands(void)
         {"dlc 3", NODE_CMD_ID, 3, 0, {0x01, 9, 1}, 2},
         {"dlc 0", NODE_CMD_ID, 0, 0, {0}, 2},
         {"rtr", NODE_CMD_ID, 8, HAL_CAN_FLAG_RTR, {0x01, 9, 1, 0, 0, 0, 0, 0}, 3},
-        {"extended id", NODE_CMD_ID, 8, HAL_CAN_FLAG_EXT, {0x01, 9, 1, 0, 0, 0, 0, 0}, 3},
         {"fd frame", NODE_CMD_ID, 8, HAL_CAN_FLAG_FD, {0x01, 9, 1, 0, 0, 0, 0, 0}, 3},
         {"unknown opcode 0x77", NODE_CMD_ID, 8, 0, {0x77, 9, 0, 0, 0, 0, 0, 0}, 1},
         {"unknown opcode 0x00", NODE_CMD_ID, 8, 0, {0x00, 9, 0, 0, 0, 0, 0, 0}, 1},
@@ -236,12 +234,14 @@ static void test_command_flood_is_bounded(void)
      * per tick, every one answered, the tick keeps its step */
     start_converged();
     hd_fw_config_t cfg_before;
-    memcpy(&cfg_before, &rig.fw.cfg, sizeof cfg_before);
+    memcpy(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before);
     for (unsigned i = 0; i < HAL_MOCK_RX_CAP; i++) {
         uint8_t d[8] = {0x77, (uint8_t)i, 0, 0, 0, 0, 0, 0};
         fi_push_cmd(&rig, d, 8, 0, NODE_CMD_ID);
     }
     uint32_t acks = rig.acks;
+    fi_rig_run(&rig, 1); /* queued; the first 4 answered from the next tick on */
+    TEST_ASSERT_EQUAL_UINT32(acks, rig.acks);
     fi_rig_run(&rig, 1);
     TEST_ASSERT_EQUAL_UINT32(acks + 4u, rig.acks);
     fi_rig_run(&rig, 7);
@@ -249,7 +249,7 @@ static void test_command_flood_is_bounded(void)
     TEST_ASSERT_EQUAL_UINT8(HAL_MOCK_RX_CAP - 1u, rig.last_ack[1]); /* in order */
     fi_rig_run(&rig, 500);
     assert_core_invariants();
-    TEST_ASSERT_EQUAL_MEMORY(&cfg_before, &rig.fw.cfg, sizeof cfg_before);
+    TEST_ASSERT_EQUAL_MEMORY(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before);
     TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0, rig.tick) <= FI_BAND_NM);
 }
 
@@ -263,12 +263,12 @@ static void test_implausible_gain_rejected_large_gain_flagged(void)
     fi_rig_init(&rig, "duration_s = 16\nload_torque_profile = 0:13\n");
     fi_rig_run(&rig, T0);
     TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0 - 1000u, T0) <= FI_BAND_NM);
-    const float gain_before = rig.fw.calib.gain_nm_per_v;
+    const float gain_before = hd_fw_config(&rig.fw)->calib_gain_nm_per_v;
     bad_cmd_t huge = set_param("gain 3.4e38", 12, 3.4e38f, 0);
     fi_push_cmd(&rig, huge.data, 8, 0, NODE_CMD_ID);
     fi_rig_run(&rig, 100u);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, rig.last_ack[2]);
-    TEST_ASSERT_EQUAL_FLOAT(gain_before, rig.fw.calib.gain_nm_per_v);
+    TEST_ASSERT_EQUAL_FLOAT(gain_before, hd_fw_config(&rig.fw)->calib_gain_nm_per_v);
     TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0, T0 + 100u) <= FI_BAND_NM);
 
     bad_cmd_t large = set_param("gain max", 12, HD_FW_CALIB_GAIN_MAX_NM_PER_V, 0);

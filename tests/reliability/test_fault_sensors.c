@@ -103,7 +103,7 @@ static void test_out_of_range_sample_100ms(void)
     /* 9.5 V at the ADC = 62.7 N m, inside the ADC span (+-10 V) but above a
      * 50 N m torque limit */
     fi_rig_init(&rig, "duration_s = 18\n");
-    rig.fw.cfg.torque_limit_nm = 50.0f;
+    rig.fw.settings[rig.fw.live_settings].cfg.torque_limit_nm = 50.0f;
     rig.fault.kind = FI_ADC_COUNTS;
     rig.fault.start_tick = T0;
     rig.fault.end_tick = T0 + 100u;
@@ -216,7 +216,7 @@ static void test_standstill_three_minutes(void)
     assert_invariants();
     TEST_ASSERT_EQUAL_HEX16(0, fi_faults_in(&rig, 0, rig.tick));
     /* the covariance stays bounded while nothing moves (motion-scaled q) */
-    const hd_kf_t *kf = &rig.fw.pipe.kf;
+    const hd_kf_t *kf = &rig.fw.pipe[rig.fw.live_pipe].kf;
     for (unsigned i = 0; i < hd_kf_state_count(kf); i++) {
         float pii = hd_kf_cov(kf, i, i);
         TEST_ASSERT_TRUE(isfinite(pii) && pii >= 0.0f && pii <= kf->cfg.p_max_nm2);

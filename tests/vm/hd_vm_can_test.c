@@ -40,6 +40,7 @@
 
 #include "hal_socketcan.h"
 #include "hd_can_proto.h"
+#include "hd_params.h"
 
 #define IFNAME "vcan0"
 #define NODE 1u
@@ -271,7 +272,7 @@ static void selftest(void)
 
 typedef struct {
     hd_can_cmd_t cmd;
-    uint32_t can_id;   /* HD_CAN_ID_CMD + node, or another node's id */
+    uint32_t can_id;   /* CMD_ID(node): this node's command id, or another node's */
     uint8_t dlc;       /* 8, or shorter for a malformed frame */
     int expect_ack;    /* 0: no ACK may come (other node) */
     uint8_t expect_result;
@@ -283,24 +284,26 @@ typedef struct {
     hd_can_ack_t ack;
 } command_t;
 
+#define CMD_ID(node) (HD_CAN_ID_PREFIX | ((uint32_t)HD_CAN_FRAME_CMD << 8) | (node))
+
 static command_t g_cmds[] = {
     /* gear_ratio = 100 in the scenario file: read back over CAN */
     {{.opcode = HD_CMD_GET_PARAM, .token = 1, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
-     HD_CAN_ID_CMD + NODE, 8, 1, HD_CAN_RES_OK, 1, 100.0f, "GET_PARAM gear_ratio", 0, {0}},
+     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 100.0f, "GET_PARAM gear_ratio", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_SET_PARAM, .token = 2, .arg_u8 = {HD_PARAM_R_NM2, 0}, .value = 0.5f},
-     HD_CAN_ID_CMD + NODE, 8, 1, HD_CAN_RES_OK, 1, 0.5f, "SET_PARAM r_nm2 = 0.5", 0, {0}},
+     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 0.5f, "SET_PARAM r_nm2 = 0.5", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 3, .arg_u8 = {HD_PARAM_R_NM2, 0}},
-     HD_CAN_ID_CMD + NODE, 8, 1, HD_CAN_RES_OK, 1, 0.5f, "GET_PARAM r_nm2", 0, {0}},
+     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 0.5f, "GET_PARAM r_nm2", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_SET_PARAM, .token = 4, .arg_u8 = {HD_PARAM_R_NM2, 0}, .value = -1.0f},
-     HD_CAN_ID_CMD + NODE, 8, 1, HD_CAN_RES_OUT_OF_RANGE, 0, 0.0f, "SET_PARAM r_nm2 = -1", 0, {0}},
+     CMD_ID(NODE), 8, 1, HD_CAN_RES_OUT_OF_RANGE, 0, 0.0f, "SET_PARAM r_nm2 = -1", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 5, .arg_u8 = {99, 0}},
-     HD_CAN_ID_CMD + NODE, 8, 1, HD_CAN_RES_UNKNOWN_PARAM, 0, 0.0f, "GET_PARAM id 99", 0, {0}},
+     CMD_ID(NODE), 8, 1, HD_CAN_RES_UNKNOWN_PARAM, 0, 0.0f, "GET_PARAM id 99", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 6, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
-     HD_CAN_ID_CMD + NODE + 1u, 8, 0, 0, 0, 0.0f, "GET_PARAM to node 2 (filtered)", 0, {0}},
+     CMD_ID(NODE + 1u), 8, 0, 0, 0, 0.0f, "GET_PARAM to node 2 (filtered)", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 7, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
-     HD_CAN_ID_CMD + NODE, 2, 1, HD_CAN_RES_BAD_LENGTH, 0, 0.0f, "2-byte command", 0, {0}},
+     CMD_ID(NODE), 2, 1, HD_CAN_RES_BAD_LENGTH, 0, 0.0f, "2-byte command", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 8, .arg_u8 = {HD_PARAM_TELEMETRY_RATE_HZ, 0}},
-     HD_CAN_ID_CMD + NODE, 8, 1, HD_CAN_RES_OK, 1, 1000.0f, "GET_PARAM telemetry_rate_hz", 0, {0}},
+     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 1000.0f, "GET_PARAM telemetry_rate_hz", 0, {0, 0, 0, 0, 0.0f, 0u}},
 };
 #define N_CMDS ((int)(sizeof g_cmds / sizeof g_cmds[0]))
 
@@ -344,19 +347,25 @@ static void capture_drain(int sock, capture_t *cap)
         gettimeofday(&tv, NULL);
         log_frame(cap->log, &cf, (size_t)n, &tv);
         cap->frames++;
-        uint32_t id = cf.can_id & CAN_SFF_MASK;
-        if (id == HD_CAN_ID_TELEM_A + NODE) {
+        uint8_t type = 0, node = 0;
+        uint8_t flags = (cf.can_id & CAN_EFF_FLAG) ? HAL_CAN_FLAG_EXT : 0u;
+        if (!hd_can_id_parse(cf.can_id & CAN_EFF_MASK, flags, &type, &node)) {
+            continue;
+        }
+        if (type == HD_CAN_FRAME_CMD) {
+            cap->cmds_seen++;
+        } else if (node != NODE) {
+            continue;
+        } else if (type == HD_CAN_FRAME_TELEM_A) {
             if (cap->telem_a++ == 0u) {
                 cap->first_telem_s = now_s();
             }
-        } else if (id == HD_CAN_ID_TELEM_B + NODE) {
+        } else if (type == HD_CAN_FRAME_TELEM_B) {
             cap->telem_b++;
-        } else if (id == HD_CAN_ID_ACK + NODE) {
+        } else if (type == HD_CAN_FRAME_ACK) {
             cap->acks++;
-        } else if (id == HD_CAN_ID_HEARTBEAT + NODE) {
+        } else if (type == HD_CAN_FRAME_HEARTBEAT) {
             cap->heartbeats++;
-        } else if ((id & ~0x7Fu) == HD_CAN_ID_CMD) {
-            cap->cmds_seen++;
         }
     }
 }
@@ -387,7 +396,7 @@ static void send_command(hal_socketcan_t *cmd_sock, command_t *c)
     f.id = c->can_id;
     f.len = c->dlc;
     int r = hal_socketcan_send(cmd_sock, &f);
-    CHECK(r == HAL_OK, "sent command token %u: %s (id 0x%03X dlc %u)", c->cmd.token, c->what,
+    CHECK(r == HAL_OK, "sent command token %u: %s (id 0x%08X dlc %u)", c->cmd.token, c->what,
           (unsigned)f.id, f.len);
 }
 
@@ -396,7 +405,7 @@ static void collect_acks(hal_socketcan_t *cmd_sock)
     hal_can_frame_t f;
     while (hal_socketcan_recv(cmd_sock, &f) == HAL_OK) {
         hd_can_ack_t a;
-        if (f.id != HD_CAN_ID_ACK + NODE || hd_can_decode_ack(&f, &a) != 0) {
+        if (f.id != hd_can_id(HD_CAN_FRAME_ACK, NODE) || hd_can_decode_ack(&f, &a) != 0) {
             CHECK(0, "command socket got a frame its filter should stop: id 0x%X", (unsigned)f.id);
             continue;
         }
@@ -444,7 +453,7 @@ static void end_to_end(void)
         setsockopt(cap_sock, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
     }
     fcntl(cap_sock, F_SETFL, O_NONBLOCK);
-    const uint32_t ack_id = HD_CAN_ID_ACK + NODE;
+    const uint32_t ack_id = hd_can_id(HD_CAN_FRAME_ACK, NODE) | HAL_SOCKETCAN_ID_EXT;
     hal_socketcan_t *cmd_sock = hal_socketcan_open(IFNAME, &ack_id, 1, false, err, sizeof err);
     CHECK(cmd_sock != NULL, "command socket (filter: ACK id only): %s", err);
     capture_t cap = {0};

@@ -1,9 +1,11 @@
 """The joint's CAN protocol on the host side, from firmware/hdjoint.dbc.
 
-The DBC describes node 1; load_db(node_id) shifts every identifier to
-another node (identifier = base + node_id).  Helpers build command frames
-(as (frame_id, bytes) pairs or `cansend` strings) and turn a firmware
-configuration text file (docs/firmware.md) into the equivalent commands.
+The DBC (generated from firmware/hd_protocol.def by hdtools.protocol)
+describes node 1; load_db(node_id) moves every identifier to another node
+(identifier = 0x01D00000 | type << 8 | node_id, 29-bit).  Helpers build
+command frames (as (frame_id, bytes) pairs or `cansend` strings) and turn a
+firmware configuration text file (docs/firmware.md) into the equivalent
+commands: every key of the parameter table (firmware/hd_params.def) has one.
 """
 from __future__ import annotations
 
@@ -12,24 +14,15 @@ from pathlib import Path
 
 import cantools
 
-ROOT = Path(__file__).resolve().parents[2]
-DBC_PATH = ROOT / "firmware" / "hdjoint.dbc"
+from . import protocol
 
-BASE_IDS = {"TELEM_A": 0x100, "TELEM_B": 0x180, "ACK": 0x580, "CMD": 0x600, "HEARTBEAT": 0x700}
+ROOT = protocol.ROOT
+DBC_PATH = protocol.DBC_PATH
 
-FAULT_BITS = ["ADC_ERROR", "ADC_SATURATED", "OPEN_BRIDGE", "TORQUE_RANGE", "ENC_GLITCH",
-              "ENC_FAULT", "KF_FROZEN", "KF_RESET", "CAN_TX_FULL", "CAN_BUS_OFF",
-              "CALIB_MISSING", "CALIB_CORRUPT", "DEADLINE_MISS", "CMD_ERROR", "CALIB_ONE_COPY"]
+# Identifier of each frame for node 0; add the node id.
+BASE_IDS = {f.name: f.can_id(0) for f in protocol.frames()}
 
-# SET_PARAM ids of the configuration keys that have one (docs/firmware.md).
-PARAM_OF_KEY = {"r_nm2": "R_NM2", "gear_ratio": "GEAR_RATIO", "inertia_kgm2": "INERTIA_KGM2",
-                "viscous_nm_s_rad": "VISCOUS_NM_S_RAD", "coulomb_nm": "COULOMB_NM",
-                "offset": "OFFSET_ENABLED", "offset_q_nm2": "OFFSET_Q_NM2", "p0_nm2": "P0_NM2",
-                "track_bandwidth_hz": "TRACK_BANDWIDTH_HZ",
-                "telemetry_rate_hz": "TELEMETRY_RATE_HZ", "node_id": "NODE_ID"}
-NOT_ON_CAN = {"p_max_nm2", "nyquist_fraction", "offset_is_sensor_error", "coulomb_vel_eps_rad_s",
-              "motor_cpr", "output_cpr", "adc_volts_per_count", "torque_limit_nm",
-              "max_motor_speed_rad_s"}
+FAULT_BITS = [f.name for f in sorted(protocol.faults(), key=lambda f: f.code)]
 
 
 def load_db(node_id: int = 1, strict: bool = True) -> cantools.database.can.Database:
@@ -59,31 +52,51 @@ def command(db, opcode: str, token: int = 0, **signals) -> tuple[int, bytes]:
 
 
 def cansend_str(frame: tuple[int, bytes]) -> str:
+    """`cansend` notation: 8 hex digits for a 29-bit identifier."""
     frame_id, data = frame
-    return f"{frame_id:03X}#{data.hex().upper()}"
+    width = 8 if frame_id > 0x7FF else 3
+    return f"{frame_id:0{width}X}#{data.hex().upper()}"
 
 
-def _on_off(value: str, line: int) -> int:
-    if value in ("on", "1", "yes"):
-        return 1
-    if value in ("off", "0", "no"):
-        return 0
-    raise ValueError(f"line {line}: expected on or off, got {value!r}")
+_ON = ("on", "1", "yes")
+_OFF = ("off", "0", "no")
+
+
+def _param_value(param: protocol.Param, text: str, line: int) -> float:
+    """A configuration-text value as the firmware's parser reads it."""
+    if param.type == "BOOL":
+        if text in _ON:
+            return 1.0
+        if text in _OFF:
+            return 0.0
+        raise ValueError(f"line {line}: {param.key} must be on or off, got {text!r}")
+    if param.integer and (not text.isdigit() or (len(text) > 1 and text[0] == "0")):
+        raise ValueError(f"line {line}: {param.key} must be a whole decimal number without a "
+                         f"leading zero, got {text!r}")
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"line {line}: {param.key}: {text!r} is not a number") from None
+    why = param.check(value)
+    if why is not None:
+        raise ValueError(f"line {line}: {param.key} = {text}: {why}")
+    return value
 
 
 def config_to_commands(text: str, db=None, token: int = 0) -> list[tuple[int, bytes]]:
     """The CAN commands equivalent to a configuration text file.
 
     Blocks become BLOCKS_CLEAR + ADD_* (+ BLOCK_ENABLE 0 for `off` blocks);
-    keys with a parameter become SET_PARAM; `filter` becomes FILTER_ENABLE.
-    Keys that have no CAN equivalent raise ValueError (the firmware's own
-    parser is the reference for validation; this only translates).
+    every other key is a row of the parameter table and becomes SET_PARAM.
+    Values are checked against the table's ranges (ValueError names the
+    line); the firmware checks the model as a whole when it applies it.
     node_id, if present, is sent last so the other commands reach the old id.
     """
     db = db or load_db()
     cmds: list[tuple[int, bytes]] = []
     blocks: list[tuple[str, float, float, int]] = []
     node_cmd = None
+    seen: dict[str, int] = {}
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
         if not line:
@@ -94,35 +107,48 @@ def config_to_commands(text: str, db=None, token: int = 0) -> list[tuple[int, by
         if not values:
             raise ValueError(f"line {lineno}: missing value")
         if key == "block":
-            kind, order, q = values[0], float(values[1]), float(values[2])
-            enabled = _on_off(values[3], lineno) if len(values) > 3 else 1
-            blocks.append((kind, order, q, enabled))
-        elif key == "filter":
-            cmds.append(command(db, "FILTER_ENABLE", token, FilterEnable=_on_off(values[0], lineno)))
-        elif key in PARAM_OF_KEY:
-            value = float(_on_off(values[0], lineno)) if key == "offset" else float(values[0])
-            frame = command(db, "SET_PARAM", token, SetParamId=PARAM_OF_KEY[key], SetParamValue=value)
-            if key == "node_id":
-                node_cmd = frame
-            else:
-                cmds.append(frame)
-        elif key in NOT_ON_CAN:
-            raise ValueError(f"line {lineno}: {key} cannot be set over CAN")
+            if len(values) not in (3, 4) or values[0] not in ("motor", "output", "fixed"):
+                raise ValueError(f"line {lineno}: block needs: motor|output|fixed ORDER Q [on|off]")
+            enabled = 1
+            if len(values) == 4:
+                if values[3] not in _ON + _OFF:
+                    raise ValueError(f"line {lineno}: block state must be on or off")
+                enabled = int(values[3] in _ON)
+            blocks.append((values[0], float(values[1]), float(values[2]), enabled))
+            continue
+        try:
+            param = protocol.param_by_key(key)
+        except KeyError:
+            raise ValueError(f"line {lineno}: unknown key {key!r}") from None
+        if param.read_only:
+            raise ValueError(f"line {lineno}: {key} is read only")
+        if key in seen:
+            raise ValueError(f"line {lineno}: {key} given twice (first on line {seen[key]})")
+        seen[key] = lineno
+        if len(values) != 1:
+            raise ValueError(f"line {lineno}: {key} takes one value")
+        value = _param_value(param, values[0], lineno)
+        frame = command(db, "SET_PARAM", token, SetParamId=param.name, SetParamValue=value)
+        if key == "node_id":
+            node_cmd = frame
         else:
-            raise ValueError(f"line {lineno}: unknown key {key!r}")
+            cmds.append(frame)
     if blocks:
         block_cmds = [command(db, "BLOCKS_CLEAR", token)]
         for index, (kind, order, q, enabled) in enumerate(blocks):
+            o100 = round(order * 100)
+            if not 0 < o100 <= 0xFFFF:
+                raise ValueError(f"block {kind} {order:g}: order not representable on CAN "
+                                 f"(0.01 .. 655.35)")
             if kind == "motor":
                 block_cmds.append(command(db, "ADD_MOTOR", token, MotorOrder=order, MotorQ=q))
             elif kind == "output":
                 block_cmds.append(command(db, "ADD_OUTPUT", token, OutputOrder=order, OutputQ=q))
-            elif kind == "fixed":
-                block_cmds.append(command(db, "ADD_FIXED", token, FixedFrequency=order, FixedQ=q))
             else:
-                raise ValueError(f"unknown block kind {kind!r}")
+                block_cmds.append(command(db, "ADD_FIXED", token, FixedFrequency=order, FixedQ=q))
             if not enabled:
-                block_cmds.append(command(db, "BLOCK_ENABLE", token, BlockIndex=index, BlockEnable=0))
+                block_cmds.append(command(db, "BLOCK_ENABLE", token, BlockIndex=index,
+                                          BlockEnable=0))
         cmds = block_cmds + cmds
     if node_cmd is not None:
         cmds.append(node_cmd)
@@ -243,10 +269,11 @@ def read_log(path: str | Path, malformed: list | None = None):
 
 
 def nodes_in(frames) -> dict[int, int]:
-    """Frames per node id (1..127) among the joint's identifiers."""
+    """Frames per node id (1..127) among the joint's identifiers (29-bit
+    data frames only: remote, FD, 11-bit and error frames are not ours)."""
     counts: dict[int, int] = {}
     for _, msg in frames:
-        if msg.is_extended_id or msg.is_error_frame:
+        if not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame or msg.is_fd:
             continue
         for base in BASE_IDS.values():
             node = msg.arbitration_id - base
@@ -281,7 +308,7 @@ def decode_log(path: str | Path, node_id: int | None = 1) -> dict:
     telem, acks, heartbeats, commands, bad_frames = [], [], [], [], []
     pending_a = None
     for lineno, msg in frames:
-        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+        if msg.is_error_frame or msg.is_remote_frame or not msg.is_extended_id or msg.is_fd:
             continue
         data = bytes(msg.data)
         ident = msg.arbitration_id
@@ -291,7 +318,7 @@ def decode_log(path: str | Path, node_id: int | None = 1) -> dict:
             decoded = db.decode_message(ident, data, decode_choices=(ident != ids["TELEM_A"] and
                                                                      ident != ids["TELEM_B"]))
         except Exception as exc:  # noqa: BLE001 - cantools raises several kinds
-            bad_frames.append((lineno, f"{ident:03X}: {str(exc).splitlines()[0]}"))
+            bad_frames.append((lineno, f"{ident:08X}: {str(exc).splitlines()[0]}"))
             if ident == ids["CMD"]:  # malformed command: keep it visible
                 commands.append({"t_s": msg.timestamp, "error": str(exc), "data": data.hex()})
             continue

@@ -2,14 +2,14 @@
  * hd_fw_handle_frame), interleaved with ISR ticks and background work.
  *
  * Input: records of 12 bytes: [0] id selector (bit 7: this node's command
- * id, else the 11-bit id from bytes 0..1), [2] flags, [3] length (mod 65),
- * [4..11] data; every record with bit 6 of byte 0 set is followed by one
- * tick whose ADC counts come from its data.
+ * id, else a 29-bit id of our prefix with type and node from bytes 0..1, or
+ * (bit 5) an 11-bit id), [2] flags, [3] length (mod 65), [4..11] data;
+ * every record with bit 6 of byte 0 set is followed by one tick whose ADC
+ * counts come from its data.
  * Properties: nothing crashes; the running configuration always passes
  * hd_fw_config_check; the calibration in RAM is finite with gain > 0;
- * every frame on the command id is answered by exactly one ACK (or queued
- * for background work, which then answers); decoders return documented
- * codes. */
+ * every frame handed to hd_fw_handle_frame on the command id is answered
+ * by exactly one ACK; decoders return documented codes. */
 #include <math.h>
 #include <string.h>
 
@@ -17,18 +17,15 @@
 #include "hal_mock.h"
 #include "hd_can_proto.h"
 #include "hd_fw.h"
+#include "hd_fw_internal.h"
 
 static hal_mock_t mock;
 static hal_t hal;
 static hd_fw_t fw;
 
-static unsigned acks_sent(uint8_t node)
+static uint32_t acks_queued(void)
 {
-    unsigned n = 0;
-    for (uint32_t i = 0; i < hal_mock_tx_count(&mock); i++) {
-        n += hal_mock_tx(&mock, i)->id == HD_CAN_ID_ACK + node;
-    }
-    return n;
+    return fw.ack_queue.head;
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -43,15 +40,22 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         const uint8_t *r = &data[off];
         hal_can_frame_t f;
         memset(&f, 0, sizeof f);
-        uint8_t node = fw.cfg.node_id;
-        f.id = (r[0] & 0x80u) ? HD_CAN_ID_CMD + node : (uint32_t)((r[0] | r[1] << 8) & 0x7FF);
+        uint8_t node = hd_fw_config(&fw)->node_id;
         f.flags = r[2] & 0x0Fu;
+        if (r[0] & 0x80u) {
+            f.id = hd_can_id(HD_CAN_FRAME_CMD, node);
+            f.flags |= HAL_CAN_FLAG_EXT;
+        } else if (r[0] & 0x20u) {
+            f.id = (uint32_t)((r[0] | r[1] << 8) & 0x7FF);
+        } else {
+            f.id = HD_CAN_ID_PREFIX | ((uint32_t)r[1] << 8) | (r[0] & 0x1Fu);
+        }
         f.len = (uint8_t)(r[3] % (HAL_CAN_MAX_DATA + 1u));
         memcpy(f.data, &r[4], 8);
 
         hd_can_cmd_t cmd;
         int res = hd_can_decode_cmd(&f, &cmd);
-        FUZZ_CHECK(res >= HD_CAN_RES_OK && res <= HD_CAN_RES_NO_DATA);
+        FUZZ_CHECK(res >= HD_CAN_RES_OK && res <= HD_CAN_RES_UNSUPPORTED);
         FUZZ_CHECK(hd_can_result_str(res) != NULL);
         hd_can_ack_t ack;
         hd_can_heartbeat_t hb;
@@ -59,20 +63,27 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         (void)hd_can_decode_ack(&f, &ack);
         (void)hd_can_decode_heartbeat(&f, &hb);
         (void)hd_can_decode_telem(&f, &f, &tm);
+        hd_can_angle_t an;
+        hd_can_boot_t bt;
+        hd_can_feedforward_t ff;
+        (void)hd_can_decode_angle(&f, &an);
+        (void)hd_can_decode_boot(&f, &bt);
+        (void)hd_can_decode_feedforward(&f, &ff);
 
-        bool for_us = f.id == HD_CAN_ID_CMD + node && (f.flags & HAL_CAN_FLAG_ERR) == 0u;
-        uint8_t pending_before = fw.nvm_pending;
-        unsigned acks_before = acks_sent(node);
-        uint32_t stored_before = hal_mock_tx_count(&mock);
-        hd_fw_handle_frame(&fw, &f);
-        if (stored_before < HAL_MOCK_TX_CAP - 2u) {
-            unsigned acks = acks_sent(node);
-            bool queued = pending_before == 0u && fw.nvm_pending != 0u;
-            FUZZ_CHECK(acks == acks_before + ((for_us && !queued) ? 1u : 0u));
+        uint8_t type = 0, to = 0;
+        bool for_us = (f.flags & HAL_CAN_FLAG_ERR) == 0u &&
+                      hd_can_id_parse(f.id, f.flags, &type, &to) && to == node &&
+                      type == HD_CAN_FRAME_CMD;
+        if (!hd_fw_queue_full(&fw.ack_queue)) {
+            uint32_t before = acks_queued();
+            hd_fw_handle_frame(&fw, &f);
+            FUZZ_CHECK(acks_queued() == before + (for_us ? 1u : 0u));
         }
-        FUZZ_CHECK(hd_fw_config_check(&fw.cfg) == HD_FW_OK);
-        FUZZ_CHECK(isfinite(fw.calib.gain_nm_per_v) && fw.calib.gain_nm_per_v > 0.0f);
-        FUZZ_CHECK(isfinite(fw.calib.offset_v));
+        const hd_fw_config_t *c = hd_fw_config(&fw);
+        FUZZ_CHECK(hd_fw_config_check(c, NULL) == HD_FW_OK);
+        FUZZ_CHECK(isfinite(c->calib_gain_nm_per_v) && c->calib_gain_nm_per_v > 0.0f);
+        FUZZ_CHECK(isfinite(c->calib_offset_v));
+        (void)hal_mock_push_rx(&mock, &f); /* and the same frame through the tick */
 
         if (r[0] & 0x40u) {
             int32_t counts;

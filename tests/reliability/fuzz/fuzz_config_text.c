@@ -19,7 +19,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     memset(&err, 0, sizeof err);
     int rc = hd_config_text_parse((const char *)data, size, &cfg, &err);
     if (rc == HD_CFGTXT_OK) {
-        FUZZ_CHECK(hd_fw_config_check(&cfg) == HD_FW_OK);
+        FUZZ_CHECK(hd_fw_config_check(&cfg, NULL) == HD_FW_OK);
     } else {
         FUZZ_CHECK(rc <= HD_CFGTXT_ERR_NULL && rc >= HD_CFGTXT_ERR_CONFIG);
         FUZZ_CHECK(err.code == rc);

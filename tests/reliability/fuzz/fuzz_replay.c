@@ -44,9 +44,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     hd_fw_config_default(&cfg);
     FUZZ_CHECK(hd_fw_init(&fw, &hal, &cfg) == HD_FW_OK);
     uint64_t ticks = 0;
-    while (!fw.ended && ticks < 4096u) {
+    while (!fw.tick.ended && ticks < 4096u) {
         hd_fw_isr(&fw);
-        if (fw.ended) {
+        if (fw.tick.ended) {
             break;
         }
         ticks++;

@@ -175,46 +175,24 @@ class Model:
         return "\n".join(lines) + "\n"
 
     def can_commands(self, node_id: int = 1) -> list[dict]:
-        """CAN CMD frames (docs/firmware.md) that put this model into a
-        running joint.  p_max, nyquist_fraction, offset_is_sensor_error, v_eps,
-        output_p0, offset_jump, q_motion_ref and the ripple load coefficient have no CAN command: they are
-        listed in `not_settable` (the config file carries them)."""
-        cmd_id = 0x600 + node_id
-        frames = []
-        token = 0
-
-        def frame(opcode, b2=0, b3=0, tail=b"\0\0\0\0", what=""):
-            nonlocal token
-            token = (token + 1) & 0xFF
-            data = bytes([opcode, token, b2 & 0xFF, b3 & 0xFF]) + tail
-            frames.append({"candump": f"{cmd_id:03X}#{data.hex().upper()}", "what": what})
-
-        def set_param(pid, value, name):
-            frame(0x20, pid, 0, struct.pack("<f", value), f"SET_PARAM {name} = {value:.6g}")
-
-        set_param(2, self.gear_ratio, "GEAR_RATIO")
-        set_param(1, self.r_nm2, "R_NM2")
-        set_param(8, self.p0_nm2, "P0_NM2")
-        set_param(6, 1.0 if self.offset_enabled else 0.0, "OFFSET_ENABLED")
-        set_param(7, self.offset_q_nm2, "OFFSET_Q_NM2")
-        set_param(3, self.inertia_kgm2, "INERTIA_KGM2")
-        set_param(4, self.viscous_nm_s_rad, "VISCOUS_NM_S_RAD")
-        set_param(5, self.coulomb_nm, "COULOMB_NM")
-        set_param(9, self.track_bandwidth_hz, "TRACK_BANDWIDTH_HZ")
-        frame(0x14, what="BLOCKS_CLEAR")
-        op = {"motor": 0x10, "output": 0x11, "fixed": 0x12}
-        for b in self.blocks:
-            o100 = int(round(b.order * 100))
-            if not 0 < o100 <= 0xFFFF:
-                raise ValueError(f"block {b.label()}: order not representable on CAN")
-            frame(op[b.lock], o100 & 0xFF, o100 >> 8, struct.pack("<f", b.q_nm2),
-                  f"ADD_{b.lock.upper()} {o100 / 100:g} q={b.q_nm2:.6g}")
-        return frames
+        """CAN CMD frames (docs/protocol.md) that put this model into a
+        running joint: the configuration text translated by canproto (every
+        key of the parameter table has a SET_PARAM), as `cansend` strings
+        with what each one does.  ValueError if a value cannot travel (an
+        order outside 0.01..655.35)."""
+        from .. import canproto
+        db = canproto.load_db(node_id)
+        cmd = db.get_message_by_name("CMD")
+        out = []
+        for frame in canproto.config_to_commands(self.config_text(), db=db):
+            fields = cmd.decode(frame[1], decode_choices=True)
+            what = " ".join(f"{k}={v}" for k, v in fields.items() if k != "Token")
+            out.append({"candump": canproto.cansend_str(frame), "what": what})
+        return out
 
     def not_settable_over_can(self) -> list[str]:
-        return ["p_max_nm2", "nyquist_fraction", "offset_is_sensor_error",
-                "coulomb_vel_eps_rad_s", "output_p0_nm2", "offset_jump_nm", "q_motion_ref_rad",
-                "ripple_load_coeff_per_nm"]
+        """Every key of the configuration text has a CAN command now."""
+        return []
 
 
 def slow_step_nm(torque_nm: np.ndarray, ts_s: float, window_s: float = 0.2) -> float:

@@ -1,0 +1,389 @@
+/* hd_fw_cmd: the command plane, run by hd_fw_background.  Each command is
+ * decoded, executed against a copy of the live settings, and its result
+ * handed to the tick as one request (hd_fw.h, "two contexts"): the tick
+ * swaps it in between two samples.  Commands run strictly in order; the
+ * next one waits until the tick has taken the previous change, so a
+ * CONFIG_SAVE after a SET_PARAM saves the new value. */
+#include <stdatomic.h>
+#include <string.h>
+
+#include "hd_fw.h"
+#include "hd_fw_internal.h"
+#include "hd_fw_records.h"
+#include "hd_params.h"
+
+#ifndef HD_FW_VERSION_MAJOR
+#define HD_FW_VERSION_MAJOR 0
+#define HD_FW_VERSION_MINOR 0
+#define HD_FW_VERSION_PATCH 0
+#endif
+#ifndef HD_FW_GIT_HASH
+#define HD_FW_GIT_HASH 0u
+#endif
+
+typedef struct {
+    int result;       /* hd_can_result_t */
+    uint8_t aux;
+    float value;
+    uint32_t value_u32;
+} reply_t;
+
+/* ---------------------------------------------------------------- helpers */
+
+static void post(hd_fw_t *fw, uint8_t flags, uint8_t block, uint8_t enable)
+{
+    hd_fw_request_t *r = &fw->request;
+    r->flags = flags;
+    r->block = block;
+    r->enable = enable;
+    atomic_signal_fence(memory_order_release); /* the fields before pending */
+    r->pending = 1u;
+}
+
+/* Makes next the running configuration.  rebuild: a new pipeline (the
+ * filter restarts), else the live one keeps its state.  Refused models
+ * leave everything as it was. */
+static int commit(hd_fw_t *fw, const hd_fw_settings_t *next, bool rebuild)
+{
+    const hd_fw_config_t *c = &next->cfg;
+    if (hd_fw_config_check(c, NULL) != HD_FW_OK) {
+        return HD_CAN_RES_REJECTED;
+    }
+    hd_pipeline_t *spare_pipe = &fw->pipe[(fw->live_pipe & 1u) ^ 1u];
+    if (rebuild && hd_pipeline_init(spare_pipe, &c->kf, &c->expected, c->track_bandwidth_hz) !=
+                       HD_KF_OK) {
+        return HD_CAN_RES_REJECTED;
+    }
+    hd_fw_settings_t *spare = hd_fw_spare(fw);
+    *spare = *next;
+    hd_fw_derive(spare);
+    post(fw, (uint8_t)(HD_FW_REQ_SETTINGS | (rebuild ? HD_FW_REQ_PIPE : 0u)), 0u, 0u);
+    return HD_CAN_RES_OK;
+}
+
+static int result_of(hd_param_err_t e)
+{
+    switch (e) {
+    case HD_PARAM_OK: return HD_CAN_RES_OK;
+    case HD_PARAM_ERR_UNKNOWN: return HD_CAN_RES_UNKNOWN_PARAM;
+    case HD_PARAM_ERR_READ_ONLY: return HD_CAN_RES_READ_ONLY;
+    case HD_PARAM_ERR_NOT_FINITE: return HD_CAN_RES_NOT_FINITE;
+    default: return HD_CAN_RES_OUT_OF_RANGE;
+    }
+}
+
+/* ------------------------------------------------------------ parameters */
+
+static void set_param(hd_fw_t *fw, uint8_t id, float v, reply_t *r)
+{
+    const hd_param_info_t *p = hd_param_by_id(id);
+    r->aux = id;
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    r->result = result_of(hd_param_set(p, &next.cfg, v));
+    if (r->result == HD_CAN_RES_OK) {
+        r->result = commit(fw, &next, (p->flags & HD_PF_REBUILD) != 0u);
+        if (r->result == HD_CAN_RES_OK && id == HD_PARAM_NODE_ID) {
+            hd_fw_set_rx_filter(fw, next.cfg.node_id);
+        }
+    }
+    /* The value now in force (the new one, or the old one if refused). */
+    const hd_fw_settings_t *now = (r->result == HD_CAN_RES_OK) ? &next : hd_fw_live(fw);
+    r->value = (p != NULL) ? hd_param_get(p, &now->cfg) : 0.0f;
+}
+
+static void get_param(const hd_fw_t *fw, uint8_t id, reply_t *r)
+{
+    const hd_param_info_t *p = hd_param_by_id(id);
+    r->aux = id;
+    if (p == NULL) {
+        r->result = HD_CAN_RES_UNKNOWN_PARAM;
+        return;
+    }
+    r->value = hd_param_get(p, &hd_fw_live(fw)->cfg);
+}
+
+/* ------------------------------------------------------------ the model */
+
+static void add_block(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    hd_kf_config_t *kf = &next.cfg.kf;
+    if (!(cmd->order > 0.0f) || !(cmd->value >= 0.0f) ||
+        (cmd->opcode == HD_CMD_ADD_FIXED && cmd->order >= 0.5f / HD_FW_TS_S)) {
+        r->result = HD_CAN_RES_OUT_OF_RANGE;
+        return;
+    }
+    if (kf->block_count >= HD_KF_MAX_BLOCKS) {
+        r->result = HD_CAN_RES_NO_SPACE;
+        return;
+    }
+    hd_kf_block_config_t *b = &kf->blocks[kf->block_count];
+    b->lock = (uint8_t)(cmd->opcode - HD_CMD_ADD_MOTOR); /* MOTOR, OUTPUT, FIXED in order */
+    b->enabled = 1u;
+    b->order = cmd->order;
+    b->q_nm2 = cmd->value;
+    r->aux = kf->block_count;
+    kf->block_count++;
+    r->result = commit(fw, &next, true);
+}
+
+/* Other blocks keep their estimates: the tick toggles the block in the
+ * live filter while the settings record the new state. */
+static void block_enable(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    uint8_t i = cmd->arg_u8[0];
+    r->aux = i;
+    if (i >= next.cfg.kf.block_count) {
+        r->result = HD_CAN_RES_BAD_INDEX;
+        return;
+    }
+    if (cmd->arg_u8[1] > 1u) {
+        r->result = HD_CAN_RES_OUT_OF_RANGE;
+        return;
+    }
+    next.cfg.kf.blocks[i].enabled = cmd->arg_u8[1];
+    if (hd_fw_config_check(&next.cfg, NULL) != HD_FW_OK) {
+        r->result = HD_CAN_RES_REJECTED;
+        return;
+    }
+    hd_fw_settings_t *spare = hd_fw_spare(fw);
+    *spare = next;
+    hd_fw_derive(spare);
+    post(fw, HD_FW_REQ_SETTINGS | HD_FW_REQ_BLOCK, i, cmd->arg_u8[1]);
+}
+
+static void blocks_clear(hd_fw_t *fw, reply_t *r)
+{
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    next.cfg.kf.block_count = 0u;
+    r->result = commit(fw, &next, true);
+}
+
+/* --------------------------------------------------------- calibration */
+
+static void tare(hd_fw_t *fw, reply_t *r)
+{
+    const hd_fw_tick_state_t *k = &fw->tick;
+    uint32_t n = k->tare_n;
+    if (n == 0u) {
+        r->result = HD_CAN_RES_NO_DATA;
+        return;
+    }
+    /* Summed afresh (bounded: 64 adds) so no running sum drifts. */
+    float sum = 0.0f;
+    for (uint32_t i = 0; i < n; i++) {
+        sum += k->tare_v[i];
+    }
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    next.cfg.calib_offset_v = sum / (float)n;
+    r->value = next.cfg.calib_offset_v;
+    r->result = commit(fw, &next, false);
+}
+
+static void calib_job(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    r->result = (cmd->opcode == HD_CMD_CALIB_SAVE)
+                    ? hd_fw_calib_save(fw, cmd->arg_u32, &next)
+                    : hd_fw_calib_load(fw, &next, &r->aux, &r->value);
+    if (r->result == HD_CAN_RES_OK) {
+        r->result = commit(fw, &next, false);
+    }
+}
+
+/* ------------------------------------------------------- configuration */
+
+/* A configuration from the record or the defaults replaces the model but
+ * not the calibration, which has its own record. */
+static void config_replace(hd_fw_t *fw, const hd_fw_config_t *cfg, uint8_t status, reply_t *r)
+{
+    const hd_fw_settings_t *live = hd_fw_live(fw);
+    hd_fw_settings_t next = *live;
+    next.cfg = *cfg;
+    next.cfg.calib_gain_nm_per_v = live->cfg.calib_gain_nm_per_v;
+    next.cfg.calib_offset_v = live->cfg.calib_offset_v;
+    next.config_status = status;
+    next.record_faults &= ~(uint32_t)HD_FAULT_CONFIG_DEFAULTS;
+    r->result = commit(fw, &next, true);
+    if (r->result == HD_CAN_RES_OK && next.cfg.node_id != live->cfg.node_id) {
+        hd_fw_set_rx_filter(fw, next.cfg.node_id);
+    }
+}
+
+static void config_job(hd_fw_t *fw, uint8_t opcode, reply_t *r)
+{
+    if (opcode == HD_CMD_CONFIG_SAVE) {
+        r->result = hd_fw_config_save(fw, &r->aux);
+        if (r->result == HD_CAN_RES_OK) {
+            hd_fw_settings_t next = *hd_fw_live(fw);
+            next.config_status = HD_RECORD_OK;
+            next.record_faults &= ~(uint32_t)HD_FAULT_CONFIG_DEFAULTS;
+            r->result = commit(fw, &next, false);
+        }
+        return;
+    }
+    hd_fw_config_t cfg;
+    if (opcode == HD_CMD_CONFIG_LOAD) {
+        r->result = hd_fw_config_load(fw, &cfg, &r->aux);
+        if (r->result == HD_CAN_RES_OK) {
+            config_replace(fw, &cfg, r->aux, r);
+        }
+        return;
+    }
+    config_replace(fw, hd_fw_boot_defaults(fw), hd_fw_live(fw)->config_status, r);
+}
+
+/* ---------------------------------------------------------- information */
+
+static uint32_t version_word(void)
+{
+    return ((uint32_t)HD_FW_VERSION_MAJOR << 16) | ((uint32_t)HD_FW_VERSION_MINOR << 8) |
+           (uint32_t)HD_FW_VERSION_PATCH;
+}
+
+static bool info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
+{
+    const hd_fw_counters_t *c = &fw->counters;
+    const hal_boot_info_t *b = &fw->bg.boot;
+    switch (item) {
+    case HD_INFO_PROTOCOL_VERSION: *v = HD_CAN_PROTOCOL_VERSION; return true;
+    case HD_INFO_FIRMWARE_VERSION: *v = version_word(); return true;
+    case HD_INFO_GIT_HASH: *v = (uint32_t)HD_FW_GIT_HASH; return true;
+    case HD_INFO_BOARD_ID: *v = fw->hal->system.board_id; return true;
+    case HD_INFO_CALIB_RECORD_VERSION: *v = HD_CALIB_RECORD_VERSION; return true;
+    case HD_INFO_CONFIG_RECORD_VERSION: *v = HD_CONFIG_RECORD_VERSION; return true;
+    case HD_INFO_PROFILE_RECORD_VERSION: *v = 0u; return true; /* no profile record yet */
+    case HD_INFO_PARAM_TABLE_CRC: *v = hd_param_table_crc(); return true;
+    case HD_INFO_RESET_CAUSE: *v = b->reset_cause; return true;
+    case HD_INFO_FAULT_PC: *v = b->fault_valid ? b->fault_pc : 0u; return true;
+    case HD_INFO_FAULT_LR: *v = b->fault_valid ? b->fault_lr : 0u; return true;
+    case HD_INFO_FAULT_CFSR: *v = b->fault_valid ? b->fault_cfsr : 0u; return true;
+    case HD_INFO_FAULT_HFSR: *v = b->fault_valid ? b->fault_hfsr : 0u; return true;
+    case HD_INFO_FAULT_ADDR: *v = b->fault_valid ? b->fault_addr : 0u; return true;
+    case HD_INFO_TICKS: *v = c->ticks; return true;
+    case HD_INFO_VALID_SAMPLES: *v = c->valid_samples; return true;
+    case HD_INFO_FAULT_TICKS: *v = c->fault_ticks; return true;
+    case HD_INFO_DEADLINE_MISSES: *v = c->deadline_misses; return true;
+    case HD_INFO_TELEMETRY_FRAMES: *v = c->telemetry_frames; return true;
+    case HD_INFO_COMMANDS: *v = c->commands; return true;
+    case HD_INFO_COMMAND_ERRORS: *v = c->command_errors; return true;
+    case HD_INFO_COMMANDS_DROPPED: *v = c->commands_dropped; return true;
+    case HD_INFO_FRAMES_DROPPED: *v = c->frames_dropped; return true;
+    case HD_INFO_FOREIGN_FRAMES: *v = c->foreign_frames; return true;
+    default: return false;
+    }
+}
+
+static void info(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    uint8_t item = cmd->arg_u8[0];
+    r->aux = item;
+    /* VERSION answers the items below 16, INFO the rest. */
+    bool mine = (cmd->opcode == HD_CMD_VERSION) ? item < 16u : item >= 16u;
+    if (!mine || !info_item(fw, item, &r->value_u32)) {
+        r->result = HD_CAN_RES_BAD_INDEX;
+    }
+}
+
+static void reboot(hd_fw_t *fw, reply_t *r)
+{
+    if (fw->hal->system.reboot == NULL) {
+        r->result = HD_CAN_RES_UNSUPPORTED;
+        return;
+    }
+    fw->bg.reboot_pending = 1u; /* once the ACK is out */
+}
+
+/* ------------------------------------------------------------- dispatch */
+
+static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    switch (cmd->opcode) {
+    case HD_CMD_FILTER_ENABLE: set_param(fw, HD_PARAM_FILTER_ENABLED, cmd->arg_u8[0], r); break;
+    case HD_CMD_ADD_MOTOR:
+    case HD_CMD_ADD_OUTPUT:
+    case HD_CMD_ADD_FIXED: add_block(fw, cmd, r); break;
+    case HD_CMD_BLOCK_ENABLE: block_enable(fw, cmd, r); break;
+    case HD_CMD_BLOCKS_CLEAR: blocks_clear(fw, r); break;
+    case HD_CMD_SET_PARAM: set_param(fw, cmd->arg_u8[0], cmd->value, r); break;
+    case HD_CMD_GET_PARAM: get_param(fw, cmd->arg_u8[0], r); break;
+    case HD_CMD_TARE: tare(fw, r); break;
+    case HD_CMD_CALIB_SAVE:
+    case HD_CMD_CALIB_LOAD: calib_job(fw, cmd, r); break;
+    case HD_CMD_FILTER_RESET: post(fw, HD_FW_REQ_KF_RESET, 0u, 0u); break;
+    case HD_CMD_CONFIG_SAVE:
+    case HD_CMD_CONFIG_LOAD:
+    case HD_CMD_CONFIG_DEFAULTS: config_job(fw, cmd->opcode, r); break;
+    case HD_CMD_VERSION:
+    case HD_CMD_INFO: info(fw, cmd, r); break;
+    case HD_CMD_REBOOT: reboot(fw, r); break;
+    default: r->result = HD_CAN_RES_UNKNOWN_OPCODE; break; /* the decoder checks first */
+    }
+}
+
+static void queue_ack(hd_fw_t *fw, uint8_t node, const hd_can_cmd_t *cmd, const reply_t *r)
+{
+    hd_can_ack_t a = {cmd->opcode, cmd->token, (uint8_t)r->result, r->aux, r->value, r->value_u32};
+    hal_can_frame_t f;
+    hd_can_encode_ack(node, &a, &f);
+    (void)hd_fw_queue_push(&fw->ack_queue, &f); /* room was checked before the command */
+    if (r->result != HD_CAN_RES_OK) {
+        fw->counters.command_errors++;
+    }
+}
+
+void hd_fw_handle_frame(hd_fw_t *fw, const hal_can_frame_t *frame)
+{
+    /* The ACK goes out from the id the command reached (before a node change). */
+    const uint8_t node = hd_fw_live(fw)->cfg.node_id;
+    uint8_t type = 0u;
+    uint8_t to = 0u;
+    if ((frame->flags & HAL_CAN_FLAG_ERR) != 0u ||
+        !hd_can_id_parse(frame->id, frame->flags, &type, &to) || to != node ||
+        type != HD_CAN_FRAME_CMD) {
+        return; /* not addressed to this node */
+    }
+    fw->counters.commands++;
+    hd_can_cmd_t cmd;
+    reply_t r = {hd_can_decode_cmd(frame, &cmd), 0u, 0.0f, 0u};
+    if (r.result == HD_CAN_RES_OK && fw->request.pending) {
+        /* Only a caller that skips hd_fw_background's ordering gets here:
+         * the tick has not taken the previous change yet. */
+        r.result = HD_CAN_RES_BUSY;
+    }
+    if (r.result == HD_CAN_RES_OK) {
+        execute(fw, &cmd, &r);
+    }
+    queue_ack(fw, node, &cmd, &r);
+}
+
+bool hd_fw_background(hd_fw_t *fw)
+{
+    if (fw == NULL) {
+        return false;
+    }
+    if (fw->bg.reboot_pending) {
+        if (!hd_fw_queue_empty(&fw->ack_queue)) {
+            return false;
+        }
+        fw->bg.reboot_pending = 0u;
+        fw->hal->system.reboot(fw->hal->system.ctx);
+        return true;
+    }
+    bool did = false;
+    for (unsigned i = 0; i < HD_FW_CMDS_PER_CALL; i++) {
+        /* In order: wait for the tick to take the previous change, and for
+         * room to answer. */
+        if (fw->request.pending || hd_fw_queue_full(&fw->ack_queue) || fw->bg.reboot_pending) {
+            break;
+        }
+        hal_can_frame_t f;
+        if (!hd_fw_queue_pop(&fw->cmd_queue, &f)) {
+            break;
+        }
+        hd_fw_handle_frame(fw, &f);
+        did = true;
+    }
+    return did;
+}

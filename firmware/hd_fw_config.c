@@ -1,0 +1,72 @@
+/* hd_fw_config: see hd_fw_config.h. */
+#include "hd_fw_config.h"
+
+#include <string.h>
+
+#include "hd_calib_record.h"
+#include "hd_params.h"
+#include "hd_track.h"
+
+void hd_fw_config_default(hd_fw_config_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    hd_kf_config_recommended(&cfg->kf, HD_FW_TS_S, HD_FW_DEFAULT_NOISE_NM,
+                             HD_FW_DEFAULT_RIPPLE_SETTLE_S, HD_FW_DEFAULT_OFFSET_SETTLE_S);
+    hd_expected_config_default(&cfg->expected);
+    cfg->track_bandwidth_hz = HD_TRACK_DEFAULT_BANDWIDTH_HZ;
+    cfg->gear_ratio = 100.0f;
+    cfg->motor_cpr = 4096u;
+    cfg->output_cpr = 4096u;
+    cfg->adc_volts_per_count = 10.0f / 32768.0f;
+    cfg->torque_limit_nm = 200.0f;
+    cfg->max_motor_speed_rad_s = 1000.0f;
+    cfg->calib_gain_nm_per_v = HD_CALIB_NOMINAL_GAIN_NM_PER_V;
+    cfg->calib_offset_v = 0.0f;
+    cfg->telemetry_rate_hz = 1000u;
+    cfg->angle_telemetry_every = 10u;
+    cfg->node_id = 1u;
+    cfg->filter_enabled = 1u;
+}
+
+hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)
+{
+    if (bad_param != NULL) {
+        *bad_param = 0u;
+    }
+    if (cfg == NULL) {
+        return HD_FW_ERR_NULL;
+    }
+    if (!(cfg->kf.ts_s == HD_FW_TS_S)) {
+        return HD_FW_ERR_TS;
+    }
+    for (size_t i = 0; i < hd_param_count(); i++) {
+        const hd_param_info_t *p = hd_param_at(i);
+        if (hd_param_check(p, hd_param_get(p, cfg)) != HD_PARAM_OK) {
+            if (bad_param != NULL) {
+                *bad_param = p->id;
+            }
+            return HD_FW_ERR_RANGE;
+        }
+    }
+    if (hd_kf_config_check(&cfg->kf) != HD_KF_OK) {
+        return HD_FW_ERR_KF;
+    }
+    if (hd_expected_config_check(&cfg->expected) != 0) {
+        return HD_FW_ERR_EXPECTED;
+    }
+    return HD_FW_OK;
+}
+
+const char *hd_fw_err_str(int err)
+{
+    switch (err) {
+    case HD_FW_OK: return "ok";
+    case HD_FW_ERR_NULL: return "null argument";
+    case HD_FW_ERR_KF: return "filter configuration rejected (hd_kf_config_check)";
+    case HD_FW_ERR_EXPECTED: return "expected-torque configuration rejected";
+    case HD_FW_ERR_RANGE: return "a parameter is outside its range (hd_params.def)";
+    case HD_FW_ERR_TS: return "filter sample period must be 1 ms";
+    case HD_FW_ERR_HAL: return "the HAL has no sensors";
+    default: return "unknown error";
+    }
+}

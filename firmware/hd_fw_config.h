@@ -1,0 +1,75 @@
+/*
+ * hd_fw_config: the firmware's running configuration, its defaults and its
+ * checks.  Every field a user can set is a row of hd_params.def (key, CAN
+ * id, range, how it takes effect, which record keeps it).
+ *
+ * Pure: no I/O, no heap, no globals.
+ */
+#ifndef HD_FW_CONFIG_H
+#define HD_FW_CONFIG_H
+
+#include <stdint.h>
+
+#include "hd_expected.h"
+#include "hd_kf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define HD_FW_TICK_HZ 1000u
+#define HD_FW_TS_S 0.001f
+#define HD_FW_TS_US 1000u
+
+/* The firmware default tuning (hd_kf_config_recommended's arguments). */
+#define HD_FW_DEFAULT_NOISE_NM 0.02f
+#define HD_FW_DEFAULT_RIPPLE_SETTLE_S 0.05f
+#define HD_FW_DEFAULT_OFFSET_SETTLE_S 0.02f
+
+typedef struct {
+    hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */
+    hd_expected_config_t expected;
+    float track_bandwidth_hz;       /* output-angle tracking loop */
+    float gear_ratio;               /* motor revs per output rev, >= 1 */
+    uint32_t motor_cpr;             /* motor encoder counts per rev */
+    uint32_t output_cpr;            /* output encoder counts per rev (if present) */
+    float adc_volts_per_count;      /* bridge amplifier volts per ADC count */
+    float torque_limit_nm;          /* |torque| above this is out of range */
+    float max_motor_speed_rad_s;    /* faster count changes are glitches */
+    float calib_gain_nm_per_v;      /* live calibration (the calibration record keeps it) */
+    float calib_offset_v;
+    uint16_t telemetry_rate_hz;     /* 0 = off, else 1..1000 (period rounded to whole ticks) */
+    uint16_t angle_telemetry_every; /* TELEM_C with every Nth TELEM_A/B pair, 0 = off */
+    uint8_t node_id;                /* 1..127 */
+    uint8_t filter_enabled;         /* 0: filtered torque = raw torque */
+} hd_fw_config_t;
+
+typedef enum {
+    HD_FW_OK = 0,
+    HD_FW_ERR_NULL = -1,
+    HD_FW_ERR_KF = -2,          /* hd_kf_config_check failed */
+    HD_FW_ERR_EXPECTED = -3,    /* hd_expected_config_check failed */
+    HD_FW_ERR_RANGE = -4,       /* a field outside its hd_params.def range */
+    HD_FW_ERR_TS = -5,          /* kf.ts_s != 1 ms */
+    HD_FW_ERR_HAL = -6,         /* the HAL has no sensors part */
+} hd_fw_err_t;
+
+/* The defaults: hd_kf_config_recommended (motor orders 2 and 4, output
+ * order 1, offset state; noise and settle times above), gear ratio 100,
+ * 4096-count encoders, 10 V / 2^15 counts, torque limit 200 Nm, glitch limit
+ * 1000 rad/s, calibration 6.60 Nm/V and 0 V (Taghirad 1997, Table I),
+ * telemetry at 1 kHz with TELEM_C every 10th frame, node 1, filter on. */
+void hd_fw_config_default(hd_fw_config_t *cfg);
+
+/* Checks every field against its table range, then the parts as a whole
+ * (hd_kf_config_check, hd_expected_config_check).  Returns HD_FW_OK or the
+ * first error; *bad_param (may be NULL) names the parameter id of a range
+ * error, else 0. */
+hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param);
+const char *hd_fw_err_str(int err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* HD_FW_CONFIG_H */

@@ -1,0 +1,50 @@
+/*
+ * Internal to the firmware core: what hd_fw.c, hd_fw_tick.c, hd_fw_cmd.c
+ * and hd_fw_records.c share.  Not for users of hd_fw.h.
+ */
+#ifndef HD_FW_INTERNAL_H
+#define HD_FW_INTERNAL_H
+
+#include "hd_fw.h"
+
+/* Settings the tick uses now, and the spare slot the background fills. */
+static inline const hd_fw_settings_t *hd_fw_live(const hd_fw_t *fw)
+{
+    return &fw->settings[fw->live_settings & 1u];
+}
+static inline hd_fw_settings_t *hd_fw_spare(hd_fw_t *fw)
+{
+    return &fw->settings[(fw->live_settings & 1u) ^ 1u];
+}
+static inline hd_pipeline_t *hd_fw_live_pipe(hd_fw_t *fw)
+{
+    return &fw->pipe[fw->live_pipe & 1u];
+}
+
+/* Constants that follow from the configuration (glitch limits, telemetry
+ * divider, angle per count). */
+void hd_fw_derive(hd_fw_settings_t *s);
+
+/* Asks the CAN driver for this node's command and feed-forward frames. */
+void hd_fw_set_rx_filter(const hd_fw_t *fw, uint8_t node_id);
+
+/* The queues: push returns false when full, pop when empty. */
+bool hd_fw_queue_push(hd_fw_queue_t *q, const hal_can_frame_t *f);
+bool hd_fw_queue_pop(hd_fw_queue_t *q, hal_can_frame_t *f);
+bool hd_fw_queue_full(const hd_fw_queue_t *q);
+bool hd_fw_queue_empty(const hd_fw_queue_t *q);
+
+/* Records (hd_fw_records.c).  Boot: loads the calibration and configuration
+ * records into *s (defaults and status where unusable). */
+void hd_fw_records_boot(hd_fw_t *fw, const hd_fw_config_t *defaults, hd_fw_settings_t *s);
+/* Background jobs; each returns an hd_can_result_t and fills *aux (record
+ * status) and *value where the ACK carries one. */
+int hd_fw_calib_save(hd_fw_t *fw, uint32_t unix_s, hd_fw_settings_t *next);
+int hd_fw_calib_load(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux, float *value);
+int hd_fw_config_save(hd_fw_t *fw, uint8_t *aux);
+int hd_fw_config_load(hd_fw_t *fw, hd_fw_config_t *next, uint8_t *aux);
+
+/* The configuration hd_fw_init was given: CONFIG_DEFAULTS returns to it. */
+const hd_fw_config_t *hd_fw_boot_defaults(const hd_fw_t *fw);
+
+#endif /* HD_FW_INTERNAL_H */
