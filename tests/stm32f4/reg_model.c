@@ -3,7 +3,7 @@
 
 #include <stdio.h>
 
-#define MAX_MODELS 8u
+#define MAX_MODELS 16u
 
 static reg_model_t *g_models[MAX_MODELS];
 static size_t g_count;

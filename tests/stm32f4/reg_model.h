@@ -32,7 +32,7 @@ struct reg_model {
     uint32_t reads, writes;       /* accesses seen (for bounded-wait checks) */
 };
 
-/* Registers a model (at most 8 at a time); reg_model_reset forgets all. */
+/* Registers a model (at most 16 at a time); reg_model_reset forgets all. */
 void reg_model_add(reg_model_t *m);
 void reg_model_reset(void);
 

@@ -9,7 +9,7 @@ void stm32_periph_hw(const stm32_board_def_t *def, stm32_periph_t *out)
     out->flash = (stm32_flash_t *)STM32_FLASH_IF_BASE;
     out->iwdg = (stm32_iwdg_t *)STM32_IWDG_BASE;
     for (uint32_t i = 0; i < STM32_GPIO_PORTS; i++) {
-        out->gpio[i] = (stm32_gpio_t *)(STM32_GPIOA_BASE + i * STM32_GPIO_STRIDE);
+        out->gpio[i] = (stm32_gpio_t *)(uintptr_t)(STM32_GPIOA_BASE + i * STM32_GPIO_STRIDE);
     }
     out->tick = (stm32_tim_t *)def->tick_base;
     out->adc = (stm32_adc_t *)STM32_ADC1_BASE;
@@ -17,7 +17,8 @@ void stm32_periph_hw(const stm32_board_def_t *def, stm32_periph_t *out)
     out->motor_enc = (stm32_tim_t *)def->motor_enc_base;
     out->output_enc = def->output_enc_base != 0u ? (stm32_tim_t *)def->output_enc_base : NULL;
     out->can = (stm32_can_t *)STM32_CAN1_BASE;
-    out->nvm_mem = (uint8_t *)(STM32_FLASH_MEM_BASE + def->nvm_first_sector * def->nvm_sector_bytes);
+    out->nvm_mem = (uint8_t *)(uintptr_t)(STM32_FLASH_MEM_BASE +
+                                          def->nvm_first_sector * def->nvm_sector_bytes);
 }
 
 static void cycle_clock_start(stm32_cycle_clock_t *c, uint32_t sysclk_hz)
