@@ -195,7 +195,7 @@ static int parse_block(hd_fw_config_t *c, const tok_t *v, size_t nv, bool *block
                        hd_cfgtxt_error_t *err, unsigned line)
 {
     if (nv < 3u || nv > 4u) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line,
+        return fail(err, HD_FW_ERR_SYNTAX, line,
                     "block needs: motor|output|fixed <order_or_hz> <q_nm2> [on|off]");
     }
     hd_kf_block_config_t b = {0};
@@ -206,31 +206,31 @@ static int parse_block(hd_fw_config_t *c, const tok_t *v, size_t nv, bool *block
     } else if (tok_eq(v[0], "fixed")) {
         b.lock = HD_KF_LOCK_FIXED;
     } else {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "block kind must be motor, output or fixed");
+        return fail(err, HD_FW_ERR_SYNTAX, line, "block kind must be motor, output or fixed");
     }
     if (hd_config_parse_float(v[1].s, v[1].n, &b.order) != 0 ||
         hd_config_parse_float(v[2].s, v[2].n, &b.q_nm2) != 0) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "block order and q must be numbers");
+        return fail(err, HD_FW_ERR_SYNTAX, line, "block order and q must be numbers");
     }
     if (b.order <= 0.0f || b.q_nm2 < 0.0f) {
-        return fail(err, HD_CFGTXT_ERR_RANGE, line, "block order must be > 0 and q >= 0");
+        return fail(err, HD_FW_ERR_RANGE, line, "block order must be > 0 and q >= 0");
     }
     if (b.lock == HD_KF_LOCK_FIXED && b.order >= 0.5f / HD_FW_TS_S) {
-        return fail(err, HD_CFGTXT_ERR_RANGE, line, "fixed block frequency must be below 500 Hz");
+        return fail(err, HD_FW_ERR_RANGE, line, "fixed block frequency must be below 500 Hz");
     }
     b.enabled = 1u;
     if (nv == 4u && parse_on_off(v[3], &b.enabled) != 0) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "block state must be on or off");
+        return fail(err, HD_FW_ERR_SYNTAX, line, "block state must be on or off");
     }
     if (!*blocks_seen) {
         c->kf.block_count = 0u; /* the file's blocks replace the inherited ones */
         *blocks_seen = true;
     }
     if (c->kf.block_count >= HD_KF_MAX_BLOCKS) {
-        return fail(err, HD_CFGTXT_ERR_TOO_MANY_BLOCKS, line, "too many blocks");
+        return fail(err, HD_FW_ERR_TOO_MANY_BLOCKS, line, "too many blocks");
     }
     c->kf.blocks[c->kf.block_count++] = b;
-    return HD_CFGTXT_OK;
+    return HD_FW_OK;
 }
 
 /* Lines on which each table row was set (0 = not yet), for duplicates. */
@@ -265,15 +265,15 @@ static int parse_param(hd_fw_config_t *c, tok_t key, tok_t value, seen_t *seen,
 {
     const hd_param_info_t *p = hd_param_by_key(key.s, key.n);
     if (p == NULL) {
-        return fail(err, HD_CFGTXT_ERR_UNKNOWN_KEY, line, "unknown key");
+        return fail(err, HD_FW_ERR_UNKNOWN_PARAM, line, "unknown key");
     }
     if (p->flags & HD_PF_RO) {
-        return fail(err, HD_CFGTXT_ERR_READ_ONLY, line, "read-only parameter");
+        return fail(err, HD_FW_ERR_READ_ONLY, line, "read-only parameter");
     }
     size_t row = (size_t)(p - hd_param_at(0));
     if (row < sizeof seen->line_of / sizeof seen->line_of[0]) {
         if (seen->line_of[row] != 0u) {
-            int rc = fail(err, HD_CFGTXT_ERR_DUPLICATE, line, "key given twice");
+            int rc = fail(err, HD_FW_ERR_DUPLICATE, line, "key given twice");
             if (err != NULL) {
                 err->first_line = seen->line_of[row];
             }
@@ -283,20 +283,20 @@ static int parse_param(hd_fw_config_t *c, tok_t key, tok_t value, seen_t *seen,
     }
     float v;
     if (parse_value(p, value, &v) != 0) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line,
+        return fail(err, HD_FW_ERR_SYNTAX, line,
                     p->type == HD_PT_BOOL  ? "value must be on or off"
                     : p->type == HD_PT_F32 ? "value is not a finite decimal number"
                                            : "value must be a whole decimal number without a leading zero");
     }
-    hd_param_err_t rc = hd_param_set(p, c, v);
-    if (rc != HD_PARAM_OK) {
-        int code = fail(err, HD_CFGTXT_ERR_RANGE, line, "value outside the parameter's range");
+    hd_fw_err_t rc = hd_param_set(p, c, v);
+    if (rc != HD_FW_OK) {
+        int code = fail(err, HD_FW_ERR_RANGE, line, "value outside the parameter's range");
         if (err != NULL) {
             err->param_id = p->id;
         }
         return code;
     }
-    return HD_CFGTXT_OK;
+    return HD_FW_OK;
 }
 
 /* Bytes a configuration may hold outside comments: printable ASCII, tab, CR. */
@@ -312,14 +312,14 @@ static int check_bytes(const char *s, size_t n, hd_cfgtxt_error_t *err, unsigned
         unsigned char ch = (unsigned char)s[i];
         comment = comment || ch == '#';
         if (ch == 0u) {
-            return fail(err, HD_CFGTXT_ERR_BYTES, line, "NUL byte");
+            return fail(err, HD_FW_ERR_BYTES, line, "NUL byte");
         }
         if (!text_byte(ch) && !(comment && ch >= 0x80u)) {
-            return fail(err, HD_CFGTXT_ERR_BYTES, line,
+            return fail(err, HD_FW_ERR_BYTES, line,
                         ch >= 0x80u ? "non-ASCII byte outside a comment" : "control byte");
         }
     }
-    return HD_CFGTXT_OK;
+    return HD_FW_OK;
 }
 
 static int parse_line(hd_fw_config_t *c, const char *s, size_t n, seen_t *seen,
@@ -338,7 +338,7 @@ static int parse_line(hd_fw_config_t *c, const char *s, size_t n, seen_t *seen,
         i++;
     }
     if (i == n) {
-        return HD_CFGTXT_OK; /* blank */
+        return HD_FW_OK; /* blank */
     }
     size_t k0 = i;
     while (i < n && !is_space(s[i]) && s[i] != '=') {
@@ -354,16 +354,16 @@ static int parse_line(hd_fw_config_t *c, const char *s, size_t n, seen_t *seen,
     tok_t v[5];
     size_t nv = split(s + i, n - i, v, 4u);
     if (nv == 0u) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "missing value");
+        return fail(err, HD_FW_ERR_SYNTAX, line, "missing value");
     }
     if (nv > 4u) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "too many values");
+        return fail(err, HD_FW_ERR_SYNTAX, line, "too many values");
     }
     if (tok_eq(key, "block")) {
         return parse_block(c, v, nv, &seen->blocks_seen, err, line);
     }
     if (nv != 1u) {
-        return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "this key takes one value");
+        return fail(err, HD_FW_ERR_SYNTAX, line, "this key takes one value");
     }
     return parse_param(c, key, v[0], seen, err, line);
 }
@@ -372,10 +372,10 @@ int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
                          hd_cfgtxt_error_t *err)
 {
     if (cfg == NULL || (text == NULL && len > 0u)) {
-        return fail(err, HD_CFGTXT_ERR_NULL, 0u, "null argument");
+        return fail(err, HD_FW_ERR_NULL, 0u, "null argument");
     }
     if (len > HD_CFGTXT_MAX_BYTES) {
-        return fail(err, HD_CFGTXT_ERR_TOO_LONG, 0u, "file larger than 16384 bytes");
+        return fail(err, HD_FW_ERR_TOO_LONG, 0u, "file larger than 16384 bytes");
     }
     hd_fw_config_t work = *cfg; /* all or nothing: *cfg changes only on success */
     seen_t seen;
@@ -388,13 +388,13 @@ int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
             end++;
         }
         if (end - start > HD_CFGTXT_MAX_LINE) {
-            return fail(err, HD_CFGTXT_ERR_SYNTAX, line, "line too long");
+            return fail(err, HD_FW_ERR_SYNTAX, line, "line too long");
         }
         int rc = check_bytes(text + start, end - start, err, line);
-        if (rc == HD_CFGTXT_OK) {
+        if (rc == HD_FW_OK) {
             rc = parse_line(&work, text + start, end - start, &seen, err, line);
         }
-        if (rc != HD_CFGTXT_OK) {
+        if (rc != HD_FW_OK) {
             return rc;
         }
         start = end + 1u;
@@ -403,14 +403,13 @@ int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
     unsigned bad = 0u;
     int frc = hd_fw_config_check(&work, &bad);
     if (frc != HD_FW_OK) {
-        fail(err, HD_CFGTXT_ERR_CONFIG, 0u, hd_fw_err_str(frc));
+        fail(err, frc, 0u, hd_fw_err_str(frc));
         if (err != NULL) {
-            err->fw_err = frc;
             err->param_id = bad;
         }
-        return HD_CFGTXT_ERR_CONFIG;
+        return frc;
     }
     *cfg = work;
-    fail(err, HD_CFGTXT_OK, 0u, "ok");
-    return HD_CFGTXT_OK;
+    fail(err, HD_FW_OK, 0u, "ok");
+    return HD_FW_OK;
 }

@@ -35,34 +35,20 @@
 extern "C" {
 #endif
 
-typedef enum {
-    HD_CFGTXT_OK = 0,
-    HD_CFGTXT_ERR_NULL = -1,
-    HD_CFGTXT_ERR_SYNTAX = -2,      /* line cannot be read (missing value, too long, bad number) */
-    HD_CFGTXT_ERR_UNKNOWN_KEY = -3,
-    HD_CFGTXT_ERR_RANGE = -4,       /* value outside the key's range */
-    HD_CFGTXT_ERR_TOO_MANY_BLOCKS = -5,
-    HD_CFGTXT_ERR_CONFIG = -6,      /* the whole configuration failed hd_fw_config_check */
-    HD_CFGTXT_ERR_DUPLICATE = -7,   /* a key given twice (first_line has the first) */
-    HD_CFGTXT_ERR_BYTES = -8,       /* NUL, control or non-ASCII byte outside a comment */
-    HD_CFGTXT_ERR_TOO_LONG = -9,    /* more than HD_CFGTXT_MAX_BYTES */
-    HD_CFGTXT_ERR_READ_ONLY = -10,  /* a read-only parameter */
-} hd_cfgtxt_err_t;
-
 typedef struct {
-    int code;             /* hd_cfgtxt_err_t */
-    unsigned line;        /* 1-based line of the error; 0 for whole-file errors */
+    int code;             /* hd_fw_err_t (HD_FW_OK on success) */
+    unsigned line;        /* 1-based line of the error; 0 for whole-file errors
+                             (the model as a whole refused: HD_FW_ERR_KF, ...) */
     const char *message;  /* static string */
-    int fw_err;           /* hd_fw_err_t when code == HD_CFGTXT_ERR_CONFIG */
-    unsigned first_line;  /* HD_CFGTXT_ERR_DUPLICATE: the key's first line */
-    unsigned param_id;    /* HD_CFGTXT_ERR_CONFIG with a range error: the parameter */
+    unsigned first_line;  /* HD_FW_ERR_DUPLICATE: the key's first line */
+    unsigned param_id;    /* HD_FW_ERR_RANGE: the parameter, when known */
 } hd_cfgtxt_error_t;
 
 #define HD_CFGTXT_MAX_LINE 200u
 #define HD_CFGTXT_MAX_BYTES 16384u
 
 /* Applies the text (len bytes, need not be NUL-terminated) on top of *cfg.
- * Returns HD_CFGTXT_OK, or an error with *cfg unchanged; err may be NULL. */
+ * Returns HD_FW_OK, or an hd_fw_err_t with *cfg unchanged; err may be NULL. */
 int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
                          hd_cfgtxt_error_t *err);
 

@@ -61,13 +61,13 @@ static int commit(hd_fw_t *fw, const hd_fw_settings_t *next, bool rebuild)
     return HD_CAN_RES_OK;
 }
 
-static int result_of(hd_param_err_t e)
+static int result_of(hd_fw_err_t e)
 {
     switch (e) {
-    case HD_PARAM_OK: return HD_CAN_RES_OK;
-    case HD_PARAM_ERR_UNKNOWN: return HD_CAN_RES_UNKNOWN_PARAM;
-    case HD_PARAM_ERR_READ_ONLY: return HD_CAN_RES_READ_ONLY;
-    case HD_PARAM_ERR_NOT_FINITE: return HD_CAN_RES_NOT_FINITE;
+    case HD_FW_OK: return HD_CAN_RES_OK;
+    case HD_FW_ERR_UNKNOWN_PARAM: return HD_CAN_RES_UNKNOWN_PARAM;
+    case HD_FW_ERR_READ_ONLY: return HD_CAN_RES_READ_ONLY;
+    case HD_FW_ERR_NOT_FINITE: return HD_CAN_RES_NOT_FINITE;
     default: return HD_CAN_RES_OUT_OF_RANGE;
     }
 }

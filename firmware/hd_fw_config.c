@@ -41,7 +41,7 @@ hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)
     }
     for (size_t i = 0; i < hd_param_count(); i++) {
         const hd_param_info_t *p = hd_param_at(i);
-        if (hd_param_check(p, hd_param_get(p, cfg)) != HD_PARAM_OK) {
+        if (hd_param_check(p, hd_param_get(p, cfg)) != HD_FW_OK) {
             if (bad_param != NULL) {
                 *bad_param = p->id;
             }
@@ -67,6 +67,15 @@ const char *hd_fw_err_str(int err)
     case HD_FW_ERR_RANGE: return "a parameter is outside its range (hd_params.def)";
     case HD_FW_ERR_TS: return "filter sample period must be 1 ms";
     case HD_FW_ERR_HAL: return "the HAL has no sensors";
+    case HD_FW_ERR_UNKNOWN_PARAM: return "unknown parameter";
+    case HD_FW_ERR_READ_ONLY: return "read-only parameter";
+    case HD_FW_ERR_NOT_FINITE: return "value is not a finite number";
+    case HD_FW_ERR_NOT_WHOLE: return "value must be a whole number";
+    case HD_FW_ERR_SYNTAX: return "line cannot be read";
+    case HD_FW_ERR_TOO_MANY_BLOCKS: return "too many filter blocks";
+    case HD_FW_ERR_DUPLICATE: return "key given twice";
+    case HD_FW_ERR_BYTES: return "NUL, control or non-ASCII byte outside a comment";
+    case HD_FW_ERR_TOO_LONG: return "configuration text too long";
     default: return "unknown error";
     }
 }

@@ -44,14 +44,25 @@ typedef struct {
     uint8_t filter_enabled;         /* 0: filtered torque = raw torque */
 } hd_fw_config_t;
 
+/* The firmware library's errors (configuration, parameters, configuration
+ * text).  hd_fw_err_str names each. */
 typedef enum {
     HD_FW_OK = 0,
     HD_FW_ERR_NULL = -1,
-    HD_FW_ERR_KF = -2,          /* hd_kf_config_check failed */
-    HD_FW_ERR_EXPECTED = -3,    /* hd_expected_config_check failed */
-    HD_FW_ERR_RANGE = -4,       /* a field outside its hd_params.def range */
-    HD_FW_ERR_TS = -5,          /* kf.ts_s != 1 ms */
-    HD_FW_ERR_HAL = -6,         /* the HAL has no sensors part */
+    HD_FW_ERR_KF = -2,            /* hd_kf_config_check refused the model */
+    HD_FW_ERR_EXPECTED = -3,      /* hd_expected_config_check refused it */
+    HD_FW_ERR_RANGE = -4,         /* a value outside its hd_params.def range */
+    HD_FW_ERR_TS = -5,            /* kf.ts_s != 1 ms */
+    HD_FW_ERR_HAL = -6,           /* the HAL has no sensors part */
+    HD_FW_ERR_UNKNOWN_PARAM = -7, /* no such parameter id or key */
+    HD_FW_ERR_READ_ONLY = -8,     /* a read-only parameter */
+    HD_FW_ERR_NOT_FINITE = -9,    /* NaN or infinity */
+    HD_FW_ERR_NOT_WHOLE = -10,    /* an integer or flag parameter given a fraction */
+    HD_FW_ERR_SYNTAX = -11,       /* a line that cannot be read (missing value, bad number) */
+    HD_FW_ERR_TOO_MANY_BLOCKS = -12,
+    HD_FW_ERR_DUPLICATE = -13,    /* a key given twice */
+    HD_FW_ERR_BYTES = -14,        /* NUL, control or non-ASCII byte outside a comment */
+    HD_FW_ERR_TOO_LONG = -15,     /* configuration text above HD_CFGTXT_MAX_BYTES */
 } hd_fw_err_t;
 
 /* The defaults: hd_kf_config_recommended (motor orders 2 and 4, output

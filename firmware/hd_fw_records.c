@@ -60,7 +60,7 @@ hd_record_status_t hd_config_record_decode(const uint8_t *buf, size_t len,
             return HD_RECORD_BAD_VERSION; /* written by a newer firmware */
         }
         if ((p->flags & HD_PF_CONFIG) == 0u ||
-            hd_param_set(p, &c, hd_le_get_f32(buf + at + 1u)) != HD_PARAM_OK) {
+            hd_param_set(p, &c, hd_le_get_f32(buf + at + 1u)) != HD_FW_OK) {
             return HD_RECORD_CORRUPT;
         }
         at += 5u;
@@ -118,8 +118,8 @@ static uint32_t config_faults_of(hd_record_status_t st)
 static bool calib_plausible(const hd_calib_record_t *r)
 {
     return hd_param_check(hd_param_by_id(HD_PARAM_CALIB_GAIN_NM_PER_V), r->gain_nm_per_v) ==
-               HD_PARAM_OK &&
-           hd_param_check(hd_param_by_id(HD_PARAM_CALIB_OFFSET_V), r->offset_v) == HD_PARAM_OK;
+               HD_FW_OK &&
+           hd_param_check(hd_param_by_id(HD_PARAM_CALIB_OFFSET_V), r->offset_v) == HD_FW_OK;
 }
 
 static hd_record_status_t load_calib(const hd_fw_t *fw, hd_calib_record_t *rec, uint32_t *seq)

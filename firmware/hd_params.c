@@ -84,23 +84,23 @@ const hd_param_info_t *hd_param_by_key(const char *key, size_t n)
     return NULL;
 }
 
-hd_param_err_t hd_param_check(const hd_param_info_t *p, float v)
+hd_fw_err_t hd_param_check(const hd_param_info_t *p, float v)
 {
     if (p == NULL) {
-        return HD_PARAM_ERR_UNKNOWN;
+        return HD_FW_ERR_UNKNOWN_PARAM;
     }
     if (!isfinite(v)) {
-        return HD_PARAM_ERR_NOT_FINITE;
+        return HD_FW_ERR_NOT_FINITE;
     }
     bool lo_ok = (p->flags & HD_PF_LO_OPEN) ? v > p->lo : v >= p->lo;
     if (!lo_ok || v > p->hi) {
-        return HD_PARAM_ERR_RANGE;
+        return HD_FW_ERR_RANGE;
     }
     /* The range keeps v within 2^24, where float32 holds every integer. */
     if (p->type != HD_PT_F32 && v != (float)(int32_t)v) {
-        return HD_PARAM_ERR_NOT_WHOLE;
+        return HD_FW_ERR_NOT_WHOLE;
     }
-    return HD_PARAM_OK;
+    return HD_FW_OK;
 }
 
 float hd_param_get(const hd_param_info_t *p, const hd_fw_config_t *cfg)
@@ -127,16 +127,16 @@ float hd_param_get(const hd_param_info_t *p, const hd_fw_config_t *cfg)
     }
 }
 
-hd_param_err_t hd_param_set(const hd_param_info_t *p, hd_fw_config_t *cfg, float v)
+hd_fw_err_t hd_param_set(const hd_param_info_t *p, hd_fw_config_t *cfg, float v)
 {
     if (p == NULL) {
-        return HD_PARAM_ERR_UNKNOWN;
+        return HD_FW_ERR_UNKNOWN_PARAM;
     }
     if (p->flags & HD_PF_RO) {
-        return HD_PARAM_ERR_READ_ONLY;
+        return HD_FW_ERR_READ_ONLY;
     }
-    hd_param_err_t rc = hd_param_check(p, v);
-    if (rc != HD_PARAM_OK) {
+    hd_fw_err_t rc = hd_param_check(p, v);
+    if (rc != HD_FW_OK) {
         return rc;
     }
     unsigned char *at = (unsigned char *)cfg + p->offset;
@@ -158,20 +158,7 @@ hd_param_err_t hd_param_set(const hd_param_info_t *p, hd_fw_config_t *cfg, float
         *at = (unsigned char)v;
         break;
     }
-    return HD_PARAM_OK;
-}
-
-const char *hd_param_err_str(int err)
-{
-    switch (err) {
-    case HD_PARAM_OK: return "ok";
-    case HD_PARAM_ERR_UNKNOWN: return "unknown parameter";
-    case HD_PARAM_ERR_READ_ONLY: return "read-only parameter";
-    case HD_PARAM_ERR_NOT_FINITE: return "value is not a finite number";
-    case HD_PARAM_ERR_RANGE: return "value outside the parameter's range";
-    case HD_PARAM_ERR_NOT_WHOLE: return "value must be a whole number";
-    default: return "unknown error";
-    }
+    return HD_FW_OK;
 }
 
 uint32_t hd_param_table_crc(void)

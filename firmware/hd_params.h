@@ -45,15 +45,6 @@ typedef struct {
     const char *unit;
 } hd_param_info_t;
 
-typedef enum {
-    HD_PARAM_OK = 0,
-    HD_PARAM_ERR_UNKNOWN = -1,    /* no such id or key */
-    HD_PARAM_ERR_READ_ONLY = -2,
-    HD_PARAM_ERR_NOT_FINITE = -3,
-    HD_PARAM_ERR_RANGE = -4,      /* outside [lo, hi], or (lo, hi] */
-    HD_PARAM_ERR_NOT_WHOLE = -5,  /* an integer or flag parameter given a fraction */
-} hd_param_err_t;
-
 size_t hd_param_count(void);
 /* Row i of the table (0 <= i < count), or NULL. */
 const hd_param_info_t *hd_param_at(size_t i);
@@ -61,13 +52,14 @@ const hd_param_info_t *hd_param_by_id(unsigned id);
 /* Key of n bytes (need not be NUL-terminated). */
 const hd_param_info_t *hd_param_by_key(const char *key, size_t n);
 
-/* Would v be accepted for p (range, finiteness, whole numbers)?  Read-only
- * parameters are checked too; set refuses them. */
-hd_param_err_t hd_param_check(const hd_param_info_t *p, float v);
+/* Would v be accepted for p?  HD_FW_OK, or HD_FW_ERR_UNKNOWN_PARAM (p
+ * NULL), _NOT_FINITE, _RANGE (outside [lo, hi] or (lo, hi]), _NOT_WHOLE.
+ * Read-only parameters are checked too; set refuses them. */
+hd_fw_err_t hd_param_check(const hd_param_info_t *p, float v);
 float hd_param_get(const hd_param_info_t *p, const hd_fw_config_t *cfg);
-/* Checks, then writes v into cfg (nothing written on error). */
-hd_param_err_t hd_param_set(const hd_param_info_t *p, hd_fw_config_t *cfg, float v);
-const char *hd_param_err_str(int err);
+/* Checks, then writes v into cfg (nothing written on error);
+ * HD_FW_ERR_READ_ONLY for read-only rows. */
+hd_fw_err_t hd_param_set(const hd_param_info_t *p, hd_fw_config_t *cfg, float v);
 
 /* CRC-32 over every row's id, type, flags, range and key: a host compares
  * it (VERSION item PARAM_TABLE_CRC) with its own copy of the table. */

@@ -545,8 +545,11 @@ int main(int argc, char **argv)
         hd_cfgtxt_error_t ce;
         int rc = hd_config_text_parse(text, len, &cfg, &ce);
         free(text);
-        if (rc != HD_CFGTXT_OK) {
-            if (ce.line > 0u) {
+        if (rc != HD_FW_OK) {
+            if (rc == HD_FW_ERR_DUPLICATE) {
+                fprintf(stderr, "%s:%u: %s (first on line %u)\n", o.config, ce.line, ce.message,
+                        ce.first_line);
+            } else if (ce.line > 0u) {
                 fprintf(stderr, "%s:%u: %s\n", o.config, ce.line, ce.message);
             } else {
                 fprintf(stderr, "%s: %s\n", o.config, ce.message);

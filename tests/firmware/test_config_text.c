@@ -47,7 +47,7 @@ static void test_good_file_sets_every_key(void)
         "motor_cpr = 8192\r\n";
     hd_fw_config_t cfg = base;
     hd_cfgtxt_error_t err;
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_OK, parse(text, &cfg, &err));
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, parse(text, &cfg, &err));
     TEST_ASSERT_EQUAL_FLOAT(80.0f, cfg.gear_ratio);
     TEST_ASSERT_EQUAL_FLOAT(0.5f, cfg.kf.r_nm2);
     TEST_ASSERT_EQUAL_FLOAT(100.0f, cfg.kf.p0_nm2);
@@ -77,7 +77,7 @@ static void test_good_file_sets_every_key(void)
 static void test_empty_file_keeps_the_base(void)
 {
     hd_fw_config_t cfg = base;
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_OK, parse("# nothing\n\n   \n", &cfg, NULL));
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, parse("# nothing\n\n   \n", &cfg, NULL));
     TEST_ASSERT_EQUAL_MEMORY(&base, &cfg, sizeof cfg);
 }
 
@@ -90,43 +90,43 @@ typedef struct {
 static void test_malformed_files_report_the_line_and_change_nothing(void)
 {
     const bad_case_t cases[] = {
-        {"gear_ratio = 50\nbogus = 1\n", HD_CFGTXT_ERR_UNKNOWN_KEY, 2},
-        {"r_nm2 = 1.2.3\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"r_nm2 =\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"r_nm2 = 1 2\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"\n\nr_nm2 = -1\n", HD_CFGTXT_ERR_RANGE, 3},
-        {"r_nm2 = 0\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"r_nm2 = nan\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"r_nm2 = 1e999\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"node_id = 200\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"node_id = 0\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"node_id = -3\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"telemetry_rate_hz = 2000\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"offset = maybe\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"block = motor 2\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"block = wobble 2 1\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"block = fixed 600 1\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"block = motor 0 1\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"block = motor 2 -1\n", HD_CFGTXT_ERR_RANGE, 1},
+        {"gear_ratio = 50\nbogus = 1\n", HD_FW_ERR_UNKNOWN_PARAM, 2},
+        {"r_nm2 = 1.2.3\n", HD_FW_ERR_SYNTAX, 1},
+        {"r_nm2 =\n", HD_FW_ERR_SYNTAX, 1},
+        {"r_nm2 = 1 2\n", HD_FW_ERR_SYNTAX, 1},
+        {"\n\nr_nm2 = -1\n", HD_FW_ERR_RANGE, 3},
+        {"r_nm2 = 0\n", HD_FW_ERR_RANGE, 1},
+        {"r_nm2 = nan\n", HD_FW_ERR_SYNTAX, 1},
+        {"r_nm2 = 1e999\n", HD_FW_ERR_SYNTAX, 1},
+        {"node_id = 200\n", HD_FW_ERR_RANGE, 1},
+        {"node_id = 0\n", HD_FW_ERR_RANGE, 1},
+        {"node_id = -3\n", HD_FW_ERR_SYNTAX, 1},
+        {"telemetry_rate_hz = 2000\n", HD_FW_ERR_RANGE, 1},
+        {"offset = maybe\n", HD_FW_ERR_SYNTAX, 1},
+        {"block = motor 2\n", HD_FW_ERR_SYNTAX, 1},
+        {"block = wobble 2 1\n", HD_FW_ERR_SYNTAX, 1},
+        {"block = fixed 600 1\n", HD_FW_ERR_RANGE, 1},
+        {"block = motor 0 1\n", HD_FW_ERR_RANGE, 1},
+        {"block = motor 2 -1\n", HD_FW_ERR_RANGE, 1},
         {"block = motor 1 1\nblock = motor 2 1\nblock = motor 3 1\nblock = motor 4 1\n"
          "block = motor 5 1\nblock = motor 6 1\nblock = motor 7 1\nblock = motor 8 1\n"
          "block = motor 9 1\n",
-         HD_CFGTXT_ERR_TOO_MANY_BLOCKS, 9},
+         HD_FW_ERR_TOO_MANY_BLOCKS, 9},
         /* outside a table range: the line says so */
-        {"gear_ratio = 0.5\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"track_bandwidth_hz = 200\n", HD_CFGTXT_ERR_RANGE, 1},
-        {"\nnyquist_fraction = 1.5\n", HD_CFGTXT_ERR_RANGE, 2},
-        {"telemetry_rate_hz = 2.5\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"gear_ratio = 0.5\n", HD_FW_ERR_RANGE, 1},
+        {"track_bandwidth_hz = 200\n", HD_FW_ERR_RANGE, 1},
+        {"\nnyquist_fraction = 1.5\n", HD_FW_ERR_RANGE, 2},
+        {"telemetry_rate_hz = 2.5\n", HD_FW_ERR_SYNTAX, 1},
         /* each line fine, the whole refused (p0 / R beyond float32) */
-        {"r_nm2 = 1e-6\np0_nm2 = 100\n", HD_CFGTXT_ERR_CONFIG, 0},
+        {"r_nm2 = 1e-6\np0_nm2 = 100\n", HD_FW_ERR_KF, 0},
         /* decimal only: a leading zero is not octal, it is an error */
-        {"motor_cpr = 01024\n", HD_CFGTXT_ERR_SYNTAX, 1},
-        {"node_id = 0x10\n", HD_CFGTXT_ERR_SYNTAX, 1},
+        {"motor_cpr = 01024\n", HD_FW_ERR_SYNTAX, 1},
+        {"node_id = 0x10\n", HD_FW_ERR_SYNTAX, 1},
         /* a key twice: the second line, naming the first */
-        {"gear_ratio = 80\nr_nm2 = 1\ngear_ratio = 90\n", HD_CFGTXT_ERR_DUPLICATE, 3},
-        {"block_count = 3\n", HD_CFGTXT_ERR_READ_ONLY, 1},
-        {"gear_ratio = 80\x01\n", HD_CFGTXT_ERR_BYTES, 1},
-        {"# ok: \xc3\xa9 in a comment\ngear_ratio = 8\xc3\xa9" "0\n", HD_CFGTXT_ERR_BYTES, 2},
+        {"gear_ratio = 80\nr_nm2 = 1\ngear_ratio = 90\n", HD_FW_ERR_DUPLICATE, 3},
+        {"block_count = 3\n", HD_FW_ERR_READ_ONLY, 1},
+        {"gear_ratio = 80\x01\n", HD_FW_ERR_BYTES, 1},
+        {"# ok: \xc3\xa9 in a comment\ngear_ratio = 8\xc3\xa9" "0\n", HD_FW_ERR_BYTES, 2},
     };
     for (unsigned i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         hd_fw_config_t cfg = base;
@@ -144,7 +144,7 @@ static void test_duplicate_names_both_lines(void)
 {
     hd_fw_config_t cfg = base;
     hd_cfgtxt_error_t err;
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_DUPLICATE,
+    TEST_ASSERT_EQUAL_INT(HD_FW_ERR_DUPLICATE,
                           parse("node_id = 3\n\n# x\nnode_id = 4\n", &cfg, &err));
     TEST_ASSERT_EQUAL_UINT(4, err.line);
     TEST_ASSERT_EQUAL_UINT(1, err.first_line);
@@ -156,7 +156,7 @@ static void test_nul_byte_stops_nothing_silently(void)
     static const char text[] = "gear_ratio = 80\n\0node_id = 999\n";
     hd_fw_config_t cfg = base;
     hd_cfgtxt_error_t err;
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_BYTES, hd_config_text_parse(text, sizeof text - 1, &cfg, &err));
+    TEST_ASSERT_EQUAL_INT(HD_FW_ERR_BYTES, hd_config_text_parse(text, sizeof text - 1, &cfg, &err));
     TEST_ASSERT_EQUAL_UINT(2, err.line);
     TEST_ASSERT_EQUAL_MEMORY(&base, &cfg, sizeof cfg);
 }
@@ -167,8 +167,8 @@ static void test_size_limit(void)
     memset(text, '\n', sizeof text);
     hd_fw_config_t cfg = base;
     hd_cfgtxt_error_t err;
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_OK, hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES, &cfg, &err));
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_TOO_LONG,
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES, &cfg, &err));
+    TEST_ASSERT_EQUAL_INT(HD_FW_ERR_TOO_LONG,
                           hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES + 1u, &cfg, &err));
 }
 
@@ -194,10 +194,10 @@ static void test_every_table_row_is_a_key(void)
         hd_fw_config_t cfg = base;
         hd_cfgtxt_error_t err;
         int rc = parse(text, &cfg, &err);
-        if (rc == HD_CFGTXT_ERR_CONFIG) {
+        if (rc == HD_FW_ERR_KF) {
             continue; /* the bound alone is a refused model (e.g. p0 / R) */
         }
-        TEST_ASSERT_EQUAL_INT_MESSAGE(HD_CFGTXT_OK, rc, text);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(HD_FW_OK, rc, text);
         TEST_ASSERT_EQUAL_FLOAT_MESSAGE(want, hd_param_get(p, &cfg), text);
         n++;
     }
@@ -211,10 +211,10 @@ static void test_long_line_and_null_are_rejected(void)
     text[sizeof text - 1] = '\n';
     hd_fw_config_t cfg = base;
     hd_cfgtxt_error_t err;
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_SYNTAX, hd_config_text_parse(text, sizeof text, &cfg, &err));
+    TEST_ASSERT_EQUAL_INT(HD_FW_ERR_SYNTAX, hd_config_text_parse(text, sizeof text, &cfg, &err));
     TEST_ASSERT_EQUAL_UINT(1, err.line);
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_NULL, hd_config_text_parse("x", 1, NULL, &err));
-    TEST_ASSERT_EQUAL_INT(HD_CFGTXT_ERR_NULL, hd_config_text_parse(NULL, 3, &cfg, &err));
+    TEST_ASSERT_EQUAL_INT(HD_FW_ERR_NULL, hd_config_text_parse("x", 1, NULL, &err));
+    TEST_ASSERT_EQUAL_INT(HD_FW_ERR_NULL, hd_config_text_parse(NULL, 3, &cfg, &err));
 }
 
 static void test_number_parser_agrees_with_strtod(void)

@@ -1,0 +1,69 @@
+/* Prints what the C side makes of hd_params.def and hd_protocol.def, and a
+ * few frames from the C encoders, one JSON object per line, for
+ * test_protocol_tables.py to compare with the Python side and the DBC. */
+#include <stdio.h>
+#include <string.h>
+
+#include "hd_can_proto.h"
+#include "hd_fw.h"
+#include "hd_params.h"
+
+static void frame(const char *what, const hal_can_frame_t *f)
+{
+    printf("{\"frame\": \"%s\", \"id\": %lu, \"ext\": %d, \"data\": \"", what, (unsigned long)f->id,
+           (f->flags & HAL_CAN_FLAG_EXT) != 0u);
+    for (unsigned i = 0; i < f->len; i++) {
+        printf("%02x", f->data[i]);
+    }
+    printf("\"}\n");
+}
+
+int main(void)
+{
+    for (size_t i = 0; i < hd_param_count(); i++) {
+        const hd_param_info_t *p = hd_param_at(i);
+        printf("{\"param\": %u, \"name\": \"%s\", \"key\": \"%s\", \"type\": %u, \"flags\": %u, "
+               "\"lo\": %.17g, \"hi\": %.17g}\n",
+               p->id, p->name, p->key, p->type, p->flags, (double)p->lo, (double)p->hi);
+    }
+    printf("{\"param_table_crc\": %lu}\n", (unsigned long)hd_param_table_crc());
+    for (int c = 0; c < 256; c++) {
+        if (strcmp(hd_can_opcode_str(c), "UNKNOWN_OPCODE") != 0) {
+            printf("{\"opcode\": %d, \"name\": \"%s\"}\n", c, hd_can_opcode_str(c));
+        }
+        if (strcmp(hd_can_result_str(c), "UNKNOWN_RESULT") != 0) {
+            printf("{\"result\": %d, \"name\": \"%s\"}\n", c, hd_can_result_str(c));
+        }
+    }
+    for (unsigned b = 0; b < HD_FAULT_COUNT; b++) {
+        printf("{\"fault\": %u, \"name\": \"%s\"}\n", b, hd_can_fault_str(b));
+    }
+    /* Frames with known contents (the test decodes them with the DBC). */
+    hal_can_frame_t a, b;
+    hd_can_telem_t t = {12.34f, -1.5f, 0.25f, true, -156.0f, 0x018410u, 0x05u, 0x7Fu};
+    hd_can_encode_telem(3, &t, &a, &b);
+    frame("TELEM_A", &a);
+    frame("TELEM_B", &b);
+    hd_can_angle_t ang = {0x89ABCDEFu, 0x345678u, true, 9u};
+    hd_can_encode_angle(3, &ang, &a);
+    frame("TELEM_C", &a);
+    hd_can_heartbeat_t h = {HD_STATE_DEGRADED, 0x020401u, 0x1234u, 2u, 4u, 6u};
+    hd_can_encode_heartbeat(3, &h, &a);
+    frame("HEARTBEAT", &a);
+    hd_can_boot_t bt = {HAL_RESET_WATCHDOG, true, false, 0x08001234u, 2u, 3u};
+    hd_can_encode_boot(3, &bt, &a);
+    frame("BOOT", &a);
+    hd_can_ack_t ack = {HD_CMD_GET_PARAM, 9, HD_CAN_RES_OK, HD_PARAM_R_NM2, 0.5f, 0u};
+    hd_can_encode_ack(3, &ack, &a);
+    frame("ACK_FLOAT", &a);
+    hd_can_ack_t ver = {HD_CMD_VERSION, 1, HD_CAN_RES_OK, HD_INFO_FIRMWARE_VERSION, 0.0f, 0x00010203u};
+    hd_can_encode_ack(3, &ver, &a);
+    frame("ACK_U32", &a);
+    hd_can_cmd_t c = {HD_CMD_SET_PARAM, 7, {HD_PARAM_GEAR_RATIO, 0}, 0.0f, 121.0f, 0u};
+    hd_can_encode_cmd(3, &c, &a);
+    frame("CMD", &a);
+    hd_can_feedforward_t ff = {-2.5f, 7u};
+    hd_can_encode_feedforward(3, &ff, &a);
+    frame("FEEDFORWARD", &a);
+    return 0;
+}
