@@ -18,15 +18,18 @@ void hd_expected_config_default(hd_expected_config_t *cfg)
     cfg->coulomb_vel_eps_rad_s = DEFAULT_VEL_EPS_RAD_S;
 }
 
-int hd_expected_config_check(const hd_expected_config_t *cfg)
+hd_kf_err_t hd_expected_config_check(const hd_expected_config_t *cfg)
 {
-    if (cfg == NULL || !is_finite(cfg->inertia_kgm2) || cfg->inertia_kgm2 < 0.0f ||
+    if (cfg == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    if (!is_finite(cfg->inertia_kgm2) || cfg->inertia_kgm2 < 0.0f ||
         !is_finite(cfg->viscous_nm_s_rad) || cfg->viscous_nm_s_rad < 0.0f ||
         !is_finite(cfg->coulomb_nm) || cfg->coulomb_nm < 0.0f ||
         !is_finite(cfg->coulomb_vel_eps_rad_s) || cfg->coulomb_vel_eps_rad_s <= 0.0f) {
-        return -1;
+        return HD_KF_ERR_EXPECTED_CONFIG;
     }
-    return 0;
+    return HD_KF_OK;
 }
 
 float hd_expected_torque_nm(const hd_expected_config_t *cfg,

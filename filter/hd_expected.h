@@ -12,6 +12,8 @@
 #ifndef HD_EXPECTED_H
 #define HD_EXPECTED_H
 
+#include "hd_filter_err.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -25,8 +27,9 @@ typedef struct {
 
 void hd_expected_config_default(hd_expected_config_t *cfg);
 
-/* Returns 0 if cfg is not NULL, every field is finite, J, b, Fc >= 0 and v_eps > 0; else -1. */
-int hd_expected_config_check(const hd_expected_config_t *cfg);
+/* Returns HD_KF_OK if every field is finite, J, b, Fc >= 0 and v_eps > 0;
+ * HD_KF_ERR_NULL for NULL, else HD_KF_ERR_EXPECTED_CONFIG. */
+hd_kf_err_t hd_expected_config_check(const hd_expected_config_t *cfg);
 
 float hd_expected_torque_nm(const hd_expected_config_t *cfg,
                             float vel_out_rad_s, float acc_out_rad_s2,

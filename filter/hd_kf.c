@@ -1,32 +1,58 @@
-/* hd_kf: see hd_kf.h for the model, the update and the invariants. */
+/* hd_kf: see hd_kf.h for the contracts, docs/filter.md for the design. */
 #include "hd_kf.h"
 
-#include <math.h> /* sqrtf (VSQRT on Cortex-M4F), atan2f (outside the 1 kHz path) */
+#include <math.h> /* sqrtf (VSQRT on Cortex-M4F): clamp and read-out; atan2f: read-out only */
 #include <stddef.h>
 
 #include "hd_trig.h"
 
 #define DEFAULT_R_NM2 1.0f
-/* A prior on ripple amplitude (~0.5 N m per state), not 'unknown': with
- * R = 4e-4 N m^2 a p0 of 10 puts a 2.5e4 spread into P, and float32 then
- * loses the split between collinear states at standstill (measured against
- * the double reference: 0.1 N m; with 0.3 N m^2: 3e-3 N m). */
-#define DEFAULT_P0_NM2 0.3f
+#define DEFAULT_P0_NM2 0.3f /* an amplitude prior (docs/filter.md, "Priors") */
 #define DEFAULT_P_MAX_NM2 1.0e6f
 #define DEFAULT_NYQUIST_FRACTION 0.9f
 #define DEFAULT_OFFSET_Q_NM2 1.0e-6f
+#define DEFAULT_OUTPUT_LEARN_SCALE 1.0f
 #define RECOMMENDED_Q_MOTION_REF_RAD 0.05f
 #define RECOMMENDED_OUTPUT_P0_NM2 0.01f
 #define PAPER_Q_NM2 1.0e3f
 #define PAPER_R_NM2 1.0f
 #define RECOMMENDED_JUMP_NOISE_MULTIPLE 25.0f
 #define JUMP_MIN_SIGMA 4.0f
+/* Integral orders up to this take powers of the lock's phasor (doubling
+ * depth <= 3: angle within 2e-7 rad, docs/filter.md). */
+#define MAX_POWER_ORDER ((unsigned)HD_KF_MAX_POWER)
+/* Phasor table: motor powers at [1, 8], output powers at [10, 17], then one
+ * per configured block that turns its own frame. */
+#define POWER_TABLE_OUTPUT (MAX_POWER_ORDER + 1u)
+#define OWN_PHASORS (2u * POWER_TABLE_OUTPUT)
+/* Below this |angle| [rad] sine and cosine come from their series
+ * a - a^3/6 and 1 - a^2/2 + a^4/24: the next terms are < 1e-8 relative,
+ * under float32 rounding. */
+#define SMALL_ANGLE_RAD 0.03125f
+#define PROFILE_MAX_ORDER 255.0f
+
+typedef union {
+    float f;
+    uint32_t u;
+} float_bits_t;
+
+#define FLOAT_INF_BITS 0x7f800000u
 
 /* isfinite without libm calls; x - x is 0 only for finite x. */
 static bool is_finite(float x)
 {
     return (x - x) == 0.0f;
 }
+
+static uint32_t bits_of(float x)
+{
+    const float_bits_t b = {.f = x};
+    return b.u;
+}
+
+/* ===================================================================== */
+/* Configuration                                                          */
+/* ===================================================================== */
 
 void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s)
 {
@@ -38,6 +64,7 @@ void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s)
     cfg->nyquist_fraction = DEFAULT_NYQUIST_FRACTION;
     cfg->offset_q_nm2 = DEFAULT_OFFSET_Q_NM2;
     cfg->output_p0_nm2 = DEFAULT_P0_NM2;
+    cfg->output_learn_scale = DEFAULT_OUTPUT_LEARN_SCALE;
 }
 
 void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment)
@@ -57,9 +84,8 @@ void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s)
 {
     hd_kf_config_default(cfg, ts_s);
-    /* R: white sensor noise.  For a scalar random-walk observed in noise the
-     * steady-state gain is ~sqrt(q/r), i.e. a time constant ~ ts/sqrt(q/r);
-     * choose q so each state settles in the requested time. */
+    /* For a random walk observed in noise the steady gain is ~sqrt(q/r):
+     * q = r (ts / settle)^2 settles in ~settle. */
     const float r = noise_nm * noise_nm;
     const float ripple_ratio = ts_s / ripple_settle_s;
     const float offset_ratio = ts_s / offset_settle_s;
@@ -153,6 +179,9 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         cfg->nyquist_fraction > 1.0f) {
         return HD_KF_ERR_NYQUIST;
     }
+    if (!is_nonneg(cfg->output_learn_scale) || cfg->output_learn_scale > 1.0f) {
+        return HD_KF_ERR_LEARN_SCALE;
+    }
     for (unsigned i = 0; i < cfg->block_count; i++) {
         const hd_kf_err_t err = check_block(&cfg->blocks[i], cfg->ts_s);
         if (err != HD_KF_OK) {
@@ -162,75 +191,208 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
     return HD_KF_OK;
 }
 
-const char *hd_kf_err_str(int err)
+const char *hd_kf_status_name(unsigned bit)
 {
-    switch (err) {
-    case HD_KF_OK: return "ok";
-    case HD_KF_ERR_NULL: return "null pointer";
-    case HD_KF_ERR_BLOCK_COUNT: return "too many blocks (HD_KF_MAX_BLOCKS)";
-    case HD_KF_ERR_LOCK: return "unknown block lock kind";
-    case HD_KF_ERR_ORDER: return "block order/frequency must be finite and > 0";
-    case HD_KF_ERR_NOISE: return "q, r, p0, p_max, gates and load coefficient must be finite, q >= 0, r > 0, p0 <= p_max, load coefficient <= HD_KF_MAX_LOAD_COEFF_PER_NM";
-    case HD_KF_ERR_TS: return "sample period must be finite and > 0";
-    case HD_KF_ERR_NYQUIST: return "nyquist_fraction must be in (0, 1]";
-    case HD_KF_ERR_FIXED_OVER_NYQUIST: return "fixed-frequency block at or above fs/2";
-    case HD_KF_ERR_CONDITION: return "p0 / r above HD_KF_MAX_P0_OVER_R: float32 would lose the covariance";
-    default: return "unknown error";
+    static const char *const NAMES[HD_KF_STATUS_BITS] = {
+        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP"};
+    return bit < HD_KF_STATUS_BITS ? NAMES[bit] : NULL;
+}
+
+/* ===================================================================== */
+/* Layout: active slots, frames and the packed covariance                 */
+/* ===================================================================== */
+
+/* P is stored once, by 2x2 tiles of the upper triangle, tile row by tile
+ * row.  Tile row s (block slot s, states 2s and 2s+1) holds
+ *   its diagonal tile      P(2s,2s) P(2s,2s+1) P(2s+1,2s+1)
+ *   tiles (s, t), t > s    P(2s,2t) P(2s,2t+1) P(2s+1,2t) P(2s+1,2t+1)
+ *   the offset column      P(2s,o)  P(2s+1,o)          (if the offset is on)
+ * and P(o,o) comes last.  Each pass of the step walks it front to back. */
+static unsigned tile_row_start(unsigned nb, unsigned off, unsigned s)
+{
+    return s * (1u + 2u * off + 4u * nb - 2u * s);
+}
+
+static unsigned packed_entries(unsigned nb, unsigned off)
+{
+    return tile_row_start(nb, off, nb) + off;
+}
+
+/* Packed position of P(i, j) in a layout of nb blocks (+ offset if off). */
+static unsigned packed_index(unsigned nb, unsigned off, unsigned i, unsigned j)
+{
+    if (i > j) {
+        const unsigned t = i;
+        i = j;
+        j = t;
+    }
+    const unsigned si = i >> 1u;
+    if (off != 0u && i == 2u * nb) {
+        return tile_row_start(nb, off, nb);
+    }
+    const unsigned row = tile_row_start(nb, off, si);
+    if (off != 0u && j == 2u * nb) {
+        return row + 3u + 4u * (nb - 1u - si) + (i & 1u);
+    }
+    const unsigned sj = j >> 1u;
+    if (si == sj) {
+        return row + (i & 1u) + (j & 1u);
+    }
+    return row + 3u + 4u * (sj - si - 1u) + 2u * (i & 1u) + (j & 1u);
+}
+
+static unsigned offset_on(const hd_kf_t *kf)
+{
+    return kf->cfg.offset_enabled ? 1u : 0u;
+}
+
+/* Marks the powers z^k that computing z^order by doubling (even k) and one
+ * product (odd k) passes through. */
+static void need_power(uint32_t *mask, unsigned k)
+{
+    while (k >= 1u && (*mask & (1u << k)) == 0u) {
+        *mask |= 1u << k;
+        if (k > 1u) {
+            *mask |= 1u << 1u;
+        }
+        k = (k % 2u == 0u) ? k / 2u : k - 1u;
     }
 }
 
-static float block_p0(const hd_kf_t *kf, unsigned block)
+static void build_slot(hd_kf_t *kf, hd_kf_slot_t *sl, unsigned block)
 {
-    return kf->cfg.blocks[block].lock == HD_KF_LOCK_OUTPUT ? kf->cfg.output_p0_nm2
-                                                          : kf->cfg.p0_nm2;
-}
-
-/* Zeroes row and column i of P and sets the diagonal to p0: the state
- * restarts with no correlation to the others (keeps P PSD). */
-static void reset_state_cov(hd_kf_t *kf, unsigned i, float p0_nm2)
-{
-    for (unsigned j = 0; j < kf->n_states; j++) {
-        kf->p[i][j] = 0.0f;
-        kf->p[j][i] = 0.0f;
+    const hd_kf_block_config_t *b = &kf->cfg.blocks[block];
+    const bool motion_scaled = kf->cfg.q_motion_ref_rad > 0.0f && b->lock != HD_KF_LOCK_FIXED;
+    *sl = (hd_kf_slot_t){0};
+    sl->block = (uint8_t)block;
+    sl->lock = b->lock;
+    sl->theta_per_unit = b->order;
+    sl->motion_inv = motion_scaled ? 1.0f / kf->cfg.q_motion_ref_rad : 0.0f;
+    sl->motion_bias = motion_scaled ? 0.0f : 1.0f;
+    sl->q_nm2 = b->q_nm2;
+    sl->p0_nm2 = kf->cfg.p0_nm2;
+    sl->learn = 1.0f;
+    if (b->lock == HD_KF_LOCK_OUTPUT) {
+        sl->p0_nm2 = kf->cfg.output_p0_nm2;
+        sl->learn = kf->cfg.output_learn_scale;
+        sl->q_nm2 = b->q_nm2 * kf->cfg.output_learn_scale;
     }
-    kf->p[i][i] = p0_nm2;
-    kf->x[i] = 0.0f;
+    if (b->lock == HD_KF_LOCK_FIXED) {
+        sl->theta_per_unit = HD_TWO_PI_F * b->order * kf->cfg.ts_s;
+        hd_sincosf(sl->theta_per_unit, &sl->fixed_sin, &sl->fixed_cos);
+    }
+    if (b->lock != HD_KF_LOCK_FIXED && b->order <= (float)MAX_POWER_ORDER &&
+        b->order == (float)(unsigned)b->order) {
+        const unsigned k = (unsigned)b->order;
+        const bool motor = b->lock == HD_KF_LOCK_MOTOR;
+        need_power(motor ? &kf->motor_powers : &kf->output_powers, k);
+        sl->frame = (uint8_t)(motor ? k : POWER_TABLE_OUTPUT + k);
+    } else {
+        sl->frame = (uint8_t)(OWN_PHASORS + block);
+    }
 }
 
-/* Rebuilds the active-slot tables from cfg (enabled blocks in configuration
- * order, offset last). */
+/* Rebuilds the active slots from cfg (enabled blocks in configuration
+ * order, offset last) and the per-step constants. */
 static void build_layout(hd_kf_t *kf)
 {
     unsigned slots = 0;
+    kf->motor_powers = 0u;
+    kf->output_powers = 0u;
+    kf->own_frames = 0u;
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
         if (kf->cfg.blocks[i].enabled) {
-            kf->block_index[slots++] = (uint8_t)i;
+            build_slot(kf, &kf->slot[slots], i);
+            if (kf->slot[slots].frame >= OWN_PHASORS) {
+                kf->own_frames |= 1u << slots;
+            }
+            slots++;
         }
     }
     kf->active_blocks = (uint8_t)slots;
     kf->offset_slot = (uint8_t)(2u * slots);
-    kf->n_states = (uint8_t)(2u * slots + (kf->cfg.offset_enabled ? 1u : 0u));
+    kf->n_states = (uint8_t)(2u * slots + offset_on(kf));
+    kf->p_max_bits = bits_of(kf->cfg.p_max_nm2);
+    kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
+    kf->q_motion_inv_rad = kf->cfg.q_motion_ref_rad > 0.0f ? 1.0f / kf->cfg.q_motion_ref_rad
+                                                            : 0.0f;
+}
+
+/* z <- z w, then one Newton step towards |z| = 1 (scale (3 - |z|^2) / 2):
+ * the phasors are advanced every step for as long as the filter runs, and
+ * without it their magnitude would drift by the rounding of each product. */
+static void turn_phasor(float *c, float *s, float wc, float ws)
+{
+    const float nc = *c * wc - *s * ws;
+    const float ns = *s * wc + *c * ws;
+    const float scale = (3.0f - (nc * nc + ns * ns)) * 0.5f;
+    *c = nc * scale;
+    *s = ns * scale;
+}
+
+/* (cos k u, sin k u) for every k in mask from z = (cos u, sin u) = pc[1],
+ * ps[1]: doubling for even k, one product with z for odd k, each followed by
+ * one Newton step towards |z^k| = 1 (without it a block held over Nyquist
+ * for seconds grew by the powers' magnitude error, 3e-7 per step for order
+ * 8; with it |z^k| - 1 stays at a few 1e-8). */
+static void phasor_powers(uint32_t mask, float *pc, float *ps)
+{
+    for (uint32_t left = mask & ~3u; left != 0u; left &= left - 1u) {
+        const unsigned k = (unsigned)__builtin_ctz(left);
+        float c, s;
+        if (k % 2u == 0u) {
+            const float sh = ps[k / 2u], ch = pc[k / 2u];
+            c = 1.0f - 2.0f * sh * sh;
+            s = 2.0f * sh * ch;
+        } else {
+            c = pc[k - 1u] * pc[1] - ps[k - 1u] * ps[1];
+            s = ps[k - 1u] * pc[1] + pc[k - 1u] * ps[1];
+        }
+        const float scale = (3.0f - (c * c + s * s)) * 0.5f;
+        pc[k] = c * scale;
+        ps[k] = s * scale;
+    }
+}
+
+/* The powers of the motor and output phasors the blocks use. */
+static void power_frames(hd_kf_t *kf)
+{
+    if ((kf->motor_powers & ~3u) != 0u) {
+        phasor_powers(kf->motor_powers, kf->phasor_cos, kf->phasor_sin);
+    }
+    if ((kf->output_powers & ~3u) != 0u) {
+        phasor_powers(kf->output_powers, kf->phasor_cos + POWER_TABLE_OUTPUT,
+                      kf->phasor_sin + POWER_TABLE_OUTPUT);
+    }
 }
 
 void hd_kf_reset(hd_kf_t *kf)
 {
-    for (unsigned i = 0; i < HD_KF_MAX_STATES; i++) {
-        kf->x[i] = 0.0f;
-        for (unsigned j = 0; j < HD_KF_MAX_STATES; j++) {
-            kf->p[i][j] = 0.0f;
-        }
-    }
+    const unsigned nb = kf->active_blocks, off = offset_on(kf);
     for (unsigned i = 0; i < kf->n_states; i++) {
-        kf->p[i][i] = kf->cfg.p0_nm2;
+        kf->x[i] = 0.0f;
     }
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        kf->p[2u * s][2u * s] = kf->p[2u * s + 1u][2u * s + 1u] =
-            block_p0(kf, kf->block_index[s]);
+    for (unsigned k = 0; k < packed_entries(nb, off); k++) {
+        kf->p[k] = 0.0f;
+    }
+    for (unsigned s = 0; s < nb; s++) {
+        float *tile = &kf->p[tile_row_start(nb, off, s)];
+        tile[0] = tile[2] = kf->slot[s].p0_nm2;
+    }
+    if (off != 0u) {
+        kf->p[tile_row_start(nb, off, nb)] = kf->cfg.p0_nm2;
+    }
+    for (unsigned i = 0; i < HD_KF_PHASORS; i++) {
+        kf->phasor_cos[i] = 1.0f;
+        kf->phasor_sin[i] = 0.0f;
     }
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
+    kf->load_scale = 1.0f;
+    kf->last_d_motor_rad = 0.0f;
+    kf->last_d_output_rad = 0.0f;
 }
 
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
@@ -248,32 +410,61 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     kf->status_sticky = 0u;
     kf->reset_count = 0u;
     kf->bad_input_count = 0u;
+    kf->p_ceiling_count = 0u;
+    kf->p_negative_count = 0u;
     return HD_KF_OK;
 }
 
-/* New state i takes old state src[i] (-1: a new state, zero with its p0).
- * In place, no copy of P: src is monotone, so for a compaction (src[i] >= i)
- * an ascending sweep never reads an entry it already overwrote, and for an
- * expansion (src[i] <= i) a descending sweep does not either. */
-static void remap_states(hd_kf_t *kf, const int *src, unsigned n_new, bool ascending)
+/* (i, j) of every packed position of a layout, in storage order. */
+static unsigned layout_pairs(unsigned nb, unsigned off, uint8_t pair[][2])
 {
-    for (unsigned step = 0; step < n_new; step++) {
-        const unsigned i = ascending ? step : n_new - 1u - step;
-        for (unsigned step_j = 0; step_j < n_new; step_j++) {
-            const unsigned j = ascending ? step_j : n_new - 1u - step_j;
-            kf->p[i][j] = (src[i] < 0 || src[j] < 0) ? 0.0f : kf->p[src[i]][src[j]];
+    unsigned k = 0;
+    const uint8_t o = (uint8_t)(2u * nb);
+    for (unsigned s = 0; s < nb; s++) {
+        const uint8_t a = (uint8_t)(2u * s), b = (uint8_t)(a + 1u);
+        const uint8_t diag[3][2] = {{a, a}, {a, b}, {b, b}};
+        for (unsigned e = 0; e < 3u; e++) {
+            pair[k][0] = diag[e][0];
+            pair[k++][1] = diag[e][1];
         }
-        kf->x[i] = src[i] < 0 ? 0.0f : kf->x[src[i]];
-    }
-    for (unsigned i = 0; i < HD_KF_MAX_STATES; i++) {
-        for (unsigned j = 0; j < HD_KF_MAX_STATES; j++) {
-            if (i >= n_new || j >= n_new) {
-                kf->p[i][j] = 0.0f;
+        for (unsigned t = s + 1u; t < nb; t++) {
+            for (unsigned e = 0; e < 4u; e++) {
+                pair[k][0] = (uint8_t)(a + (e >> 1u));
+                pair[k++][1] = (uint8_t)(2u * t + (e & 1u));
             }
         }
-        if (i >= n_new) {
-            kf->x[i] = 0.0f;
+        for (unsigned e = 0; e < off * 2u; e++) {
+            pair[k][0] = (uint8_t)(a + e);
+            pair[k++][1] = o;
         }
+    }
+    if (off != 0u) {
+        pair[k][0] = o;
+        pair[k++][1] = o;
+    }
+    return k;
+}
+
+/* New state i takes old state src[i] (-1: a new state, zero).  In place: the new -> old map of
+ * packed positions is monotone (blocks keep their order, whole tile rows
+ * and columns come or go), so a compaction (ascending sweep) or an
+ * expansion (descending sweep) never reads an entry it already overwrote. */
+static void remap_states(hd_kf_t *kf, const int *src, unsigned old_nb, bool ascending)
+{
+    uint8_t pair[HD_KF_P_ENTRIES][2];
+    const unsigned off = offset_on(kf);
+    const unsigned count = layout_pairs(kf->active_blocks, off, pair);
+    for (unsigned step = 0; step < count; step++) {
+        const unsigned k = ascending ? step : count - 1u - step;
+        const int si = src[pair[k][0]], sj = src[pair[k][1]];
+        kf->p[k] = (si < 0 || sj < 0)
+                       ? 0.0f
+                       : kf->p[packed_index(old_nb, off, (unsigned)si, (unsigned)sj)];
+    }
+    const unsigned n = kf->n_states;
+    for (unsigned step = 0; step < n; step++) {
+        const unsigned i = ascending ? step : n - 1u - step;
+        kf->x[i] = src[i] < 0 ? 0.0f : kf->x[src[i]];
     }
 }
 
@@ -288,13 +479,13 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     if ((kf->cfg.blocks[block].enabled != 0u) == enabled) {
         return HD_KF_OK;
     }
-    /* Old slot of every configured block, then the new compact layout. */
     int old_slot_of[HD_KF_MAX_BLOCKS];
     for (unsigned i = 0; i < HD_KF_MAX_BLOCKS; i++) {
         old_slot_of[i] = -1;
     }
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        old_slot_of[kf->block_index[s]] = (int)s;
+    const unsigned old_nb = kf->active_blocks;
+    for (unsigned s = 0; s < old_nb; s++) {
+        old_slot_of[kf->slot[s].block] = (int)s;
     }
     const unsigned old_offset = kf->offset_slot;
     kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
@@ -302,217 +493,81 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 
     int src[HD_KF_MAX_STATES];
     for (unsigned s = 0; s < kf->active_blocks; s++) {
-        const int old = old_slot_of[kf->block_index[s]];
+        const int old = old_slot_of[kf->slot[s].block];
         src[2u * s] = old < 0 ? -1 : 2 * old;
         src[2u * s + 1u] = old < 0 ? -1 : 2 * old + 1;
     }
     if (kf->cfg.offset_enabled) {
         src[kf->offset_slot] = (int)old_offset;
     }
-    remap_states(kf, src, kf->n_states, !enabled);
-    if (enabled) {
-        /* the re-enabled block restarts from zero with its initial variance */
-        for (unsigned i = 0; i < kf->n_states; i++) {
-            if (src[i] < 0) {
-                kf->p[i][i] = block_p0(kf, block);
-            }
+    remap_states(kf, src, old_nb, !enabled);
+    power_frames(kf); /* a re-enabled block may need powers no other block used */
+    const unsigned nb = kf->active_blocks, off = offset_on(kf);
+    for (unsigned s = 0; s < nb; s++) {
+        if (src[2u * s] < 0) {
+            /* the re-enabled block restarts from zero with its prior */
+            float *tile = &kf->p[tile_row_start(nb, off, s)];
+            tile[0] = tile[2] = kf->slot[s].p0_nm2;
         }
     }
     kf->frozen_mask &= ~(1u << block);
     return HD_KF_OK;
 }
 
-/* Phase advance of a block over this step [rad]. */
-static float block_theta(const hd_kf_block_config_t *b, const hd_kf_input_t *in,
-                         float ts_s)
+/* ===================================================================== */
+/* The step                                                               */
+/* ===================================================================== */
+
+/* What this step does to one active block (filled by plan_blocks; g by
+ * cross_covariance).  h is the block's measurement row in its frame:
+ * c (cos phi, sin phi). */
+typedef struct {
+    float h0, h1;       /* measurement row (0: frozen) */
+    float g0, g1;       /* its two entries of g = P C' */
+    float gain;         /* gain fraction (1: optimal) */
+    float q;            /* process noise added to each of its states */
+} block_step_t;
+
+typedef struct {
+    block_step_t b[HD_KF_MAX_BLOCKS];
+    float g_off;          /* the offset's entry of g */
+    uint32_t frozen_mask; /* by configured block */
+    uint32_t lost_slots;  /* by slot: phase lost, restart */
+    bool partial_gain;    /* some gain fraction below 1: Joseph weights */
+} step_plan_t;
+
+/* sin and cos of one step's angle (series below SMALL_ANGLE_RAD). */
+static void sincos_step(float a, float *s, float *c)
 {
-    switch (b->lock) {
-    case HD_KF_LOCK_MOTOR: return b->order * in->d_motor_angle_rad;
-    case HD_KF_LOCK_OUTPUT: return b->order * in->d_output_angle_rad;
-    default: return HD_TWO_PI_F * b->order * ts_s;
+    if (a <= SMALL_ANGLE_RAD && a >= -SMALL_ANGLE_RAD) {
+        const float a2 = a * a;
+        *s = a - a * a2 * (1.0f / 6.0f);
+        *c = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
+    } else {
+        hd_sincosf(a, s, c);
     }
 }
 
-/* Per-step rotation of every active slot; decides which blocks are frozen. */
-typedef struct {
-    float c[HD_KF_MAX_BLOCKS];
-    float s[HD_KF_MAX_BLOCKS];
-    float q_scale[HD_KF_MAX_BLOCKS]; /* process-noise scale for this step */
-    float gain[HD_KF_MAX_STATES];    /* gain fraction per state (1: optimal) */
-    bool frozen[HD_KF_MAX_BLOCKS]; /* by slot */
-} step_rotation_t;
-
-/* min(1, |theta| / ref) for angle-locked blocks when enabled, else 1. */
 /* The motion fraction min(1, |angle| / q_motion_ref_rad); 1 when off. */
 static float motion_fraction(const hd_kf_t *kf, float angle_rad)
 {
-    const float ref = kf->cfg.q_motion_ref_rad;
-    const float abs_angle = angle_rad < 0.0f ? -angle_rad : angle_rad;
-    return (ref <= 0.0f || abs_angle >= ref) ? 1.0f : abs_angle / ref;
+    const float a = fabsf(angle_rad);
+    return (kf->q_motion_inv_rad <= 0.0f || a >= kf->cfg.q_motion_ref_rad)
+               ? 1.0f
+               : a * kf->q_motion_inv_rad;
 }
 
-static float motion_q_scale(const hd_kf_t *kf, const hd_kf_block_config_t *b,
-                            float theta)
-{
-    return b->lock == HD_KF_LOCK_FIXED ? 1.0f : motion_fraction(kf, theta);
-}
-
-static void compute_rotations(hd_kf_t *kf, const hd_kf_input_t *in,
-                              step_rotation_t *rot)
-{
-    const float limit = kf->cfg.nyquist_fraction * HD_PI_F;
-    uint32_t frozen_now = 0u;
-    /* Slots past active_blocks are never read; defined anyway, so static
-     * analysis can see every read of frozen[] is of a written entry. */
-    for (unsigned s = 0; s < HD_KF_MAX_BLOCKS; s++) {
-        rot->frozen[s] = true;
-    }
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        const unsigned b = kf->block_index[s];
-        const float theta = block_theta(&kf->cfg.blocks[b], in, kf->cfg.ts_s);
-        const bool frozen = !(theta <= limit && theta >= -limit);
-        rot->frozen[s] = frozen;
-        rot->q_scale[s] = motion_q_scale(kf, &kf->cfg.blocks[b], theta);
-        /* Motor-locked blocks learn in proportion to their motion (hd_kf.h,
-         * "Slow motor blocks"); output-locked ones always turn slowly and
-         * rely on their small prior instead. */
-        rot->gain[2u * s] = rot->gain[2u * s + 1u] =
-            kf->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? rot->q_scale[s] : 1.0f;
-        if (frozen) {
-            /* Held (hd_kf.h, "Nyquist"): not observed, not corrected, but
-             * still turned by the measured increment, which is exact at any
-             * speed, unless no motion can explain it. */
-            frozen_now |= 1u << b;
-            rot->gain[2u * s] = rot->gain[2u * s + 1u] = 0.0f;
-            if (!(theta <= HD_KF_PHASE_LOST_RAD && theta >= -HD_KF_PHASE_LOST_RAD)) {
-                reset_state_cov(kf, 2u * s, block_p0(kf, b));
-                reset_state_cov(kf, 2u * s + 1u, block_p0(kf, b));
-            }
-        }
-        hd_sincosf(theta, &rot->s[s], &rot->c[s]);
-    }
-    kf->frozen_mask = frozen_now;
-    if (kf->cfg.offset_enabled) {
-        rot->gain[kf->offset_slot] = 1.0f;
-    }
-}
-
-/* [u; v] <- [c s; -s c] [u; v]: one block of Phi applied to a pair. */
-static void rotate_pair(float *u, float *v, float c, float s)
-{
-    const float u0 = *u, v0 = *v;
-    *u = c * u0 + s * v0;
-    *v = c * v0 - s * u0;
-}
-
-/* Symmetric rank-1 downdate on the upper triangle, then the block rotation
- * P <- Phi P Phi', then Q; mirrors to keep P symmetric.  The downdate is the
- * Joseph form for the gain F g / S (F = diag(gain), hd_kf.h "Slow motor
- * blocks"): P_ij -= (f_i + f_j - f_i f_j) g_i g_j / S, which is g g' / S
- * when every f is 1 and keeps P the exact covariance of the suboptimal
- * estimate otherwise. */
-static void covariance_update(hd_kf_t *kf, const float *g, float inv_s,
-                              bool correct, const step_rotation_t *rot)
-{
-    const unsigned n = kf->n_states;
-    float(*p)[HD_KF_MAX_STATES] = kf->p;
-    if (correct) {
-        for (unsigned i = 0; i < n; i++) {
-            const float gi = g[i] * inv_s;
-            for (unsigned j = i; j < n; j++) {
-                const float w = rot->gain[i] + rot->gain[j] - rot->gain[i] * rot->gain[j];
-                p[i][j] -= w * gi * g[j];
-            }
-        }
-        for (unsigned i = 0; i < n; i++) {
-            for (unsigned j = 0; j < i; j++) {
-                p[i][j] = p[j][i];
-            }
-        }
-    }
-    /* P <- Phi P Phi': rotate the block's row pair, then its column pair. */
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        const unsigned a = 2u * s, b = a + 1u;
-        for (unsigned j = 0; j < n; j++) {
-            rotate_pair(&p[a][j], &p[b][j], rot->c[s], rot->s[s]);
-        }
-        for (unsigned i = 0; i < n; i++) {
-            rotate_pair(&p[i][a], &p[i][b], rot->c[s], rot->s[s]);
-        }
-    }
-    /* Exact symmetry: the upper triangle is the reference. */
-    for (unsigned i = 0; i < n; i++) {
-        for (unsigned j = 0; j < i; j++) {
-            p[i][j] = p[j][i];
-        }
-    }
-    /* + Q (frozen blocks are held: no process noise) */
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (!rot->frozen[s]) {
-            const float q = kf->cfg.blocks[kf->block_index[s]].q_nm2 * rot->q_scale[s];
-            p[2u * s][2u * s] += q;
-            p[2u * s + 1u][2u * s + 1u] += q;
-        }
-    }
-    if (kf->cfg.offset_enabled) {
-        p[kf->offset_slot][kf->offset_slot] += kf->cfg.offset_q_nm2;
-    }
-}
-
-/* Keeps every diagonal in [0, p_max] with congruence scalings (PSD kept);
- * returns true if anything was clamped. */
-static bool clamp_covariance(hd_kf_t *kf)
-{
-    const unsigned n = kf->n_states;
-    const float p_max = kf->cfg.p_max_nm2;
-    bool clamped = false;
-    for (unsigned i = 0; i < n; i++) {
-        const float d = kf->p[i][i];
-        if (d < 0.0f) {
-            /* Rounding pushed a variance below zero: drop the state's
-             * correlations; zero variance is the closest PSD choice. */
-            for (unsigned j = 0; j < n; j++) {
-                kf->p[i][j] = 0.0f;
-                kf->p[j][i] = 0.0f;
-            }
-            clamped = true;
-        } else if (d > p_max) {
-            const float scale = sqrtf(p_max / d);
-            for (unsigned j = 0; j < n; j++) {
-                kf->p[i][j] *= scale;
-                kf->p[j][i] *= scale;
-            }
-            kf->p[i][i] = p_max;
-            clamped = true;
-        }
-    }
-    return clamped;
-}
-
-static bool state_is_finite(const hd_kf_t *kf)
-{
-    for (unsigned i = 0; i < kf->n_states; i++) {
-        /* Off-diagonals are bounded by the diagonals while P is PSD; a
-         * non-finite entry anywhere shows up in x, the diagonal or g. */
-        if (!is_finite(kf->x[i]) || !is_finite(kf->p[i][i])) {
-            return false;
-        }
-    }
-    return true;
-}
-
-/* Measurement-row scale of motor-locked blocks: 1 + k |T_ref| (hd_kf.h,
- * "Load-dependent ripple"); 1 when off.  T_ref follows T_exp + offset by
- * the motor's motion fraction and is held at standstill.  |T_ref| is
- * clamped to HD_KF_MAX_ABS_Y_NM and k to HD_KF_MAX_LOAD_COEFF_PER_NM, so c
- * stays finite. */
-static float update_load_scale(hd_kf_t *kf, const hd_kf_input_t *in)
+/* Measurement-row scale of motor-locked blocks: 1 + k |T_ref|, with T_ref
+ * following T_exp (+ the offset when it is real torque) by the motor's
+ * motion fraction, held at standstill; 1 when k = 0.  |T_ref| is capped at
+ * HD_KF_MAX_ABS_Y_NM so the entry stays finite. */
+static float update_load_scale(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad)
 {
     const float k = kf->cfg.ripple_load_coeff_per_nm;
     if (k <= 0.0f) {
         return 1.0f;
     }
-    float t_now = is_finite(in->torque_expected_nm) ? in->torque_expected_nm : 0.0f;
+    float t_now = is_finite(torque_expected_nm) ? torque_expected_nm : 0.0f;
     if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
         t_now += kf->x[kf->offset_slot];
     }
@@ -520,163 +575,486 @@ static float update_load_scale(hd_kf_t *kf, const hd_kf_input_t *in)
         kf->load_ref_nm = t_now;
         kf->load_ref_primed = 1u;
     } else {
-        kf->load_ref_nm += motion_fraction(kf, in->d_motor_angle_rad) * (t_now - kf->load_ref_nm);
+        kf->load_ref_nm += motion_fraction(kf, d_motor_rad) * (t_now - kf->load_ref_nm);
     }
-    const float t = kf->load_ref_nm < 0.0f ? -kf->load_ref_nm : kf->load_ref_nm;
+    const float t = fabsf(kf->load_ref_nm);
     return 1.0f + k * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);
 }
 
-/* C entry of an unfrozen slot: the load scale for motor-locked blocks
- * (meshing ripple), 1 for output-locked (misalignment is geometry) and
- * fixed-frequency ones (electrical pickup). */
-static float block_c(const hd_kf_t *kf, unsigned slot, float c_load)
+/* Measurement row, Nyquist freeze, phase loss, process noise and gain
+ * fraction of every active block for this step (increments: motor, output,
+ * and 1 for fixed-frequency blocks), g zeroed for the cross covariance.
+ * Returns the prior ripple C x (without the offset).  Changes nothing in
+ * the filter. */
+static float plan_blocks(const hd_kf_t *kf, const float inc[3], float c_load, step_plan_t *pl)
 {
-    return kf->cfg.blocks[kf->block_index[slot]].lock == HD_KF_LOCK_MOTOR ? c_load : 1.0f;
+    const float limit = kf->nyquist_limit_rad;
+    const hd_kf_slot_t *const end = kf->slot + kf->active_blocks;
+    float ripple = 0.0f;
+    float gain_product = 1.0f; /* below 1 exactly when some gain is (all are in [0, 1]) */
+    pl->frozen_mask = 0u;
+    pl->lost_slots = 0u;
+    block_step_t *bs = pl->b;
+    const float *x = kf->x;
+    for (const hd_kf_slot_t *sl = kf->slot; sl < end; sl++, bs++, x += 2) {
+        const float a = fabsf(sl->theta_per_unit * inc[sl->lock]);
+        float motion = a * sl->motion_inv + sl->motion_bias;
+        if (motion > 1.0f) {
+            motion = 1.0f;
+        }
+        const bool motor = sl->lock == HD_KF_LOCK_MOTOR;
+        float gain = (motor ? motion : 1.0f) * sl->learn;
+        float q = sl->q_nm2 * motion;
+        float row = motor ? c_load : 1.0f;
+        if (!(a <= limit)) {
+            /* Held: not observed, not corrected, no process noise, still
+             * turned by the increment (exact at any speed), unless no
+             * motion can explain it (an encoder fault). */
+            pl->frozen_mask |= 1u << sl->block;
+            gain = q = row = 0.0f;
+            if (!(a <= HD_KF_PHASE_LOST_RAD)) {
+                pl->lost_slots |= 1u << (unsigned)(sl - kf->slot);
+            }
+        }
+        bs->h0 = row * kf->phasor_cos[sl->frame];
+        bs->h1 = row * kf->phasor_sin[sl->frame];
+        bs->q = q;
+        bs->gain = gain;
+        bs->g0 = bs->g1 = 0.0f;
+        gain_product *= gain;
+        ripple += bs->h0 * x[0];
+        ripple += bs->h1 * x[1];
+    }
+    pl->partial_gain = gain_product < 1.0f;
+    return ripple;
 }
 
-void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in_raw, hd_kf_output_t *out)
+/* Phase lost: the block restarts from zero with its prior, decorrelated
+ * (its whole tile row and tile column). */
+static void restart_block(hd_kf_t *kf, unsigned s)
 {
-    uint32_t status = 0u;
-    hd_kf_input_t in = *in_raw;
-    if (!is_finite(in.d_motor_angle_rad)) {
-        in.d_motor_angle_rad = 0.0f;
-        status |= HD_KF_STATUS_BAD_INPUT;
+    const unsigned nb = kf->active_blocks, off = offset_on(kf);
+    for (unsigned r = 0; r < s; r++) {
+        float *tile = &kf->p[tile_row_start(nb, off, r) + 3u + 4u * (s - r - 1u)];
+        tile[0] = tile[1] = tile[2] = tile[3] = 0.0f;
     }
-    if (!is_finite(in.d_output_angle_rad)) {
-        in.d_output_angle_rad = 0.0f;
-        status |= HD_KF_STATUS_BAD_INPUT;
+    const unsigned start = tile_row_start(nb, off, s);
+    const unsigned end = tile_row_start(nb, off, s + 1u);
+    for (unsigned k = start; k < end; k++) {
+        kf->p[k] = 0.0f;
     }
-    const float y = in.torque_meas_nm - in.torque_expected_nm;
-    /* A finite but absurd y (a broken sensor, a bad log) would square to
-     * infinity in the update and reset the whole filter: treat it as bad
-     * input instead, like a non-finite one. */
-    const bool correct = y <= HD_KF_MAX_ABS_Y_NM && y >= -HD_KF_MAX_ABS_Y_NM;
-    if (!correct) {
-        status |= HD_KF_STATUS_BAD_INPUT;
-    }
+    kf->p[start] = kf->p[start + 2u] = kf->slot[s].p0_nm2;
+    kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
+}
 
-    step_rotation_t rot;
-    compute_rotations(kf, &in, &rot);
-    const unsigned n = kf->n_states;
-    const float c_load = update_load_scale(kf, &in);
+/* g = P C' over the packed tiles (g zeroed by plan_blocks); returns
+ * C P C'. */
+static float cross_covariance(const hd_kf_t *kf, step_plan_t *pl)
+{
+    const bool off = kf->cfg.offset_enabled != 0u;
+    const float *p = kf->p;
+    block_step_t *const end = pl->b + kf->active_blocks;
+    float g_off = 0.0f, cpc = 0.0f;
+    for (block_step_t *bs = pl->b; bs < end; bs++) {
+        /* sums accumulate term by term: one multiply-accumulate each */
+        const float h0 = bs->h0, h1 = bs->h1;
+        float ga = bs->g0 + p[0] * h0;
+        float gb = bs->g1 + p[1] * h0;
+        ga += p[1] * h1;
+        gb += p[2] * h1;
+        p += 3;
+        for (block_step_t *bt = bs + 1; bt < end; bt++, p += 4) {
+            ga += p[0] * bt->h0;
+            ga += p[1] * bt->h1;
+            gb += p[2] * bt->h0;
+            gb += p[3] * bt->h1;
+            float gt0 = bt->g0 + p[0] * h0;
+            float gt1 = bt->g1 + p[1] * h0;
+            gt0 += p[2] * h1;
+            gt1 += p[3] * h1;
+            bt->g0 = gt0;
+            bt->g1 = gt1;
+        }
+        if (off) {
+            ga += p[0];
+            gb += p[1];
+            g_off += p[0] * h0;
+            g_off += p[1] * h1;
+            p += 2;
+        }
+        bs->g0 = ga;
+        bs->g1 = gb;
+        cpc += h0 * ga;
+        cpc += h1 * gb;
+    }
+    if (off) {
+        g_off += p[0];
+        cpc += g_off;
+    }
+    pl->g_off = g_off;
+    return cpc;
+}
 
-    /* The measurement row C for this step: the load scale (or 1) on each
-     * unfrozen block's first state, 1 on the offset, 0 elsewhere. */
-    float c_row[HD_KF_MAX_STATES];
-    for (unsigned i = 0; i < n; i++) {
-        c_row[i] = 0.0f;
-    }
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        c_row[2u * s] = rot.frozen[s] ? 0.0f : block_c(kf, s, c_load);
-    }
-    /* Prior outputs: ripple = C x without the offset. */
-    float ripple = 0.0f;
-    for (unsigned i = 0; i < n; i++) {
-        ripple += c_row[i] * kf->x[i];
-    }
-    if (kf->cfg.offset_enabled) {
-        c_row[kf->offset_slot] = 1.0f;
-        if (!kf->offset_primed && correct) {
-            kf->x[kf->offset_slot] = y - ripple;
-            kf->offset_primed = 1u;
-        }
-    }
-    const float offset = kf->cfg.offset_enabled ? kf->x[kf->offset_slot] : 0.0f;
-
-    /* g = P C' and S = R + C P C'; C is nonzero only on block first states
-     * and the offset, so g sums over those columns. */
-    float g[HD_KF_MAX_STATES];
-    float cpc = 0.0f;
-    for (unsigned i = 0; i < n; i++) {
-        float sum = 0.0f;
-        for (unsigned s = 0; s < kf->active_blocks; s++) {
-            sum += kf->p[i][2u * s] * c_row[2u * s];
-        }
-        if (kf->cfg.offset_enabled) {
-            sum += kf->p[i][kf->offset_slot];
-        }
-        g[i] = sum;
-        cpc += c_row[i] * sum;
-    }
-    float s_var = kf->cfg.r_nm2 + cpc;
-    const float innovation = y - ripple - offset;
+/* Offset-jump gate: e beyond offset_jump_nm and 4 sigma. */
+static bool offset_jump(const hd_kf_t *kf, float e, float s_var)
+{
     const float jump_nm = kf->cfg.offset_jump_nm;
-    const float e2 = innovation * innovation;
-    if (correct && kf->cfg.offset_enabled && jump_nm > 0.0f &&
-        e2 > jump_nm * jump_nm && e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var) {
+    const float e2 = e * e;
+    return kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
+           e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
+}
+
+/* Largest of a bit pattern and that of x. */
+static uint32_t max_bits(uint32_t a, float x)
+{
+    const uint32_t b = bits_of(x);
+    return a > b ? a : b;
+}
+
+/* Largest bit patterns seen by the one-comparison bounds check. */
+typedef struct {
+    uint32_t trace; /* a block's trace or the offset's variance: above p_max's
+                       (unsigned) when above p_max, negative or not a number */
+    uint32_t det;   /* a block's determinant: >= +inf's when negative or not a number */
+} bound_probe_t;
+
+/* x <- x + F g k_e and P <- P - W .* g g' / S + Q in the frames, where the
+ * step's rotation is only a turn of the frames (advance_frames): each tile
+ * loaded once, downdated, Q added, stored once.  W_ij = f_i + f_j - f_i f_j
+ * (the Joseph form for the gain F g / S) is 1 when every fraction is 1 and
+ * is applied only otherwise; the offset's fraction is 1, so its column's
+ * weight is 1.  inv_s = k_e = 0: prediction only.  A block tile with trace
+ * in [0, p_max] and determinant >= 0 has both model-coordinate diagonals in
+ * [0, p_max] whatever its frame, so that is what the probe records.
+ * Returns the sum of the new states (a finiteness probe). */
+static float correct(hd_kf_t *kf, const step_plan_t *pl, float inv_s, float k_e,
+                     bound_probe_t *probe)
+{
+    const bool off = kf->cfg.offset_enabled != 0u;
+    const bool joseph = pl->partial_gain;
+    const float g_off = pl->g_off;
+    const block_step_t *const end = pl->b + kf->active_blocks;
+    float *p = kf->p;
+    float *x = kf->x;
+    float sum = 0.0f;
+    uint32_t worst_trace = 0u, worst_det = 0u;
+    for (const block_step_t *bs = pl->b; bs < end; bs++, x += 2) {
+        const float ga = bs->g0, gb = bs->g1;
+        const float fs = bs->gain;
+        const float fk = fs * k_e;
+        x[0] += ga * fk;
+        x[1] += gb * fk;
+        sum += x[0] + x[1];
+        const float ua = ga * inv_s, ub = gb * inv_s;
+        {
+            const float w = joseph ? fs + fs - fs * fs : 1.0f;
+            const float wa = w * ua, wb = w * ub;
+            const float a = (p[0] - wa * ga) + bs->q, b = p[1] - wa * gb;
+            const float d = (p[2] - wb * gb) + bs->q;
+            p[0] = a;
+            p[1] = b;
+            p[2] = d;
+            worst_trace = max_bits(worst_trace, a + d);
+            worst_det = max_bits(worst_det, a * d - b * b);
+            p += 3;
+        }
+        if (joseph) {
+            for (const block_step_t *bt = bs + 1; bt < end; bt++, p += 4) {
+                const float w = fs + bt->gain - fs * bt->gain;
+                const float wa = w * ua, wb = w * ub;
+                p[0] -= wa * bt->g0;
+                p[1] -= wa * bt->g1;
+                p[2] -= wb * bt->g0;
+                p[3] -= wb * bt->g1;
+            }
+        } else {
+            for (const block_step_t *bt = bs + 1; bt < end; bt++, p += 4) {
+                p[0] -= ua * bt->g0;
+                p[1] -= ua * bt->g1;
+                p[2] -= ub * bt->g0;
+                p[3] -= ub * bt->g1;
+            }
+        }
+        if (off) {
+            p[0] -= ua * g_off;
+            p[1] -= ub * g_off;
+            p += 2;
+        }
+    }
+    if (off) {
+        p[0] = (p[0] - g_off * inv_s * g_off) + kf->cfg.offset_q_nm2;
+        worst_trace = max_bits(worst_trace, p[0]);
+        x[0] += g_off * k_e;
+        sum += x[0];
+    }
+    probe->trace = worst_trace;
+    probe->det = worst_det;
+    return sum;
+}
+
+/* The step's rotation Phi: each block's frame turns by its phase advance.
+ * Integral orders take powers of the motor and output phasors, which turn
+ * by one sin/cos of the increment each; the others turn their own. */
+static void advance_frames(hd_kf_t *kf, const float inc[3])
+{
+    float s, c;
+    if (kf->motor_powers != 0u) {
+        sincos_step(inc[HD_KF_LOCK_MOTOR], &s, &c);
+        turn_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1], c, s);
+    }
+    if (kf->output_powers != 0u) {
+        sincos_step(inc[HD_KF_LOCK_OUTPUT], &s, &c);
+        turn_phasor(&kf->phasor_cos[POWER_TABLE_OUTPUT + 1u],
+                    &kf->phasor_sin[POWER_TABLE_OUTPUT + 1u], c, s);
+    }
+    power_frames(kf);
+    for (uint32_t left = kf->own_frames; left != 0u; left &= left - 1u) {
+        const hd_kf_slot_t *sl = &kf->slot[__builtin_ctz(left)];
+        float sn = sl->fixed_sin, cs = sl->fixed_cos;
+        if (sl->lock != HD_KF_LOCK_FIXED) {
+            sincos_step(sl->theta_per_unit * inc[sl->lock], &sn, &cs);
+        }
+        turn_phasor(&kf->phasor_cos[sl->frame], &kf->phasor_sin[sl->frame], cs, sn);
+    }
+}
+
+/* A block's covariance tile in model coordinates, R T R' (R = its frame),
+ * by the double angle: [a b; b d] -> out[0..2] = a', b', d'. */
+static void model_diag_tile(float c, float s, const float *t, float *out)
+{
+    const float c2 = c * c - s * s, s2 = 2.0f * s * c;
+    const float mid = (t[0] + t[2]) * 0.5f, half = (t[0] - t[2]) * 0.5f;
+    const float turn = half * c2 + t[1] * s2;
+    out[0] = mid + turn;
+    out[1] = t[1] * c2 - half * s2;
+    out[2] = mid - turn;
+}
+
+/* M = R' D R for a block whose model-coordinate states are scaled by d0,
+ * d1 (symmetric: m[0] m[1]; m[1] m[2]). */
+static void frame_scaling(float c, float s, float d0, float d1, float *m)
+{
+    m[0] = c * c * d0 + s * s * d1;
+    m[1] = c * s * (d0 - d1);
+    m[2] = s * s * d0 + c * c * d1;
+}
+
+/* t <- L t R' for a 2x2 tile t (row-major) and symmetric L, R (packed as
+ * in frame_scaling). */
+static void scale_tile(float *t, const float *l, const float *r)
+{
+    const float u00 = l[0] * t[0] + l[1] * t[2], u01 = l[0] * t[1] + l[1] * t[3];
+    const float u10 = l[1] * t[0] + l[2] * t[2], u11 = l[1] * t[1] + l[2] * t[3];
+    t[0] = u00 * r[0] + u01 * r[1];
+    t[1] = u00 * r[1] + u01 * r[2];
+    t[2] = u10 * r[0] + u11 * r[1];
+    t[3] = u10 * r[1] + u11 * r[2];
+}
+
+/* Slow path, when the probe saw a block tile or the offset leave the bounds
+ * or the state was not finite: a non-finite state or covariance resets the
+ * filter; otherwise, in model coordinates, P <- D P D with D_ii =
+ * sqrt(p_max / P_ii) above the ceiling (a congruence: PSD kept) and 0 for a
+ * negative diagonal (its row and column zeroed, the closest PSD choice),
+ * applied in the frames as M P M, M = blockdiag(R' D R).  Returns the
+ * status bits raised. */
+static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
+{
+    const unsigned nb = kf->active_blocks;
+    const bool off = kf->cfg.offset_enabled != 0u;
+    const float p_max = kf->cfg.p_max_nm2;
+    float m[HD_KF_MAX_BLOCKS][3];
+    float d_off = 1.0f;
+    bool scaled = false;
+    if (!is_finite(state_sum)) {
+        return HD_KF_STATUS_RESET;
+    }
+    float *p = kf->p;
+    for (unsigned s = 0; s < nb; s++) {
+        float model[3];
+        const float fc = kf->phasor_cos[kf->slot[s].frame], fs = kf->phasor_sin[kf->slot[s].frame];
+        model_diag_tile(fc, fs, p, model);
+        float d[2] = {1.0f, 1.0f};
+        for (unsigned i = 0; i < 2u; i++) {
+            const float v = model[2u * i];
+            if (!is_finite(v) || !is_finite(p[1])) {
+                return HD_KF_STATUS_RESET;
+            }
+            if (v < 0.0f) {
+                d[i] = 0.0f;
+                kf->p_negative_count++;
+                scaled = true;
+            } else if (v > p_max) {
+                d[i] = sqrtf(p_max / v);
+                kf->p_ceiling_count++;
+                scaled = true;
+            }
+        }
+        frame_scaling(fc, fs, d[0], d[1], m[s]);
+        p += 3u + 4u * (nb - 1u - s) + (off ? 2u : 0u);
+    }
+    if (off) {
+        const float v = p[0];
+        if (!is_finite(v)) {
+            return HD_KF_STATUS_RESET;
+        }
+        if (v < 0.0f) {
+            d_off = 0.0f;
+            kf->p_negative_count++;
+            scaled = true;
+        } else if (v > p_max) {
+            d_off = sqrtf(p_max / v);
+            kf->p_ceiling_count++;
+            scaled = true;
+        }
+    }
+    if (!scaled) {
+        return 0u;
+    }
+    p = kf->p;
+    for (unsigned s = 0; s < nb; s++) {
+        float t[4] = {p[0], p[1], p[1], p[2]};
+        scale_tile(t, m[s], m[s]);
+        p[0] = t[0];
+        p[1] = t[1];
+        p[2] = t[3];
+        p += 3;
+        for (unsigned u = s + 1u; u < nb; u++, p += 4) {
+            scale_tile(p, m[s], m[u]);
+        }
+        if (off) {
+            const float v0 = p[0], v1 = p[1];
+            p[0] = (m[s][0] * v0 + m[s][1] * v1) * d_off;
+            p[1] = (m[s][1] * v0 + m[s][2] * v1) * d_off;
+            p += 2;
+        }
+    }
+    if (off) {
+        p[0] = d_off == 0.0f ? 0.0f : (d_off == 1.0f ? p[0] : p_max);
+    }
+    return HD_KF_STATUS_P_CLAMPED;
+}
+
+void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
+{
+    /* ---- inputs: a non-finite increment counts as no motion; the fixed
+     * blocks' "increment" is 1 (their phase advance per step) */
+    float inc[3] = {in->d_motor_angle_rad, in->d_output_angle_rad, 1.0f};
+    const float y = in->torque_meas_nm - in->torque_expected_nm;
+    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
+    uint32_t status = valid ? 0u : HD_KF_STATUS_BAD_INPUT;
+    if (!is_finite(inc[0] + inc[1])) {
+        for (unsigned i = 0; i < 2u; i++) {
+            if (!is_finite(inc[i])) {
+                inc[i] = 0.0f;
+                status = HD_KF_STATUS_BAD_INPUT;
+            }
+        }
+    }
+
+    /* ---- measurement row and what this step does to each block */
+    const float c_load = update_load_scale(kf, in->torque_expected_nm, inc[HD_KF_LOCK_MOTOR]);
+    step_plan_t plan;
+    const float ripple = plan_blocks(kf, inc, c_load, &plan);
+    for (uint32_t lost = plan.lost_slots; lost != 0u; lost &= lost - 1u) {
+        restart_block(kf, (unsigned)__builtin_ctz(lost));
+    }
+
+    /* ---- innovation and its variance (the prior's) */
+    const unsigned o = kf->offset_slot;
+    if (kf->cfg.offset_enabled && !kf->offset_primed && valid) {
+        kf->x[o] = y - ripple;
+        kf->offset_primed = 1u;
+    }
+    const float offset = kf->cfg.offset_enabled ? kf->x[o] : 0.0f;
+    float s_var = kf->cfg.r_nm2 + cross_covariance(kf, &plan);
+    const float innovation = y - ripple - offset;
+
+    /* ---- gate: an offset jump widens the offset's variance first */
+    if (valid && offset_jump(kf, innovation, s_var)) {
+        const float e2 = innovation * innovation;
         status |= HD_KF_STATUS_OFFSET_JUMP;
-        kf->p[kf->offset_slot][kf->offset_slot] += e2;
-        g[kf->offset_slot] += e2;
+        kf->p[packed_entries(kf->active_blocks, 1u) - 1u] += e2;
+        plan.g_off += e2;
         s_var += e2;
     }
-    const float inv_s = 1.0f / s_var;
 
+    /* ---- outputs */
     out->ripple_nm = ripple;
     out->offset_nm = offset;
-    out->innovation_nm = correct ? innovation : 0.0f;
+    out->innovation_nm = valid ? innovation : 0.0f;
     out->innovation_var_nm2 = s_var;
-    out->torque_filtered_nm = in.torque_meas_nm - ripple -
+    out->torque_filtered_nm = in->torque_meas_nm - ripple -
                               (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
-    for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
-        out->amplitude_nm[b] = 0.0f;
-    }
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (!rot.frozen[s]) {
-            const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
-            out->amplitude_nm[kf->block_index[s]] = c_row[2u * s] * sqrtf(a * a + b * b);
+
+    /* ---- correct, propagate (turn the frames); bounds on the slow path */
+    const float inv_s = valid ? 1.0f / s_var : 0.0f;
+    const float k_e = valid ? innovation * inv_s : 0.0f;
+    bound_probe_t probe;
+    const float state_sum = correct(kf, &plan, inv_s, k_e, &probe) + s_var;
+    advance_frames(kf, inc);
+    kf->frozen_mask = plan.frozen_mask;
+    kf->load_scale = c_load;
+    kf->last_d_motor_rad = inc[HD_KF_LOCK_MOTOR];
+    kf->last_d_output_rad = inc[HD_KF_LOCK_OUTPUT];
+    if (probe.trace > kf->p_max_bits || probe.det >= FLOAT_INF_BITS || !is_finite(state_sum)) {
+        const uint32_t bounded = bound_covariance(kf, state_sum);
+        if (bounded & HD_KF_STATUS_RESET) {
+            hd_kf_reset(kf);
+            kf->reset_count++;
         }
+        status |= bounded;
     }
 
-    /* State: x <- Phi (x + g e / S)   (equation 8) */
-    if (correct) {
-        const float k = innovation * inv_s;
-        for (unsigned i = 0; i < n; i++) {
-            kf->x[i] += rot.gain[i] * g[i] * k;
-        }
-    }
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        rotate_pair(&kf->x[2u * s], &kf->x[2u * s + 1u], rot.c[s], rot.s[s]);
-    }
-    /* Covariance: equations 9-10 in the same factored form */
-    covariance_update(kf, g, inv_s, correct, &rot);
-    if (clamp_covariance(kf)) {
-        status |= HD_KF_STATUS_P_CLAMPED;
-    }
-    if (!state_is_finite(kf) || !is_finite(s_var)) {
-        hd_kf_reset(kf);
-        kf->reset_count++;
-        status |= HD_KF_STATUS_RESET;
-    }
-    if (kf->frozen_mask != 0u) {
+    if (plan.frozen_mask != 0u) {
         status |= HD_KF_STATUS_FROZEN;
     }
     if (status & HD_KF_STATUS_BAD_INPUT) {
         kf->bad_input_count++;
     }
-    out->frozen_mask = kf->frozen_mask;
+    out->frozen_mask = plan.frozen_mask;
     out->status = status;
     kf->status_sticky |= status;
     if (!is_finite(out->torque_filtered_nm)) {
         /* Never publish a non-finite estimate: fall back to the measurement
          * (or 0 if that is not finite either). */
-        out->torque_filtered_nm = is_finite(in.torque_meas_nm) ? in.torque_meas_nm : 0.0f;
+        out->torque_filtered_nm = is_finite(in->torque_meas_nm) ? in->torque_meas_nm : 0.0f;
         out->ripple_nm = 0.0f;
     }
 }
 
-void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
-                                 float *amplitude_nm, float *phase_rad)
+/* ===================================================================== */
+/* Read-out                                                               */
+/* ===================================================================== */
+
+/* Active slot of configured block i, or -1. */
+static int slot_of(const hd_kf_t *kf, unsigned block)
 {
-    *amplitude_nm = 0.0f;
-    *phase_rad = 0.0f;
     for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (kf->block_index[s] == block && (kf->frozen_mask & (1u << block)) == 0u) {
-            const float a = kf->x[2u * s], b = kf->x[2u * s + 1u];
-            *amplitude_nm = sqrtf(a * a + b * b);
-            /* ripple = A cos(phase): x1 = A cos(phase), x2 = -A sin(phase) */
-            *phase_rad = atan2f(-b, a);
+        if (kf->slot[s].block == block) {
+            return (int)s;
         }
     }
+    return -1;
+}
+
+float hd_kf_block_amplitude_nm(const hd_kf_t *kf, unsigned block)
+{
+    const int s = slot_of(kf, block);
+    if (s < 0) {
+        return 0.0f;
+    }
+    const float a = hd_kf_state(kf, 2u * (unsigned)s), b = hd_kf_state(kf, 2u * (unsigned)s + 1u);
+    return sqrtf(a * a + b * b);
+}
+
+float hd_kf_block_row(const hd_kf_t *kf, unsigned block)
+{
+    const int s = slot_of(kf, block);
+    if (s < 0 || (kf->frozen_mask & (1u << block)) != 0u) {
+        return 0.0f;
+    }
+    return kf->slot[s].lock == HD_KF_LOCK_MOTOR ? kf->load_scale : 1.0f;
 }
 
 unsigned hd_kf_state_count(const hd_kf_t *kf)
@@ -686,10 +1064,197 @@ unsigned hd_kf_state_count(const hd_kf_t *kf)
 
 float hd_kf_state(const hd_kf_t *kf, unsigned i)
 {
-    return i < kf->n_states ? kf->x[i] : 0.0f;
+    if (i >= kf->n_states) {
+        return 0.0f;
+    }
+    if (kf->cfg.offset_enabled && i == kf->offset_slot) {
+        return kf->x[i];
+    }
+    const unsigned f = kf->slot[i / 2u].frame;
+    const float c = kf->phasor_cos[f], sn = kf->phasor_sin[f];
+    const float a = kf->x[i & ~1u], b = kf->x[i | 1u];
+    return (i & 1u) == 0u ? c * a + sn * b : c * b - sn * a;
+}
+
+void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
+                                 float *amplitude_nm, float *phase_rad)
+{
+    *amplitude_nm = 0.0f;
+    *phase_rad = 0.0f;
+    const int s = slot_of(kf, block);
+    if (s >= 0 && (kf->frozen_mask & (1u << block)) == 0u) {
+        const float a = hd_kf_state(kf, 2u * (unsigned)s), b = hd_kf_state(kf, 2u * (unsigned)s + 1u);
+        *amplitude_nm = sqrtf(a * a + b * b);
+        /* ripple = A cos(phase): x1 = A cos(phase), x2 = -A sin(phase) */
+        *phase_rad = atan2f(-b, a);
+    }
 }
 
 float hd_kf_cov(const hd_kf_t *kf, unsigned i, unsigned j)
 {
-    return (i < kf->n_states && j < kf->n_states) ? kf->p[i][j] : 0.0f;
+    if (i >= kf->n_states || j >= kf->n_states) {
+        return 0.0f;
+    }
+    if (i > j) {
+        const unsigned t = i;
+        i = j;
+        j = t;
+    }
+    const unsigned nb = kf->active_blocks, off = offset_on(kf);
+    const float *t = &kf->p[packed_index(nb, off, i & ~1u, j & ~1u)];
+    const bool i_off = off != 0u && i == kf->offset_slot;
+    const bool j_off = off != 0u && j == kf->offset_slot;
+    if (i_off) {
+        return t[0];
+    }
+    const unsigned si = i / 2u, sj = j / 2u;
+    const float ci = kf->phasor_cos[kf->slot[si].frame];
+    const float s_i = kf->phasor_sin[kf->slot[si].frame];
+    if (j_off) {
+        /* R_s v: the offset column of block si */
+        return (i & 1u) == 0u ? ci * t[0] + s_i * t[1] : ci * t[1] - s_i * t[0];
+    }
+    if (si == sj) {
+        float model[3];
+        model_diag_tile(ci, s_i, t, model);
+        return model[(i & 1u) + (j & 1u)];
+    }
+    /* R_si T R_sj' */
+    const float cj = kf->phasor_cos[kf->slot[sj].frame];
+    const float s_j = kf->phasor_sin[kf->slot[sj].frame];
+    const unsigned r = i & 1u, c = j & 1u;
+    const float row0 = r == 0u ? ci * t[0] + s_i * t[2] : ci * t[2] - s_i * t[0];
+    const float row1 = r == 0u ? ci * t[1] + s_i * t[3] : ci * t[3] - s_i * t[1];
+    return c == 0u ? row0 * cj + row1 * s_j : row1 * cj - row0 * s_j;
+}
+
+/* ===================================================================== */
+/* Angle-referenced profiles                                              */
+/* ===================================================================== */
+
+static bool angle_ok(float a)
+{
+    return is_finite(a) && a >= 0.0f && a < HD_TWO_PI_F;
+}
+
+/* The block's order if it can be part of a profile (motor- or
+ * output-locked, integral, 1..255), else 0. */
+static unsigned profile_order(const hd_kf_slot_t *sl)
+{
+    const float k = sl->theta_per_unit;
+    if (sl->lock == HD_KF_LOCK_FIXED || !(k >= 1.0f && k <= PROFILE_MAX_ORDER) ||
+        k != (float)(unsigned)k) {
+        return 0u;
+    }
+    return (unsigned)k;
+}
+
+/* cos and sin of k alpha, alpha = the lock angle of the sample the
+ * prediction is for: the caller's angle plus the last step's increment. */
+static void profile_rotation(const hd_kf_t *kf, const hd_kf_slot_t *sl, unsigned k,
+                             float motor_angle_rad, float output_angle_rad, float *c, float *s)
+{
+    const bool motor = sl->lock == HD_KF_LOCK_MOTOR;
+    const float alpha = motor ? motor_angle_rad + kf->last_d_motor_rad
+                              : output_angle_rad + kf->last_d_output_rad;
+    hd_sincosf((float)k * alpha, s, c);
+}
+
+int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_angle_rad,
+                         hd_kf_profile_t *profile)
+{
+    if (kf == NULL || profile == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    if (!angle_ok(motor_angle_rad) || !angle_ok(output_angle_rad)) {
+        return HD_KF_ERR_ANGLE;
+    }
+    unsigned n = 0;
+    for (unsigned s = 0; s < kf->active_blocks; s++) {
+        const hd_kf_slot_t *sl = &kf->slot[s];
+        const unsigned k = profile_order(sl);
+        if (k == 0u) {
+            continue;
+        }
+        float c, sn;
+        profile_rotation(kf, sl, k, motor_angle_rad, output_angle_rad, &c, &sn);
+        /* (a, b) = R(k alpha)' x, x in the model's coordinates */
+        const float x1 = hd_kf_state(kf, 2u * s), x2 = hd_kf_state(kf, 2u * s + 1u);
+        hd_kf_profile_line_t *line = &profile->lines[n++];
+        line->lock = sl->lock;
+        line->order = (uint8_t)k;
+        line->a_nm = c * x1 - sn * x2;
+        line->b_nm = sn * x1 + c * x2;
+    }
+    profile->line_count = (uint8_t)n;
+    return (int)n;
+}
+
+static hd_kf_err_t check_profile(const hd_kf_t *kf, const hd_kf_profile_t *profile,
+                                 float motor_angle_rad, float output_angle_rad,
+                                 float prior_var_nm2)
+{
+    if (kf == NULL || profile == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    if (!angle_ok(motor_angle_rad) || !angle_ok(output_angle_rad)) {
+        return HD_KF_ERR_ANGLE;
+    }
+    if (profile->line_count > HD_KF_MAX_BLOCKS || !is_nonneg(prior_var_nm2) ||
+        prior_var_nm2 > kf->cfg.p_max_nm2) {
+        return HD_KF_ERR_PROFILE;
+    }
+    for (unsigned i = 0; i < profile->line_count; i++) {
+        const hd_kf_profile_line_t *line = &profile->lines[i];
+        if ((line->lock != HD_KF_LOCK_MOTOR && line->lock != HD_KF_LOCK_OUTPUT) ||
+            line->order == 0u || !is_finite(line->a_nm) || !is_finite(line->b_nm)) {
+            return HD_KF_ERR_PROFILE;
+        }
+    }
+    return HD_KF_OK;
+}
+
+/* Block s takes (a, b): its state in its frame and a fresh covariance
+ * block v I, decorrelated. */
+static void set_block(hd_kf_t *kf, unsigned s, float x1, float x2, float var_nm2)
+{
+    restart_block(kf, s);
+    const unsigned f = kf->slot[s].frame;
+    const float c = kf->phasor_cos[f], sn = kf->phasor_sin[f];
+    /* the frame's R' takes the model's coordinates into the frame */
+    kf->x[2u * s] = c * x1 - sn * x2;
+    kf->x[2u * s + 1u] = sn * x1 + c * x2;
+    float *tile = &kf->p[tile_row_start(kf->active_blocks, offset_on(kf), s)];
+    tile[0] = tile[2] = var_nm2;
+}
+
+int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float motor_angle_rad,
+                         float output_angle_rad, float prior_var_nm2)
+{
+    const hd_kf_err_t err =
+        check_profile(kf, profile, motor_angle_rad, output_angle_rad, prior_var_nm2);
+    if (err != HD_KF_OK) {
+        return err;
+    }
+    uint32_t matched = 0u;
+    int count = 0;
+    for (unsigned i = 0; i < profile->line_count; i++) {
+        const hd_kf_profile_line_t *line = &profile->lines[i];
+        for (unsigned s = 0; s < kf->active_blocks; s++) {
+            const hd_kf_slot_t *sl = &kf->slot[s];
+            if ((matched & (1u << s)) != 0u || sl->lock != line->lock ||
+                profile_order(sl) != line->order) {
+                continue;
+            }
+            float c, sn;
+            profile_rotation(kf, sl, line->order, motor_angle_rad, output_angle_rad, &c, &sn);
+            /* x = R(k alpha) (a, b)' in the model's coordinates */
+            set_block(kf, s, c * line->a_nm + sn * line->b_nm, c * line->b_nm - sn * line->a_nm,
+                      prior_var_nm2);
+            matched |= 1u << s;
+            count++;
+            break;
+        }
+    }
+    return count;
 }

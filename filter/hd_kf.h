@@ -1,114 +1,80 @@
 /*
  * hd_kf: the ripple-cancelling Kalman filter of Taghirad, Helmy & Belanger
- * (1997), equations 5-10, as a float32, allocation-free library.
+ * (1997), equations 5-10, as a float32, allocation-free library.  This
+ * header holds the contracts; why each rule exists, with the measurements
+ * behind it, is in docs/filter.md.
  *
  * Model.  The torque ripple y = T_meas - T_exp is the sum of the first
- * states of a bank of 2-state harmonic oscillators (equation 6), plus, if
- * enabled, one random-walk offset state:
+ * states of a bank of 2-state oscillators, plus, if enabled, one
+ * random-walk offset state:
  *
- *   x(k+1) = Phi(k) x(k) + w(k),   y(k) = C x(k) + v(k),
+ *   x(k+1) = Phi(k) x(k) + w(k),   y(k) = C(k) x(k) + v(k),
  *   Phi = blockdiag(R(theta_1), ..., R(theta_B), 1),
- *   R(t) = [cos t  sin t; -sin t  cos t],   C = [1 0 1 0 ... 1 0 (1)].
+ *   R(t) = [cos t  sin t; -sin t  cos t],   C = [c_1 0 c_2 0 ... c_B 0 (1)].
  *
- * Each block is locked to one reference.  Its phase advance theta over the
- * step is taken from the encoder, never from a differentiated velocity:
- *   HD_KF_LOCK_MOTOR   theta = order * (motor angle increment)   [order: cycles per motor rev]
- *   HD_KF_LOCK_OUTPUT  theta = order * (output angle increment)  [order: cycles per output rev]
- *   HD_KF_LOCK_FIXED   theta = 2 pi f ts_s                       [order field holds f in Hz]
- * The paper's model is motor orders 2 and 4 plus output order 1
- * (misalignment; omega_3 = motor velocity / gear ratio).
+ * Each block is locked to one reference; its phase advance theta over the
+ * step comes from the encoder increments passed with the sample:
+ *   HD_KF_LOCK_MOTOR   theta = order * d_motor_angle_rad   [order: cycles per motor rev]
+ *   HD_KF_LOCK_OUTPUT  theta = order * d_output_angle_rad  [order: cycles per output rev]
+ *   HD_KF_LOCK_FIXED   theta = 2 pi f ts_s                 [order field holds f in Hz]
  *
- * Update (prediction type, equations 8-10; scalar innovation, no inverse):
- *   e = y - C x,  S = R + C P C',  g = P C',
- *   x <- Phi (x + g e / S)                               (8 with K = Phi g / S)
- *   P <- Phi (P - g g' / S) Phi' + Q                     (10, same algebra)
- * Phi is block diagonal, so one step costs O(n^2) for n states.
+ * Update (prediction type, scalar innovation, no inverse):
+ *   e = y - C x,  S = R + C P C',  g = P C',  F = diag(gain fractions)
+ *   x <- Phi (x + F g e / S)
+ *   P <- Phi (P - (F g g' + g g' F - F g g' F) / S) Phi' + Q
+ * which is the Joseph form for the gain F g / S (the optimal update when
+ * every fraction is 1), so P stays the exact covariance of the estimate.
+ * x after a step is the prediction for the NEXT sample; the outputs of a
+ * step come from the prediction made before its sample arrived.
  *
- * Outputs, per step (x is the prediction made before this sample arrived):
- *   ripple_nm          = sum of the oscillator first states (C x without offset)
- *   torque_filtered_nm = T_meas - ripple_nm  (- offset if it is a sensor error)
+ * Per-block rules (docs/filter.md explains each):
+ *   - measurement row: c = 1 + ripple_load_coeff_per_nm |T_ref| for
+ *     motor-locked blocks (1 when the coefficient is 0), 1 for output-locked
+ *     and fixed blocks, 0 for a frozen block; the offset's entry is 1.
+ *     T_ref starts at T_exp (+ the offset when it is real torque and primed)
+ *     and follows it by the motor's motion fraction: held at standstill;
+ *   - motion fraction m = min(1, |theta| / q_motion_ref_rad) for motor- and
+ *     output-locked blocks (1 when q_motion_ref_rad is 0, and for fixed
+ *     blocks); process noise per state per step = q_nm2 m, times
+ *     output_learn_scale for output-locked blocks;
+ *   - gain fraction: m for motor-locked blocks, output_learn_scale for
+ *     output-locked blocks, 1 for fixed blocks and the offset, 0 for a frozen
+ *     block;
+ *   - Nyquist: a block with |theta| > nyquist_fraction * pi is frozen for the
+ *     step (c = 0, gain 0, no process noise, still turned by theta); beyond
+ *     HD_KF_PHASE_LOST_RAD its phase is lost and it restarts from zero with
+ *     its p0, decorrelated (before the step's update);
+ *   - offset: primed with the first valid sample's y - ripple; with
+ *     offset_jump_nm > 0 an innovation with |e| > offset_jump_nm and
+ *     e^2 > 16 S adds e^2 to the offset's variance before the update
+ *     (HD_KF_STATUS_OFFSET_JUMP).
  *
- * Invariants kept every step (float32 safe for long runs):
- *   - P is exactly symmetric (only the upper triangle is computed, then mirrored);
- *   - diagonal entries stay in [0, p_max_nm2]; a diagonal above p_max is
- *     brought down by scaling its row and column (a congruence, keeps PSD);
- *   - a non-finite measurement, or |T_meas - T_exp| > HD_KF_MAX_ABS_Y_NM,
- *     skips the correction (prediction only) and is flagged BAD_INPUT; a non-finite state or covariance resets the filter, flagged.
+ * Invariants kept every step:
+ *   - P is stored once (packed upper triangle), so it is exactly symmetric;
+ *   - every diagonal entry (in the model's coordinates) is in [0, p_max_nm2]: a diagonal above p_max is
+ *     brought down by scaling its row and column (a congruence, keeps PSD,
+ *     counted in p_ceiling_count); a negative diagonal (float32 rounding)
+ *     has its row and column zeroed (counted in p_negative_count); either
+ *     sets HD_KF_STATUS_P_CLAMPED;
+ *   - a non-finite increment is taken as 0, and a non-finite or absurd
+ *     sample (|T_meas - T_exp| > HD_KF_MAX_ABS_Y_NM) is not corrected
+ *     (prediction only); both set HD_KF_STATUS_BAD_INPUT, counted once per
+ *     step in bad_input_count;
+ *   - a non-finite state or covariance resets the filter (hd_kf_reset),
+ *     HD_KF_STATUS_RESET, reset_count;
+ *   - the published filtered torque is always finite.
  *
- * Slow lines: an output-locked line at low output speed (order 1 at
- * 1.5 rad/s is 0.25 Hz) is nearly collinear with the offset over any short
- * window: only their sum is observed, and whatever T_exp misses (a load, an
- * acceleration) is shared between them by their variances.  An output
- * block that starts with a large variance takes most of it and hands it
- * back over one output revolution.  So output-locked blocks have their own,
- * small, initial variance (output_p0_nm2: a prior on the misalignment
- * amplitude) and learn slowly (small q, scaled by motion); the offset takes
- * the unexplained torque.  After init or reset, the offset starts at the
- * first valid sample's y - ripple (not from zero with a huge variance,
- * which would make the first float32 downdate lose all precision).
- *
- * Slow motor blocks: below q_motion_ref_rad of phase per step a
- * motor-locked block turns too little to be told from the offset, and at
- * a cold start (blocks at their prior p0) an expected torque that misses the
- * breakaway friction was explained as a 5 N m line near its zero crossing
- * (demo: a 5.8 N m spike in the first 30 ms).  So with q_motion_ref_rad > 0
- * a motor block's Kalman gain is scaled by the same motion fraction as its
- * q, min(1, |theta| / q_motion_ref_rad): it learns as it turns.  The
- * covariance update is the Joseph form for that gain, so P stays the exact
- * covariance of the estimate (hd_kf.c, covariance_update).  Measured on
- * the benchmark joint: start-up error 1.44 -> 0.31 N m RMS over the first
- * 0.5 s (peak 5.8 -> 1.0), and every scenario equal or better.
- *
- * Offset jumps: a load step is a jump of the offset, which a random walk
- * with small q does not expect; the filter would share it with whichever
- * states are uncertain (a slow output-locked block above all) and give it
- * back over one output revolution.  With offset_jump_nm > 0, an
- * innovation with |e| > offset_jump_nm and e^2 > 16 S is taken as an offset
- * jump (the manoeuvre detection of tracking filters): e^2 is added to the
- * offset's variance before the update, so the gain sends the jump to the
- * offset.  The absolute threshold keeps small unmodelled lines, which also
- * exceed 4 sigma, from triggering it.  Flagged HD_KF_STATUS_OFFSET_JUMP.
- *
- * Load-dependent ripple: the meshing torque of a strain-wave gear grows
- * with the transmitted torque.  With ripple_load_coeff_per_nm = k > 0 the
- * measurement-row entry of every motor-locked block is c = 1 + k |T_ref|
- * instead of 1, where T_ref = T_exp + offset (the filter's own slow-torque
- * estimate before this sample; T_exp alone when the offset is a sensor
- * error).  Those states are then the ripple at zero load: a load change
- * changes the predicted ripple at once instead of being learned again by
- * every block.  Output-locked (misalignment: geometry) and fixed-frequency
- * (electrical pickup) blocks keep c = 1; scaling the slow output-locked
- * line as well made it take load steps (measured in the analysis suite).
- * T_ref is held while the motor stands still and follows T_exp + offset
- * with the same motion fraction as q (min(1, |motor increment| /
- * q_motion_ref_rad)): at standstill a motor block and the offset are one
- * constant, their split is unobservable, and a c computed from the offset
- * estimate fed that split back into itself (the double reference drifted
- * the same way: ripple error 0.2 -> 7.3 N m over 60 s still).  With c
- * taken as known before the update the model stays linear.
- *
- * Nyquist: a block whose |theta| exceeds nyquist_fraction * pi for this step
- * cannot be observed without aliasing.  It is frozen for that step: dropped
- * from C and from the ripple estimate, its gain 0 (no correction; the
- * covariance update is the Joseph form for that gain), no process noise, but
- * still turned by theta, which comes from the encoder and is exact at any
- * speed.  When theta is back under the limit the block resumes with its
- * estimate.  (It used to restart from zero with p0: on a 200 Hz log whose
- * speed jitters across the limit for 3 samples at a time, 38 restarts put a
- * 7 mN m order-4 line into the output that the data did not have.)  A phase
- * advance beyond HD_KF_PHASE_LOST_RAD in one step is no motion a joint makes
- * (an encoder fault): the block's phase is lost and it restarts from zero
- * with its p0, decorrelated.
- *
- * No heap, no VLAs, no libm in hd_kf_step (sine/cosine come from hd_trig.h,
- * one sqrtf per block for the amplitude compiles to VSQRT on Cortex-M4F).
- * The library keeps no globals: all state is in hd_kf_t.
+ * Cost: hd_kf_step is O(n^2) in the ACTIVE states, bounded, never blocks,
+ * never allocates, calls no libm (sine/cosine: hd_trig.h).  The library
+ * keeps no globals: all state is in hd_kf_t.
  */
 #ifndef HD_KF_H
 #define HD_KF_H
 
 #include <stdbool.h>
 #include <stdint.h>
+
+#include "hd_filter_err.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -119,28 +85,27 @@ extern "C" {
 #define HD_KF_MAX_BLOCKS 8
 #endif
 #define HD_KF_MAX_STATES (2 * HD_KF_MAX_BLOCKS + 1)
+/* Blocks of integral order up to this take their frame from powers of the
+ * motor or output phasor; the others turn their own. */
+#define HD_KF_MAX_POWER 8
+#define HD_KF_PHASORS (2 * (HD_KF_MAX_POWER + 1) + HD_KF_MAX_BLOCKS)
+/* Entries of the packed upper triangle of P at capacity. */
+#define HD_KF_P_ENTRIES (HD_KF_MAX_STATES * (HD_KF_MAX_STATES + 1) / 2)
 
 /* Largest |T_meas - T_exp| the filter corrects with [N m]; beyond it (or
- * non-finite) a sample is bad input.  Far above any joint's torque, far
- * below where squares overflow float32. */
+ * non-finite) a sample is bad input. */
 #define HD_KF_MAX_ABS_Y_NM 1.0e6f
 
-/* Largest accepted p0 / r (and output_p0 / r).  The first update subtracts
- * numbers of size p0 to leave one of size r, and float32 keeps ~7 digits;
- * collinear states (blocks at standstill vs the offset) amplify the loss.
- * Measured against the double reference: p0/r = 750 -> 3e-3 N m,
- * 2.5e4 -> 0.1 N m, 3.7e9 -> state 1e8 within 6 samples.  The paper's
- * tuning is 1e3, the recommended one 750. */
+/* Largest accepted p0 / r (and output_p0 / r): float32 keeps ~7 digits of
+ * the first update's p0 - (p0 - r) (docs/filter.md, "Priors"). */
 #define HD_KF_MAX_P0_OVER_R 1.0e4f
 
-/* Largest accepted ripple_load_coeff_per_nm [1/Nm]: 100 means the ripple
- * grows 100x per N m, far beyond any gear; much larger values overflow
- * c^2 P in float32 (measured: 1e20 resets the filter every step). */
+/* Largest accepted ripple_load_coeff_per_nm [1/Nm] (c^2 P must not
+ * overflow float32). */
 #define HD_KF_MAX_LOAD_COEFF_PER_NM 100.0f
 
-/* A block phase advance beyond this in one step [rad] (four turns: motor
- * order 2 at 12 500 rad/s at 1 kHz) is an encoder fault, not motion: the
- * block restarts (see "Nyquist"). */
+/* A block phase advance beyond this in one step [rad] (four turns) is an
+ * encoder fault, not motion: the block restarts. */
 #define HD_KF_PHASE_LOST_RAD 25.132741f
 
 typedef enum {
@@ -164,119 +129,127 @@ typedef struct {
                                       (sensor drift); 0: it is real torque the
                                       expected-torque model misses, keep it */
     float offset_q_nm2;            /* offset random-walk variance per step [Nm^2] */
-    float r_nm2;                   /* measurement noise variance R [Nm^2] */
+    float r_nm2;                   /* measurement noise variance R [Nm^2], > 0 */
     float ts_s;                    /* sample period [s] */
-    float p0_nm2;                  /* initial / reset variance of oscillator states [Nm^2] */
-    float output_p0_nm2;           /* initial / reset variance of output-locked blocks [Nm^2]
-                                      (see "Slow lines" above) */
-    float q_motion_ref_rad;        /* > 0: an angle-locked block's q is scaled by
-                                      min(1, |theta| / q_motion_ref_rad), i.e. ripple
-                                      changes with angle travelled, not with time, and a
-                                      joint at standstill does not inflate P; 0: off (paper) */
+    float p0_nm2;                  /* initial / reset variance of motor-locked and fixed
+                                      blocks and of the offset [Nm^2] */
+    float output_p0_nm2;           /* initial / reset variance of output-locked blocks [Nm^2] */
+    float q_motion_ref_rad;        /* > 0: motion fraction min(1, |theta| / this) scales q
+                                      and motor-block gains; 0: off (the paper) */
     float p_max_nm2;               /* ceiling on covariance diagonal [Nm^2] */
     float nyquist_fraction;        /* freeze a block when |theta| > this * pi, in (0, 1] */
-    float offset_jump_nm;          /* > 0: an innovation larger than this [Nm] (and
-                                      than 4 sigma) is a jump of the offset (see
-                                      below); 0: off */
-    float ripple_load_coeff_per_nm; /* >= 0: motor-locked lines scale with
-                                      1 + coeff |T| (see "Load-dependent ripple");
-                                      0: off (the paper's constant amplitudes);
-                                      at most HD_KF_MAX_LOAD_COEFF_PER_NM */
+    float offset_jump_nm;          /* > 0: offset-jump gate threshold [Nm]; 0: off */
+    float ripple_load_coeff_per_nm; /* >= 0: motor-locked rows are 1 + coeff |T_ref|;
+                                      0: off; at most HD_KF_MAX_LOAD_COEFF_PER_NM */
+    float output_learn_scale;      /* in [0, 1]: multiplies the gain and q of output-locked
+                                      blocks (1: learn as the other blocks, the default;
+                                      0: they predict and turn, but never learn) */
 } hd_kf_config_t;
 
 /* Per-step input. */
 typedef struct {
     float torque_meas_nm;       /* calibrated measured torque */
     float torque_expected_nm;   /* T_exp from hd_expected.h (or 0) */
-    float d_motor_angle_rad;    /* motor (wave generator) angle increment over the step */
-    float d_output_angle_rad;   /* output angle increment over the step */
+    float d_motor_angle_rad;    /* motor angle at this sample minus at the previous one */
+    float d_output_angle_rad;   /* output angle at this sample minus at the previous one */
 } hd_kf_input_t;
 
-/* Status bits in hd_kf_output_t.status and hd_kf_t.status_sticky. */
+/* Status bits in hd_kf_output_t.status and hd_kf_t.status_sticky (names:
+ * hd_kf_status_name). */
 #define HD_KF_STATUS_FROZEN      (1u << 0) /* at least one block over Nyquist this step */
 #define HD_KF_STATUS_BAD_INPUT   (1u << 1) /* non-finite input: correction skipped */
 #define HD_KF_STATUS_RESET       (1u << 2) /* non-finite state or covariance: filter reset */
-#define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* a covariance diagonal hit p_max */
+#define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* a covariance diagonal clamped to [0, p_max] */
 #define HD_KF_STATUS_OFFSET_JUMP (1u << 4) /* innovation beyond the gate: offset jump */
+#define HD_KF_STATUS_BITS 5u               /* bits [0, HD_KF_STATUS_BITS) are defined */
 
 typedef struct {
     float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */
     float ripple_nm;           /* estimated ripple, all active unfrozen blocks */
     float offset_nm;           /* offset state (0 if disabled) */
-    float innovation_nm;       /* e = y - C x (prior) */
-    float innovation_var_nm2;  /* S = R + C P C' (prior) */
-    float amplitude_nm[HD_KF_MAX_BLOCKS]; /* per configured block, at the present load
-                                             (x c, see "Load-dependent ripple");
-                                             0 if disabled/frozen */
-    uint32_t frozen_mask;      /* bit i: block i frozen this step */
+    float innovation_nm;       /* e = y - C x (prior); 0 when not corrected */
+    float innovation_var_nm2;  /* S = R + C P C' (prior, after an offset jump) */
+    uint32_t frozen_mask;      /* bit i: configured block i frozen this step */
     uint32_t status;           /* HD_KF_STATUS_* for this step */
 } hd_kf_output_t;
 
+/* Per active block, derived from the configuration (filled by hd_kf_init
+ * and hd_kf_set_block_enabled). */
+typedef struct {
+    uint8_t block;       /* configured block index */
+    uint8_t lock;        /* hd_kf_lock_t, also the index of its increment */
+    uint8_t frame;       /* its frame phasor: entry of hd_kf_t.phasor_cos/sin */
+    uint8_t reserved;
+    float theta_per_unit; /* phase advance per unit of its increment: the order
+                             (FIXED: 2 pi f ts per step, its increment is 1) */
+    float motion_inv;    /* motion fraction = min(1, |theta| motion_inv + motion_bias) */
+    float motion_bias;
+    float q_nm2;         /* q, times output_learn_scale for output-locked blocks */
+    float p0_nm2;
+    float learn;         /* gain fraction before motion: output_learn_scale or 1 */
+    float fixed_cos;     /* FIXED: its phase advance of every step, as a phasor */
+    float fixed_sin;
+} hd_kf_slot_t;
+
 /* Filter state.  Treat as opaque; it is public only so it can be allocated
- * statically. */
+ * statically.  x and p hold each block's state and covariance in the
+ * block's co-rotating frame: the model's x_s = R(phi_s) x[2s..2s+1], phi_s
+ * the block's accumulated phase (phasor_cos/sin[slot.frame]), so a step
+ * turns no state and no covariance, only the frames (docs/filter.md,
+ * "Co-rotating frames").  hd_kf_state and hd_kf_cov return the model's
+ * coordinates. */
 typedef struct {
     hd_kf_config_t cfg;
     uint8_t n_states;                         /* active states */
     uint8_t active_blocks;                    /* number of enabled blocks */
-    uint8_t block_index[HD_KF_MAX_BLOCKS];    /* active slot -> configured block */
     uint8_t offset_slot;                      /* state index of the offset, if enabled */
-    uint32_t frozen_mask;                     /* by configured block index */
     uint8_t offset_primed;                    /* the offset has taken its first sample */
     uint8_t load_ref_primed;                  /* load_ref_nm has taken its first value */
-    float load_ref_nm;                        /* T_ref of "Load-dependent ripple" [Nm] */
-    float x[HD_KF_MAX_STATES];
-    float p[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
+    uint32_t motor_powers;                    /* bit k: the k-th power of the motor phasor is used */
+    uint32_t output_powers;                   /* the same for the output phasor */
+    uint32_t own_frames;                      /* bit s: slot s turns its own phasor */
+    uint32_t p_max_bits;                      /* p_max_nm2's bit pattern */
+    uint32_t frozen_mask;                     /* by configured block index, last step */
+    float nyquist_limit_rad;                  /* nyquist_fraction * pi */
+    float q_motion_inv_rad;                   /* 1 / q_motion_ref_rad (0: off) */
+    float load_ref_nm;                        /* T_ref of the load-dependent row [Nm] */
+    float load_scale;                         /* 1 + k |T_ref| of the last step */
+    float last_d_motor_rad;                   /* increments applied by the last step */
+    float last_d_output_rad;
+    hd_kf_slot_t slot[HD_KF_MAX_BLOCKS];      /* active slot -> block parameters */
+    float phasor_cos[HD_KF_PHASORS];          /* unit phasors: [k] the motor phase (sum of */
+    float phasor_sin[HD_KF_PHASORS];          /* all increments) times k, [HD_KF_MAX_POWER
+                                                 + 1 + k] the output's, then one per
+                                                 configured block that turns its own */
+    float x[HD_KF_MAX_STATES];                /* blocks (in their frames), then offset */
+    float p[HD_KF_P_ENTRIES];                 /* packed by 2x2 tiles, in the frames */
     uint32_t status_sticky;                   /* OR of all step statuses since init */
     uint32_t reset_count;
     uint32_t bad_input_count;
+    uint32_t p_ceiling_count;                 /* diagonal entries brought down to p_max */
+    uint32_t p_negative_count;                /* negative diagonals zeroed (rounding) */
 } hd_kf_t;
 
-/* Errors from hd_kf_config_check / hd_kf_init. */
-typedef enum {
-    HD_KF_OK = 0,
-    HD_KF_ERR_NULL = -1,
-    HD_KF_ERR_BLOCK_COUNT = -2,   /* block_count > HD_KF_MAX_BLOCKS */
-    HD_KF_ERR_LOCK = -3,          /* unknown lock kind */
-    HD_KF_ERR_ORDER = -4,         /* order / frequency not finite or <= 0 */
-    HD_KF_ERR_NOISE = -5,         /* q, r, p0, p_max not finite, negative, or r <= 0 */
-    HD_KF_ERR_TS = -6,            /* ts_s not finite or <= 0 */
-    HD_KF_ERR_NYQUIST = -7,       /* nyquist_fraction outside (0, 1] */
-    HD_KF_ERR_FIXED_OVER_NYQUIST = -8, /* fixed-frequency block at or above fs/2 */
-    HD_KF_ERR_CONDITION = -9,     /* p0 / r > HD_KF_MAX_P0_OVER_R (float32 would lose P) */
-} hd_kf_err_t;
-
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,
- * p0 = output p0 = 0.3 Nm^2 (an amplitude prior, see HD_KF_MAX_P0_OVER_R), p_max = 1e6 Nm^2, nyquist_fraction = 0.9, offset disabled
- * (offset q 1e-6 Nm^2 if enabled).  Add blocks with hd_kf_config_add_block. */
+ * p0 = output p0 = 0.3 Nm^2, p_max = 1e6 Nm^2, nyquist_fraction = 0.9,
+ * output_learn_scale = 1, offset disabled (offset q 1e-6 Nm^2 if enabled),
+ * every gate off.  Add blocks with hd_kf_config_add_block. */
 void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s);
 
 /* The paper's tuning: Q = 1e3 I, R = 1, motor orders 2 and 4, plus output
  * order 1 when with_misalignment (the sixth-order model of section V). */
 void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment);
 
-/* The project's recommended tuning (see README, "Tuning"): motor orders 2
- * and 4 and output order 1, plus the offset state (kept as real torque).
- *   R = noise_nm^2 (white sensor noise only: the offset state, not R, takes
- *       what T_exp misses, so the filter need not follow T_exp);
- *   q (each oscillator state) = R (ts / ripple_settle_s)^2, so a block's
- *       amplitude/phase estimate settles in ~ripple_settle_s at full speed
- *       (q is scaled by motion, so output-locked blocks, whose phase moves
- *       N times slower, get correspondingly less);
- *   q (offset) = R (ts / offset_settle_s)^2.
- *   offset jump threshold 25 x noise_nm (0.5 Nm for 0.02 Nm noise);
- *   p0 0.3 Nm^2 (the default: a prior on ripple amplitude that keeps P well
- *   conditioned in float32), output-locked p0 0.01 Nm^2, q_motion_ref 0.05 rad;
- *   both p0 are capped at HD_KF_MAX_P0_OVER_R / 2 x R, so the result always
- *   passes hd_kf_config_check (noise below ~8 mN m lowers them).
- * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.02 s.
- * The offset settle time trades load tracking against learning the slow
- * output-locked line: the offset's bandwidth (~1 / (2 pi settle)) must stay
- * well above the load's changes, but every bit of it hides the 0.2-0.3 Hz
- * misalignment line from its block.  Measured on the benchmark joint
- * (docs/bench.md): 5 ms left 86 mN m at 156 rad/s (floor 20), 20 ms 24;
- * slower still helps constant load a little and loses on ramps and slow
- * load changes.  Load steps are the jump gate's business, not the settle
- * time's. */
+/* The project's recommended tuning (docs/filter.md, "Recommended tuning"):
+ * motor orders 2 and 4 and output order 1, plus the offset (real torque);
+ *   R = noise_nm^2;
+ *   q (each oscillator state) = R (ts / ripple_settle_s)^2;
+ *   q (offset) = R (ts / offset_settle_s)^2;
+ *   offset jump threshold 25 x noise_nm; q_motion_ref 0.05 rad;
+ *   p0 0.3 Nm^2, output-locked p0 0.01 Nm^2, both capped at
+ *   HD_KF_MAX_P0_OVER_R / 2 x R, so the result passes hd_kf_config_check;
+ *   output_learn_scale 1.
+ * Typical: noise 0.02 Nm, ripple_settle 0.05 s, offset_settle 0.02 s. */
 void hd_kf_config_recommended(hd_kf_config_t *cfg, float ts_s, float noise_nm,
                               float ripple_settle_s, float offset_settle_s);
 
@@ -289,37 +262,99 @@ int hd_kf_config_add_block(hd_kf_config_t *cfg, hd_kf_lock_t lock, float order,
 /* Validates every field; returns HD_KF_OK or the first error found. */
 hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg);
 
-/* Human-readable name of an error code (static string). */
-const char *hd_kf_err_str(int err);
+/* Name of status bit i ("FROZEN" for bit 0, ...), NULL past the last. */
+const char *hd_kf_status_name(unsigned bit);
 
-/* Copies and checks cfg, zeroes the state, sets P = p0 I.  On error the
- * filter is left unchanged. */
+/* Copies and checks cfg, zeroes the state, sets P = p0 I, zeroes every
+ * counter.  On error the filter is left unchanged. */
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg);
 
-/* Zeroes the state and resets P = p0 I (configuration kept). */
+/* Zeroes the state and resets P = p0 I (configuration and counters kept). */
 void hd_kf_reset(hd_kf_t *kf);
 
 /* Enables or disables configured block i at run time.  The block restarts
- * from zero with covariance p0; other blocks keep their estimates. */
+ * from zero with covariance p0; other blocks keep their estimates and
+ * covariances bit for bit. */
 hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled);
 
-/* One filter step: bounded time, O(n^2), never blocks, never allocates. */
+/* One filter step: bounded time, O(n^2) in the active states, never blocks,
+ * never allocates. */
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out);
 
+/* ---- read-out, outside the 1 kHz path ---------------------------------- */
+
+/* Amplitude [Nm] of configured block i's prediction, sqrt(x1^2 + x2^2), at
+ * zero load; 0 if the block is disabled. */
+float hd_kf_block_amplitude_nm(const hd_kf_t *kf, unsigned block);
+
+/* Measurement-row entry c of configured block i in the last step (its
+ * ripple is c x1): 1 + k |T_ref| for motor-locked blocks, 1 for the others,
+ * 0 if the block was frozen or is disabled. */
+float hd_kf_block_row(const hd_kf_t *kf, unsigned block);
+
 /* Amplitude [Nm] and phase [rad] of configured block i from the current
- * state (phase of the first state's oscillation: ripple_i = A cos(phase) ),
- * at zero load when ripple_load_coeff_per_nm > 0.
- * Uses libm atan2f: call it outside the 1 kHz path. */
+ * state (ripple_i = A cos(phase)), at zero load; both 0 if the block is
+ * disabled or was frozen in the last step.  Uses libm atan2f. */
 void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
                                  float *amplitude_nm, float *phase_rad);
 
 /* Number of active states (2 per enabled block, +1 for the offset). */
 unsigned hd_kf_state_count(const hd_kf_t *kf);
 
-/* Read access for tests and tools: state vector and covariance entry in the
- * active ordering (block slots in configuration order, offset last). */
+/* State vector and covariance entry in the active ordering (block slots in
+ * configuration order, offset last); 0 outside it.  hd_kf_cov(i, j) ==
+ * hd_kf_cov(j, i) bit for bit. */
 float hd_kf_state(const hd_kf_t *kf, unsigned i);
 float hd_kf_cov(const hd_kf_t *kf, unsigned i, unsigned j);
+
+/* ---- angle-referenced profiles (outside the 1 kHz path) ----------------
+ *
+ * A motor- or output-locked block of integer order k (1..255) models the
+ * ripple as a function of its ABSOLUTE lock angle alpha (the motor angle
+ * for HD_KF_LOCK_MOTOR, the output angle for HD_KF_LOCK_OUTPUT):
+ *
+ *   ripple(alpha) = a cos(k alpha) + b sin(k alpha)        [N m, zero load]
+ *
+ * and its state at alpha is x = R(k alpha) (a, b)', with R the block's
+ * transition above, so x1 = ripple(alpha).  Fixed-frequency blocks and
+ * blocks of non-integral order are not part of a profile.
+ *
+ * Which angle.  x is the prediction for the next sample, turned by the last
+ * step's increments.  The caller passes motor_angle_rad and
+ * output_angle_rad = the absolute angles, reduced to [0, 2 pi), OF THE
+ * SAMPLE GIVEN TO THE MOST RECENT hd_kf_step (the angles whose increments
+ * from the sample before that step received).  The filter adds those
+ * increments itself, exactly as its prediction did.  A filter not stepped
+ * since hd_kf_init / hd_kf_reset has no such increments: pass the angles of
+ * the first sample it will be given. */
+typedef struct {
+    uint8_t lock;   /* HD_KF_LOCK_MOTOR or HD_KF_LOCK_OUTPUT */
+    uint8_t order;  /* k: cycles per revolution of the lock angle, >= 1 */
+    float a_nm;     /* ripple(alpha) = a cos(k alpha) + b sin(k alpha) */
+    float b_nm;
+} hd_kf_profile_line_t;
+
+typedef struct {
+    uint8_t line_count;                          /* lines[0, line_count) */
+    hd_kf_profile_line_t lines[HD_KF_MAX_BLOCKS];
+} hd_kf_profile_t;
+
+/* Writes one line per enabled motor- or output-locked block of integral
+ * order 1..255, in configuration order.  Returns the number of lines, or
+ * HD_KF_ERR_NULL / HD_KF_ERR_ANGLE (profile untouched). */
+int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_angle_rad,
+                         hd_kf_profile_t *profile);
+
+/* For each line, the first enabled block of the same lock and order not
+ * matched by an earlier line takes the line's ripple: its state is set from
+ * (a, b) at the angle above, its covariance block to prior_var_nm2 I with
+ * zero covariance to every other state.  Lines without such a block are
+ * ignored.  Returns the number of lines matched, or an error with the
+ * filter unchanged: HD_KF_ERR_NULL, HD_KF_ERR_ANGLE, HD_KF_ERR_PROFILE
+ * (line_count > HD_KF_MAX_BLOCKS, a lock other than motor/output, order 0,
+ * a non-finite a or b, prior_var_nm2 not finite or outside [0, p_max]). */
+int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float motor_angle_rad,
+                         float output_angle_rad, float prior_var_nm2);
 
 #ifdef __cplusplus
 }

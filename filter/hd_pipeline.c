@@ -1,23 +1,25 @@
 /* hd_pipeline: see hd_pipeline.h. */
 #include "hd_pipeline.h"
 
-int hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
-                     const hd_expected_config_t *expected_cfg,
-                     float track_bandwidth_hz)
+hd_kf_err_t hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
+                             const hd_expected_config_t *expected_cfg,
+                             float track_bandwidth_hz)
 {
-    const hd_kf_err_t err = hd_kf_init(&p->kf, kf_cfg);
+    hd_kf_err_t err = hd_kf_init(&p->kf, kf_cfg);
     if (err != HD_KF_OK) {
         return err;
     }
-    if (hd_track_init(&p->output_track, kf_cfg->ts_s, track_bandwidth_hz) != 0) {
-        return -100;
+    err = hd_track_init(&p->output_track, kf_cfg->ts_s, track_bandwidth_hz);
+    if (err != HD_KF_OK) {
+        return err;
     }
-    if (hd_expected_config_check(expected_cfg) != 0) {
-        return -101;
+    err = hd_expected_config_check(expected_cfg);
+    if (err != HD_KF_OK) {
+        return err;
     }
     p->expected = *expected_cfg;
     p->torque_expected_nm = 0.0f;
-    return 0;
+    return HD_KF_OK;
 }
 
 void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
@@ -47,8 +49,14 @@ static void store(float *dst, size_t i, float v)
 void hd_pipeline_run(hd_pipeline_t *p, const hd_pipeline_io_t *io)
 {
     hd_kf_output_t out;
+    float amp_prior[HD_KF_MAX_BLOCKS];
     for (size_t i = 0; i < io->n; i++) {
         const float ff = io->feedforward_nm != NULL ? io->feedforward_nm[i] : 0.0f;
+        if (io->amplitude_nm != NULL) {
+            for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
+                amp_prior[b] = hd_kf_block_amplitude_nm(&p->kf, b);
+            }
+        }
         hd_pipeline_step(p, io->torque_meas_nm[i], io->d_motor_angle_rad[i],
                          io->d_output_angle_rad[i], ff, &out);
         store(io->torque_filtered_nm, i, out.torque_filtered_nm);
@@ -60,7 +68,8 @@ void hd_pipeline_run(hd_pipeline_t *p, const hd_pipeline_io_t *io)
         store(io->output_velocity_rad_s, i, p->output_track.vel_rad_s);
         if (io->amplitude_nm != NULL) {
             for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
-                io->amplitude_nm[i * HD_KF_MAX_BLOCKS + b] = out.amplitude_nm[b];
+                io->amplitude_nm[i * HD_KF_MAX_BLOCKS + b] =
+                    hd_kf_block_row(&p->kf, b) * amp_prior[b];
             }
         }
         if (io->status != NULL) {

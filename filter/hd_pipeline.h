@@ -28,9 +28,10 @@ typedef struct {
     float torque_expected_nm;       /* last T_exp */
 } hd_pipeline_t;
 
-/* Initialises all three parts; returns 0 or a negative error (hd_kf_err_t,
- * or -100 for a bad tracker bandwidth, -101 for a bad expected-torque config). */
-int hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
+/* Initialises all three parts; returns HD_KF_OK or the first error
+ * (hd_kf_config_check's, HD_KF_ERR_TRACK_BANDWIDTH, HD_KF_ERR_NULL or
+ * HD_KF_ERR_EXPECTED_CONFIG). */
+hd_kf_err_t hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
                      const hd_expected_config_t *expected_cfg,
                      float track_bandwidth_hz);
 
@@ -39,8 +40,13 @@ void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
                       float feedforward_nm, hd_kf_output_t *out);
 
 /* Array form.  Inputs of length n (feedforward may be NULL = 0); every output
- * pointer may be NULL; amplitude_nm, if given, is n x HD_KF_MAX_BLOCKS,
- * row-major.  status, if given, receives hd_kf_output_t.status per sample. */
+ * pointer may be NULL.  status, if given, receives hd_kf_output_t.status per
+ * sample.  amplitude_nm, if given, is n x HD_KF_MAX_BLOCKS, row-major: row i,
+ * column b is the amplitude of configured block b's prediction used at
+ * sample i times its measurement-row entry in that step
+ * (hd_kf_block_amplitude_nm before the step x hd_kf_block_row after it:
+ * at the load of the step, 0 if the block was frozen or is disabled).  The
+ * 1 kHz path never computes it. */
 typedef struct {
     size_t n;
     const float *torque_meas_nm;

@@ -11,15 +11,15 @@ static int is_finite(float x)
     return (x - x) == 0.0f;
 }
 
-int hd_track_init(hd_track_t *t, float ts_s, float bandwidth_hz)
+hd_kf_err_t hd_track_init(hd_track_t *t, float ts_s, float bandwidth_hz)
 {
     if (!is_finite(ts_s) || ts_s <= 0.0f || !is_finite(bandwidth_hz) ||
         bandwidth_hz <= 0.0f) {
-        return -1;
+        return HD_KF_ERR_TRACK_BANDWIDTH;
     }
     const float w = HD_TRACK_TWO_PI * bandwidth_hz;
     if (w * ts_s > HD_TRACK_MAX_W_TS) {
-        return -1;
+        return HD_KF_ERR_TRACK_BANDWIDTH;
     }
     t->ts_s = ts_s;
     t->l1 = 3.0f * w * ts_s;
@@ -28,10 +28,10 @@ int hd_track_init(hd_track_t *t, float ts_s, float bandwidth_hz)
     t->err_rad = 0.0f;
     t->vel_rad_s = 0.0f;
     t->acc_rad_s2 = 0.0f;
-    return 0;
+    return HD_KF_OK;
 }
 
-int hd_track_update(hd_track_t *t, float d_angle_rad)
+hd_kf_err_t hd_track_update(hd_track_t *t, float d_angle_rad)
 {
     const float ts = t->ts_s;
     /* Predict with the current velocity and acceleration. */
@@ -39,7 +39,7 @@ int hd_track_update(hd_track_t *t, float d_angle_rad)
     t->vel_rad_s += t->acc_rad_s2 * ts;
     if (!is_finite(d_angle_rad)) {
         /* No measurement: assume the predicted motion happened. */
-        return -1;
+        return HD_KF_ERR_INPUT;
     }
     t->err_rad += d_angle_rad - predicted;
     /* Correct: theta_hat moves by l1 err, so the error shrinks by it. */
@@ -47,5 +47,5 @@ int hd_track_update(hd_track_t *t, float d_angle_rad)
     t->err_rad -= t->l1 * e;
     t->vel_rad_s += t->l2 * e;
     t->acc_rad_s2 += t->l3 * e;
-    return 0;
+    return HD_KF_OK;
 }

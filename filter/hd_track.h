@@ -18,6 +18,8 @@
 #ifndef HD_TRACK_H
 #define HD_TRACK_H
 
+#include "hd_filter_err.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -32,13 +34,14 @@ typedef struct {
     float acc_rad_s2;
 } hd_track_t;
 
-/* Returns 0, or -1 if ts_s or bandwidth is not finite and positive or the
- * bandwidth is too high for the sample rate (w ts > 0.5). */
-int hd_track_init(hd_track_t *t, float ts_s, float bandwidth_hz);
+/* Returns HD_KF_OK, or HD_KF_ERR_TRACK_BANDWIDTH if ts_s or bandwidth is
+ * not finite and positive or the bandwidth is too high for the sample rate
+ * (w ts > 0.5). */
+hd_kf_err_t hd_track_init(hd_track_t *t, float ts_s, float bandwidth_hz);
 
 /* Feeds the measured angle increment since the previous call.  A non-finite
- * increment is ignored (prediction only) and returns -1. */
-int hd_track_update(hd_track_t *t, float d_angle_rad);
+ * increment is ignored (prediction only) and returns HD_KF_ERR_INPUT. */
+hd_kf_err_t hd_track_update(hd_track_t *t, float d_angle_rad);
 
 #ifdef __cplusplus
 }

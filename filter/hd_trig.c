@@ -7,6 +7,9 @@
 #define HALF_PI_LO 4.83826794897e-4f
 #define TWO_OVER_PI 0.636619772367581f
 #define MAX_REDUCIBLE_RAD 1.0e5f
+/* Below this |angle| the quadrant is 0 (angle * 2 / pi < 0.4966) and the
+ * reduction leaves the angle as it is: skip it. */
+#define NO_REDUCTION_RAD 0.78f
 
 /* Taylor polynomials on [-pi/4, pi/4]: truncation error < 1e-9, far below
  * float32 rounding (6e-8). Horner form, no division. */
@@ -31,6 +34,12 @@ void hd_sincosf(float angle_rad, float *sin_out, float *cos_out)
     if (!(angle_rad <= MAX_REDUCIBLE_RAD && angle_rad >= -MAX_REDUCIBLE_RAD)) {
         *sin_out = 0.0f;
         *cos_out = 1.0f;
+        return;
+    }
+    if (angle_rad < NO_REDUCTION_RAD && angle_rad > -NO_REDUCTION_RAD) {
+        /* quadrant 0: the same bits as the reduction below gives */
+        *sin_out = sin_poly(angle_rad);
+        *cos_out = cos_poly(angle_rad);
         return;
     }
     const float scaled = angle_rad * TWO_OVER_PI;

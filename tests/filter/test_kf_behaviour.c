@@ -52,6 +52,19 @@ typedef struct {
 
 static run_t g_run;
 
+/* One step plus the per-block amplitude read-out the tools get from
+ * hd_pipeline_run: the prior amplitude times the step's row entry. */
+static void step_with_amplitudes(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *o,
+                                 float amp[HD_KF_MAX_BLOCKS])
+{
+    float prior[HD_KF_MAX_BLOCKS];
+    for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++)
+        prior[b] = hd_kf_block_amplitude_nm(kf, b);
+    hd_kf_step(kf, in, o);
+    for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++)
+        amp[b] = hd_kf_block_row(kf, b) * prior[b];
+}
+
 /* Runs kf (already initialised) through the scenario, recording everything. */
 static void run_scenario(hd_kf_t *kf, const scen_t *s, run_t *r)
 {
@@ -405,7 +418,7 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
             frozen_steps++;
             TEST_ASSERT_EQUAL_UINT32(2u, o.frozen_mask);
             TEST_ASSERT_TRUE(o.status & HD_KF_STATUS_FROZEN);
-            TEST_ASSERT_EQUAL_FLOAT(0.0f, o.amplitude_nm[1]);
+            TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_block_row(&kf, 1));
             /* its ripple is excluded: the estimate is block 0's prior alone */
             TEST_ASSERT_FLOAT_WITHIN(1e-6, (double)x0_prior, (double)o.ripple_nm);
             /* held: only turned (a rotation keeps the state's norm and the
@@ -756,7 +769,8 @@ static void test_block_disable_enable_keeps_others(void)
         ref_kf_output_t ro;
         hd_kf_step(&kf, &in, &o);
         ref_kf_step(&ref, &in, &ro);
-        TEST_ASSERT_EQUAL_FLOAT(0.0f, o.amplitude_nm[1]);
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_block_row(&kf, 1));
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_block_amplitude_nm(&kf, 1));
         double e = fabs((double)o.torque_filtered_nm - ro.torque_filtered_nm);
         if (e > worst)
             worst = e;
@@ -842,23 +856,29 @@ static void test_block_toggle_with_offset_keeps_states_bitwise(void)
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_set_block_enabled(&kf, 0, false));
     TEST_ASSERT_EQUAL_UINT(5u, hd_kf_state_count(&kf));
     for (unsigned i = 0; i < 5u; i++) {
-        TEST_ASSERT_EQUAL_MEMORY(&x0[i + 2u], &kf.x[i], sizeof(float));
-        for (unsigned j = 0; j < 5u; j++)
-            TEST_ASSERT_EQUAL_MEMORY(&p0[i + 2u][j + 2u], &kf.p[i][j], sizeof(float));
+        float xi = hd_kf_state(&kf, i);
+        TEST_ASSERT_EQUAL_MEMORY(&x0[i + 2u], &xi, sizeof(float));
+        for (unsigned j = 0; j < 5u; j++) {
+            float pij = hd_kf_cov(&kf, i, j);
+            TEST_ASSERT_EQUAL_MEMORY(&p0[i + 2u][j + 2u], &pij, sizeof(float));
+        }
     }
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_set_block_enabled(&kf, 0, true));
     TEST_ASSERT_EQUAL_UINT(7u, hd_kf_state_count(&kf));
     for (unsigned i = 2u; i < 7u; i++) {
-        TEST_ASSERT_EQUAL_MEMORY(&x0[i], &kf.x[i], sizeof(float));
-        for (unsigned j = 2u; j < 7u; j++)
-            TEST_ASSERT_EQUAL_MEMORY(&p0[i][j], &kf.p[i][j], sizeof(float));
+        float xi = hd_kf_state(&kf, i);
+        TEST_ASSERT_EQUAL_MEMORY(&x0[i], &xi, sizeof(float));
+        for (unsigned j = 2u; j < 7u; j++) {
+            float pij = hd_kf_cov(&kf, i, j);
+            TEST_ASSERT_EQUAL_MEMORY(&p0[i][j], &pij, sizeof(float));
+        }
     }
     for (unsigned i = 0; i < 2u; i++) {
-        TEST_ASSERT_EQUAL_FLOAT(0.0f, kf.x[i]);
-        TEST_ASSERT_EQUAL_FLOAT(cfg.p0_nm2, kf.p[i][i]);
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, i));
+        TEST_ASSERT_EQUAL_FLOAT(cfg.p0_nm2, hd_kf_cov(&kf, i, i));
         for (unsigned j = 0; j < 7u; j++)
             if (j != i)
-                TEST_ASSERT_EQUAL_FLOAT(0.0f, kf.p[i][j]);
+                TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, i, j));
     }
 }
 
@@ -871,14 +891,15 @@ static void test_amplitude_and_phase_match_truth(void)
     double am = 0.0;
     const double dm = 0.156;
     hd_kf_output_t o;
+    float amp_out[HD_KF_MAX_BLOCKS];
     for (int k = 0; k < 3000; k++) {
         am += dm;
         hd_kf_input_t in = {(float)(cos(2 * am + 0.3) + 0.4 * cos(4 * am + 1.1)), 0.0f, (float)dm,
                             (float)(dm / GEAR_RATIO)};
-        hd_kf_step(&kf, &in, &o);
+        step_with_amplitudes(&kf, &in, &o, amp_out);
     }
-    TEST_ASSERT_FLOAT_WITHIN(0.02, 1.0, (double)o.amplitude_nm[0]);
-    TEST_ASSERT_FLOAT_WITHIN(0.02, 0.4, (double)o.amplitude_nm[1]);
+    TEST_ASSERT_FLOAT_WITHIN(0.02, 1.0, (double)amp_out[0]);
+    TEST_ASSERT_FLOAT_WITHIN(0.02, 0.4, (double)amp_out[1]);
     /* The state now predicts the next sample: ripple_i(k+1) = A cos(phase). */
     double next = am + dm;
     static const double order[2] = {2.0, 4.0}, amp[2] = {1.0, 0.4}, ph0[2] = {0.3, 1.1};
@@ -997,19 +1018,20 @@ static void load_step_run(float k, int with_offset, load_run_t *res)
             st_amp[b] = sqrt(a * a + bb * bb);
         }
         hd_kf_output_t o;
-        hd_kf_step(&kf, &in, &o);
+        float amp_out[HD_KF_MAX_BLOCKS];
+        step_with_amplitudes(&kf, &in, &o, amp_out);
         TEST_ASSERT_EQUAL_UINT32(0u, o.status & (HD_KF_STATUS_RESET | HD_KF_STATUS_BAD_INPUT |
                                                  HD_KF_STATUS_FROZEN));
         /* T_ref: T_exp plus, with the offset state kept as torque, its prior */
         double t_ref = (double)in.torque_expected_nm + (with_offset ? (double)o.offset_nm : 0.0);
         double c = 1.0 + (double)k * fabs(t_ref);
         for (unsigned b = 0; b < 2; b++) { /* motor blocks: scaled */
-            double dev = fabs((double)o.amplitude_nm[b] - c * st_amp[b]) / (c * st_amp[b] + 1e-3);
+            double dev = fabs((double)amp_out[b] - c * st_amp[b]) / (c * st_amp[b] + 1e-3);
             if (dev > res->max_c_dev_rel)
                 res->max_c_dev_rel = dev;
         }
         for (unsigned b = 2; b < 4; b++) { /* output-locked and fixed: not scaled */
-            double dev = fabs((double)o.amplitude_nm[b] - st_amp[b]);
+            double dev = fabs((double)amp_out[b] - st_amp[b]);
             if (dev > res->max_unscaled_dev)
                 res->max_unscaled_dev = dev;
         }
@@ -1022,7 +1044,7 @@ static void load_step_run(float k, int with_offset, load_run_t *res)
             s_after += e * e;
             n_after++;
         }
-        res->amp0_out = o.amplitude_nm[0];
+        res->amp0_out = amp_out[0];
     }
     res->rms_before = sqrt(s_before / (double)n_before);
     res->rms_after = sqrt(s_after / (double)n_after);

@@ -16,7 +16,10 @@
  * produces differences of the order of the ripple itself (0.1 - 2 Nm,
  * i.e. 1e-3 to 4e-2 of the scale).  The innovation variance S is compared
  * relative to itself (1e-3): S runs from ~R to p_max and a relative error in
- * P is what float32 can keep.
+ * P is what float32 can keep.  After an offset jump S = S0 + e^2 holds the
+ * innovation itself: the part of its deviation that the innovation's
+ * deviation de explains, (2|e| + |de|) |de|, is already checked with the
+ * innovation, and S0's part is compared relative to S as on any step.
  *
  * Load-dependent ripple (ripple_load_coeff_per_nm = k): a second signal
  * (SIG_LOAD) has T_exp with steps and ramps through zero, an unmodelled
@@ -144,6 +147,9 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
 
         hd_kf_output_t o;
         ref_kf_output_t r;
+        float amp_prior[HD_KF_MAX_BLOCKS];
+        for (int b = 0; b < HD_KF_MAX_BLOCKS; b++)
+            amp_prior[b] = hd_kf_block_amplitude_nm(&kf, (unsigned)b);
         hd_kf_step(&kf, &in, &o);
         const int jumped = (o.status & HD_KF_STATUS_OFFSET_JUMP) != 0;
         ref.jump_override = jumped;
@@ -169,14 +175,26 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
         TRACK_MAX(max_filtered, fabs((double)o.torque_filtered_nm - r.torque_filtered_nm));
         TRACK_MAX(max_ripple, fabs((double)o.ripple_nm - r.ripple_nm));
         TRACK_MAX(max_innov, fabs((double)o.innovation_nm - r.innovation_nm));
-        TRACK_MAX(max_s_rel, fabs((double)o.innovation_var_nm2 - r.innovation_var_nm2) /
-                                 r.innovation_var_nm2);
-        /* amplitude_nm is c x the state amplitude (c = 1 + k |T_ref| for
-         * motor-locked blocks, up to ~4 here): its float32 error is the
-         * state's, scaled by c, so it is compared per unit of c */
-        for (int b = 0; b < HD_KF_MAX_BLOCKS; b++)
-            TRACK_MAX(max_amp, fabs((double)o.amplitude_nm[b] - r.amplitude_nm[b]) /
+        {
+            /* After an offset jump S = S0 + e^2: the innovation's own
+             * deviation de enters as (2|e| + |de|) |de|; the rest is S0's,
+             * compared relative to S. */
+            double ds = fabs((double)o.innovation_var_nm2 - r.innovation_var_nm2);
+            if (jumped) {
+                double de = fabs((double)o.innovation_nm - r.innovation_nm);
+                ds = fmax(0.0, ds - (2.0 * fabs(r.innovation_nm) + de) * de);
+            }
+            TRACK_MAX(max_s_rel, ds / r.innovation_var_nm2);
+        }
+        /* the amplitude read-out (prior amplitude x the step's row entry c,
+         * c = 1 + k |T_ref| for motor-locked blocks, up to ~4 here): its
+         * float32 error is the state's, scaled by c, so it is compared per
+         * unit of c */
+        for (int b = 0; b < HD_KF_MAX_BLOCKS; b++) {
+            double amp = (double)hd_kf_block_row(&kf, (unsigned)b) * (double)amp_prior[b];
+            TRACK_MAX(max_amp, fabs(amp - r.amplitude_nm[b]) /
                                    (r.load_scale > 1.0 ? r.load_scale : 1.0));
+        }
         for (int i = 0; i < ref.n; i++)
             TRACK_MAX(max_state, fabs((double)hd_kf_state(&kf, (unsigned)i) - ref.x[i]));
         if (with_k) {

@@ -89,6 +89,13 @@ static void test_run_equals_step_bitwise(void)
     init_pipe(&pr);
     for (int k = 0; k < N_SAMPLES; k++) {
         hd_kf_output_t o;
+        /* amplitude of the prediction used at this sample (the blocks are
+         * all enabled: block b is states 2b, 2b+1) */
+        float prior_amp[3];
+        for (unsigned b = 0; b < 3u; b++) {
+            const float x1 = hd_kf_state(&ps.kf, 2u * b), x2 = hd_kf_state(&ps.kf, 2u * b + 1u);
+            prior_amp[b] = sqrtf(x1 * x1 + x2 * x2);
+        }
         hd_pipeline_step(&ps, g_meas[k], g_dm[k], g_do[k], g_ff[k], &o);
         g_step.filtered[k] = o.torque_filtered_nm;
         g_step.ripple[k] = o.ripple_nm;
@@ -97,7 +104,11 @@ static void test_run_equals_step_bitwise(void)
         g_step.innov_var[k] = o.innovation_var_nm2;
         g_step.texp[k] = ps.torque_expected_nm;
         g_step.vel[k] = ps.output_track.vel_rad_s;
-        memcpy(&g_step.amp[k * HD_KF_MAX_BLOCKS], o.amplitude_nm, sizeof(o.amplitude_nm));
+        for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
+            /* at the step's row entry: 1 (no load coefficient), 0 when frozen */
+            const int frozen = (o.frozen_mask >> b) & 1u;
+            g_step.amp[k * HD_KF_MAX_BLOCKS + b] = (b < 3u && !frozen) ? prior_amp[b] : 0.0f;
+        }
         g_step.status[k] = o.status;
     }
     memset(&g_run, 0x5A, sizeof(g_run));
@@ -119,6 +130,7 @@ static void test_run_equals_step_bitwise(void)
     TEST_ASSERT_TRUE(g_run.status[1234] & HD_KF_STATUS_BAD_INPUT);
     TEST_ASSERT_TRUE(g_run.status[N_SAMPLES - 1] & HD_KF_STATUS_FROZEN);
     TEST_ASSERT_TRUE(fabs((double)g_run.texp[500]) > 0.0);
+    TEST_ASSERT_TRUE(g_run.amp[(N_SAMPLES - 1) * HD_KF_MAX_BLOCKS] > 0.1f);
 }
 
 /* NULL outputs: the state evolves identically, the given outputs match. */
@@ -192,11 +204,13 @@ static void test_pipeline_init_errors(void)
     hd_kf_config_paper(&kc, TS_S, false);
     hd_expected_config_default(&ec);
     TEST_ASSERT_EQUAL_INT(0, hd_pipeline_init(&p, &kc, &ec, 20.0f));
-    TEST_ASSERT_EQUAL_INT(-100, hd_pipeline_init(&p, &kc, &ec, 0.0f));
-    TEST_ASSERT_EQUAL_INT(-100, hd_pipeline_init(&p, &kc, &ec, NAN));
-    TEST_ASSERT_EQUAL_INT(-100, hd_pipeline_init(&p, &kc, &ec, 1000.0f)); /* w ts > 0.5 */
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_pipeline_init(&p, &kc, &ec, 0.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_pipeline_init(&p, &kc, &ec, NAN));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH,
+                          hd_pipeline_init(&p, &kc, &ec, 1000.0f)); /* w ts > 0.5 */
     ec.coulomb_vel_eps_rad_s = 0.0f;
-    TEST_ASSERT_EQUAL_INT(-101, hd_pipeline_init(&p, &kc, &ec, 20.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_pipeline_init(&p, &kc, &ec, 20.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_pipeline_init(&p, &kc, NULL, 20.0f));
     hd_expected_config_default(&ec);
     kc.r_nm2 = -1.0f;
     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NOISE, hd_pipeline_init(&p, &kc, &ec, 20.0f));

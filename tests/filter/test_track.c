@@ -32,15 +32,15 @@ static void test_track_init_validation(void)
 {
     hd_track_t t;
     TEST_ASSERT_EQUAL_INT(0, hd_track_init(&t, 1e-3f, HD_TRACK_DEFAULT_BANDWIDTH_HZ));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, 0.0f, 20.0f));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, -1e-3f, 20.0f));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, NAN, 20.0f));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, 1e-3f, 0.0f));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, 1e-3f, -5.0f));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, 1e-3f, NAN));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, 1e-3f, INFINITY));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, 0.0f, 20.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, -1e-3f, 20.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, NAN, 20.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, 1e-3f, 0.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, 1e-3f, -5.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, 1e-3f, NAN));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, 1e-3f, INFINITY));
     /* w ts > 0.5 is refused: 100 Hz at 1 kHz is w ts = 0.63; 79 Hz is 0.496 */
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_init(&t, 1e-3f, 100.0f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TRACK_BANDWIDTH, hd_track_init(&t, 1e-3f, 100.0f));
     TEST_ASSERT_EQUAL_INT(0, hd_track_init(&t, 1e-3f, 79.0f));
     /* gains as documented: l1 = 3 w ts, l2 = 3 w^2 ts, l3 = w^3 ts */
     TEST_ASSERT_EQUAL_INT(0, hd_track_init(&t, 1e-3f, 20.0f));
@@ -135,9 +135,9 @@ static void test_track_rejects_nonfinite_increment(void)
     for (int k = 0; k < 2000; k++)
         hd_track_update(&t, 0.01f);
     float v0 = t.vel_rad_s;
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_update(&t, NAN));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_update(&t, INFINITY));
-    TEST_ASSERT_EQUAL_INT(-1, hd_track_update(&t, -INFINITY));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_INPUT, hd_track_update(&t, NAN));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_INPUT, hd_track_update(&t, INFINITY));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_INPUT, hd_track_update(&t, -INFINITY));
     TEST_ASSERT_FLOAT_IS_DETERMINATE(t.vel_rad_s);
     TEST_ASSERT_FLOAT_IS_DETERMINATE(t.acc_rad_s2);
     TEST_ASSERT_FLOAT_IS_DETERMINATE(t.err_rad);
@@ -195,14 +195,14 @@ static void test_expected_torque_closed_form(void)
 static void test_expected_config_check(void)
 {
     hd_expected_config_t c;
-    hd_expected_config_default(&c); c.inertia_kgm2 = -0.1f;            TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.inertia_kgm2 = NAN;              TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.viscous_nm_s_rad = -1.0f;        TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.viscous_nm_s_rad = INFINITY;     TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.coulomb_nm = -2.0f;              TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = 0.0f;    TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = -0.01f;  TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
-    hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = NAN;     TEST_ASSERT_EQUAL_INT(-1, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.inertia_kgm2 = -0.1f;            TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.inertia_kgm2 = NAN;              TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.viscous_nm_s_rad = -1.0f;        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.viscous_nm_s_rad = INFINITY;     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.coulomb_nm = -2.0f;              TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = 0.0f;    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = -0.01f;  TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
+    hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = NAN;     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
 }
 
 int main(void)

@@ -31,6 +31,9 @@ from .. import native
 # Compile-time capacity of filter/hd_kf.h (HD_KF_MAX_BLOCKS default).
 MAX_BLOCKS = 8
 MAX_STATES = 2 * MAX_BLOCKS + 1
+MAX_POWER = 8  # HD_KF_MAX_POWER
+PHASORS = 2 * (MAX_POWER + 1) + MAX_BLOCKS
+P_ENTRIES = MAX_STATES * (MAX_STATES + 1) // 2
 DEFAULT_TRACK_BANDWIDTH_HZ = 20.0
 
 LOCK_MOTOR, LOCK_OUTPUT, LOCK_FIXED = 0, 1, 2
@@ -61,7 +64,8 @@ class KfConfig(ctypes.Structure):
                 ("p_max_nm2", c_float),
                 ("nyquist_fraction", c_float),
                 ("offset_jump_nm", c_float),
-                ("ripple_load_coeff_per_nm", c_float)]
+                ("ripple_load_coeff_per_nm", c_float),
+                ("output_learn_scale", c_float)]
 
     # Fields the analysis model carries one-to-one (see model.Model).
     SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
@@ -77,22 +81,43 @@ class KfConfig(ctypes.Structure):
         return self.block_count - 1
 
 
+class KfSlot(ctypes.Structure):
+    """hd_kf_slot_t"""
+    _fields_ = [("block", c_uint8), ("lock", c_uint8), ("frame", c_uint8), ("reserved", c_uint8),
+                ("theta_per_unit", c_float), ("motion_inv", c_float), ("motion_bias", c_float),
+                ("q_nm2", c_float), ("p0_nm2", c_float), ("learn", c_float),
+                ("fixed_cos", c_float), ("fixed_sin", c_float)]
+
+
 class KfState(ctypes.Structure):
-    """hd_kf_t (treated as opaque; mirrored only for its size/alignment)."""
+    """hd_kf_t (treated as opaque; mirrored for its size/alignment and counters)."""
     _fields_ = [("cfg", KfConfig),
                 ("n_states", c_uint8),
                 ("active_blocks", c_uint8),
-                ("block_index", c_uint8 * MAX_BLOCKS),
                 ("offset_slot", c_uint8),
-                ("frozen_mask", c_uint32),
                 ("offset_primed", c_uint8),
                 ("load_ref_primed", c_uint8),
+                ("motor_powers", c_uint32),
+                ("output_powers", c_uint32),
+                ("own_frames", c_uint32),
+                ("p_max_bits", c_uint32),
+                ("frozen_mask", c_uint32),
+                ("nyquist_limit_rad", c_float),
+                ("q_motion_inv_rad", c_float),
                 ("load_ref_nm", c_float),
+                ("load_scale", c_float),
+                ("last_d_motor_rad", c_float),
+                ("last_d_output_rad", c_float),
+                ("slot", KfSlot * MAX_BLOCKS),
+                ("phasor_cos", c_float * PHASORS),
+                ("phasor_sin", c_float * PHASORS),
                 ("x", c_float * MAX_STATES),
-                ("p", (c_float * MAX_STATES) * MAX_STATES),
+                ("p", c_float * P_ENTRIES),
                 ("status_sticky", c_uint32),
                 ("reset_count", c_uint32),
-                ("bad_input_count", c_uint32)]
+                ("bad_input_count", c_uint32),
+                ("p_ceiling_count", c_uint32),
+                ("p_negative_count", c_uint32)]
 
 
 class Track(ctypes.Structure):
