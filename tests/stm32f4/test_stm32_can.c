@@ -325,6 +325,21 @@ static void test_mailboxes_then_queue_keep_the_order(void)
     stm32_can_counters(&g_drv, &cnt);
     TEST_ASSERT_EQUAL_UINT(8u, cnt.can_tx_ok);
     TEST_ASSERT_EQUAL_UINT(0u, g_drv.txq_count);
+
+    /* A mailbox frees up before the interrupt has refilled it: a new frame
+     * must still go behind the queued ones. */
+    for (uint32_t i = 0; i < 5u; i++) {
+        hal_can_frame_t f = frame(0x200u + i, 0u);
+        TEST_ASSERT_EQUAL_INT(HAL_OK, stm32_can_send(&g_drv, &f));
+    }
+    TEST_ASSERT_TRUE(can_model_bus_step(&g_model)); /* 0x200 out, no service yet */
+    hal_can_frame_t late = frame(0x205u, 0u);
+    TEST_ASSERT_EQUAL_INT(HAL_OK, stm32_can_send(&g_drv, &late));
+    drain(10);
+    TEST_ASSERT_EQUAL_UINT(14u, g_model.wire_count);
+    for (uint32_t i = 0; i < 6u; i++) {
+        TEST_ASSERT_EQUAL_HEX32(0x200u + i, g_model.wire[8u + i].id);
+    }
     TEST_ASSERT_EQUAL_UINT(0u, g_model.violations);
     TEST_ASSERT_EQUAL_UINT(0u, g_model.regs.TSR & 0x030303u); /* RQCP/TXOK cleared */
 }

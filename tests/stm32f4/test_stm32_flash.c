@@ -144,6 +144,12 @@ static void test_every_error_flag_is_an_io_error(void)
         TEST_ASSERT_EQUAL_INT(HAL_ERR_IO, stm32_flash_erase(&g_drv, SECTOR, SECTOR));
         assert_locked_and_clean();
     }
+    /* A flag is an error even where the memory happens to hold the data
+     * (0xFF over erased flash: the read-back alone would pass). */
+    setUp();
+    const uint8_t ones[4] = {0xFFu, 0xFFu, 0xFFu, 0xFFu};
+    g_model.inject_program_error = STM32_FLASH_SR_PGPERR;
+    TEST_ASSERT_EQUAL_INT(HAL_ERR_IO, stm32_flash_write(&g_drv, 8u, ones, sizeof ones));
     setUp();
     g_model.wrp_sectors = 2u; /* copy B write protected */
     TEST_ASSERT_EQUAL_INT(HAL_ERR_IO, stm32_flash_erase(&g_drv, SECTOR, SECTOR));

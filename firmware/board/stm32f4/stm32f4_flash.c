@@ -63,15 +63,14 @@ static int unlock(stm32_flash_drv_t *drv)
     return HAL_OK;
 }
 
-/* Ends an operation: records and clears error flags, clears the operation
- * bits and locks.  rc is the operation's result so far. */
+/* Ends an operation (rc: its result, each step having checked the error
+ * flags): records and clears the flags, locks. */
 static int finish(stm32_flash_drv_t *drv, int rc)
 {
     stm32_flash_t *f = drv->cfg.regs;
     uint32_t err = STM32_RD(f->SR) & STM32_FLASH_SR_ERRORS;
     if (err != 0u) {
         STM32_WR(f->SR, err);
-        rc = HAL_ERR_IO;
     }
     if (rc != HAL_OK) {
         drv->errors++;
