@@ -30,6 +30,7 @@ typedef enum {
     HAL_ERR_RANGE = -4,      /* argument out of range (NVM offset, frame length) */
     HAL_ERR_IO = -5,         /* I/O error (host backends) */
     HAL_ERR_END = -6,        /* the sample source is exhausted (replay, sim end) */
+    HAL_ERR_FORMAT = -7,     /* data not in the expected format (a .hdraw header) */
 } hal_err_t;
 
 #define HAL_CAN_MAX_DATA 64u

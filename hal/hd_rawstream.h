@@ -1,12 +1,18 @@
 /*
- * hd_rawstream: the .hdraw raw sample stream (docs/raw-stream.md) as bytes.
- * Pure: no I/O, no heap, builds for host and MCU.  Every reader of the
- * format (hal/replay on the host, hal/semihost in the QEMU image) decodes
- * through here, so they cannot disagree.
+ * hd_rawstream: the .hdraw raw sample stream (docs/raw-stream.md), and the
+ * one reader of it.  Pure: no I/O of its own, no heap, builds for host and
+ * MCU.  The bytes come from a caller's callback (a file on the host, ARM
+ * semihosting in the QEMU image), so every reader shares this code.
+ *
+ * The reader is a HAL sensors + clock source: each adc_read takes the next
+ * record (HAL_ERR_END after the last whole one; a partial last record is
+ * ignored and counted), encoder_read returns that record's encoder part,
+ * time_us = records consumed x ts_us.
  */
 #ifndef HD_RAWSTREAM_H
 #define HD_RAWSTREAM_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "hal.h"
@@ -19,29 +25,41 @@ extern "C" {
 #define HD_RAW_RECORD_BYTES 16u      /* fields this version defines */
 #define HD_RAW_RECORD_MAX_BYTES 256u /* larger records (future fields) are refused */
 #define HD_RAW_VERSION 1u
+#define HD_RAW_READ_BUF 4096u        /* bytes fetched per callback */
 
 #define HD_RAW_FLAG_SATURATED 0x1u
 #define HD_RAW_FLAG_ENC_FAULT 0x2u
 #define HD_RAW_FLAG_HAS_OUTPUT 0x4u
 
-typedef enum {
-    HD_RAW_OK = 0,
-    HD_RAW_ERR_MAGIC = -1,   /* magic is not HDRW */
-    HD_RAW_ERR_VERSION = -2, /* version is not 1 */
-    HD_RAW_ERR_RECORD = -3,  /* record size outside [16, 256] */
-    HD_RAW_ERR_TS = -4,      /* sample period 0 */
-} hd_raw_err_t;
+/* Reads up to len bytes at the current position; returns the count read
+ * (less only at the end) or a negative value on error. */
+typedef long (*hd_raw_source_fn)(void *ctx, void *buf, size_t len);
 
 typedef struct {
-    uint16_t record_size;
+    hd_raw_source_fn read;
+    void *ctx;
     uint32_t ts_us;
-} hd_raw_header_t;
+    uint32_t record_size;
+    uint64_t records;           /* whole records in the stream */
+    uint64_t pos;               /* records consumed */
+    uint32_t trailing;          /* bytes of a partial last record (ignored) */
+    uint8_t buf[HD_RAW_READ_BUF];
+    uint32_t buf_len;
+    uint32_t buf_off;
+    hal_adc_sample_t adc;
+    hal_encoder_sample_t enc;
+    int enc_rc;
+    uint32_t io_errors;
+    const char *why;            /* the reason of the last failure, static */
+} hd_raw_reader_t;
 
-/* Checks a 16-byte header; fills out on success. */
-hd_raw_err_t hd_raw_header_parse(const uint8_t *header, hd_raw_header_t *out);
-
-/* The reason for an hd_raw_err_t, as a static string. */
-const char *hd_raw_err_str(int err);
+/* Reads and checks the 16-byte header of a stream of total_bytes bytes.
+ * Returns HAL_OK, HAL_ERR_IO (the source failed) or HAL_ERR_FORMAT (short,
+ * wrong magic, version, record size or period); r->why says which. */
+int hd_raw_reader_open(hd_raw_reader_t *r, hd_raw_source_fn read, void *ctx,
+                       uint64_t total_bytes);
+/* Points hal's sensors and clock parts at the reader. */
+void hd_raw_reader_bind(hd_raw_reader_t *r, hal_t *hal);
 
 /* Decodes the first HD_RAW_RECORD_BYTES of a record. */
 void hd_raw_record_decode(const uint8_t *record, hal_adc_sample_t *adc,

@@ -1,6 +1,7 @@
 /*
  * hal_replay: feeds a recorded raw sample stream (.hdraw, docs/raw-stream.md)
- * through the same ISR.  Host only (files, heap).
+ * from a file through the same ISR.  Host only (files, heap).  The format is
+ * read by hd_rawstream's reader; this file only supplies the bytes.
  *
  * Fills the sensors and clock parts of a hal_t.  Each adc_read takes the
  * next record (HAL_ERR_END after the last one); encoder_read returns the
@@ -17,9 +18,6 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
-
-#define HAL_REPLAY_HEADER_BYTES 16u
-#define HAL_REPLAY_RECORD_BYTES 16u
 
 typedef struct hal_replay hal_replay_t;
 

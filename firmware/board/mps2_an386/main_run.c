@@ -97,22 +97,22 @@ int main(void)
         return BOARD_EXIT_USAGE;
     }
     int rc = hal_sh_stream_open(&g_stream, argv[1]);
-    if (rc != HAL_SH_OK) {
+    if (rc != HAL_OK) {
         sh_puts("hd_image: ");
         sh_puts(argv[1]);
         sh_puts(": ");
-        sh_puts(hal_sh_err_str(rc));
+        sh_puts(g_stream.reader.why);
         sh_puts("\n");
-        return rc == HAL_SH_ERR_OPEN ? BOARD_EXIT_IO : BOARD_EXIT_STREAM;
+        return rc == HAL_ERR_IO ? BOARD_EXIT_IO : BOARD_EXIT_STREAM;
     }
-    if (g_stream.ts_us != HD_FW_TS_US) {
+    if (g_stream.reader.ts_us != HD_FW_TS_US) {
         sh_puts("hd_image: the stream's sample period is not the firmware's 1000 us\n");
         return BOARD_EXIT_STREAM;
     }
     g_dump_on = strcmp(argv[2], "-") != 0;
     g_can_on = strcmp(argv[3], "-") != 0;
-    if ((g_dump_on && hal_sh_writer_open(&g_dump, argv[2]) != HAL_SH_OK) ||
-        (g_can_on && hal_sh_writer_open(&g_canlog, argv[3]) != HAL_SH_OK)) {
+    if ((g_dump_on && hal_sh_writer_open(&g_dump, argv[2]) != HAL_OK) ||
+        (g_can_on && hal_sh_writer_open(&g_canlog, argv[3]) != HAL_OK)) {
         sh_puts("hd_image: cannot create an output file\n");
         return BOARD_EXIT_IO;
     }
@@ -153,7 +153,7 @@ int main(void)
     flush_outputs();
 
     bool lost = g_dump.dropped_bytes != 0u || g_canlog.dropped_bytes != 0u ||
-                g_dump.io_errors != 0u || g_canlog.io_errors != 0u || g_stream.io_errors != 0u;
+                g_dump.io_errors != 0u || g_canlog.io_errors != 0u || g_stream.reader.io_errors != 0u;
     if (g_dump_on) {
         (void)hal_sh_writer_close(&g_dump);
     }
