@@ -14,3 +14,21 @@ __asm__(".section .text.hd_mark,\"ax\",%progbits\n"
         "hd_bench_loop: subs r0, r0, #1\n bne hd_bench_loop\n bx lr\n"
         ".size hd_bench_loop,.-hd_bench_loop\n"
         ".text\n");
+
+void hd_mark_calibration(void (*section)(const char *label))
+{
+    section("empty:-");
+    for (unsigned i = 0; i < 16u; i++) {
+        hd_mark_begin();
+        hd_mark_end();
+    }
+    hd_mark_section();
+    section("loop:-");
+    hd_mark_begin();
+    hd_bench_loop(10u);
+    hd_mark_end();
+    hd_mark_begin();
+    hd_bench_loop(1010u);
+    hd_mark_end();
+    hd_mark_section();
+}

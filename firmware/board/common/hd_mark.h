@@ -25,6 +25,12 @@ void hd_mark_section(void);
  * it executes exactly 2 n + 1 instructions (n x `subs; bne`, then `bx lr`). */
 void hd_bench_loop(uint32_t n);
 
+/* The two sections every bench image starts with: "empty:-" (16 intervals
+ * with nothing between the markers: the marker overhead) and "loop:-"
+ * (hd_bench_loop(10), then hd_bench_loop(1010): the closed-form check).
+ * section(label) prints the label line before each group. */
+void hd_mark_calibration(void (*section)(const char *label));
+
 #ifdef __cplusplus
 }
 #endif

@@ -73,6 +73,13 @@ static void section(const char *label, const char *model, uint32_t states)
     board_print_u32(" ", states);
 }
 
+static void calibration_section(const char *label)
+{
+    sh_puts("section ");
+    sh_puts(label);
+    board_print_u32(" ", 0u);
+}
+
 /* The model's filter configuration, on top of the firmware's defaults (noise,
  * settle times, Nyquist limit), so kf, isr and dense run the same size. */
 static void model_config(const model_t *m, hd_fw_config_t *cfg)
@@ -208,21 +215,7 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
 
 int main(void)
 {
-    section("empty", "-", 0u);
-    for (unsigned i = 0; i < 16u; i++) {
-        hd_mark_begin();
-        hd_mark_end();
-    }
-    hd_mark_section();
-
-    section("loop", "-", 0u);
-    hd_mark_begin();
-    hd_bench_loop(10u);
-    hd_mark_end();
-    hd_mark_begin();
-    hd_bench_loop(1010u);
-    hd_mark_end();
-    hd_mark_section();
+    hd_mark_calibration(calibration_section);
 
     for (unsigned m = 0; m < sizeof MODELS / sizeof MODELS[0]; m++) {
         hd_fw_config_t cfg;

@@ -66,6 +66,11 @@ static void section(const char *label, uint32_t states)
     board_print_u32(" ", states);
 }
 
+static void calibration_section(const char *label)
+{
+    section(label, 0u);
+}
+
 /* The drivers configured as stm32_board_boot would, on RAM registers
  * (handshakes cannot run against RAM: CAN is marked running). */
 static void setup(void)
@@ -227,20 +232,7 @@ int main(void)
     if (board_args(argv, 2) == 2 && strcmp(argv[1], "tickrate") == 0) {
         return tick_rate();
     }
-    section("empty:-", 0u);
-    for (unsigned i = 0; i < 16u; i++) {
-        hd_mark_begin();
-        hd_mark_end();
-    }
-    hd_mark_section();
-    section("loop:-", 0u);
-    hd_mark_begin();
-    hd_bench_loop(10u);
-    hd_mark_end();
-    hd_mark_begin();
-    hd_bench_loop(1010u);
-    hd_mark_end();
-    hd_mark_section();
+    hd_mark_calibration(calibration_section);
 
     hd_fw_config_t cfg;
     hd_fw_config_default(&cfg);
@@ -255,16 +247,4 @@ int main(void)
 
 void board_early_init(void)
 {
-}
-
-_Noreturn void board_fault(const stm32_fault_record_t *rec)
-{
-    (void)rec;
-    sh_puts("board: fault exception\n");
-    sh_exit(BOARD_EXIT_FAULT);
-}
-
-_Noreturn void board_exit(int status)
-{
-    sh_exit(status);
 }

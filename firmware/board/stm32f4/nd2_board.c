@@ -97,15 +97,3 @@ void board_early_init(void)
         }
     }
 }
-
-_Noreturn void board_fault(const stm32_fault_record_t *rec)
-{
-    (void)rec;
-    sh_puts("board: fault exception\n");
-    sh_exit(BOARD_EXIT_FAULT);
-}
-
-_Noreturn void board_exit(int status)
-{
-    sh_exit(status);
-}
