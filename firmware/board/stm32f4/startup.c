@@ -74,10 +74,13 @@ void Reset_Handler(void)
     /* MemManage, BusFault and UsageFault get their own entry (recorded the
      * same way) instead of escalating. */
     STM32_SCB_SHCSR |= STM32_SCB_SHCSR_FAULTS_ENA;
+    /* The linker-script bounds of one region each: the start-up idiom. */
     const uint32_t *src = &_sidata;
+    /* cppcheck-suppress comparePointers */
     for (uint32_t *dst = &_sdata; dst < &_edata;) {
         *dst++ = *src++;
     }
+    /* cppcheck-suppress comparePointers */
     for (uint32_t *dst = &_sbss; dst < &_ebss;) {
         *dst++ = 0u;
     }
