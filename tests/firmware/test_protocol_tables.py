@@ -32,9 +32,10 @@ def f32(x: float) -> float:
     return struct.unpack("<f", struct.pack("<f", x))[0]
 
 
-def test_committed_dbc_is_the_generated_one():
+def test_committed_dbc_and_doc_tables_are_the_generated_ones():
     assert canproto.DBC_PATH.read_text() == protocol.generate_dbc(), \
-        "run: .venv/bin/python -m hdtools.protocol --write-dbc (from tools/)"
+        "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
+    assert protocol.stale_docs() == [], "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
 
 
 def test_c_and_python_read_the_same_parameter_table(dump):

@@ -369,23 +369,102 @@ def generate_dbc() -> str:
     return "\n".join(out) + "\n"
 
 
+# ------------------------------------------------------------ doc tables
+# Markdown tables generated from the .def files, kept in docs/*.md between
+#   <!-- BEGIN generated:NAME -->  and  <!-- END generated:NAME -->
+DOCS = ROOT / "docs"
+
+
+def _md(header: list[str], rows: list[list]) -> str:
+    def cell(v) -> str:
+        return str(v).replace("|", "\\|")
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(cell(v) for v in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def _range(p: Param) -> str:
+    if p.type == "BOOL":
+        return "on / off"
+    lo = "(" if "LO_OPEN" in p.flags else "["
+    return f"{lo}{p.lo:g}, {p.hi:g}]"
+
+
+def _effect(p: Param) -> str:
+    kind = "read only" if p.read_only else ("next tick" if "LIVE" in p.flags else
+                                            "model rebuilt, filter restarts")
+    store = "config" if "CONFIG" in p.flags else ("calibration" if "CALIB" in p.flags else "-")
+    return f"{kind}; {store}"
+
+
+def doc_tables() -> dict[str, str]:
+    return {
+        "params": _md(["id", "key (config text)", "CAN name", "type", "range", "unit",
+                       "takes effect; record", "meaning"],
+                      [[p.id, f"`{p.key}`", p.name, p.type, _range(p), p.unit, _effect(p), p.doc]
+                       for p in params()]),
+        "faults": _md(["bit", "name", "meaning"], [[f.code, f.name, f.doc] for f in faults()]),
+        "opcodes": _md(["opcode", "name", "arguments / answer"],
+                       [[f"0x{e.code:02X}", e.name, e.doc] for e in opcodes()]),
+        "results": _md(["code", "name", "meaning"], [[e.code, e.name, e.doc] for e in results()]),
+        "frames": _md(["type", "identifier (node 1)", "name", "direction", "content"],
+                      [[f"0x{f.type:02X}", f"0x{f.can_id(1):08X}", f.name,
+                        "joint -> host" if f.direction == "tx" else "host -> joint", f.doc]
+                       for f in frames()]),
+        "records": _md(["code", "status", "meaning"],
+                       [[e.code, e.name, e.doc] for e in record_statuses()]),
+        "info": _md(["item", "name", "meaning"], [[e.code, e.name, e.doc] for e in info_items()]),
+    }
+
+
+_BLOCK = re.compile(r"(<!-- BEGIN generated:(\w+) -->\n)(?:.*?\n)?(<!-- END generated:\2 -->)", re.S)
+
+
+def render_docs(text: str) -> str:
+    """text with every generated block replaced by its current table."""
+    tables = doc_tables()
+
+    def sub(m):
+        name = m.group(2)
+        if name not in tables:
+            raise DefError(f"unknown generated block {name!r}")
+        return m.group(1) + tables[name] + "\n" + m.group(3)
+    return _BLOCK.sub(sub, text)
+
+
+def stale_docs() -> list[Path]:
+    return [p for p in sorted(DOCS.glob("*.md")) if render_docs(p.read_text()) != p.read_text()]
+
+
+def _write(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m hdtools.protocol",
-                                 description="Generate or check firmware/hdjoint.dbc.")
-    ap.add_argument("--write-dbc", action="store_true", help="rewrite firmware/hdjoint.dbc")
-    ap.add_argument("--check-dbc", action="store_true",
-                    help="exit 1 if firmware/hdjoint.dbc differs from the generated one")
+                                 description="Generate or check firmware/hdjoint.dbc and the "
+                                             "generated tables in docs/*.md.")
+    ap.add_argument("--write", action="store_true",
+                    help="rewrite firmware/hdjoint.dbc and the docs' generated tables")
+    ap.add_argument("--write-dbc", action="store_true", help="rewrite firmware/hdjoint.dbc only")
+    ap.add_argument("--check", action="store_true",
+                    help="exit 1 if the DBC or a doc table differs from the generated one")
     a = ap.parse_args(argv)
     text = generate_dbc()
-    if a.write_dbc:
-        tmp = DBC_PATH.with_suffix(".dbc.tmp")
-        tmp.write_text(text)
-        tmp.replace(DBC_PATH)
+    if a.write or a.write_dbc:
+        _write(DBC_PATH, text)
+        if a.write:
+            for p in stale_docs():
+                _write(p, render_docs(p.read_text()))
         return 0
-    if a.check_dbc:
-        if DBC_PATH.read_text() != text:
-            print("firmware/hdjoint.dbc differs from the generated one: "
-                  "run python -m hdtools.protocol --write-dbc", file=sys.stderr)
+    if a.check:
+        bad = ([DBC_PATH] if DBC_PATH.read_text() != text else []) + stale_docs()
+        if bad:
+            print(f"{', '.join(str(p.relative_to(ROOT)) for p in bad)} out of date: "
+                  f"run (cd tools && ../.venv/bin/python -m hdtools.protocol --write)",
+                  file=sys.stderr)
             return 1
         return 0
     sys.stdout.write(text)
