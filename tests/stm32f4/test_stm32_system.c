@@ -222,11 +222,11 @@ static void test_pin_table_sets_mode_alternate_function_and_pull(void)
         p[i] = &ports[i];
     }
     const stm32_pin_t pins[] = {
-        {1, 8, STM32_GPIO_MODE_AF, 9, STM32_GPIO_PULL_UP, "CAN1_RX"},
-        {1, 9, STM32_GPIO_MODE_AF, 9, 0, "CAN1_TX"},
-        {1, 4, STM32_GPIO_MODE_AF, 2, 0, "TIM3_CH1"},
-        {1, 5, STM32_GPIO_MODE_AF, 2, 0, "TIM3_CH2"},
-        {0, 3, STM32_GPIO_MODE_ANALOG, 0, 0, "ADC123_IN3"},
+        {1, 8, STM32_GPIO_MODE_AF, 9, STM32_GPIO_PULL_UP, 0, "CAN1_RX"},
+        {1, 9, STM32_GPIO_MODE_AF, 9, 0, 2, "CAN1_TX"},
+        {1, 4, STM32_GPIO_MODE_AF, 2, 0, 0, "TIM3_CH1"},
+        {1, 5, STM32_GPIO_MODE_AF, 2, 0, 0, "TIM3_CH2"},
+        {0, 3, STM32_GPIO_MODE_ANALOG, 0, 0, 0, "ADC123_IN3"},
     };
     TEST_ASSERT_EQUAL_INT(0, stm32_gpio_setup(&g_rcc.regs, p, pins, 5u));
     /* Hand-computed from RM0090 8.4: two MODER bits per pin (10 = AF,
@@ -235,9 +235,10 @@ static void test_pin_table_sets_mode_alternate_function_and_pull(void)
     TEST_ASSERT_EQUAL_HEX32(0x00220000u, ports[1].AFR[0]);
     TEST_ASSERT_EQUAL_HEX32(0x00000099u, ports[1].AFR[1]);
     TEST_ASSERT_EQUAL_HEX32(0x00010000u, ports[1].PUPDR);
+    TEST_ASSERT_EQUAL_HEX32(0x00080000u, ports[1].OSPEEDR); /* PB9 fast (10) */
     TEST_ASSERT_EQUAL_HEX32(0x000000C0u, ports[0].MODER);
     TEST_ASSERT_EQUAL_HEX32(0x3u, g_rcc.regs.AHB1ENR & 0x1FFu); /* GPIOA and GPIOB clocks */
-    const stm32_pin_t bad = {9, 0, STM32_GPIO_MODE_AF, 0, 0, "no port J"};
+    const stm32_pin_t bad = {9, 0, STM32_GPIO_MODE_AF, 0, 0, 0, "no port J"};
     TEST_ASSERT_EQUAL_INT(-1, stm32_gpio_setup(&g_rcc.regs, p, &bad, 1u));
 }
 

@@ -243,7 +243,8 @@ void stm32_board_pin_table(const stm32_board_def_t *def, void (*put)(void *ctx, 
         put_u32(put, ctx, p->pin);
         put(ctx, " | ");
         put(ctx, modes[p->mode & 3u]);
-        put(ctx, p->pull == STM32_GPIO_PULL_UP ? ", pull-up | " : " | ");
+        put(ctx, p->pull == STM32_GPIO_PULL_UP ? ", pull-up" : "");
+        put(ctx, p->speed >= 2u ? ", fast | " : " | ");
         if (p->mode == STM32_GPIO_MODE_AF) {
             put(ctx, "AF");
             put_u32(put, ctx, p->af);

@@ -24,16 +24,17 @@
 #define PORT_C 2u
 #define AF_TIM3_4_5 2u
 #define AF_CAN1 9u
+#define SPEED_FAST 2u /* OSPEEDR "fast": clean CAN edges at 1 Mbit/s */
 #define NVM_SECTOR_BYTES 16384u  /* sectors 1 and 2: 16 KB each on F405 and F446 */
 
 static const stm32_pin_t odrive_pins[] = {
-    {PORT_B, 8, STM32_GPIO_MODE_AF, AF_CAN1, STM32_GPIO_PULL_UP, "CAN1_RX (ODrive CAN_R)"},
-    {PORT_B, 9, STM32_GPIO_MODE_AF, AF_CAN1, 0, "CAN1_TX (ODrive CAN_D)"},
-    {PORT_B, 4, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, "TIM3_CH1: motor encoder A (ODrive ENC0 A)"},
-    {PORT_B, 5, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, "TIM3_CH2: motor encoder B (ODrive ENC0 B)"},
-    {PORT_B, 6, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, "TIM4_CH1: output encoder A (ODrive ENC1 A)"},
-    {PORT_B, 7, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, "TIM4_CH2: output encoder B (ODrive ENC1 B)"},
-    {PORT_A, 3, STM32_GPIO_MODE_ANALOG, 0, 0, "ADC1_IN3: bridge amplifier output (ODrive GPIO4)"},
+    {PORT_B, 8, STM32_GPIO_MODE_AF, AF_CAN1, STM32_GPIO_PULL_UP, 0, "CAN1_RX (ODrive CAN_R)"},
+    {PORT_B, 9, STM32_GPIO_MODE_AF, AF_CAN1, 0, SPEED_FAST, "CAN1_TX (ODrive CAN_D)"},
+    {PORT_B, 4, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, 0, "TIM3_CH1: motor encoder A (ODrive ENC0 A)"},
+    {PORT_B, 5, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, 0, "TIM3_CH2: motor encoder B (ODrive ENC0 B)"},
+    {PORT_B, 6, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, 0, "TIM4_CH1: output encoder A (ODrive ENC1 A)"},
+    {PORT_B, 7, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, 0, "TIM4_CH2: output encoder B (ODrive ENC1 B)"},
+    {PORT_A, 3, STM32_GPIO_MODE_ANALOG, 0, 0, 0, "ADC1_IN3: bridge amplifier output (ODrive GPIO4)"},
 };
 
 const stm32_board_def_t stm32_board_odrive_v3 = {
@@ -61,11 +62,11 @@ const stm32_board_def_t stm32_board_odrive_v3 = {
 };
 
 static const stm32_pin_t cheetah_pins[] = {
-    {PORT_B, 8, STM32_GPIO_MODE_AF, AF_CAN1, STM32_GPIO_PULL_UP, "CAN1_RX"},
-    {PORT_B, 9, STM32_GPIO_MODE_AF, AF_CAN1, 0, "CAN1_TX"},
-    {PORT_B, 4, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, "TIM3_CH1: motor encoder A (quadrature)"},
-    {PORT_B, 5, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, "TIM3_CH2: motor encoder B (quadrature)"},
-    {PORT_C, 4, STM32_GPIO_MODE_ANALOG, 0, 0, "ADC1_IN14: bridge amplifier output"},
+    {PORT_B, 8, STM32_GPIO_MODE_AF, AF_CAN1, STM32_GPIO_PULL_UP, 0, "CAN1_RX"},
+    {PORT_B, 9, STM32_GPIO_MODE_AF, AF_CAN1, 0, SPEED_FAST, "CAN1_TX"},
+    {PORT_B, 4, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, 0, "TIM3_CH1: motor encoder A (quadrature)"},
+    {PORT_B, 5, STM32_GPIO_MODE_AF, AF_TIM3_4_5, 0, 0, "TIM3_CH2: motor encoder B (quadrature)"},
+    {PORT_C, 4, STM32_GPIO_MODE_ANALOG, 0, 0, 0, "ADC1_IN14: bridge amplifier output"},
 };
 
 const stm32_board_def_t stm32_board_mini_cheetah = {

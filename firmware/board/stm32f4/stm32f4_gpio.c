@@ -9,7 +9,7 @@ int stm32_gpio_setup(stm32_rcc_t *rcc, stm32_gpio_t *const *ports, const stm32_p
 {
     for (size_t i = 0; i < n; i++) {
         if (pins[i].port >= STM32_GPIO_PORTS || pins[i].pin >= PINS_PER_PORT ||
-            pins[i].af > 15u || pins[i].mode > STM32_GPIO_MODE_ANALOG) {
+            pins[i].af > 15u || pins[i].mode > STM32_GPIO_MODE_ANALOG || pins[i].speed > 3u) {
             return -1;
         }
     }
@@ -22,6 +22,8 @@ int stm32_gpio_setup(stm32_rcc_t *rcc, stm32_gpio_t *const *ports, const stm32_p
         stm32_reg_t *afr = &g->AFR[p->pin / AFR_PINS];
         STM32_WR(*afr, (STM32_RD(*afr) & ~(0xFu << four)) | ((uint32_t)p->af << four));
         STM32_WR(g->PUPDR, (STM32_RD(g->PUPDR) & ~(3u << two)) | ((uint32_t)p->pull << two));
+        STM32_WR(g->OSPEEDR,
+                 (STM32_RD(g->OSPEEDR) & ~(3u << two)) | ((uint32_t)p->speed << two));
         STM32_WR(g->MODER, (STM32_RD(g->MODER) & ~(3u << two)) | ((uint32_t)p->mode << two));
     }
     return 0;

@@ -1,7 +1,8 @@
 /*
  * stm32f4_gpio: pin setup from a table (RM0090 section 8): each pin of the
  * board's table gets its mode (alternate function, analog, input), its
- * alternate-function number and pull-up, after its port clock is enabled.
+ * alternate-function number, pull-up and output speed, after its port clock
+ * is enabled.
  */
 #ifndef STM32F4_GPIO_H
 #define STM32F4_GPIO_H
@@ -23,6 +24,7 @@ typedef struct {
     uint8_t mode;   /* STM32_GPIO_MODE_* */
     uint8_t af;     /* alternate function 0..15 (mode AF) */
     uint8_t pull;   /* 0 none, STM32_GPIO_PULL_UP */
+    uint8_t speed;  /* OSPEEDR: 0 low .. 3 very high (edges of fast outputs) */
     const char *use;/* what the board uses it for (documentation) */
 } stm32_pin_t;
 
