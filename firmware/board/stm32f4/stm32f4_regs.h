@@ -87,11 +87,9 @@ static inline void stm32_irq_restore(uint32_t primask)
 #define STM32_TIM2_BASE 0x40000000u
 #define STM32_TIM3_BASE 0x40000400u
 #define STM32_TIM4_BASE 0x40000800u
-#define STM32_TIM5_BASE 0x40000C00u
 #define STM32_IWDG_BASE 0x40003000u
 #define STM32_CAN1_BASE 0x40006400u
 #define STM32_TIM1_BASE 0x40010000u
-#define STM32_TIM8_BASE 0x40010400u
 #define STM32_ADC1_BASE 0x40012000u
 #define STM32_ADC_COMMON_BASE 0x40012300u
 #define STM32_GPIOA_BASE 0x40020000u
@@ -130,11 +128,9 @@ typedef struct {
     stm32_reg_t CSR;         /* 0x74 */
 } stm32_rcc_t;
 
-#define STM32_RCC_CR_HSION (1u << 0)
 #define STM32_RCC_CR_HSIRDY (1u << 1)
 #define STM32_RCC_CR_HSEON (1u << 16)
 #define STM32_RCC_CR_HSERDY (1u << 17)
-#define STM32_RCC_CR_HSEBYP (1u << 18)
 #define STM32_RCC_CR_PLLON (1u << 24)
 #define STM32_RCC_CR_PLLRDY (1u << 25)
 
@@ -149,7 +145,6 @@ typedef struct {
 #define STM32_RCC_CFGR_SW_HSE 0x1u
 #define STM32_RCC_CFGR_SW_PLL 0x2u
 #define STM32_RCC_CFGR_SWS_POS 2u
-#define STM32_RCC_CFGR_HPRE_POS 4u      /* 0xxx: /1 */
 #define STM32_RCC_CFGR_PPRE1_POS 10u    /* 0xx: /1, 100: /2, 101: /4, 110: /8, 111: /16 */
 #define STM32_RCC_CFGR_PPRE2_POS 13u
 #define STM32_RCC_PPRE_DIV1 0x0u
@@ -159,13 +154,10 @@ typedef struct {
 #define STM32_RCC_PPRE_DIV16 0x7u
 
 #define STM32_RCC_AHB1ENR_GPIOAEN (1u << 0)  /* GPIOxEN = bit x - 'A' */
-#define STM32_RCC_APB1ENR_TIM2EN (1u << 0)
 #define STM32_RCC_APB1ENR_TIM3EN (1u << 1)
 #define STM32_RCC_APB1ENR_TIM4EN (1u << 2)
-#define STM32_RCC_APB1ENR_TIM5EN (1u << 3)
 #define STM32_RCC_APB1ENR_CAN1EN (1u << 25)
 #define STM32_RCC_APB2ENR_TIM1EN (1u << 0)
-#define STM32_RCC_APB2ENR_TIM8EN (1u << 1)
 #define STM32_RCC_APB2ENR_ADC1EN (1u << 8)
 
 #define STM32_RCC_CSR_LSION (1u << 0)
@@ -176,7 +168,6 @@ typedef struct {
 #define STM32_RCC_CSR_SFTRSTF (1u << 28)
 #define STM32_RCC_CSR_IWDGRSTF (1u << 29)
 #define STM32_RCC_CSR_WWDGRSTF (1u << 30)
-#define STM32_RCC_CSR_LPWRRSTF (1u << 31)
 
 /* --------------------------------------------------------- FLASH interface */
 typedef struct {
@@ -192,7 +183,6 @@ typedef struct {
 #define STM32_FLASH_ACR_PRFTEN (1u << 8)
 #define STM32_FLASH_ACR_ICEN (1u << 9)
 #define STM32_FLASH_ACR_DCEN (1u << 10)
-#define STM32_FLASH_ACR_ICRST (1u << 11)
 #define STM32_FLASH_ACR_DCRST (1u << 12)
 
 #define STM32_FLASH_KEY1 0x45670123u
@@ -211,7 +201,6 @@ typedef struct {
 
 #define STM32_FLASH_CR_PG (1u << 0)
 #define STM32_FLASH_CR_SER (1u << 1)
-#define STM32_FLASH_CR_MER (1u << 2)
 #define STM32_FLASH_CR_SNB_POS 3u        /* 4 bits: sector number */
 #define STM32_FLASH_CR_SNB_MASK (0xFu << 3)
 #define STM32_FLASH_CR_PSIZE_POS 8u      /* 00: x8, 01: x16, 10: x32, 11: x64 */
@@ -250,7 +239,6 @@ typedef struct {
 #define STM32_TIM_CR1_CEN (1u << 0)
 #define STM32_TIM_CR1_URS (1u << 2)   /* only over/underflow raises UIF */
 #define STM32_TIM_CR1_ARPE (1u << 7)
-#define STM32_TIM_CR2_MMS_POS 4u
 #define STM32_TIM_CR2_MMS_MASK (0x7u << 4)
 #define STM32_TIM_CR2_MMS_UPDATE (0x2u << 4)  /* TRGO = update event */
 #define STM32_TIM_SMCR_SMS_MASK 0x7u
@@ -265,8 +253,6 @@ typedef struct {
 #define STM32_TIM_CCER_CC1E (1u << 0)
 #define STM32_TIM_CCER_CC1P (1u << 1)
 #define STM32_TIM_CCER_CC2E (1u << 4)
-#define STM32_TIM_CCER_CC2P (1u << 5)
-#define STM32_TIM_BDTR_MOE (1u << 15)
 
 /* ------------------------------------------------------------------- ADC */
 typedef struct {
@@ -292,17 +278,12 @@ typedef struct {
     stm32_reg_t CDR;  /* 0x08 */
 } stm32_adc_common_t;
 
-#define STM32_ADC_SR_EOC (1u << 1)
 #define STM32_ADC_SR_JEOC (1u << 2)   /* rc_w0 */
 #define STM32_ADC_SR_JSTRT (1u << 3)  /* rc_w0 */
-#define STM32_ADC_SR_OVR (1u << 5)
-#define STM32_ADC_CR1_SCAN (1u << 8)
-#define STM32_ADC_CR1_RES_MASK (0x3u << 24)  /* 00: 12 bit */
 #define STM32_ADC_CR2_ADON (1u << 0)
 #define STM32_ADC_CR2_ALIGN (1u << 11)
 #define STM32_ADC_CR2_JEXTSEL_POS 16u
 #define STM32_ADC_CR2_JEXTSEL_MASK (0xFu << 16)
-#define STM32_ADC_CR2_JEXTEN_POS 20u
 #define STM32_ADC_CR2_JEXTEN_MASK (0x3u << 20)
 #define STM32_ADC_CR2_JEXTEN_RISING (0x1u << 20)
 #define STM32_ADC_CR2_JSWSTART (1u << 22)
@@ -310,8 +291,6 @@ typedef struct {
  * group. */
 #define STM32_ADC_JEXTSEL_TIM1_TRGO 0x1u
 #define STM32_ADC_JEXTSEL_TIM2_TRGO 0x3u
-#define STM32_ADC_JEXTSEL_TIM4_TRGO 0x9u
-#define STM32_ADC_JEXTSEL_TIM5_TRGO 0xBu
 /* JSQR: with JL = 0 (one conversion) the ADC converts the channel in JSQ4
  * (bits 19:15) and stores the result in JDR1. */
 #define STM32_ADC_JSQR_JSQ4_POS 15u
@@ -365,10 +344,7 @@ typedef struct {
 #define STM32_CAN_MCR_INRQ (1u << 0)
 #define STM32_CAN_MCR_SLEEP (1u << 1)
 #define STM32_CAN_MCR_TXFP (1u << 2)    /* transmit in request order */
-#define STM32_CAN_MCR_NART (1u << 4)
-#define STM32_CAN_MCR_AWUM (1u << 5)
 #define STM32_CAN_MCR_ABOM (1u << 6)    /* automatic bus-off management */
-#define STM32_CAN_MCR_RESET (1u << 15)
 #define STM32_CAN_MCR_DBF (1u << 16)
 #define STM32_CAN_MSR_INAK (1u << 0)
 #define STM32_CAN_MSR_SLAK (1u << 1)
@@ -381,7 +357,6 @@ typedef struct {
 #define STM32_CAN_RFR_FOVR (1u << 4)    /* rc_w1 */
 #define STM32_CAN_RFR_RFOM (1u << 5)    /* release the output mailbox */
 #define STM32_CAN_IER_TMEIE (1u << 0)
-#define STM32_CAN_IER_FMPIE0 (1u << 1)
 #define STM32_CAN_ESR_EWGF (1u << 0)
 #define STM32_CAN_ESR_EPVF (1u << 1)
 #define STM32_CAN_ESR_BOFF (1u << 2)
@@ -431,13 +406,11 @@ typedef struct {
     stm32_reg_t AFR[2];   /* 0x20: AFRL (pins 0..7), AFRH (8..15), 4 bits per pin */
 } stm32_gpio_t;
 
-#define STM32_GPIO_MODE_INPUT 0x0u
 #define STM32_GPIO_MODE_AF 0x2u
 #define STM32_GPIO_MODE_ANALOG 0x3u
 #define STM32_GPIO_PULL_UP 0x1u
 
 /* --------------------------------------------------- Cortex-M4 system (SCB) */
-#define STM32_SCB_VTOR (*(volatile uint32_t *)0xE000ED08u)
 #define STM32_SCB_AIRCR (*(volatile uint32_t *)0xE000ED0Cu)
 #define STM32_SCB_SHCSR (*(volatile uint32_t *)0xE000ED24u)
 #define STM32_SCB_CFSR (*(volatile uint32_t *)0xE000ED28u)
@@ -458,18 +431,13 @@ typedef struct {
 #define STM32_DWT_CYCCNT (*(volatile uint32_t *)0xE0001004u)
 #define STM32_NVIC_ISER ((volatile uint32_t *)0xE000E100u)
 #define STM32_NVIC_ICER ((volatile uint32_t *)0xE000E180u)
-#define STM32_NVIC_ICPR ((volatile uint32_t *)0xE000E280u)
 #define STM32_NVIC_IPR ((volatile uint8_t *)0xE000E400u)
 
 /* Interrupt numbers (vector = 16 + n) used by this port; the same on the
  * F405 and the F446. */
-#define STM32_IRQ_ADC 18u
 #define STM32_IRQ_CAN1_TX 19u
-#define STM32_IRQ_CAN1_RX0 20u
-#define STM32_IRQ_CAN1_SCE 22u
 #define STM32_IRQ_TIM1_UP_TIM10 25u
 #define STM32_IRQ_TIM2 28u
-#define STM32_IRQ_TIM8_UP_TIM13 44u
 #define STM32_IRQ_COUNT 97u  /* F446: 97 vectors after the 16 system ones (F405: 82) */
 
 #ifdef __cplusplus
