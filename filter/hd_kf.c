@@ -37,6 +37,10 @@ typedef union {
 } float_bits_t;
 
 #define FLOAT_INF_BITS 0x7f800000u
+/* 2 pi as hi + lo: hi has 16 significant bits, so hi's multiples and
+ * differences near pi are exact. */
+#define TWO_PI_HI 6.28125f
+#define TWO_PI_LO 1.9353071795864769e-3f
 
 /* isfinite without libm calls; x - x is 0 only for finite x. */
 static bool is_finite(float x)
@@ -386,6 +390,8 @@ void hd_kf_reset(hd_kf_t *kf)
         kf->phasor_cos[i] = 1.0f;
         kf->phasor_sin[i] = 0.0f;
     }
+    kf->output_phase_hi_rad = 0.0f;
+    kf->output_phase_lo_rad = 0.0f;
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
     kf->load_ref_primed = 0u;
@@ -792,20 +798,56 @@ static float correct(hd_kf_t *kf, const step_plan_t *pl, float inv_s, float k_e,
     return sum;
 }
 
+/* phase += d, kept as an unevaluated sum hi + lo in [-pi, pi) (Knuth's
+ * two-sum): the increments add up exactly (to ~1e-14 rad) however long the
+ * filter runs. */
+static void add_phase(float *hi, float *lo, float d)
+{
+    const float s = *hi + d;
+    const float bp = s - *hi;
+    const float err = (*hi - (s - bp)) + (d - bp);
+    float h = s, l = *lo + err;
+    if (h >= HD_PI_F) {
+        h -= TWO_PI_HI;
+        l -= TWO_PI_LO;
+    } else if (h < -HD_PI_F) {
+        h += TWO_PI_HI;
+        l += TWO_PI_LO;
+    }
+    *hi = h + l;
+    *lo = l - (*hi - h);
+}
+
+/* The phasor of phase hi + lo: sin/cos of hi, then the first-order term in
+ * lo (|lo| <= 2.4e-7: the next term is below 3e-14). */
+static void phase_phasor(float hi, float lo, float *c, float *s)
+{
+    float sh, ch;
+    hd_sincosf(hi, &sh, &ch);
+    *c = ch - lo * sh;
+    *s = sh + lo * ch;
+}
+
 /* The step's rotation Phi: each block's frame turns by its phase advance.
- * Integral orders take powers of the motor and output phasors, which turn
- * by one sin/cos of the increment each; the others turn their own. */
+ * Integral orders take powers of the motor and output phasors; the others
+ * turn their own.  The motor phasor turns by one sin/cos of the increment:
+ * its rounding drifts the phase by ~2e-9 rad per step at constant speed
+ * (docs/filter.md), which motor-locked blocks, learning all the time, take
+ * up.  The output phasor comes from the exactly accumulated output phase:
+ * an output-locked block that does not learn (output_learn_scale 0) keeps
+ * its profile against the absolute angle for as long as the filter runs. */
 static void advance_frames(hd_kf_t *kf, const float inc[3])
 {
-    float s, c;
     if (kf->motor_powers != 0u) {
+        float s, c;
         sincos_step(inc[HD_KF_LOCK_MOTOR], &s, &c);
         turn_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1], c, s);
     }
     if (kf->output_powers != 0u) {
-        sincos_step(inc[HD_KF_LOCK_OUTPUT], &s, &c);
-        turn_phasor(&kf->phasor_cos[POWER_TABLE_OUTPUT + 1u],
-                    &kf->phasor_sin[POWER_TABLE_OUTPUT + 1u], c, s);
+        const unsigned base = POWER_TABLE_OUTPUT + 1u;
+        add_phase(&kf->output_phase_hi_rad, &kf->output_phase_lo_rad, inc[HD_KF_LOCK_OUTPUT]);
+        phase_phasor(kf->output_phase_hi_rad, kf->output_phase_lo_rad, &kf->phasor_cos[base],
+                     &kf->phasor_sin[base]);
     }
     power_frames(kf);
     for (uint32_t left = kf->own_frames; left != 0u; left &= left - 1u) {

@@ -216,10 +216,12 @@ typedef struct {
     float load_scale;                         /* 1 + k |T_ref| of the last step */
     float last_d_motor_rad;                   /* increments applied by the last step */
     float last_d_output_rad;
+    float output_phase_hi_rad;                /* the sum of all output increments since */
+    float output_phase_lo_rad;                /* init, in [-pi, pi), as hi + lo */
     hd_kf_slot_t slot[HD_KF_MAX_BLOCKS];      /* active slot -> block parameters */
     float phasor_cos[HD_KF_PHASORS];          /* unit phasors: [k] the motor phase (sum of */
     float phasor_sin[HD_KF_PHASORS];          /* all increments) times k, [HD_KF_MAX_POWER
-                                                 + 1 + k] the output's, then one per
+                                                 + 1 + k] the output phase's, then one per
                                                  configured block that turns its own */
     float x[HD_KF_MAX_STATES];                /* blocks (in their frames), then offset */
     float p[HD_KF_P_ENTRIES];                 /* packed by 2x2 tiles, in the frames */

@@ -124,9 +124,14 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
             q_scale = fmin(1.0, fabs(th) / ref);
         q[i][i] = q[i + 1][i + 1] = (double)r->cfg.blocks[b].q_nm2 * q_scale;
         /* A motor-locked block learns as it turns: its gain is scaled by
-         * the same motion fraction (hd_kf.h, "Slow motor blocks"). */
+         * the same motion fraction; an output-locked block learns at
+         * output_learn_scale, which scales its q too (hd_kf.h). */
         if (r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR)
             gain[i] = gain[i + 1] = q_scale;
+        if (r->cfg.blocks[b].lock == HD_KF_LOCK_OUTPUT) {
+            gain[i] = gain[i + 1] = (double)r->cfg.output_learn_scale;
+            q[i][i] = q[i + 1][i + 1] = q[i][i] * (double)r->cfg.output_learn_scale;
+        }
         frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
         if (frozen[s]) {
             /* Held: unobserved (C = 0), uncorrected (gain 0), no process
@@ -254,6 +259,9 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
                 r->P[i][j] += q[i][j] + k_e[i] * (double)r->cfg.r_nm2 * k_e[j];
     }
 
+    r->last_inc[0] = isfinite(in->d_motor_angle_rad) ? (double)in->d_motor_angle_rad : 0.0;
+    r->last_inc[1] = isfinite(in->d_output_angle_rad) ? (double)in->d_output_angle_rad : 0.0;
+
     /* Ceiling on the diagonal: P <- D P D with D_ii = sqrt(p_max / P_ii). */
     double d[N];
     int clamped = 0;
@@ -271,4 +279,66 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
                 r->P[i][j] *= d[i] * d[j];
     }
 
+}
+
+/* Integral order 1..255 of an enabled motor/output block, else 0. */
+static int ref_profile_order(const hd_kf_block_config_t *bc)
+{
+    if (bc->lock == HD_KF_LOCK_FIXED || bc->order < 1.0f || bc->order > 255.0f ||
+        floor((double)bc->order) != (double)bc->order)
+        return 0;
+    return (int)bc->order;
+}
+
+/* alpha: the lock angle of the sample the prediction is for. */
+static double ref_alpha(const ref_kf_t *r, int lock, double motor_angle, double output_angle)
+{
+    return lock == HD_KF_LOCK_MOTOR ? motor_angle + r->last_inc[0]
+                                    : output_angle + r->last_inc[1];
+}
+
+int ref_kf_profile_export(const ref_kf_t *r, double motor_angle_rad, double output_angle_rad,
+                          int lock[], int order[], double a[], double b[])
+{
+    int n = 0;
+    for (int s = 0; s < r->nb; s++) {
+        const hd_kf_block_config_t *bc = &r->cfg.blocks[r->block_of_slot[s]];
+        int k = ref_profile_order(bc);
+        if (k == 0)
+            continue;
+        double t = k * ref_alpha(r, bc->lock, motor_angle_rad, output_angle_rad);
+        double x1 = r->x[2 * s], x2 = r->x[2 * s + 1];
+        /* x = R(t) (a, b)'  =>  (a, b)' = R(t)' x */
+        lock[n] = bc->lock;
+        order[n] = k;
+        a[n] = cos(t) * x1 - sin(t) * x2;
+        b[n] = sin(t) * x1 + cos(t) * x2;
+        n++;
+    }
+    return n;
+}
+
+int ref_kf_profile_import(ref_kf_t *r, int lines, const int lock[], const int order[],
+                          const double a[], const double b[], double motor_angle_rad,
+                          double output_angle_rad, double var_nm2)
+{
+    int used[HD_KF_MAX_BLOCKS] = {0}, count = 0;
+    for (int i = 0; i < lines; i++) {
+        for (int s = 0; s < r->nb; s++) {
+            const hd_kf_block_config_t *bc = &r->cfg.blocks[r->block_of_slot[s]];
+            if (used[s] || bc->lock != lock[i] || ref_profile_order(bc) != order[i])
+                continue;
+            double t = order[i] * ref_alpha(r, bc->lock, motor_angle_rad, output_angle_rad);
+            for (int k = 2 * s; k < 2 * s + 2; k++)
+                for (int j = 0; j < r->n; j++)
+                    r->P[k][j] = r->P[j][k] = 0.0;
+            r->P[2 * s][2 * s] = r->P[2 * s + 1][2 * s + 1] = var_nm2;
+            r->x[2 * s] = cos(t) * a[i] + sin(t) * b[i];
+            r->x[2 * s + 1] = -sin(t) * a[i] + cos(t) * b[i];
+            used[s] = 1;
+            count++;
+            break;
+        }
+    }
+    return count;
 }

@@ -11,9 +11,19 @@
  *   - the prediction x is the one made before the sample arrived; outputs
  *     (ripple, filtered torque, innovation, S) come from that prior;
  *   - Nyquist freeze: a block with |theta| > nyquist_fraction * pi is dropped
- *     from C and from the ripple, and its state is held at zero with
- *     covariance p0 I, decorrelated from the rest, until theta drops back;
+ *     from C and from the ripple, gets gain 0 and no process noise, and is
+ *     still turned by Phi (its estimate is held, not reset); beyond
+ *     HD_KF_PHASE_LOST_RAD its phase is lost: state 0, covariance p0 I,
+ *     decorrelated from the rest, before the update;
+ *   - gain fractions (a suboptimal gain F K with the Joseph covariance
+ *     update): a motor-locked block's is min(1, |theta| / q_motion_ref_rad)
+ *     (1 when off), an output-locked block's is cfg.output_learn_scale,
+ *     which also multiplies its q;
  *   - covariance diagonal ceiling p_max by congruence scaling of row/column;
+ *   - angle-referenced profiles: ref_kf_profile_export / _import, written
+ *     from the definition in hd_kf.h (ripple(alpha) = a cos k alpha +
+ *     b sin k alpha, alpha = the lock angle of the sample the prediction is
+ *     for = the caller's angle plus the last step's increment);
  *   - a non-finite measurement skips the correction (prediction only);
  *   - load-dependent ripple (cfg.ripple_load_coeff_per_nm = k, 0 by default,
  *     so callers that never set it get the paper's C): the C entry of the
@@ -50,6 +60,7 @@ typedef struct {
     int offset_primed; /* the offset starts at the first valid y - ripple */
     int load_ref_primed; /* T_ref of the load-dependent ripple has its first value */
     double load_ref;     /* T_ref [Nm], held at standstill (hd_kf.h) */
+    double last_inc[2];  /* motor, output increments of the last step (0 before one) */
 } ref_kf_t;
 
 typedef struct {
@@ -72,5 +83,17 @@ void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg);
 
 /* One step of equations 8-10 with a full dense Phi. */
 void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out);
+
+/* Profile of every enabled motor/output block of integral order (1..255),
+ * in configuration order: lock[i], order[i], a[i], b[i]; returns the count.
+ * Angles: those of the sample of the last step, as in hd_kf.h. */
+int ref_kf_profile_export(const ref_kf_t *r, double motor_angle_rad, double output_angle_rad,
+                          int lock[], int order[], double a[], double b[]);
+
+/* Line i sets the first unmatched enabled block of that lock and order:
+ * state from (a, b), covariance var I, decorrelated.  Returns matches. */
+int ref_kf_profile_import(ref_kf_t *r, int lines, const int lock[], const int order[],
+                          const double a[], const double b[], double motor_angle_rad,
+                          double output_angle_rad, double var_nm2);
 
 #endif /* REF_KF_DENSE_H */

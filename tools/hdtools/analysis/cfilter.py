@@ -108,6 +108,8 @@ class KfState(ctypes.Structure):
                 ("load_scale", c_float),
                 ("last_d_motor_rad", c_float),
                 ("last_d_output_rad", c_float),
+                ("output_phase_hi_rad", c_float),
+                ("output_phase_lo_rad", c_float),
                 ("slot", KfSlot * MAX_BLOCKS),
                 ("phasor_cos", c_float * PHASORS),
                 ("phasor_sin", c_float * PHASORS),

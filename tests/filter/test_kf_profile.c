@@ -1,0 +1,568 @@
+/*
+ * Angle-referenced profiles (hd_kf_profile_export / _import) and the
+ * learning schedule of output-locked blocks (output_learn_scale), against
+ * closed-form truth and the dense double reference (ref_kf_dense.c, which
+ * implements both from the definitions in hd_kf.h).
+ *
+ * Truth.  The simulated joint has ripple lines defined on ABSOLUTE angles:
+ *   motor order 2:  A2 cos(2 am) + B2 sin(2 am)     (am: motor angle)
+ *   output order 1: A1 cos(ao)   + B1 sin(ao)       (ao: output angle)
+ * so a correct export at any time returns (A2, B2) and (A1, B1), whatever
+ * the speed and wherever the joint stands.  The filter is prediction-type:
+ * after the step for sample n its state is the prior for sample n + 1; the
+ * contract (hd_kf.h) is that the caller passes the angles of sample n and
+ * the filter adds its own last increments.  At 156 rad/s one sample is
+ * 0.156 rad of motor angle: getting that convention wrong rotates the
+ * order-2 line by 0.31 rad, a 0.3 N m error on a 1 N m line, which every
+ * profile test below would see (and test_profile_round_trip_next_prediction
+ * shows, by doing it wrong on purpose).
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "hd_kf.h"
+#include "ref_kf_dense.h"
+#include "test_util.h"
+#include "unity.h"
+
+#define TS_S 1e-3
+#define GEAR_RATIO 100.0
+#define NOISE_NM 0.02
+#define A2_NM 0.8
+#define B2_NM -0.6 /* motor order 2: amplitude 1 N m */
+#define A1_NM 0.25
+#define B1_NM 0.2
+#define AM0_RAD 1.234 /* where the joint stands at t = 0 */
+#define AO0_RAD 4.321
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static void msg(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static void msg(const char *fmt, ...)
+{
+    char buf[400];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof(buf), fmt, ap);
+    va_end(ap);
+    TEST_MESSAGE(buf);
+}
+
+static double wrap(double a)
+{
+    a = fmod(a, 2.0 * TU_PI);
+    return a < 0.0 ? a + 2.0 * TU_PI : a;
+}
+
+/* The joint: absolute angles (double, unwrapped), and the sample. */
+typedef struct {
+    double am, ao;   /* absolute angles of the current sample */
+    double dam, dao; /* its increments */
+    tu_rng_t rng;
+} joint_t;
+
+static void joint_init(joint_t *j, uint64_t seed)
+{
+    j->am = AM0_RAD;
+    j->ao = AO0_RAD;
+    j->dam = j->dao = 0.0;
+    tu_rng_seed(&j->rng, seed);
+}
+
+static double truth_ripple(double am, double ao)
+{
+    return A2_NM * cos(2.0 * am) + B2_NM * sin(2.0 * am) + A1_NM * cos(ao) + B1_NM * sin(ao);
+}
+
+/* Advances the joint by an output increment dao (motor = ratio x output)
+ * and builds the sample: load + ripple + noise, T_exp = t_exp. */
+static hd_kf_input_t joint_next(joint_t *j, double dao, double load_nm, double t_exp_nm)
+{
+    j->dao = dao;
+    j->dam = dao * GEAR_RATIO;
+    j->ao += j->dao;
+    j->am += j->dam;
+    hd_kf_input_t in;
+    in.torque_meas_nm =
+        (float)(load_nm + truth_ripple(j->am, j->ao) + NOISE_NM * tu_gauss(&j->rng));
+    in.torque_expected_nm = (float)t_exp_nm;
+    in.d_motor_angle_rad = (float)j->dam;
+    in.d_output_angle_rad = (float)j->dao;
+    return in;
+}
+
+/* Motor orders 2 and 4 and output order 1 plus the offset (the firmware's
+ * model). */
+static void profile_cfg(hd_kf_config_t *cfg, float learn)
+{
+    hd_kf_config_recommended(cfg, (float)TS_S, (float)NOISE_NM, 0.05f, 0.02f);
+    cfg->output_learn_scale = learn;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(cfg));
+}
+
+static const hd_kf_profile_line_t *find_line(const hd_kf_profile_t *p, uint8_t lock,
+                                             uint8_t order)
+{
+    for (unsigned i = 0; i < p->line_count; i++)
+        if (p->lines[i].lock == lock && p->lines[i].order == order)
+            return &p->lines[i];
+    return NULL;
+}
+
+#define SPEED_OUT_RAD_S 1.56 /* 156 rad/s at the motor */
+
+/* ---- export ------------------------------------------------------------ */
+
+/* Learned at constant speed, exported: the absolute-angle coefficients of
+ * the truth, at every export time. */
+static void test_export_recovers_truth_coefficients(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 1.0f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 11u);
+    double worst2 = 0.0, worst1 = 0.0;
+    for (int k = 1; k <= 30000; k++) {
+        hd_kf_input_t in = joint_next(&j, SPEED_OUT_RAD_S * TS_S, 3.0, 0.0);
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        if (k >= 20000 && k % 997 == 0) {
+            hd_kf_profile_t prof;
+            TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_export(&kf, (float)wrap(j.am),
+                                                          (float)wrap(j.ao), &prof));
+            const hd_kf_profile_line_t *m2 = find_line(&prof, HD_KF_LOCK_MOTOR, 2);
+            const hd_kf_profile_line_t *o1 = find_line(&prof, HD_KF_LOCK_OUTPUT, 1);
+            TEST_ASSERT_NOT_NULL(m2);
+            TEST_ASSERT_NOT_NULL(o1);
+            TEST_ASSERT_NOT_NULL(find_line(&prof, HD_KF_LOCK_MOTOR, 4));
+            worst2 = fmax(worst2, hypot((double)m2->a_nm - A2_NM, (double)m2->b_nm - B2_NM));
+            worst1 = fmax(worst1, hypot((double)o1->a_nm - A1_NM, (double)o1->b_nm - B1_NM));
+        }
+    }
+    msg("export after 20-30 s at 156 rad/s: |(a, b) - truth| motor order 2 %.4f N m (line 1 N m, "
+        "one sample of phase = 0.31 N m), output order 1 %.4f N m (line %.2f N m)",
+        worst2, worst1, hypot(A1_NM, B1_NM));
+    TEST_ASSERT_LESS_THAN_DOUBLE(0.03, worst2);
+    TEST_ASSERT_LESS_THAN_DOUBLE(0.05, worst1);
+}
+
+/* ---- round trip ---------------------------------------------------------- */
+
+/* Export from a running filter A after sample n, import into a fresh B with
+ * the angles of B's first sample (n + 1): their next ripple predictions
+ * agree to float rounding.  The same import with the angles of sample n
+ * (one sample of phase off) is far away. */
+static void test_profile_round_trip_next_prediction(void)
+{
+    static hd_kf_t a, b, b_wrong;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 1.0f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&a, &cfg));
+    joint_t j;
+    joint_init(&j, 12u);
+    double worst = 0.0, worst_wrong = INFINITY;
+    for (int k = 1; k <= 12000; k++) {
+        hd_kf_input_t in = joint_next(&j, SPEED_OUT_RAD_S * TS_S, 3.0, 0.0);
+        hd_kf_output_t o;
+        hd_kf_step(&a, &in, &o);
+        if (k < 6000 || k % 1500 != 0)
+            continue;
+        hd_kf_profile_t prof;
+        TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_export(&a, (float)wrap(j.am), (float)wrap(j.ao),
+                                                      &prof));
+        joint_t next = j;
+        hd_kf_input_t in1 = joint_next(&next, SPEED_OUT_RAD_S * TS_S, 3.0, 0.0);
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&b, &cfg));
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&b_wrong, &cfg));
+        TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_import(&b, &prof, (float)wrap(next.am),
+                                                      (float)wrap(next.ao), 1e-4f));
+        TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_import(&b_wrong, &prof, (float)wrap(j.am),
+                                                      (float)wrap(j.ao), 1e-4f));
+        static hd_kf_t a_next;
+        a_next = a;
+        hd_kf_output_t oa, ob, ow;
+        hd_kf_step(&a_next, &in1, &oa);
+        hd_kf_step(&b, &in1, &ob);
+        hd_kf_step(&b_wrong, &in1, &ow);
+        worst = fmax(worst, fabs((double)oa.ripple_nm - (double)ob.ripple_nm));
+        worst_wrong = fmin(worst_wrong, fabs((double)oa.ripple_nm - (double)ow.ripple_nm));
+    }
+    msg("round trip: next ripple prediction of the importing filter vs the exporting one: max "
+        "%.2e N m; imported one sample off: min %.3f N m", worst, worst_wrong);
+    /* float rounding of ~1 N m values through two rotations and the
+     * k alpha products (k alpha <= 13 rad: ulp 1e-6) */
+    TEST_ASSERT_LESS_THAN_DOUBLE(2e-5, worst);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(1000.0 * 2e-5, worst_wrong);
+}
+
+/* Import into a filter that has run (at another speed): its prediction is
+ * for the angle of its last sample plus its own last increment, as the
+ * contract says: checked against the truth there. */
+static void test_import_into_running_filter_uses_its_last_increment(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 1.0f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 13u);
+    for (int k = 1; k <= 500; k++) {
+        hd_kf_input_t in = joint_next(&j, 2.3 * TS_S, 0.0, 0.0); /* 230 rad/s motor */
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+    }
+    hd_kf_profile_t truth = {3, {{HD_KF_LOCK_MOTOR, 2, (float)A2_NM, (float)B2_NM},
+                                 {HD_KF_LOCK_OUTPUT, 1, (float)A1_NM, (float)B1_NM},
+                                 {HD_KF_LOCK_MOTOR, 4, 0.0f, 0.0f}}};
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_import(&kf, &truth, (float)wrap(j.am),
+                                                  (float)wrap(j.ao), 1e-4f));
+    /* the prediction is for am + dam, ao + dao: evaluate it there */
+    double pred = 0.0;
+    for (unsigned s = 0; s < 3u; s++)
+        pred += (double)hd_kf_state(&kf, 2u * s);
+    double want = truth_ripple(j.am + j.dam, j.ao + j.dao);
+    double lagged = truth_ripple(j.am, j.ao);
+    msg("import into a running filter: prediction %.5f N m, truth at its extrapolated angle "
+        "%.5f N m, at the last sample's angle %.5f N m", pred, want, lagged);
+    TEST_ASSERT_FLOAT_WITHIN(2e-5, want, pred);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(0.05, fabs(want - lagged));
+}
+
+/* ---- against the reference --------------------------------------------- */
+
+static void test_profile_matches_reference(void)
+{
+    static hd_kf_t kf;
+    static ref_kf_t ref;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 0.01f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    ref_kf_init(&ref, &cfg);
+    joint_t j;
+    joint_init(&j, 14u);
+    double worst = 0.0, worst_after = 0.0;
+    for (int k = 1; k <= 16000; k++) {
+        /* 0.6 - 2.4 rad/s at the output, slowly varying */
+        double w = 1.5 + 0.9 * sin(2.0 * TU_PI * 0.07 * (double)k * TS_S);
+        hd_kf_input_t in = joint_next(&j, w * TS_S, 2.0, 0.0);
+        hd_kf_output_t o;
+        ref_kf_output_t r;
+        hd_kf_step(&kf, &in, &o);
+        ref.jump_override = (o.status & HD_KF_STATUS_OFFSET_JUMP) != 0;
+        ref_kf_step(&ref, &in, &r);
+        if (k % 2000 == 0) {
+            hd_kf_profile_t prof;
+            int lock[HD_KF_MAX_BLOCKS], order[HD_KF_MAX_BLOCKS];
+            double ra[HD_KF_MAX_BLOCKS], rb[HD_KF_MAX_BLOCKS];
+            int n = hd_kf_profile_export(&kf, (float)wrap(j.am), (float)wrap(j.ao), &prof);
+            TEST_ASSERT_EQUAL_INT(n, ref_kf_profile_export(&ref, wrap(j.am), wrap(j.ao), lock,
+                                                           order, ra, rb));
+            for (int i = 0; i < n; i++) {
+                TEST_ASSERT_EQUAL_INT(lock[i], prof.lines[i].lock);
+                TEST_ASSERT_EQUAL_INT(order[i], prof.lines[i].order);
+                worst = fmax(worst, hypot((double)prof.lines[i].a_nm - ra[i],
+                                          (double)prof.lines[i].b_nm - rb[i]));
+            }
+            if (k == 8000) {
+                /* both take the truth profile mid-run and go on */
+                hd_kf_profile_t t = {2, {{HD_KF_LOCK_MOTOR, 2, (float)A2_NM, (float)B2_NM},
+                                         {HD_KF_LOCK_OUTPUT, 1, (float)A1_NM, (float)B1_NM}}};
+                int tl[2] = {HD_KF_LOCK_MOTOR, HD_KF_LOCK_OUTPUT}, to[2] = {2, 1};
+                double ta[2] = {A2_NM, A1_NM}, tb[2] = {B2_NM, B1_NM};
+                TEST_ASSERT_EQUAL_INT(2, hd_kf_profile_import(&kf, &t, (float)wrap(j.am),
+                                                              (float)wrap(j.ao), 1e-3f));
+                TEST_ASSERT_EQUAL_INT(2, ref_kf_profile_import(&ref, 2, tl, to, ta, tb, wrap(j.am),
+                                                               wrap(j.ao), 1e-3));
+            }
+        }
+        if (k > 8000)
+            worst_after = fmax(worst_after, fabs((double)o.torque_filtered_nm - r.torque_filtered_nm));
+    }
+    msg("learn scale 0.01, varying speed: exported (a, b) vs reference max %.2e N m; filtered "
+        "torque after both imported a profile mid-run: max |dev| %.2e N m", worst, worst_after);
+    /* the tolerance of test_kf_reference: 1e-4 of the signal scale (~5 N m) */
+    TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst);
+    TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst_after);
+}
+
+/* ---- contract details ---------------------------------------------------- */
+
+static void test_import_sets_covariance_and_counts_matches(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 1.0f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 15u);
+    for (int k = 1; k <= 2000; k++) {
+        hd_kf_input_t in = joint_next(&j, SPEED_OUT_RAD_S * TS_S, 1.0, 0.0);
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+    }
+    /* motor 2 (matches), motor 2 again (no second block: ignored), motor 7
+     * (no such block), output 1 (matches) */
+    hd_kf_profile_t p = {4, {{HD_KF_LOCK_MOTOR, 2, 0.5f, 0.1f},
+                             {HD_KF_LOCK_MOTOR, 2, 9.0f, 9.0f},
+                             {HD_KF_LOCK_MOTOR, 7, 1.0f, 1.0f},
+                             {HD_KF_LOCK_OUTPUT, 1, -0.2f, 0.3f}}};
+    const float x4_before = hd_kf_state(&kf, 2), p44_before = hd_kf_cov(&kf, 2, 2);
+    TEST_ASSERT_EQUAL_INT(2, hd_kf_profile_import(&kf, &p, (float)wrap(j.am), (float)wrap(j.ao),
+                                                  2.5e-3f));
+    const unsigned n = hd_kf_state_count(&kf); /* 7: motor 2, motor 4, output 1, offset */
+    TEST_ASSERT_EQUAL_UINT(7u, n);
+    for (unsigned i = 0; i < n; i++) {
+        for (unsigned jj = 0; jj < n; jj++) {
+            const bool in0 = i < 2u && jj < 2u, in2 = (i == 4u || i == 5u) && (jj == 4u || jj == 5u);
+            const bool touches = i < 2u || jj < 2u || i == 4u || i == 5u || jj == 4u || jj == 5u;
+            if (in0 || in2)
+                TEST_ASSERT_FLOAT_WITHIN(2.5e-3f * 1e-6f, i == jj ? 2.5e-3f : 0.0f,
+                                         hd_kf_cov(&kf, i, jj));
+            else if (touches)
+                TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, i, jj));
+        }
+    }
+    /* the unmatched motor-4 block keeps its estimate */
+    TEST_ASSERT_EQUAL_FLOAT(x4_before, hd_kf_state(&kf, 2));
+    TEST_ASSERT_EQUAL_FLOAT(p44_before, hd_kf_cov(&kf, 2, 2));
+    /* export gives back what was imported, at the same angles */
+    hd_kf_profile_t back;
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_export(&kf, (float)wrap(j.am), (float)wrap(j.ao),
+                                                  &back));
+    const hd_kf_profile_line_t *m2 = find_line(&back, HD_KF_LOCK_MOTOR, 2);
+    const hd_kf_profile_line_t *o1 = find_line(&back, HD_KF_LOCK_OUTPUT, 1);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, 0.5f, m2->a_nm);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, 0.1f, m2->b_nm);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, -0.2f, o1->a_nm);
+    TEST_ASSERT_FLOAT_WITHIN(1e-5f, 0.3f, o1->b_nm);
+}
+
+/* Every refusal leaves the filter as it was (every byte). */
+static void test_profile_refusals_leave_filter_unchanged(void)
+{
+    static hd_kf_t kf, before;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 1.0f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 16u);
+    for (int k = 1; k <= 300; k++) {
+        hd_kf_input_t in = joint_next(&j, SPEED_OUT_RAD_S * TS_S, 1.0, 0.0);
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+    }
+    before = kf;
+    const hd_kf_profile_t good = {1, {{HD_KF_LOCK_MOTOR, 2, 0.5f, 0.1f}}};
+    hd_kf_profile_t p;
+    const float two_pi = 6.2831855f; /* float(2 pi) rounds up: outside [0, 2 pi) */
+    const float bad_angles[] = {-1e-6f, two_pi, 7.0f, NAN, INFINITY};
+    for (unsigned i = 0; i < sizeof bad_angles / sizeof bad_angles[0]; i++) {
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_ANGLE, hd_kf_profile_import(&kf, &good, bad_angles[i],
+                                                                    1.0f, 1e-3f));
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_ANGLE, hd_kf_profile_import(&kf, &good, 1.0f,
+                                                                    bad_angles[i], 1e-3f));
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_ANGLE, hd_kf_profile_export(&kf, bad_angles[i], 1.0f, &p));
+    }
+    const float bad_vars[] = {-1e-3f, NAN, INFINITY, 2.0f * cfg.p_max_nm2};
+    for (unsigned i = 0; i < sizeof bad_vars / sizeof bad_vars[0]; i++)
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &good, 1.0f, 1.0f,
+                                                                      bad_vars[i]));
+    hd_kf_profile_t bad;
+    bad = good;
+    bad.lines[0].lock = HD_KF_LOCK_FIXED;
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
+    bad = good;
+    bad.lines[0].order = 0u;
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
+    bad = good;
+    bad.lines[0].b_nm = NAN;
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
+    bad = good;
+    bad.line_count = HD_KF_MAX_BLOCKS + 1;
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
+    /* a later bad line refuses the whole profile: the good first one is not applied */
+    bad = good;
+    bad.line_count = 2;
+    bad.lines[1] = good.lines[0];
+    bad.lines[1].a_nm = INFINITY;
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_kf_profile_import(NULL, &good, 1.0f, 1.0f, 1e-3f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_kf_profile_import(&kf, NULL, 1.0f, 1.0f, 1e-3f));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_kf_profile_export(&kf, 1.0f, 1.0f, NULL));
+    TEST_ASSERT_EQUAL_MEMORY(&before, &kf, sizeof kf);
+}
+
+/* ---- learning schedule ----------------------------------------------------- */
+
+static void test_learn_scale_config_check_and_default(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_default(&cfg, (float)TS_S);
+    TEST_ASSERT_EQUAL_FLOAT(1.0f, cfg.output_learn_scale);
+    hd_kf_config_paper(&cfg, (float)TS_S, true);
+    TEST_ASSERT_EQUAL_FLOAT(1.0f, cfg.output_learn_scale);
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.02f);
+    TEST_ASSERT_EQUAL_FLOAT(1.0f, cfg.output_learn_scale);
+    const float bad[] = {-1e-6f, 1.0000001f, NAN, INFINITY};
+    for (unsigned i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        cfg.output_learn_scale = bad[i];
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_LEARN_SCALE, hd_kf_config_check(&cfg));
+    }
+    cfg.output_learn_scale = 0.0f;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+}
+
+/* An arm joint swinging +-120 deg at the output (0.2 Hz) under 12 N m of
+ * gravity, 12 sin(ao): at output order 1, exactly the misalignment line's
+ * frequency.  The controller's model is not given (T_exp = 0): the offset
+ * state must carry gravity to the output.  With a commissioned profile and
+ * output_learn_scale 0 the output-locked block keeps predicting the
+ * geometric line (its exported profile does not move) and gravity stays in
+ * the torque; with scale 1 the block takes gravity for misalignment. */
+static double gravity_run(float learn, double *profile_drift_nm)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, learn);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 17u);
+    const hd_kf_profile_t commissioned = {2, {{HD_KF_LOCK_MOTOR, 2, (float)A2_NM, (float)B2_NM},
+                                              {HD_KF_LOCK_OUTPUT, 1, (float)A1_NM, (float)B1_NM}}};
+    const double swing_rad = 120.0 * TU_PI / 180.0, f_hz = 0.2;
+    double prev = 0.0, se = 0.0;
+    long n = 0;
+    for (int k = 1; k <= 30000; k++) {
+        double pos = swing_rad * sin(2.0 * TU_PI * f_hz * (double)k * TS_S);
+        double gravity = 12.0 * sin(j.ao + (pos - prev));
+        hd_kf_input_t in = joint_next(&j, pos - prev, gravity, 0.0);
+        prev = pos;
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        if (k == 1) /* after the first tick, as firmware at boot would: its angles */
+            TEST_ASSERT_EQUAL_INT(2, hd_kf_profile_import(&kf, &commissioned, (float)wrap(j.am),
+                                                          (float)wrap(j.ao), 1e-4f));
+        if (k > 5000) {
+            double e = (double)o.torque_filtered_nm - gravity;
+            se += e * e;
+            n++;
+        }
+    }
+    hd_kf_profile_t now;
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_export(&kf, (float)wrap(j.am), (float)wrap(j.ao), &now));
+    const hd_kf_profile_line_t *o1 = find_line(&now, HD_KF_LOCK_OUTPUT, 1);
+    *profile_drift_nm = hypot((double)o1->a_nm - A1_NM, (double)o1->b_nm - B1_NM);
+    return sqrt(se / (double)n);
+}
+
+static void test_learn_scale_zero_keeps_gravity_in_the_torque(void)
+{
+    static const float scales[] = {1.0f, 1e-2f, 1e-3f, 0.0f};
+    double rms[4], drift[4];
+    for (unsigned i = 0; i < 4u; i++) {
+        rms[i] = gravity_run(scales[i], &drift[i]);
+        msg("gravity swing +-120 deg, 12 N m, profile imported, output_learn_scale %g: RMS "
+            "error %.3f N m, output-line profile moved %.4f N m", (double)scales[i], rms[i],
+            drift[i]);
+    }
+    /* scale 0: the block never learns; its profile moves only by the frame
+     * phasors' rounding over 30 s */
+    TEST_ASSERT_LESS_THAN_DOUBLE(1e-4, drift[3]);
+    TEST_ASSERT_LESS_THAN_DOUBLE(rms[0], rms[3]);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(0.1, drift[0]); /* scale 1 takes gravity into the block */
+}
+
+/* An output-locked block that does not learn predicts from its profile for
+ * as long as the filter runs: 2*10^6 steps (33 min) at constant output speed,
+ * increments exactly representable (what the filter is given is what it
+ * must add up), then the exported profile is the imported one.  A phasor
+ * turned by each increment instead drifted 1.8e-5 rad per 10^6 steps here. */
+static void test_learn_scale_zero_profile_holds_for_long_runs(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 0.0f);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    const float dao = 0.00156f, dam = dao * (float)GEAR_RATIO;
+    double am = AM0_RAD, ao = AO0_RAD;
+    const hd_kf_profile_t p = {1, {{HD_KF_LOCK_OUTPUT, 1, (float)A1_NM, (float)B1_NM}}};
+    tu_rng_t rng;
+    tu_rng_seed(&rng, 19u);
+    for (long k = 1; k <= 2000000L; k++) {
+        am += (double)dam;
+        ao += (double)dao;
+        hd_kf_input_t in = {(float)(truth_ripple(am, ao) + NOISE_NM * tu_gauss(&rng)), 0.0f, dam,
+                            dao};
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        if (k == 1)
+            TEST_ASSERT_EQUAL_INT(1, hd_kf_profile_import(&kf, &p, (float)wrap(am),
+                                                          (float)wrap(ao), 1e-4f));
+    }
+    hd_kf_profile_t now;
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_profile_export(&kf, (float)wrap(am), (float)wrap(ao), &now));
+    const hd_kf_profile_line_t *o1 = find_line(&now, HD_KF_LOCK_OUTPUT, 1);
+    const double drift = hypot((double)o1->a_nm - A1_NM, (double)o1->b_nm - B1_NM);
+    msg("output_learn_scale 0, 2e6 steps at 1.56 rad/s: the output line's profile moved "
+        "%.2e N m (line %.2f N m)", drift, hypot(A1_NM, B1_NM));
+    /* rounding of the angles passed (float, 2.4e-7 rad) and of the conversions */
+    TEST_ASSERT_LESS_THAN_DOUBLE(1e-6, drift);
+}
+
+/* With a partial gain the covariance update is the Joseph form, so P is
+ * the exact covariance of the estimate: the filter agrees with the
+ * reference's dense Joseph update (varying speed, reversals, standstill). */
+static void test_learn_scale_matches_reference(void)
+{
+    static const float scales[] = {0.0f, 1e-3f, 0.3f};
+    for (unsigned si = 0; si < 3u; si++) {
+        static hd_kf_t kf;
+        static ref_kf_t ref;
+        hd_kf_config_t cfg;
+        profile_cfg(&cfg, scales[si]);
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+        ref_kf_init(&ref, &cfg);
+        joint_t j;
+        joint_init(&j, 18u + si);
+        double worst = 0.0, worst_p = 0.0;
+        for (int k = 1; k <= 20000; k++) {
+            double t = (double)k * TS_S;
+            double w = t < 5.0 ? 2.0 : (t < 8.0 ? 0.0 : -1.2 + 0.5 * sin(t));
+            hd_kf_input_t in = joint_next(&j, w * TS_S, 2.0 + sin(0.3 * t), 0.0);
+            hd_kf_output_t o;
+            ref_kf_output_t r;
+            hd_kf_step(&kf, &in, &o);
+            ref.jump_override = (o.status & HD_KF_STATUS_OFFSET_JUMP) != 0;
+            ref_kf_step(&ref, &in, &r);
+            worst = fmax(worst, fabs((double)o.torque_filtered_nm - r.torque_filtered_nm));
+            for (unsigned i = 4; i < 6u; i++) /* the output block's covariance */
+                worst_p = fmax(worst_p, fabs((double)hd_kf_cov(&kf, i, i) - ref.P[i][i]) /
+                                            ref.P[i][i]);
+        }
+        msg("output_learn_scale %g vs reference: max |dev| filtered %.2e N m, output-block "
+            "variance rel %.2e", (double)scales[si], worst, worst_p);
+        TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst);
+        TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, worst_p);
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_export_recovers_truth_coefficients);
+    RUN_TEST(test_profile_round_trip_next_prediction);
+    RUN_TEST(test_import_into_running_filter_uses_its_last_increment);
+    RUN_TEST(test_profile_matches_reference);
+    RUN_TEST(test_import_sets_covariance_and_counts_matches);
+    RUN_TEST(test_profile_refusals_leave_filter_unchanged);
+    RUN_TEST(test_learn_scale_config_check_and_default);
+    RUN_TEST(test_learn_scale_zero_keeps_gravity_in_the_torque);
+    RUN_TEST(test_learn_scale_zero_profile_holds_for_long_runs);
+    RUN_TEST(test_learn_scale_matches_reference);
+    return UNITY_END();
+}
