@@ -65,6 +65,7 @@ int main(void)
     (void)stm32_board_boot(&g_board, &HD_BOARD_DEF, &p, &g_stm32_fault_record, &g_hal);
     hd_fw_config_t cfg;
     hd_fw_config_default(&cfg);
+    cfg.adc_volts_per_count = HD_BOARD_DEF.adc_volts_per_count; /* until a saved configuration */
     if (hd_fw_init(&g_fw, &g_hal, &cfg) != HD_FW_OK) {
         return 1; /* the defaults are checked at build time by the host tests */
     }

@@ -78,6 +78,8 @@ typedef struct {
     uintptr_t output_enc_base;   /* 0: none */
     uint8_t output_enc_bits;
     uint8_t adc_channel;         /* ADC1 injected channel of the bridge amplifier */
+    float adc_volts_per_count;   /* at the ADC pin: VREF+ / 4096 (the amplifier gain
+                                  * belongs to the calibration) */
     uint8_t adc_jextsel;         /* the tick timer's TRGO */
     uint32_t apb1_enr, apb2_enr; /* peripheral clocks to switch on */
     uint32_t nvm_first_sector;

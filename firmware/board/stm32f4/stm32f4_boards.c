@@ -26,6 +26,7 @@
 #define AF_CAN1 9u
 #define SPEED_FAST 2u /* OSPEEDR "fast": clean CAN edges at 1 Mbit/s */
 #define NVM_SECTOR_BYTES 16384u  /* sectors 1 and 2: 16 KB each on F405 and F446 */
+#define ADC_VREF_V 3.3f          /* VREF+ = VDDA = 3.3 V on both boards */
 
 static const stm32_pin_t odrive_pins[] = {
     {PORT_B, 8, STM32_GPIO_MODE_AF, AF_CAN1, STM32_GPIO_PULL_UP, 0, "CAN1_RX (ODrive CAN_R)"},
@@ -53,6 +54,7 @@ const stm32_board_def_t stm32_board_odrive_v3 = {
     .output_enc_base = STM32_TIM4_BASE,
     .output_enc_bits = 16u,
     .adc_channel = 3u,
+    .adc_volts_per_count = ADC_VREF_V / 4096.0f,
     .adc_jextsel = STM32_ADC_JEXTSEL_TIM1_TRGO,
     .apb1_enr = STM32_RCC_APB1ENR_TIM3EN | STM32_RCC_APB1ENR_TIM4EN | STM32_RCC_APB1ENR_CAN1EN,
     .apb2_enr = STM32_RCC_APB2ENR_TIM1EN | STM32_RCC_APB2ENR_ADC1EN,
@@ -85,6 +87,7 @@ const stm32_board_def_t stm32_board_mini_cheetah = {
     .output_enc_base = 0u,
     .output_enc_bits = 0u,
     .adc_channel = 14u,
+    .adc_volts_per_count = ADC_VREF_V / 4096.0f,
     .adc_jextsel = STM32_ADC_JEXTSEL_TIM1_TRGO,
     .apb1_enr = STM32_RCC_APB1ENR_TIM3EN | STM32_RCC_APB1ENR_CAN1EN,
     .apb2_enr = STM32_RCC_APB2ENR_TIM1EN | STM32_RCC_APB2ENR_ADC1EN,
