@@ -40,7 +40,13 @@ LOCK_MOTOR, LOCK_OUTPUT, LOCK_FIXED = 0, 1, 2
 LOCK_NAMES = {LOCK_MOTOR: "motor", LOCK_OUTPUT: "output", LOCK_FIXED: "fixed"}
 LOCK_BY_NAME = {v: k for k, v in LOCK_NAMES.items()}
 
-STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED = 1, 2, 4, 8
+# hd_kf_output_t.status bits (HD_KF_STATUS_* in filter/hd_kf.h).  The names
+# are the C library's (hd_kf_status_name); tests/filter/test_cfilter_names.py
+# checks every bit against it.
+STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED, STATUS_OFFSET_JUMP = (
+    1, 2, 4, 8, 16)
+STATUS_BITS = {"FROZEN": STATUS_FROZEN, "BAD_INPUT": STATUS_BAD_INPUT, "RESET": STATUS_RESET,
+               "P_CLAMPED": STATUS_P_CLAMPED, "OFFSET_JUMP": STATUS_OFFSET_JUMP}
 
 
 class BlockConfig(ctypes.Structure):
@@ -147,6 +153,16 @@ class Pipeline(ctypes.Structure):
 _FP = POINTER(c_float)
 
 
+class ProfileLine(ctypes.Structure):
+    """hd_kf_profile_line_t"""
+    _fields_ = [("lock", c_uint8), ("order", c_uint8), ("a_nm", c_float), ("b_nm", c_float)]
+
+
+class Profile(ctypes.Structure):
+    """hd_kf_profile_t"""
+    _fields_ = [("line_count", c_uint8), ("lines", ProfileLine * MAX_BLOCKS)]
+
+
 class PipelineIO(ctypes.Structure):
     """hd_pipeline_io_t"""
     _fields_ = [("n", c_size_t),
@@ -178,8 +194,15 @@ def lib() -> ctypes.CDLL:
         L.hd_kf_config_recommended.restype = None
         L.hd_kf_config_check.argtypes = [POINTER(KfConfig)]
         L.hd_kf_config_check.restype = c_int
+        L.hd_kf_profile_import.argtypes = [POINTER(KfState), POINTER(Profile), c_float, c_float,
+                                           c_float]
+        L.hd_kf_profile_import.restype = c_int
         L.hd_kf_err_str.argtypes = [c_int]
         L.hd_kf_err_str.restype = ctypes.c_char_p
+        L.hd_kf_err_name.argtypes = [c_int]
+        L.hd_kf_err_name.restype = ctypes.c_char_p
+        L.hd_kf_status_name.argtypes = [c_uint]
+        L.hd_kf_status_name.restype = ctypes.c_char_p
         _LIB = L
     return _LIB
 
@@ -200,14 +223,39 @@ def recommended_config(ts_s: float, noise_nm: float, ripple_settle_s: float,
     return cfg
 
 
+def error_name(code: int) -> str:
+    """The filter library's name for an error code (hd_kf_err_name), e.g.
+    "HD_KF_ERR_NOISE"; the number itself if the library has no such code."""
+    name = lib().hd_kf_err_name(code)
+    return name.decode() if name is not None else str(code)
+
+
+def error_text(code: int) -> str:
+    """The filter library's description of an error code (hd_kf_err_str)."""
+    return lib().hd_kf_err_str(code).decode()
+
+
+def status_names() -> dict:
+    """{name: bit mask} of every status bit the C library names."""
+    names, bit = {}, 0
+    while (name := lib().hd_kf_status_name(bit)) is not None:
+        names[name.decode()] = 1 << bit
+        bit += 1
+    return names
+
+
 class FilterError(ValueError):
-    pass
+    """A configuration the C library refused; .code is its error name."""
+
+    def __init__(self, message: str, code: str = ""):
+        super().__init__(message)
+        self.code = code
 
 
 def check(cfg: KfConfig) -> None:
     err = lib().hd_kf_config_check(ctypes.byref(cfg))
     if err != 0:
-        raise FilterError(f"filter configuration rejected: {lib().hd_kf_err_str(err).decode()}")
+        raise FilterError(f"filter configuration rejected: {error_text(err)}", error_name(err))
 
 
 OUTPUTS = ("torque_filtered_nm", "ripple_nm", "offset_nm", "innovation_nm",
@@ -220,21 +268,36 @@ def _fptr(a):
 
 def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_output_rad,
         feedforward_nm=None, track_bandwidth_hz: float = DEFAULT_TRACK_BANDWIDTH_HZ,
-        amplitudes: bool = False) -> dict:
+        amplitudes: bool = False, profile=None) -> dict:
     """Replays one contiguous, uniformly sampled segment through
     hd_pipeline_run (one C call).  Returns float32 arrays named as in
     hd_pipeline_io_t, plus "status" (uint32) and, if amplitudes, "amplitude_nm"
-    (n x MAX_BLOCKS)."""
+    (n x MAX_BLOCKS).  profile: (lines, motor_angle_rad, output_angle_rad,
+    prior_var_nm2) imported with hd_kf_profile_import before the first
+    sample (lines: (lock, order, a_nm, b_nm); the angles of the first
+    sample, absolute)."""
     L = lib()
     n = len(torque_nm)
     p = Pipeline()
     err = L.hd_pipeline_init(ctypes.byref(p), ctypes.byref(cfg), ctypes.byref(expected),
                              float(track_bandwidth_hz))
     if err != 0:
-        msg = {-100: "bad tracker bandwidth for this sample rate",
-               -101: "bad expected-torque configuration"}.get(
-                   err, L.hd_kf_err_str(err).decode())
-        raise FilterError(f"hd_pipeline_init failed ({err}): {msg}")
+        raise FilterError(f"hd_pipeline_init failed ({error_name(err)}): {error_text(err)}",
+                          error_name(err))
+    if profile is not None:
+        lines, th_m0, th_o0, prior = profile
+        pr = Profile()
+        pr.line_count = len(lines)
+        for i, (lock, order, a, b) in enumerate(lines):
+            pr.lines[i].lock, pr.lines[i].order = lock, int(order)
+            pr.lines[i].a_nm, pr.lines[i].b_nm = a, b
+        two_pi = 2.0 * np.pi
+        err = L.hd_kf_profile_import(ctypes.byref(p.kf), ctypes.byref(pr),
+                                     float(np.mod(th_m0, two_pi)), float(np.mod(th_o0, two_pi)),
+                                     float(prior))
+        if err < 0:
+            raise FilterError(f"hd_kf_profile_import failed ({err}): "
+                              f"{L.hd_kf_err_str(err).decode()}")
     ins = [np.ascontiguousarray(a, dtype=np.float32)
            for a in (torque_nm, d_motor_rad, d_output_rad)]
     for a in ins:

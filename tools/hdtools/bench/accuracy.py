@@ -187,7 +187,8 @@ def _run_opaque(cfg_buf, ex, torque, d_motor, d_output, feedforward=None,
     pipe = ctypes.create_string_buffer(_OPAQUE_BYTES)
     err = L.hd_pipeline_init(pipe, cfg_buf, ctypes.byref(ex), track_bandwidth_hz)
     if err != 0:
-        raise cfilter.FilterError(f"hd_pipeline_init failed ({err})")
+        raise cfilter.FilterError(f"hd_pipeline_init failed ({cfilter.error_name(err)}): "
+                                  f"{cfilter.error_text(err)}", cfilter.error_name(err))
     n = len(torque)
     ins = [np.ascontiguousarray(a, dtype=np.float32) for a in (torque, d_motor, d_output)]
     out = np.empty(n, np.float32)
