@@ -79,9 +79,11 @@ static int32_t get_i24(const uint8_t *p)
     return (u & 0x800000u) ? (int32_t)(u | 0xFF000000u) : (int32_t)u;
 }
 
+/* Only the 8 bytes a classic frame carries are written: the tick encodes
+ * several frames a millisecond, and the rest of data[] is never read. */
 static void frame_init(hal_can_frame_t *f, hd_can_frame_type_t type, uint8_t node_id)
 {
-    memset(f, 0, sizeof *f);
+    memset(f->data, 0, HD_CAN_DLC);
     f->id = hd_can_id(type, node_id);
     f->flags = HAL_CAN_FLAG_EXT;
     f->len = HD_CAN_DLC;

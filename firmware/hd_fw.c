@@ -58,7 +58,7 @@ bool hd_fw_queue_pop(hd_fw_queue_t *q, hal_can_frame_t *f)
         return false;
     }
     const hd_fw_frame8_t *slot = &q->slot[q->tail % HD_FW_QUEUE_LEN];
-    memset(f, 0, sizeof *f);
+    /* Only what a queued frame has: data beyond 8 bytes is never read. */
     f->id = slot->id;
     f->len = slot->len;
     f->flags = slot->flags;

@@ -46,10 +46,10 @@ extern "C" {
 #define HD_FW_CALIB_GAIN_MAX_NM_PER_V 1.0e4f
 #define HD_FW_CALIB_OFFSET_MAX_V 100.0f
 
-#define HD_FW_RX_PER_TICK 8u      /* frames the tick takes from the HAL, at most */
+#define HD_FW_RX_PER_TICK 2u      /* frames the tick takes from the HAL, at most */
 #define HD_FW_QUEUE_LEN 16u       /* command and ACK queues (a power of two) */
-#define HD_FW_ACKS_PER_TICK 4u    /* ACKs the tick sends, at most */
-#define HD_FW_CMDS_PER_CALL 4u    /* commands one background call handles, at most */
+#define HD_FW_ACKS_PER_TICK 1u    /* ACKs the tick sends, at most */
+#define HD_FW_CMDS_PER_CALL 2u    /* commands one background call handles, at most */
 #define HD_FW_HEARTBEAT_TICKS 1000u
 #define HD_FW_TARE_TICKS 64u      /* tare averages the last this many valid samples */
 

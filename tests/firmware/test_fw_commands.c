@@ -88,7 +88,7 @@ static void test_rejected_commands_change_nothing(void)
     f.flags = HAL_CAN_FLAG_EXT;
     f.id = id_of(HD_CAN_FRAME_CMD, 2); /* another node: ignored, no reply */
     hal_mock_push_rx(&mock, &f);
-    run(3, 1000, 1);
+    run(8, 1000, 1); /* 2 frames a tick in, 1 ACK a tick out */
     int results[3];
     unsigned n = 0;
     for (uint32_t i = n0; i < hal_mock_tx_count(&mock); i++) {

@@ -230,8 +230,10 @@ static void test_out_of_range_configuration_rejected(void)
 
 static void test_command_flood_is_bounded(void)
 {
-    /* 32 frames at once (the mock's whole receive queue): at most 4 handled
-     * per tick, every one answered, the tick keeps its step */
+    /* 32 frames at once (the mock's whole receive queue): the tick takes
+     * HD_FW_RX_PER_TICK a tick into its queue, the background answers, the
+     * tick sends HD_FW_ACKS_PER_TICK ACKs a tick; every one answered, in
+     * order, and the tick keeps its step */
     start_converged();
     hd_fw_config_t cfg_before;
     memcpy(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before);
@@ -240,11 +242,11 @@ static void test_command_flood_is_bounded(void)
         fi_push_cmd(&rig, d, 8, 0, NODE_CMD_ID);
     }
     uint32_t acks = rig.acks;
-    fi_rig_run(&rig, 1); /* queued; the first 4 answered from the next tick on */
+    fi_rig_run(&rig, 1); /* queued; answered from the next tick on */
     TEST_ASSERT_EQUAL_UINT32(acks, rig.acks);
     fi_rig_run(&rig, 1);
-    TEST_ASSERT_EQUAL_UINT32(acks + 4u, rig.acks);
-    fi_rig_run(&rig, 7);
+    TEST_ASSERT_EQUAL_UINT32(acks + HD_FW_ACKS_PER_TICK, rig.acks);
+    fi_rig_run(&rig, HAL_MOCK_RX_CAP / HD_FW_ACKS_PER_TICK - 1u);
     TEST_ASSERT_EQUAL_UINT32(acks + HAL_MOCK_RX_CAP, rig.acks);
     TEST_ASSERT_EQUAL_UINT8(HAL_MOCK_RX_CAP - 1u, rig.last_ack[1]); /* in order */
     fi_rig_run(&rig, 500);

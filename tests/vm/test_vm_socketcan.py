@@ -114,7 +114,8 @@ def test_commands_and_acks_through_the_dbc(vm):
     cmds = dec["commands"]
     assert [int(c["Token"]) for c in cmds if "Token" in c] == [1, 2, 3, 4, 5, 8]
     assert [c["data"] for c in cmds if "error" in c] == ["2107"]
-    node2 = [m for m in canproto.read_log(vm["capture"]) if m.arbitration_id == 0x602]
+    node2 = [m for m in canproto.read_log(vm["capture"])
+             if m.arbitration_id == canproto.BASE_IDS["CMD"] + 2]
     assert len(node2) == 1 and bytes(node2[0].data)[:2] == bytes([0x21, 6])
     acks = {int(a["AckToken"]): a for a in dec["acks"]}
     assert sorted(acks) == [1, 2, 3, 4, 5, 7, 8], "one ACK per node-1 command, none for node 2"
@@ -142,7 +143,14 @@ def test_heartbeats_and_runner_counters(vm):
     assert len(hb) == 2  # at 0 s and 1 s of a 2 s run
     assert all(str(h["CalibStatus"]) == "OK" for h in hb)
     # every frame the runner's backend accepted reached the capture socket
-    n_tx = len(dec["telemetry"]) * 2 + len(hb) + len(dec["acks"])
+    # every frame the joint sent: telemetry pairs, TELEM_C with every 10th
+    # pair (angle_telemetry_every), heartbeats, the boot report, ACKs
+    frames = canproto.read_log(vm["capture"])
+    ours = {canproto.BASE_IDS[n] + 1 for n in ("TELEM_A", "TELEM_B", "TELEM_C", "HEARTBEAT",
+                                               "BOOT", "ACK")}
+    n_tx = sum(1 for m in frames if m.arbitration_id in ours)
+    n_c = sum(1 for m in frames if m.arbitration_id == canproto.BASE_IDS["TELEM_C"] + 1)
+    assert n_c == (len(dec["telemetry"]) + 9) // 10
     assert int(summary["can_tx_ok"]) == n_tx
     assert int(summary["can_tx_dropped"]) == 0
 

@@ -10,8 +10,13 @@
  *   isr:NAME    hd_fw_isr, the whole 1 kHz tick: sensors (hal_mock), encoder
  *               deltas, tracker, expected torque, filter, faults, telemetry
  *               (2 frames per tick at 1 kHz) and the heartbeat on tick 0
- *   isrcmd:NAME hd_fw_isr with HD_FW_RX_PER_TICK (4) SET_PARAM commands
- *               queued every tick (each answered with an ACK frame)
+ *   isrcmd:NAME hd_fw_isr with commands arriving every tick (HD_FW_RX_PER_TICK
+ *               frames: a BLOCK_ENABLE toggle, then SET_PARAM r_nm2, which
+ *               rebuilds the model), hd_fw_background run between ticks
+ *               (outside the markers): each tick takes frames, applies the
+ *               change the background prepared and sends up to
+ *               HD_FW_ACKS_PER_TICK ACKs; the model builds are not counted
+ *               because they are not in the tick
  *   dense:NAME  the dense textbook float32 filter, same model and inputs
  *               (tests/bench/dense_kf_f32.c, the compute benchmark's peer)
  * and "empty" (begin immediately followed by end) for the marker overhead,
@@ -191,10 +196,16 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
         for (unsigned c = 0; c < commands_per_tick; c++) {
             hd_can_cmd_t cmd;
             memset(&cmd, 0, sizeof cmd);
-            cmd.opcode = HD_CMD_SET_PARAM;
             cmd.token = (uint8_t)c;
-            cmd.arg_u8[0] = HD_PARAM_R_NM2;
-            cmd.value = cfg->kf.r_nm2; /* same value: the model stays the same */
+            if (c == 0u) {
+                cmd.opcode = HD_CMD_BLOCK_ENABLE; /* the costliest request: in place */
+                cmd.arg_u8[0] = 0u;
+                cmd.arg_u8[1] = (uint8_t)(k & 1u);
+            } else {
+                cmd.opcode = HD_CMD_SET_PARAM;
+                cmd.arg_u8[0] = HD_PARAM_R_NM2;
+                cmd.value = cfg->kf.r_nm2; /* a rebuild of the same model */
+            }
             hal_can_frame_t f;
             hd_can_encode_cmd(cfg->node_id, &cmd, &f);
             (void)hal_mock_push_rx(&g_mock, &f);
@@ -203,6 +214,7 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
         hd_mark_begin();
         hd_fw_isr(&g_fw);
         hd_mark_end();
+        (void)hd_fw_background(&g_fw); /* the main loop's share, not the tick's */
         float d = MOTOR_SPEED_RAD_S * HD_FW_TS_S;
         angle += d;
         wrap_angle(&angle);
