@@ -283,15 +283,24 @@ def nodes_in(frames) -> dict[int, int]:
     return counts
 
 
-def decode_log(path: str | Path, node_id: int | None = 1) -> dict:
-    """Decodes a candump log: telemetry rows (paired A/B by sequence), acks,
-    heartbeats, commands and sequence gaps.
+def decode_log(path: str | Path, node_id: int | None = 1, rate_hz: float | None = None) -> dict:
+    """Decodes a candump log: telemetry rows (paired A/B by sequence, with
+    the TELEM_C counts of the same sequence when sent), acks, heartbeats,
+    boots, commands and sequence gaps.
+
+    Telemetry rows are placed in device time (hdtools.telemetry.place):
+    "t_s" is seconds from the first row, sequence x period; "t_host_s" is
+    the candump time stamp, "segment" counts BOOT frames before the row.
+    The period comes from rate_hz, else the log's telemetry_rate_hz answers,
+    else the host stamps ("period_s", "period_source").  Other frames' "t_s"
+    is the host's.  "params" holds the last value answered (GET_PARAM or
+    SET_PARAM, OK) for each parameter key.
 
     node_id None: the node is found in the log (exactly one node must be
     present, else safeio.UsageError names those found).  Malformed lines and
     frames that do not decode (wrong length for their message...) are
     skipped and listed: "malformed" and "bad_frames" as (line, reason)."""
-    from hdtools import safeio
+    from hdtools import safeio, telemetry
     malformed: list = []
     frames = read_log_lines(path, malformed)
     nodes = nodes_in(frames)
@@ -305,7 +314,9 @@ def decode_log(path: str | Path, node_id: int | None = 1) -> dict:
         node_id = next(iter(nodes))
     db = load_db(node_id)
     ids = {name: BASE_IDS[name] + node_id for name in BASE_IDS}
-    telem, acks, heartbeats, commands, bad_frames = [], [], [], [], []
+    telem, acks, heartbeats, commands, bad_frames, boots = [], [], [], [], [], []
+    params: dict[str, float] = {}
+    rate, rate_kind = None, None
     pending_a = None
     for lineno, msg in frames:
         if msg.is_error_frame or msg.is_remote_frame or not msg.is_extended_id or msg.is_fd:
@@ -326,19 +337,37 @@ def decode_log(path: str | Path, node_id: int | None = 1) -> dict:
             pending_a = (msg.timestamp, decoded)
         elif ident == ids["TELEM_B"]:
             if pending_a is not None and pending_a[1]["SeqA"] == decoded["SeqB"]:
-                row = {"t_s": pending_a[0], **pending_a[1], **decoded}
+                row = {"t_host_s": pending_a[0], **pending_a[1], **decoded,
+                       "segment": len(boots), "rate_hz": rate, "rate_kind": rate_kind}
                 row["valid"] = row["TorqueRaw"] > -327.675 and row["TorqueFiltered"] > -327.675
                 telem.append(row)
             pending_a = None
+        elif ident == ids["TELEM_C"]:
+            if telem and telem[-1]["SeqA"] == decoded["SeqC"] and "MotorCounts" not in telem[-1]:
+                telem[-1].update(decoded)
+        elif ident == ids["BOOT"]:
+            boots.append({"t_s": msg.timestamp, **decoded})
         elif ident == ids["ACK"]:
             acks.append({"t_s": msg.timestamp, **decoded})
+            op, res = str(decoded["AckOpcode"]), str(decoded["AckResult"])
+            if op in ("GET_PARAM", "SET_PARAM") and res == "OK":
+                try:
+                    key = protocol.param_by_id(int(decoded["AckAux"])).key
+                except KeyError:
+                    continue
+                params[key] = float(decoded["AckValue"])
+                if key == "telemetry_rate_hz" and decoded["AckValue"] > 0:
+                    rate, rate_kind = float(decoded["AckValue"]), op[:3]
         elif ident == ids["HEARTBEAT"]:
             heartbeats.append({"t_s": msg.timestamp, **decoded})
         elif ident == ids["CMD"]:
             commands.append({"t_s": msg.timestamp, **decoded})
-    lost = 0
-    for prev, cur in zip(telem, telem[1:]):
-        lost += (cur["SeqA"] - prev["SeqA"] - 1) % 256
-    return {"telemetry": telem, "acks": acks, "heartbeats": heartbeats,
-            "commands": commands, "lost_telemetry": lost, "node": node_id, "nodes": nodes,
-            "frames": len(frames), "malformed": malformed, "bad_frames": bad_frames}
+    try:
+        timing = telemetry.place(telem, rate_hz)
+    except ValueError as exc:
+        raise safeio.UsageError(f"{path}: {exc}") from None
+    return {"telemetry": telem, "acks": acks, "heartbeats": heartbeats, "boots": boots,
+            "commands": commands, "lost_telemetry": timing["lost"], "node": node_id,
+            "nodes": nodes, "frames": len(frames), "malformed": malformed,
+            "bad_frames": bad_frames, "params": params, "period_s": timing["period_s"],
+            "period_source": timing["period_source"]}

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from hdtools.safeio import HdError
 
-SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "bench"]
+SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "bench", "monitor", "device"]
 EXIT_INTERNAL = 4
 
 

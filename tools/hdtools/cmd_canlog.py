@@ -2,9 +2,14 @@
 configuration file into CAN commands.
 
   hdsense canlog decode out/demo/telemetry.log [--node 1] [--csv telem.csv]
+                        [--rate HZ] [--cpr MOTOR[,OUTPUT]]
   hdsense canlog commands model.cfg [--node 1]      # prints cansend lines
 
-decode: without --node the node is found in the log (a log with frames of
+decode: samples are placed in device time (telemetry sequence x period;
+the period from --rate, the log's telemetry_rate_hz answers, or estimated
+from the time stamps), host time stamps only find gaps; the CSV carries
+motor/output angles from TELEM_C's raw counts (docs/protocol.md, "Time
+from the device").  Without --node the node is found in the log (a log with frames of
 several nodes needs --node).  Lines that are not candump -l frames (a line
 cut by an interrupted logger, bad hex, a wrong length) and frames that do
 not decode for their message (wrong DLC) are skipped and counted; the first
@@ -21,7 +26,7 @@ import sys
 
 import cantools
 
-from hdtools import canproto, safeio
+from hdtools import canproto, safeio, telemetry
 
 SHOW_LINES = 5
 
@@ -36,6 +41,28 @@ def _node(text: str) -> int:
     return node
 
 
+def _rate(text: str) -> float:
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (1 <= rate <= 1000 and rate == int(rate)):
+        raise argparse.ArgumentTypeError(f"rate {text} must be a whole number of Hz in 1..1000")
+    return rate
+
+
+def _cpr(text: str) -> tuple[float, float | None]:
+    parts = text.split(",")
+    try:
+        vals = [int(p, 10) for p in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: want MOTOR_CPR[,OUTPUT_CPR] as whole "
+                                         "numbers") from None
+    if len(vals) > 2 or any(not 1 <= v <= 1 << 24 for v in vals):
+        raise argparse.ArgumentTypeError(f"{text!r}: want MOTOR_CPR[,OUTPUT_CPR] in 1..16777216")
+    return float(vals[0]), float(vals[1]) if len(vals) == 2 else None
+
+
 def _lines(items: list) -> str:
     shown = ", ".join(f"line {n}: {why}" for n, why in items[:SHOW_LINES])
     more = f", ... ({len(items) - SHOW_LINES} more)" if len(items) > SHOW_LINES else ""
@@ -43,7 +70,7 @@ def _lines(items: list) -> str:
 
 
 def _decode(args) -> int:
-    res = canproto.decode_log(args.log, args.node)
+    res = canproto.decode_log(args.log, args.node, args.rate)
     node = res["node"]
     others = {n: c for n, c in res["nodes"].items() if n != node}
     if res["nodes"].get(node, 0) == 0:
@@ -63,6 +90,11 @@ def _decode(args) -> int:
                                                 for n, c in sorted(others.items())))
     out += [f"telemetry_frames = {len(telem)}", f"lost_telemetry = {res['lost_telemetry']}"]
     if telem:
+        period = res["period_s"]
+        out.append(f"telemetry_period_s = {period:g}" if period else
+                   "telemetry_period_s = varies in this log")
+        out.append(f"period_source = {res['period_source']}")
+    if telem:
         valid = [r for r in telem if r["valid"]]
         out.append(f"invalid_samples = {len(telem) - len(valid)}")
         faults = 0
@@ -81,12 +113,15 @@ def _decode(args) -> int:
         out.append(f"ack: {ack['AckOpcode']} token {ack['AckToken']} -> {ack['AckResult']} "
                    f"(aux {ack['AckAux']}, value {ack['AckValue']:g})")
     if args.csv:
+        cols, notes = telemetry.columns(res, *(args.cpr or (None, None)))
+        out += [f"angles = {note}" for note in notes]
         buf = io.StringIO(newline="")
-        cols = ["t_s", "SeqA", "TorqueRaw", "TorqueFiltered", "Ripple", "MotorVelocity",
-                "Faults", "KfStatus", "valid"]
-        w = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(telem)
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(list(cols))
+        fmt = {"t_s": "{:.6f}", "t_host_s": "{:.6f}"}
+        for i in range(len(telem)):
+            w.writerow([fmt.get(k, "{:.9g}").format(v[i]) if v.dtype.kind == "f" else str(v[i])
+                        for k, v in cols.items()])
         with safeio.Outputs() as outputs:
             outputs.write_text(args.csv, buf.getvalue())
             outputs.commit()
@@ -124,7 +159,13 @@ def register(subparsers) -> None:
     d.add_argument("log")
     d.add_argument("--node", type=_node, default=None,
                    help="node id 1..127 (default: the one node found in the log)")
-    d.add_argument("--csv", help="write the decoded telemetry here")
+    d.add_argument("--csv", help="write the decoded telemetry here (the columns "
+                   "hdsense analyze reads: t_s in device time, torque_nm, motor_angle_rad, ...)")
+    d.add_argument("--rate", type=_rate, default=None, metavar="HZ",
+                   help="telemetry_rate_hz of the log (default: the log's GET_PARAM answers, "
+                        "else estimated from the time stamps)")
+    d.add_argument("--cpr", type=_cpr, default=None, metavar="MOTOR[,OUTPUT]",
+                   help="encoder counts per revolution (default: the log's GET_PARAM answers)")
     d.set_defaults(func=_decode)
     c = sub.add_parser("commands", help="print the CAN commands (cansend ID#DATA) for a config file")
     c.add_argument("config")

@@ -1,0 +1,260 @@
+/* hd_emu: the firmware + mock HAL (CAN, NVM, system) + simulated joint
+ * behind a small API for host tests (hd_emu.h).  Host only. */
+#define _POSIX_C_SOURCE 200809L
+
+#include "hd_emu.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hal_mock.h"
+#include "hal_sim.h"
+#include "hd_calib_record.h"
+#include "hd_config_text.h"
+#include "hd_fw.h"
+
+#define HD_EMU_RX_CAP 1024u
+#define HD_EMU_TX_CAP 16384u
+#define HD_EMU_BOARD_ID 0x30554D45u /* "EMU0", little-endian */
+
+struct hd_emu {
+    hal_mock_t mock;         /* CAN, NVM, system */
+    hal_sim_t sim;           /* sensors, clock */
+    hal_t hal;
+    hd_fw_t fw;
+    hd_fw_config_t defaults; /* firmware defaults + scenario constants + config text */
+    uint64_t ticks;
+    uint32_t boots;
+    uint32_t reboots_seen;   /* mock.reboots already acted on */
+    hd_emu_frame_t rx[HD_EMU_RX_CAP];
+    uint32_t rx_head, rx_count;
+    hd_emu_frame_t tx[HD_EMU_TX_CAP];
+    uint32_t tx_head, tx_count;
+    uint64_t tx_lost;
+};
+
+static void put_err(char *err, size_t err_len, const char *msg)
+{
+    if (err != NULL && err_len > 0u) {
+        snprintf(err, err_len, "%s", msg);
+    }
+}
+
+/* The mock's transmit hook: every frame the firmware sends, stamped with
+ * the tick that sent it. */
+static void on_tx(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
+{
+    hd_emu_t *e = ctx;
+    (void)t_us; /* the mock's clock is not ours: the sim's drives the firmware */
+    if (e->tx_count == HD_EMU_TX_CAP) {
+        e->tx_lost++;
+        return;
+    }
+    hd_emu_frame_t *o = &e->tx[(e->tx_head + e->tx_count) % HD_EMU_TX_CAP];
+    memset(o, 0, sizeof *o);
+    o->t_us = e->ticks * HD_FW_TS_US;
+    o->id = f->id;
+    o->flags = f->flags;
+    o->len = f->len > 8u ? 8u : f->len;
+    memcpy(o->data, f->data, o->len);
+    e->tx_count++;
+}
+
+/* The sensor constants of the simulated joint as firmware defaults (what
+ * a board's factory configuration would hold). */
+static void defaults_from_sim(const hal_sim_t *sim, hd_fw_config_t *cfg)
+{
+    hd_sim_nominal_t nom;
+    hal_sim_nominal(sim, &nom);
+    cfg->adc_volts_per_count = (float)nom.adc_v_per_count;
+    cfg->motor_cpr = nom.motor_cpr;
+    if (nom.output_cpr != 0u) {
+        cfg->output_cpr = nom.output_cpr;
+    }
+    cfg->gear_ratio = (float)nom.gear_ratio;
+}
+
+static int store_nominal_calibration(hd_emu_t *e)
+{
+    hd_sim_nominal_t nom;
+    hal_sim_nominal(&e->sim, &nom);
+    hd_calib_record_t rec;
+    hd_calib_record_default(&rec);
+    rec.gain_nm_per_v = (float)nom.gain_nm_per_v;
+    rec.offset_v = (float)nom.offset_v;
+    static uint8_t work[HD_STORE_IMAGE_MAX];
+    const hd_store_io_t io = hd_fw_store_io(&e->hal, work, sizeof work);
+    return hd_calib_store_save(&io, &rec) == HD_RECORD_OK ? 0 : -1;
+}
+
+static int boot(hd_emu_t *e, uint32_t reset_cause)
+{
+    memset(&e->mock.boot, 0, sizeof e->mock.boot);
+    e->mock.boot.reset_cause = reset_cause;
+    /* frames in the firmware's receive queue are lost with the RAM */
+    e->mock.rx_count = 0u;
+    e->mock.rx_head = 0u;
+    if (hd_fw_init(&e->fw, &e->hal, &e->defaults) != HD_FW_OK) {
+        return -1;
+    }
+    e->boots++;
+    e->reboots_seen = e->mock.reboots;
+    return 0;
+}
+
+hd_emu_t *hd_emu_create(const char *scenario_text, const char *config_text, char *err,
+                        size_t err_len)
+{
+    hd_emu_t *e = calloc(1u, sizeof *e);
+    if (e == NULL) {
+        put_err(err, err_len, "out of memory");
+        return NULL;
+    }
+    hd_sim_scenario_t sc;
+    hd_sim_scenario_default(&sc);
+    if ((scenario_text != NULL &&
+         hd_sim_scenario_parse(&sc, scenario_text, "scenario", err, err_len) != 0) ||
+        hal_sim_init(&e->sim, &sc, err, err_len) != 0) {
+        free(e);
+        return NULL;
+    }
+    if (sc.ts_s != 1e-3) {
+        put_err(err, err_len, "scenario: ts_s must be 0.001 (the firmware's tick)");
+        free(e);
+        return NULL;
+    }
+    hal_mock_init(&e->mock);
+    e->mock.board_id = HD_EMU_BOARD_ID;
+    e->mock.reboot_supported = true;
+    e->mock.tx_store = false;
+    e->mock.tx_hook = on_tx;
+    e->mock.tx_hook_ctx = e;
+    hal_mock_bind(&e->mock, &e->hal);
+    hal_sim_bind(&e->sim, &e->hal);
+    e->hal.name = "emu";
+
+    hd_fw_config_default(&e->defaults);
+    defaults_from_sim(&e->sim, &e->defaults);
+    if (config_text != NULL) {
+        hd_cfgtxt_error_t ce;
+        if (hd_config_text_parse(config_text, strlen(config_text), &e->defaults, &ce) !=
+            HD_FW_OK) {
+            if (err != NULL && err_len > 0u) {
+                snprintf(err, err_len, "config:%u: %s", ce.line, ce.message);
+            }
+            free(e);
+            return NULL;
+        }
+    }
+    if (store_nominal_calibration(e) != 0 || boot(e, HAL_RESET_POWER_ON) != 0) {
+        put_err(err, err_len, "the firmware did not start (configuration refused)");
+        free(e);
+        return NULL;
+    }
+    return e;
+}
+
+void hd_emu_destroy(hd_emu_t *emu)
+{
+    free(emu);
+}
+
+static void feed_rx(hd_emu_t *e)
+{
+    while (e->rx_count > 0u) {
+        const hd_emu_frame_t *s = &e->rx[e->rx_head];
+        hal_can_frame_t f;
+        memset(&f, 0, sizeof f);
+        f.id = s->id;
+        f.flags = s->flags;
+        f.len = s->len;
+        memcpy(f.data, s->data, s->len);
+        if (hal_mock_push_rx(&e->mock, &f) != HAL_OK) {
+            return; /* the driver's queue is full: the rest waits */
+        }
+        e->rx_head = (e->rx_head + 1u) % HD_EMU_RX_CAP;
+        e->rx_count--;
+    }
+}
+
+uint32_t hd_emu_tick(hd_emu_t *emu, uint32_t n)
+{
+    if (emu == NULL) {
+        return 0u;
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        if (emu->fw.tick.ended) {
+            return i;
+        }
+        feed_rx(emu);
+        hd_fw_isr(&emu->fw);
+        if (emu->fw.tick.ended) {
+            return i;
+        }
+        emu->ticks++;
+        (void)hd_fw_background(&emu->fw);
+        if (emu->mock.reboots != emu->reboots_seen) {
+            /* REBOOT: the ACK is out; the board restarts before the next tick */
+            (void)boot(emu, HAL_RESET_SOFTWARE);
+        }
+    }
+    return n;
+}
+
+int hd_emu_push_rx(hd_emu_t *emu, const hd_emu_frame_t *frame)
+{
+    if (emu == NULL || frame == NULL || frame->len > 8u || emu->rx_count == HD_EMU_RX_CAP) {
+        return -1;
+    }
+    emu->rx[(emu->rx_head + emu->rx_count) % HD_EMU_RX_CAP] = *frame;
+    emu->rx_count++;
+    return 0;
+}
+
+int hd_emu_pop_tx(hd_emu_t *emu, hd_emu_frame_t *out)
+{
+    if (emu == NULL || out == NULL || emu->tx_count == 0u) {
+        return 0;
+    }
+    *out = emu->tx[emu->tx_head];
+    emu->tx_head = (emu->tx_head + 1u) % HD_EMU_TX_CAP;
+    emu->tx_count--;
+    return 1;
+}
+
+uint64_t hd_emu_tx_lost(const hd_emu_t *emu)
+{
+    return emu != NULL ? emu->tx_lost : 0u;
+}
+
+int hd_emu_power_cycle(hd_emu_t *emu, uint32_t reset_cause)
+{
+    return emu != NULL ? boot(emu, reset_cause) : -1;
+}
+
+uint8_t *hd_emu_nvm(hd_emu_t *emu, size_t *size)
+{
+    if (emu == NULL) {
+        return NULL;
+    }
+    if (size != NULL) {
+        *size = sizeof emu->mock.nvm;
+    }
+    return emu->mock.nvm;
+}
+
+uint64_t hd_emu_ticks(const hd_emu_t *emu)
+{
+    return emu != NULL ? emu->ticks : 0u;
+}
+
+uint32_t hd_emu_boots(const hd_emu_t *emu)
+{
+    return emu != NULL ? emu->boots : 0u;
+}
+
+int hd_emu_ended(const hd_emu_t *emu)
+{
+    return emu != NULL && emu->fw.tick.ended ? 1 : 0;
+}

@@ -1,0 +1,361 @@
+"""`hdsense send` and `hdsense device`: put a model into a joint over CAN
+and keep it there; ask and set single things.
+
+  hdsense send can0 out/model.cfg              # apply, CONFIG_SAVE, read back
+  hdsense send can0 out/model.can --reboot     # ... then REBOOT, read back again
+  hdsense device can0 version | info | params | get KEY | set KEY VALUE
+  hdsense device can0 save | load | defaults | reboot
+
+send: FILE is a model.cfg (the configuration text `hdsense analyze`
+writes; docs/firmware.md) or a model.can (cansend lines ID#DATA, comments
+and everything after the first blank line ignored).  The joint's parameter
+table must be this tool's (VERSION PARAM_TABLE_CRC).  The commands go one
+at a time; each waits for its ACK (matched by opcode and token) within
+--timeout.  A refusal is printed as one line and nothing is saved.  Then
+CONFIG_SAVE (unless --no-save), then every parameter the file sets is read
+back with GET_PARAM and compared as float32 (and the number of filter
+blocks with block_count).  --reboot: REBOOT, wait for the BOOT frame, read
+back again.
+
+Exit status: 0 applied, saved and every value read back equal; 1 a command
+was refused or a value read back differs; 2 bad command line or FILE;
+5 the CAN interface cannot be used or the joint did not answer.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import struct
+import sys
+import time
+
+import cantools
+
+from . import canproto, protocol, safeio
+from .cmd_monitor import add_bus_arguments, boot_report, _node
+from .joint import Joint, NoAnswer, f32, open_bus
+from .safeio import HdError, UsageError
+
+MODEL_OPCODES = ("FILTER_ENABLE", "ADD_MOTOR", "ADD_OUTPUT", "ADD_FIXED", "BLOCK_ENABLE",
+                 "BLOCKS_CLEAR", "SET_PARAM")
+BUSY_RETRY_S = 1.0
+_CANSEND = re.compile(r"^([0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})#([0-9A-Fa-f]{0,16})$")
+
+
+class Refused(HdError):
+    code = 1
+
+
+# ------------------------------------------------------------------ file
+def _is_can_text(text: str) -> bool:
+    lines = [l.strip() for l in text.split("\n\n", 1)[0].splitlines()]
+    lines = [l for l in lines if l and not l.startswith("#")]
+    return bool(lines) and all(_CANSEND.match(l) for l in lines)
+
+
+def read_model(path: str, node: int | None) -> tuple[int, list[bytes]]:
+    """(node, CMD payloads) of a model.cfg or model.can (UsageError naming
+    the line otherwise)."""
+    text = safeio.read_text(path)
+    if not _is_can_text(text):
+        node = node or 1
+        try:
+            frames = canproto.config_to_commands(text, canproto.load_db(node))
+        except (ValueError, KeyError, IndexError, cantools.database.errors.Error) as exc:
+            raise UsageError(f"{path}: {exc}") from None
+        return node, [data for _, data in frames]
+    cmd_base = canproto.BASE_IDS["CMD"]
+    payloads, file_node = [], None
+    opcodes = {e.code: e.name for e in protocol.opcodes()}
+    for lineno, raw in enumerate(text.split("\n\n", 1)[0].splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        m = _CANSEND.match(line)
+        ident, data = int(m.group(1), 16), bytes.fromhex(m.group(2))
+        n = ident - cmd_base
+        if len(m.group(1)) != 8 or not protocol.NODE_MIN <= n <= protocol.NODE_MAX:
+            raise UsageError(f"{path}:{lineno}: {m.group(1)} is not a joint's CMD identifier")
+        if file_node is not None and n != file_node:
+            raise UsageError(f"{path}:{lineno}: node {n}, earlier lines address node {file_node}")
+        file_node = n
+        if len(data) != 8:
+            raise UsageError(f"{path}:{lineno}: {len(data)} data bytes, a command has 8")
+        if opcodes.get(data[0]) not in MODEL_OPCODES:
+            raise UsageError(f"{path}:{lineno}: opcode 0x{data[0]:02X} "
+                             f"({opcodes.get(data[0], 'unknown')}) is not part of a model")
+        payloads.append(data)
+    if node is not None and node != file_node:
+        raise UsageError(f"{path}: the file addresses node {file_node}, --node says {node}")
+    return file_node, payloads
+
+
+def describe(db, data: bytes) -> str:
+    d = db.get_message_by_name("CMD").decode(data, decode_choices=True)
+    op = str(d["Opcode"])
+    if op == "SET_PARAM":
+        p = protocol.param_by_id(data[2])
+        return f"SET_PARAM {p.key} = {d['SetParamValue']:.9g}"
+    args = ", ".join(f"{k} {v:.9g}" if isinstance(v, float) else f"{k} {v}"
+                     for k, v in d.items() if k not in ("Opcode", "Token"))
+    return f"{op} {args}".strip()
+
+
+def expectations(payloads: list[bytes]) -> tuple[dict[int, float], int | None]:
+    """What reading back must show: {param id: float32 value} of the
+    SET_PARAMs (and FILTER_ENABLE), and block_count when the model clears
+    the blocks first (None otherwise)."""
+    want: dict[int, float] = {}
+    blocks = None
+    codes = {e.name: e.code for e in protocol.opcodes()}
+    for data in payloads:
+        op = data[0]
+        if op == codes["SET_PARAM"]:
+            want[data[2]] = struct.unpack("<f", data[4:8])[0]
+        elif op == codes["FILTER_ENABLE"]:
+            want[protocol.param_by_key("filter").id] = float(data[2])
+        elif op == codes["BLOCKS_CLEAR"]:
+            blocks = 0
+        elif op in (codes["ADD_MOTOR"], codes["ADD_OUTPUT"], codes["ADD_FIXED"]):
+            blocks = None if blocks is None else blocks + 1
+    return want, blocks
+
+
+# ---------------------------------------------------------------- joint
+def check_table(joint: Joint) -> None:
+    ack = joint.item("PARAM_TABLE_CRC")
+    if not ack.ok:
+        raise Refused(f"node {joint.node}: VERSION PARAM_TABLE_CRC refused ({ack.result})")
+    mine = protocol.param_table_crc()
+    if int(ack.value) != mine:
+        raise Refused(f"node {joint.node}: its parameter table (CRC 0x{int(ack.value):08X}) is "
+                      f"not this tool's (0x{mine:08X}): firmware and hdsense versions differ")
+
+
+def command_retry_busy(joint: Joint, opcode: str):
+    deadline = time.monotonic() + BUSY_RETRY_S
+    while True:
+        ack = joint.command(opcode)
+        if ack.result != "BUSY" or time.monotonic() > deadline:
+            return ack
+        time.sleep(0.02)
+
+
+def read_back(joint: Joint, want: dict[int, float], blocks: int | None, say) -> int:
+    """Compares the joint's values with want; returns the number that differ."""
+    bad = 0
+    for pid, value in want.items():
+        p = protocol.param_by_id(pid)
+        ack = joint.get(p)
+        if not ack.ok:
+            say(f"read back {p.key}: GET_PARAM refused ({ack.result})")
+            bad += 1
+            continue
+        same = f32(ack.value) == f32(value)
+        bad += not same
+        say(f"read back {p.key} = {ack.value:.9g}" +
+            ("" if same else f"  DIFFERS from the file's {value:.9g}"))
+    if blocks is not None:
+        ack = joint.get(protocol.param_by_key("block_count"))
+        same = ack.ok and int(ack.value) == blocks
+        bad += not same
+        say(f"read back block_count = {ack.value:g}" +
+            ("" if same else f"  DIFFERS from the file's {blocks} blocks"))
+    return bad
+
+
+def send(args) -> int:
+    node, payloads = read_model(args.file, args.node)
+    if not payloads:
+        raise UsageError(f"{args.file}: no commands in the file")
+    want, blocks = expectations(payloads)
+    out = []
+
+    def say(line: str) -> None:
+        out.append(line)
+        print(line, flush=True)
+
+    bus = open_bus(args.interface, args.channel, args.bitrate)
+    try:
+        joint = Joint(bus, node, timeout_s=args.timeout)
+        check_table(joint)
+        refused = 0
+        db = joint.db
+        for data in payloads:
+            what = describe(db, data)
+            ack = joint.send_raw(data)
+            if not ack.ok:
+                refused += 1
+                say(f"refused: {what}: {ack.result}")
+        say(f"applied = {len(payloads) - refused} of {len(payloads)} commands to node "
+            f"{joint.node}")
+        if refused:
+            raise Refused(f"node {joint.node}: {refused} command(s) refused; nothing saved")
+        if args.no_save:
+            say("saved = no (--no-save)")
+        else:
+            ack = command_retry_busy(joint, "CONFIG_SAVE")
+            if not ack.ok:
+                raise Refused(f"node {joint.node}: CONFIG_SAVE refused ({ack.result})")
+            say("saved = yes (CONFIG_SAVE)")
+        bad = read_back(joint, want, blocks, say)
+        if args.reboot:
+            joint.drain()
+            ack = joint.command("REBOOT")
+            if not ack.ok:
+                raise Refused(f"node {joint.node}: REBOOT refused ({ack.result})")
+            boot = joint.wait_boot()
+            if boot is None:
+                raise NoAnswer(f"node {joint.node}: no BOOT frame within 3 s of REBOOT")
+            say("boot = " + boot_report(boot))
+            time.sleep(0.05)
+            bad += read_back(joint, want, blocks, say)
+        total = len(want) + (blocks is not None)
+        say(f"verified = {total * (2 if args.reboot else 1) - bad} of "
+            f"{total * (2 if args.reboot else 1)} read-backs equal")
+        if bad:
+            raise Refused(f"node {joint.node}: {bad} value(s) read back differ from {args.file}")
+    finally:
+        bus.shutdown()
+    return 0
+
+
+# --------------------------------------------------------------- device
+def _fmt_item(name: str, value: int) -> str:
+    if name == "FIRMWARE_VERSION":
+        return f"{value >> 16}.{(value >> 8) & 0xFF}.{value & 0xFF}"
+    if name in ("GIT_HASH", "PARAM_TABLE_CRC", "FAULT_PC", "FAULT_LR", "FAULT_CFSR",
+                "FAULT_HFSR", "FAULT_ADDR", "RESET_CAUSE"):
+        return f"0x{value:08X}"
+    if name == "BOARD_ID":
+        text = value.to_bytes(4, "little").decode("ascii", "replace")
+        return f"{text!r}"
+    return str(value)
+
+
+def _param_value(p: protocol.Param, text: str) -> float:
+    try:
+        return canproto._param_value(p, text, 0)
+    except ValueError as exc:
+        raise UsageError(str(exc).replace("line 0: ", "")) from None
+
+
+def device(args) -> int:
+    bus = open_bus(args.interface, args.channel, args.bitrate)
+    try:
+        joint = Joint(bus, args.node, timeout_s=args.timeout)
+        action = args.action
+        lines = []
+        if action in ("version", "info"):
+            for e in protocol.info_items():
+                if (e.code < 16) != (action == "version"):
+                    continue
+                ack = joint.item(e.name)
+                lines.append(f"{e.name.lower()} = " +
+                             (_fmt_item(e.name, int(ack.value)) if ack.ok else ack.result))
+            if action == "version":
+                lines.append(f"host_param_table_crc = 0x{protocol.param_table_crc():08X}")
+        elif action in ("get", "params"):
+            keys = [p.key for p in protocol.params()] if action == "params" else [args.key]
+            for key in keys:
+                p = _param(key)
+                ack = joint.get(p)
+                lines.append(f"{p.key} = {ack.value:.9g}" if ack.ok else f"{p.key}: {ack.result}")
+        elif action == "set":
+            p = _param(args.key)
+            if p.read_only:
+                raise UsageError(f"{p.key} is read only")
+            ack = joint.set(p, _param_value(p, args.value))
+            lines.append(f"{p.key} = {ack.value:.9g}")
+            if not ack.ok:
+                print("\n".join(lines))
+                raise Refused(f"node {args.node}: SET_PARAM {p.key} refused ({ack.result})")
+        elif action in ("save", "load", "defaults"):
+            op = {"save": "CONFIG_SAVE", "load": "CONFIG_LOAD", "defaults": "CONFIG_DEFAULTS"}
+            ack = command_retry_busy(joint, op[action])
+            status = _entry(protocol.record_statuses(), ack.aux)
+            if not ack.ok:
+                raise Refused(f"node {args.node}: {op[action]} refused ({ack.result}, record "
+                              f"{status})")
+            lines.append(f"{op[action].lower()} = OK" + (f" (record {status})"
+                                                         if action != "defaults" else ""))
+        elif action == "reboot":
+            joint.drain()
+            ack = joint.command("REBOOT")
+            if not ack.ok:
+                raise Refused(f"node {args.node}: REBOOT refused ({ack.result})")
+            boot = joint.wait_boot()
+            if boot is None:
+                raise NoAnswer(f"node {args.node}: no BOOT frame within 3 s of REBOOT")
+            lines.append("boot = " + boot_report(boot))
+        print("\n".join(lines))
+    finally:
+        bus.shutdown()
+    return 0
+
+
+def _param(key: str) -> protocol.Param:
+    try:
+        return protocol.param_by_key(key)
+    except KeyError:
+        raise UsageError(f"unknown parameter {key!r} (hdsense device IFACE params lists them)") \
+            from None
+
+
+def _entry(entries, code) -> str:
+    for e in entries:
+        if e.code == code:
+            return e.name
+    return str(code)
+
+
+def _timeout(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.01 <= v <= 60:
+        raise argparse.ArgumentTypeError("--timeout must be 0.01..60 s")
+    return v
+
+
+def register(subparsers) -> None:
+    from .cli import version
+    s = subparsers.add_parser("send", help="apply a model.cfg / model.can, save, read back",
+                              description=__doc__,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("--version", action="version", version=f"hdsense send {version()}")
+    add_bus_arguments(s)
+    s.add_argument("file", metavar="FILE", help="model.cfg or model.can")
+    s.add_argument("--node", type=_node, default=None,
+                   help="node id (default: model.can's, or 1 for model.cfg)")
+    s.add_argument("--no-save", action="store_true", help="apply and read back, no CONFIG_SAVE")
+    s.add_argument("--reboot", action="store_true",
+                   help="then REBOOT, wait for the BOOT frame and read back again")
+    s.add_argument("--timeout", type=_timeout, default=0.5, metavar="S",
+                   help="wait this long for each answer (default 0.5 s)")
+    s.set_defaults(func=send)
+
+    d = subparsers.add_parser("device", help="ask or set one thing on a joint over CAN",
+                              description=__doc__,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    d.add_argument("--version", action="version", version=f"hdsense device {version()}")
+    add_bus_arguments(d)
+    d.add_argument("--node", type=_node, default=1, help="node id (default 1)")
+    d.add_argument("--timeout", type=_timeout, default=0.5, metavar="S",
+                   help="wait this long for each answer (default 0.5 s)")
+    acts = d.add_subparsers(dest="action", required=True, metavar="ACTION")
+    for name, help_ in (("version", "firmware, protocol, record versions, board"),
+                        ("info", "boot record and counters"),
+                        ("params", "every parameter's value"),
+                        ("save", "CONFIG_SAVE: the running configuration to NVM"),
+                        ("load", "CONFIG_LOAD: the saved configuration into RAM"),
+                        ("defaults", "CONFIG_DEFAULTS: the defaults into RAM (not saved)"),
+                        ("reboot", "REBOOT and show the BOOT frame")):
+        acts.add_parser(name, help=help_)
+    g = acts.add_parser("get", help="one parameter")
+    g.add_argument("key")
+    st = acts.add_parser("set", help="one parameter (not saved: use save)")
+    st.add_argument("key")
+    st.add_argument("value")
+    d.set_defaults(func=device)
