@@ -27,6 +27,8 @@ int main(void) {
     O(hd_kf_t, reset_count); O(hd_pipeline_t, output_track); O(hd_pipeline_t, expected);
     O(hd_pipeline_t, torque_expected_nm); O(hd_pipeline_io_t, status);
     O(hd_pipeline_io_t, amplitude_nm);
+    P(hd_kf_profile_line_t); P(hd_kf_profile_t); O(hd_kf_profile_line_t, a_nm);
+    O(hd_kf_profile_t, lines);
     return 0;
 }
 """
@@ -35,7 +37,8 @@ MIRROR = {
     "hd_kf_block_config_t": cfilter.BlockConfig, "hd_kf_config_t": cfilter.KfConfig,
     "hd_kf_t": cfilter.KfState, "hd_track_t": cfilter.Track,
     "hd_expected_config_t": cfilter.ExpectedConfig, "hd_pipeline_t": cfilter.Pipeline,
-    "hd_pipeline_io_t": cfilter.PipelineIO,
+    "hd_pipeline_io_t": cfilter.PipelineIO, "hd_kf_profile_line_t": cfilter.ProfileLine,
+    "hd_kf_profile_t": cfilter.Profile,
 }
 
 
@@ -59,7 +62,7 @@ def test_struct_layout_matches_c(tmp_path):
             got = ctypes.sizeof(MIRROR[name])
         assert got == int(value), f"{name}: ctypes {got} != C {value}"
         checked += 1
-    assert checked == 18
+    assert checked == 22
 
 
 def test_single_block_removes_a_sinusoid():
@@ -88,3 +91,36 @@ def test_bad_configuration_is_a_clear_error():
     cfg.r_nm2 = 0.0
     with pytest.raises(cfilter.FilterError, match="filter configuration rejected"):
         cfilter.check(cfg)
+
+
+def test_imported_profile_removes_its_line_from_the_first_sample():
+    """Closed form: an output-order-1 line a cos(theta) + b sin(theta) on a
+    load that steps; an output block that never learns (output_learn_scale
+    0), its state imported from the exact (a, b) at the first sample's
+    absolute angle (which does not start at zero): the filtered torque is
+    the load from the first sample on, the step included (nothing of it is
+    taken by the block)."""
+    ts, n = 1e-3, 8000
+    rng = np.random.default_rng(2)
+    w_out = 1.5
+    theta = 2.3 + w_out * ts * np.arange(n)
+    a, b = 0.3, -0.4
+    load = np.where(np.arange(n) < n // 2, 2.0, 5.0)
+    torque = load + a * np.cos(theta) + b * np.sin(theta) + 0.005 * rng.standard_normal(n)
+    cfg = cfilter.default_config(ts)
+    cfg.r_nm2 = 2.5e-5
+    cfg.p0_nm2 = cfg.output_p0_nm2 = 0.1
+    cfg.offset_enabled, cfg.offset_q_nm2 = 1, 2.5e-5 * (ts / 0.02) ** 2
+    cfg.add_block(cfilter.LOCK_OUTPUT, 1.0, 1e-6)
+    cfg.output_learn_scale = 0.0
+    d_out = np.diff(theta, prepend=theta[0])
+    out = cfilter.run(cfg, cfilter.ExpectedConfig(), torque, 100 * d_out, d_out,
+                      profile=([(cfilter.LOCK_OUTPUT, 1, a, b)], 100 * theta[0], theta[0], 0.0))
+    ripple = out["ripple_nm"].astype(float)
+    # The prediction for a sample is turned by the previous sample's
+    # increment (the filter cannot see the next one): at most one step of
+    # phase behind, amplitude x increment.
+    lag_bound = math.hypot(a, b) * w_out * ts
+    assert np.max(np.abs(ripple - (a * np.cos(theta) + b * np.sin(theta)))) < 1.05 * lag_bound
+    err = out["torque_filtered_nm"] - load
+    assert np.sqrt(np.mean(err ** 2)) < 0.01

@@ -92,9 +92,10 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
         m.offset_enabled = True
         m.offset_is_sensor_error = True
     elif c.action == "set_profile":
-        m.blocks = [b for b in m.blocks if b.lock != "output"]
-        m.profile = [p for p in m.profile if p.lock != "output"] + [
-            ProfileLine("output", o["order"], o["a_nm"], o["b_nm"]) for o in c.params["profile"]]
+        m = with_profile(m, c.params["profile"])
+        if m is None:
+            c.evidence["rejected_because"] = f"the filter has {MAX_BLOCKS} blocks"
+            return None
     elif c.action == "set_tuning":
         for k, v in c.params.items():
             if k == "noise_nm":
@@ -103,6 +104,22 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
                 setattr(m, k, v)
     else:
         return None
+    return m
+
+
+def with_profile(model: Model, lines) -> Model | None:
+    """The model with its output-locked lines as a fixed angle profile: one
+    output block per line, output_learn_scale 0 (they predict and turn but
+    never learn, so no load is ever taken), their state imported from the
+    profile at the first sample (replay.py).  None if the blocks do not fit."""
+    m = model.copy()
+    q = Model.q_for_settle(m.r_nm2, m.ts_s, 0.05)
+    keep = [b for b in m.blocks if b.lock != "output"]
+    if len(keep) + len(lines) > MAX_BLOCKS:
+        return None
+    m.blocks = keep + [Block("output", float(o["order"]), q) for o in lines]
+    m.profile = [ProfileLine("output", float(o["order"]), o["a_nm"], o["b_nm"]) for o in lines]
+    m.output_learn_scale = 0.0 if lines else 1.0
     return m
 
 
@@ -408,6 +425,8 @@ class Session:
                 break
             progressed = False
             for c in cands:
+                if _key(c) in self.tried:
+                    continue
                 self.tried.add(_key(c))
                 if self.try_candidate(c, self._trials(c)):
                     progressed = True

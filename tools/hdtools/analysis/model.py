@@ -71,9 +71,15 @@ class Model:
     coulomb_nm: float = 0.0
     coulomb_vel_eps_rad_s: float = 0.01
     track_bandwidth_hz: float = cfilter.DEFAULT_TRACK_BANDWIDTH_HZ
-    # Output-locked lines as a fixed profile instead of adaptive blocks
-    # (replay.py runs them; not part of the C configuration).
+    # hd_kf output_learn_scale: 0 when the output-locked blocks run a fixed
+    # profile (predict and turn, never learn).
+    output_learn_scale: float = 1.0
+    # The output-locked blocks' fixed angle profile, imported into the C
+    # filter at the first sample (hd_kf_profile_import; replay.py).
     profile: list[ProfileLine] = field(default_factory=list)
+    # The data-driven floor of the offset q (starting(): the torque's slow
+    # changes); kept when R changes.
+    offset_q_floor_nm2: float = 0.0
 
     @classmethod
     def starting(cls, gear_ratio, ts_s, noise_nm, motor_orders, output_orders,
@@ -91,7 +97,8 @@ class Model:
         for k in cfilter.KfConfig.SCALARS:
             v = getattr(c, k)
             setattr(m, k, bool(v) if k in ("offset_enabled", "offset_is_sensor_error") else float(v))
-        m.offset_q_nm2 = max(m.offset_q_nm2, slow_step_nm ** 2)
+        m.offset_q_floor_nm2 = slow_step_nm ** 2
+        m.offset_q_nm2 = max(m.offset_q_nm2, m.offset_q_floor_nm2)
         q = float(c.blocks[0].q_nm2) if c.block_count else cls.q_for_settle(
             m.r_nm2, ts_s, RIPPLE_SETTLE_S)
         m.blocks = [Block("motor", float(o), q) for o in motor_orders]
@@ -106,10 +113,11 @@ class Model:
         return r_nm2 * ratio * ratio
 
     def with_noise(self, noise_nm: float) -> "Model":
-        """The same model for another noise level: R, the jump threshold and
-        the p0 caps from hd_kf_config_recommended (C) for that noise, and every
-        R-proportional q (blocks, offset) rescaled, i.e. the same settle
-        times."""
+        """The same model for another noise level: R, the offset q, the jump
+        threshold and the p0 caps from hd_kf_config_recommended (C) for that
+        noise (the offset q no lower than the data-driven floor of
+        starting()), and every block q rescaled with R, i.e. the same settle
+        times (a retuned block stays retuned)."""
         c = cfilter.recommended_config(self.ts_s, max(noise_nm, NOISE_FLOOR_NM),
                                        RIPPLE_SETTLE_S, OFFSET_SETTLE_S)
         m = self.copy()
@@ -117,10 +125,10 @@ class Model:
         m.r_nm2 = float(c.r_nm2)
         for b in m.blocks:
             b.q_nm2 *= ratio
-        m.offset_q_nm2 *= ratio
+        m.offset_q_nm2 = max(float(c.offset_q_nm2), self.offset_q_floor_nm2)
         m.offset_jump_nm = float(c.offset_jump_nm)
-        m.p0_nm2 = min(m.p0_nm2, float(c.p0_nm2))
-        m.output_p0_nm2 = min(m.output_p0_nm2, float(c.output_p0_nm2))
+        m.p0_nm2 = float(c.p0_nm2)
+        m.output_p0_nm2 = float(c.output_p0_nm2)
         return m
 
     def copy(self) -> "Model":
@@ -138,6 +146,7 @@ class Model:
         cfg = cfilter.default_config(ts)
         for k in cfilter.KfConfig.SCALARS:
             setattr(cfg, k, getattr(self, k))
+        cfg.output_learn_scale = self.output_learn_scale
         for b in self.blocks:
             cfg.add_block(cfilter.LOCK_BY_NAME[b.lock], b.order, b.q_nm2)
         return cfg

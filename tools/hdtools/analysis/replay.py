@@ -16,12 +16,10 @@ controller's expected torque) goes into hd_pipeline_run's feedforward_nm,
 which adds it to T_exp exactly as the firmware adds the CAN feed-forward.
 
 Fixed angle profile (model.profile, docs/analyze.md "Profile"): output-locked
-lines the geometry fit found are a fixed function of the absolute output
-angle, not adaptive blocks.  The C filter runs them as a known part of the
-expected torque (feedforward_nm += profile), and the profile is then moved
-from the expected torque to the ripple (filtered -= profile).  This is the
-same arithmetic as an output block whose state is loaded from the profile
-and never updated (q = 0, P = 0): y - C x is identical.
+lines the geometry fit found run as output blocks with output_learn_scale 0
+(they predict and turn with the output angle but never learn), their state
+imported into the C filter at each piece's first sample
+(hd_kf_profile_import), as the firmware does from a stored profile record.
 """
 from __future__ import annotations
 
@@ -119,15 +117,13 @@ def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
         dm = np.diff(th_m, prepend=th_m[0])
         do = np.diff(th_o, prepend=th_o[0])
         ff = p.feedforward_nm
-        prof = profile_torque(model, th_m, th_o) if model.profile else None
-        ff_c = ff if prof is None else (prof if ff is None else ff + prof)
-        out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff_c,
-                          track_bandwidth_hz=model.track_bandwidth_hz)
-        if prof is not None:
-            pf = prof.astype(np.float32)
-            out["torque_filtered_nm"] -= pf
-            out["torque_expected_nm"] -= pf
-            out["ripple_nm"] += pf
+        imp = None
+        if model.profile:
+            lines = [(cfilter.LOCK_BY_NAME[ln.lock], int(round(ln.order)), ln.a_nm, ln.b_nm)
+                     for ln in model.profile]
+            imp = (lines, th_m[0], th_o[0], 0.0)
+        out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff,
+                          track_bandwidth_hz=model.track_bandwidth_hz, profile=imp)
         runs.append(PieceRun(p.t_s, th_m, th_o, p.torque_nm, p.torque_true_nm, out,
                              warmup_samples(len(p), data.ts_s), fold[k], ff, p.segment))
     return runs
