@@ -32,12 +32,39 @@ hd_kf_err_t hd_expected_config_check(const hd_expected_config_t *cfg)
     return HD_KF_OK;
 }
 
+static float smooth_sign(const hd_expected_config_t *cfg, float vel_out_rad_s)
+{
+    const float abs_vel = vel_out_rad_s < 0.0f ? -vel_out_rad_s : vel_out_rad_s;
+    return vel_out_rad_s / (abs_vel + cfg->coulomb_vel_eps_rad_s);
+}
+
 float hd_expected_torque_nm(const hd_expected_config_t *cfg,
                             float vel_out_rad_s, float acc_out_rad_s2,
                             float feedforward_nm)
 {
-    const float abs_vel = vel_out_rad_s < 0.0f ? -vel_out_rad_s : vel_out_rad_s;
-    const float smooth_sign = vel_out_rad_s / (abs_vel + cfg->coulomb_vel_eps_rad_s);
     return cfg->inertia_kgm2 * acc_out_rad_s2 + cfg->viscous_nm_s_rad * vel_out_rad_s +
-           cfg->coulomb_nm * smooth_sign + feedforward_nm;
+           cfg->coulomb_nm * smooth_sign(cfg, vel_out_rad_s) + feedforward_nm;
+}
+
+hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur)
+{
+    if (cur == NULL) {
+        return HD_KF_ERR_NULL;
+    }
+    const float v[4] = {cur->nm_per_a, cur->coulomb_nm, cur->viscous_nm_s_rad, cur->inertia_kgm2};
+    for (unsigned i = 0; i < 4u; i++) {
+        if (!is_finite(v[i]) || v[i] < 0.0f) {
+            return HD_KF_ERR_EXPECTED_CONFIG;
+        }
+    }
+    return HD_KF_OK;
+}
+
+float hd_expected_current_nm(const hd_expected_current_config_t *cur,
+                             const hd_expected_config_t *cfg, float motor_current_a,
+                             float vel_out_rad_s, float acc_out_rad_s2)
+{
+    return cur->nm_per_a * motor_current_a - cur->inertia_kgm2 * acc_out_rad_s2 -
+           cur->viscous_nm_s_rad * vel_out_rad_s -
+           cur->coulomb_nm * smooth_sign(cfg, vel_out_rad_s);
 }

@@ -8,6 +8,16 @@
  * reversals; T_ff: optional feed-forward from the controller.  All
  * coefficients default to zero (T_exp = T_ff).  The filter needs only a rough
  * T_exp: what it misses enters R (or the offset state), not the ripple.
+ *
+ * Motor current (optional second source of slow torque, docs/slow-torque.md):
+ *
+ *   T_cur = k_i i - J_r acc_out - b_r vel_out - Fc_r vel_out / (|vel_out| + v_eps)
+ *
+ * k_i = N eta kt turns the motor's torque-producing current into output
+ * torque; J_r, b_r, Fc_r are what the drive between the current and the
+ * sensor absorbs (rotor and wave-generator inertia N^2 J_m, motor-side
+ * friction), referred to the output.  The caller adds T_cur to T_ff (it has
+ * its own configuration so hd_expected_config_t keeps its layout).
  */
 #ifndef HD_EXPECTED_H
 #define HD_EXPECTED_H
@@ -25,6 +35,14 @@ typedef struct {
     float coulomb_vel_eps_rad_s; /* v_eps [rad/s], > 0; default 0.01 */
 } hd_expected_config_t;
 
+/* The motor-current term; all zero = no current term. */
+typedef struct {
+    float nm_per_a;          /* k_i = N eta kt [N m per A], output torque per motor amp */
+    float coulomb_nm;        /* Fc_r [N m] */
+    float viscous_nm_s_rad;  /* b_r [N m s / rad] */
+    float inertia_kgm2;      /* J_r [kg m^2] */
+} hd_expected_current_config_t;
+
 void hd_expected_config_default(hd_expected_config_t *cfg);
 
 /* Returns HD_KF_OK if every field is finite, J, b, Fc >= 0 and v_eps > 0;
@@ -34,6 +52,15 @@ hd_kf_err_t hd_expected_config_check(const hd_expected_config_t *cfg);
 float hd_expected_torque_nm(const hd_expected_config_t *cfg,
                             float vel_out_rad_s, float acc_out_rad_s2,
                             float feedforward_nm);
+
+/* HD_KF_OK if every field is finite and >= 0; HD_KF_ERR_NULL for NULL,
+ * else HD_KF_ERR_EXPECTED_CONFIG. */
+hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur);
+
+/* T_cur above; the Coulomb sign is smoothed with cfg's v_eps. */
+float hd_expected_current_nm(const hd_expected_current_config_t *cur,
+                             const hd_expected_config_t *cfg, float motor_current_a,
+                             float vel_out_rad_s, float acc_out_rad_s2);
 
 #ifdef __cplusplus
 }

@@ -127,14 +127,24 @@ int hd_fw_init(hd_fw_t *fw, const hal_t *hal, const hd_fw_config_t *defaults)
     hd_fw_records_boot(fw, defaults, s);
     hd_fw_derive(s);
     const hd_fw_config_t *c = &s->cfg;
-    if (hd_pipeline_init(&fw->pipe[0], &c->kf, &c->expected, c->track_bandwidth_hz) !=
-        HD_KF_OK) {
+    if (hd_fw_pipeline_init(&fw->pipe[0], c) != HD_KF_OK) {
         return HD_FW_ERR_KF; /* unreachable: records_boot only keeps checked configurations */
     }
     fw->settings[1] = *s;
     fw->tick.state = HD_STATE_INIT;
+    /* The stored profile (if any) is taken by the first tick, at the
+     * absolute angle of its sample. */
+    fw->tick.kf_fresh = true;
+    fw->tick.import_pending = fw->bg.profile.line_count > 0u;
     hd_fw_set_rx_filter(fw, c->node_id);
     return HD_FW_OK;
+}
+
+int hd_fw_pipeline_init(hd_pipeline_t *p, const hd_fw_config_t *c)
+{
+    hd_kf_config_t kf;
+    hd_fw_kf_config(c, &kf);
+    return hd_pipeline_init(p, &kf, &c->expected, c->track_bandwidth_hz);
 }
 
 void hd_fw_set_rx_filter(const hd_fw_t *fw, uint8_t node_id)

@@ -67,6 +67,8 @@ typedef struct {
     uint32_t commands_dropped;         /* command queue full */
     uint32_t commands;                 /* background */
     uint32_t command_errors;           /* background */
+    uint32_t feedforward_frames;       /* accepted feed-forward frames */
+    uint32_t profile_imports;          /* profiles the filter took (boot, load, restarts) */
 } hd_fw_counters_t;
 
 /* What the last tick produced (for the host runner and tests). */
@@ -78,6 +80,8 @@ typedef struct {
     float torque_filtered_nm;      /* NaN if the sample was invalid */
     float ripple_nm;
     float torque_expected_nm;
+    float feedforward_nm;          /* feed-forward in T_exp this tick (after the stale fallback) */
+    float motor_current_a;         /* NaN without a current channel */
     float motor_velocity_rad_s;
     float d_motor_angle_rad;       /* increment used (after glitch rejection) */
     float d_output_angle_rad;
@@ -123,6 +127,8 @@ typedef struct {
 #define HD_FW_REQ_PIPE     0x02u /* make pipe[!live] live */
 #define HD_FW_REQ_KF_RESET 0x04u /* reset the live filter */
 #define HD_FW_REQ_BLOCK    0x08u /* enable/disable one block of the live filter */
+#define HD_FW_REQ_PROFILE  0x10u /* the live filter takes hd_fw_bg_state_t.profile */
+#define HD_FW_REQ_SNAPSHOT 0x20u /* export the live filter into hd_fw_tick_state_t.snapshot */
 
 /* The background fills it and sets pending; the tick applies it at the
  * start of the next tick and clears pending. */
@@ -159,6 +165,31 @@ typedef struct {
     bool boot_sent;
     volatile uint8_t state;         /* hd_fw_state_t */
     volatile bool ended;            /* the sensors reported HAL_ERR_END */
+    /* feed-forward (docs/slow-torque.md) */
+    bool ff_have;                   /* a frame was accepted since boot */
+    uint8_t ff_seq;                 /* of the last accepted frame */
+    float ff_nm;                    /* its value */
+    uint32_t ff_age_ticks;          /* ticks since it arrived (saturating) */
+    float ff_stale_from_nm;         /* the value the stale ramp starts from */
+    uint32_t ff_stale_ticks;        /* ticks stale (saturating) */
+    /* motor current */
+    float current_a;                /* last good reading */
+    /* absolute angles: first good count modulo cpr plus every increment
+     * given to the filter, so they follow the filter's own phase */
+    bool pos_valid;
+    bool output_pos_valid;          /* an output encoder gave the output angle */
+    uint32_t pos_motor_cpr;         /* the cprs the positions are counted in */
+    uint32_t pos_output_cpr;
+    uint32_t motor_pos;             /* [0, motor cpr) */
+    uint32_t output_pos;            /* [0, output cpr) */
+    uint32_t motor_pos_before;      /* before this tick's increment */
+    uint32_t output_pos_before;
+    /* profiles */
+    bool kf_fresh;                  /* the live filter has not been stepped yet */
+    bool import_pending;            /* take bg.profile before this tick's step */
+    bool snapshot_pending;          /* export after this tick's step */
+    hd_kf_profile_t snapshot;       /* PROFILE_SAVE: the filter at a tick boundary */
+    volatile uint32_t snapshot_seq; /* incremented when snapshot is written */
 } hd_fw_tick_state_t;
 
 /* State only the background writes. */
@@ -170,6 +201,16 @@ typedef struct {
     hal_boot_info_t boot;
     uint8_t reboot_pending;         /* REBOOT acknowledged: restart once the ACK is out */
     uint8_t work[HD_STORE_IMAGE_MAX]; /* record store saves */
+    /* The profile a restarting filter starts from (boot, rebuild, reset,
+     * PROFILE_LOAD): read by the tick only while applying a request. */
+    hd_kf_profile_t profile;
+    hd_kf_profile_t upload;         /* PROFILE_PUT lines */
+    uint16_t upload_mask;           /* bit 2i: line i's a, 2i + 1: its b */
+    /* A PROFILE_SAVE waiting for the tick's snapshot (ACK sent when saved). */
+    bool save_pending;
+    uint8_t save_node;
+    uint32_t save_snapshot_seq;
+    hd_can_cmd_t save_cmd;
 } hd_fw_bg_state_t;
 
 typedef struct {

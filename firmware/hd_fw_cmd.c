@@ -26,7 +26,10 @@ typedef struct {
     uint8_t aux;
     float value;
     uint32_t value_u32;
+    bool deferred;    /* the ACK is queued later (PROFILE_SAVE of the running filter) */
 } reply_t;
+
+static void queue_ack(hd_fw_t *fw, uint8_t node, const hd_can_cmd_t *cmd, const reply_t *r);
 
 /* ---------------------------------------------------------------- helpers */
 
@@ -43,22 +46,26 @@ static void post(hd_fw_t *fw, uint8_t flags, uint8_t block, uint8_t enable)
 /* Makes next the running configuration.  rebuild: a new pipeline (the
  * filter restarts), else the live one keeps its state.  Refused models
  * leave everything as it was. */
-static int commit(hd_fw_t *fw, const hd_fw_settings_t *next, bool rebuild)
+static int commit_with(hd_fw_t *fw, const hd_fw_settings_t *next, bool rebuild, uint8_t extra)
 {
     const hd_fw_config_t *c = &next->cfg;
     if (hd_fw_config_check(c, NULL) != HD_FW_OK) {
         return HD_CAN_RES_REJECTED;
     }
     hd_pipeline_t *spare_pipe = &fw->pipe[(fw->live_pipe & 1u) ^ 1u];
-    if (rebuild && hd_pipeline_init(spare_pipe, &c->kf, &c->expected, c->track_bandwidth_hz) !=
-                       HD_KF_OK) {
+    if (rebuild && hd_fw_pipeline_init(spare_pipe, c) != HD_KF_OK) {
         return HD_CAN_RES_REJECTED;
     }
     hd_fw_settings_t *spare = hd_fw_spare(fw);
     *spare = *next;
     hd_fw_derive(spare);
-    post(fw, (uint8_t)(HD_FW_REQ_SETTINGS | (rebuild ? HD_FW_REQ_PIPE : 0u)), 0u, 0u);
+    post(fw, (uint8_t)(HD_FW_REQ_SETTINGS | (rebuild ? HD_FW_REQ_PIPE : 0u) | extra), 0u, 0u);
     return HD_CAN_RES_OK;
+}
+
+static int commit(hd_fw_t *fw, const hd_fw_settings_t *next, bool rebuild)
+{
+    return commit_with(fw, next, rebuild, 0u);
 }
 
 static int result_of(hd_fw_err_t e)
@@ -253,7 +260,7 @@ static bool info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_BOARD_ID: *v = fw->hal->system.board_id; return true;
     case HD_INFO_CALIB_RECORD_VERSION: *v = HD_CALIB_RECORD_VERSION; return true;
     case HD_INFO_CONFIG_RECORD_VERSION: *v = HD_CONFIG_RECORD_VERSION; return true;
-    case HD_INFO_PROFILE_RECORD_VERSION: *v = 0u; return true; /* no profile record yet */
+    case HD_INFO_PROFILE_RECORD_VERSION: *v = HD_PROFILE_RECORD_VERSION; return true;
     case HD_INFO_PARAM_TABLE_CRC: *v = hd_param_table_crc(); return true;
     case HD_INFO_RESET_CAUSE: *v = b->reset_cause; return true;
     case HD_INFO_FAULT_PC: *v = b->fault_valid ? b->fault_pc : 0u; return true;
@@ -271,6 +278,7 @@ static bool info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_COMMANDS_DROPPED: *v = c->commands_dropped; return true;
     case HD_INFO_FRAMES_DROPPED: *v = c->frames_dropped; return true;
     case HD_INFO_FOREIGN_FRAMES: *v = c->foreign_frames; return true;
+    case HD_INFO_FEEDFORWARD_FRAMES: *v = c->feedforward_frames; return true;
     default: return false;
     }
 }
@@ -295,9 +303,178 @@ static void reboot(hd_fw_t *fw, reply_t *r)
     fw->bg.reboot_pending = 1u; /* once the ACK is out */
 }
 
+/* -------------------------------------------------------------- profiles */
+
+#define PUT_INDEX_MASK 0x0Fu
+#define PUT_B 0x10u
+#define PUT_OUTPUT 0x20u
+#define PUT_RESERVED 0xC0u
+
+static uint16_t lines_mask(unsigned lines)
+{
+    return (uint16_t)((1u << (2u * lines)) - 1u);
+}
+
+static bool upload_complete(const hd_fw_t *fw)
+{
+    const unsigned n = fw->bg.upload.line_count;
+    return n > 0u && fw->bg.upload_mask == lines_mask(n);
+}
+
+/* Lines arrive in order, a before b: line 0's a starts a new upload. */
+static void profile_put(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    const uint8_t b2 = cmd->arg_u8[0];
+    const unsigned i = b2 & PUT_INDEX_MASK;
+    const bool is_b = (b2 & PUT_B) != 0u;
+    const uint8_t lock = (b2 & PUT_OUTPUT) != 0u ? HD_KF_LOCK_OUTPUT : HD_KF_LOCK_MOTOR;
+    const uint8_t order = cmd->arg_u8[1];
+    float v;
+    memcpy(&v, &cmd->arg_u32, sizeof v); /* the f32 at bytes 4..7 */
+    r->aux = b2;
+    r->value = v;
+    const float lim = hd_fw_live(fw)->cfg.torque_limit_nm;
+    if ((b2 & PUT_RESERVED) != 0u || i >= HD_KF_MAX_BLOCKS) {
+        r->result = HD_CAN_RES_BAD_INDEX;
+        return;
+    }
+    if (!(v - v == 0.0f)) {
+        r->result = HD_CAN_RES_NOT_FINITE;
+        return;
+    }
+    if (order == 0u || v > lim || v < -lim) {
+        r->result = HD_CAN_RES_OUT_OF_RANGE;
+        return;
+    }
+    hd_kf_profile_t *u = &fw->bg.upload;
+    if (i == 0u && !is_b) {
+        memset(u, 0, sizeof *u);
+        fw->bg.upload_mask = 0u;
+    }
+    const uint16_t before = is_b ? (uint16_t)(lines_mask(i) | (1u << (2u * i))) : lines_mask(i);
+    hd_kf_profile_line_t *l = &u->lines[i];
+    if (fw->bg.upload_mask != before || (is_b && (l->lock != lock || l->order != order))) {
+        r->result = HD_CAN_RES_BAD_INDEX; /* out of order, or b for another line */
+        return;
+    }
+    l->lock = lock;
+    l->order = order;
+    if (is_b) {
+        l->b_nm = v;
+    } else {
+        l->a_nm = v;
+        u->line_count = (uint8_t)(i + 1u);
+    }
+    fw->bg.upload_mask = (uint16_t)(before | (1u << (2u * i + (is_b ? 1u : 0u))));
+}
+
+static void profile_save(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
+{
+    const uint8_t source = cmd->arg_u8[0];
+    if (source > 1u) {
+        r->result = HD_CAN_RES_OUT_OF_RANGE;
+        return;
+    }
+    if (source == 1u) {
+        if (!upload_complete(fw)) {
+            r->result = HD_CAN_RES_NO_DATA;
+            return;
+        }
+        hd_fw_settings_t next = *hd_fw_live(fw);
+        r->value = (float)fw->bg.upload.line_count;
+        r->result = hd_fw_profile_save(fw, &fw->bg.upload, &next, &r->aux);
+        if (r->result == HD_CAN_RES_OK) {
+            r->result = commit(fw, &next, false);
+        }
+        return;
+    }
+    /* The tick exports the filter at its next boundary; the save and the
+     * ACK follow in a later background call (finish_profile_save). */
+    fw->bg.save_pending = true;
+    fw->bg.save_cmd = *cmd;
+    fw->bg.save_node = node;
+    fw->bg.save_snapshot_seq = fw->tick.snapshot_seq;
+    post(fw, HD_FW_REQ_SNAPSHOT, 0u, 0u);
+    r->deferred = true;
+}
+
+static void profile_load(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    const uint8_t source = cmd->arg_u8[0];
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    if (source > 1u) {
+        r->result = HD_CAN_RES_OUT_OF_RANGE;
+        return;
+    }
+    if (source == 1u) {
+        if (!upload_complete(fw)) {
+            r->result = HD_CAN_RES_NO_DATA;
+            return;
+        }
+        fw->bg.profile = fw->bg.upload;
+        r->aux = next.profile_status;
+        r->value = (float)fw->bg.profile.line_count;
+        post(fw, HD_FW_REQ_PROFILE, 0u, 0u);
+        return;
+    }
+    r->result = hd_fw_profile_load(fw, &next, &r->aux);
+    if (r->result == HD_CAN_RES_OK) {
+        r->value = (float)fw->bg.profile.line_count;
+        r->result = commit_with(fw, &next, false, HD_FW_REQ_PROFILE);
+    }
+}
+
+static void profile_clear(hd_fw_t *fw, reply_t *r)
+{
+    hd_fw_settings_t next = *hd_fw_live(fw);
+    r->result = hd_fw_profile_clear(fw, &next, &r->aux);
+    if (r->result == HD_CAN_RES_OK) {
+        r->result = commit(fw, &next, false);
+    }
+}
+
+static void profile_job(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
+{
+    if (fw->tick.import_pending || fw->tick.snapshot_pending) {
+        r->result = HD_CAN_RES_BUSY; /* the tick still reads bg.profile (no encoder yet) */
+        return;
+    }
+    switch (cmd->opcode) {
+    case HD_CMD_PROFILE_SAVE: profile_save(fw, cmd, node, r); break;
+    case HD_CMD_PROFILE_LOAD: profile_load(fw, cmd, r); break;
+    case HD_CMD_PROFILE_CLEAR: profile_clear(fw, r); break;
+    default: profile_put(fw, cmd, r); break;
+    }
+}
+
+/* A PROFILE_SAVE of the running filter, once the tick has taken the
+ * snapshot: save it and send the ACK.  Returns true if it finished. */
+static bool finish_profile_save(hd_fw_t *fw)
+{
+    hd_fw_bg_state_t *b = &fw->bg;
+    if (!b->save_pending || fw->request.pending || fw->tick.snapshot_seq == b->save_snapshot_seq ||
+        hd_fw_queue_full(&fw->ack_queue)) {
+        return false;
+    }
+    b->save_pending = false;
+    const hd_kf_profile_t snap = fw->tick.snapshot; /* the tick writes it only on request */
+    reply_t r = {HD_CAN_RES_OK, 0u, (float)snap.line_count, 0u, false};
+    if (snap.line_count == 0u) {
+        r.result = HD_CAN_RES_NO_DATA; /* no profile-able block, or no absolute angle */
+    } else {
+        hd_fw_settings_t next = *hd_fw_live(fw);
+        r.result = hd_fw_profile_save(fw, &snap, &next, &r.aux);
+        if (r.result == HD_CAN_RES_OK) {
+            r.result = commit(fw, &next, false);
+        }
+    }
+    queue_ack(fw, b->save_node, &b->save_cmd, &r);
+    return true;
+}
+
 /* ------------------------------------------------------------- dispatch */
 
-static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
 {
     switch (cmd->opcode) {
     case HD_CMD_FILTER_ENABLE: set_param(fw, HD_PARAM_FILTER_ENABLED, cmd->arg_u8[0], r); break;
@@ -318,6 +495,10 @@ static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     case HD_CMD_VERSION:
     case HD_CMD_INFO: info(fw, cmd, r); break;
     case HD_CMD_REBOOT: reboot(fw, r); break;
+    case HD_CMD_PROFILE_SAVE:
+    case HD_CMD_PROFILE_LOAD:
+    case HD_CMD_PROFILE_CLEAR:
+    case HD_CMD_PROFILE_PUT: profile_job(fw, cmd, node, r); break;
     default: r->result = HD_CAN_RES_UNKNOWN_OPCODE; break; /* the decoder checks first */
     }
 }
@@ -346,16 +527,18 @@ void hd_fw_handle_frame(hd_fw_t *fw, const hal_can_frame_t *frame)
     }
     fw->counters.commands++;
     hd_can_cmd_t cmd;
-    reply_t r = {hd_can_decode_cmd(frame, &cmd), 0u, 0.0f, 0u};
-    if (r.result == HD_CAN_RES_OK && fw->request.pending) {
+    reply_t r = {hd_can_decode_cmd(frame, &cmd), 0u, 0.0f, 0u, false};
+    if (r.result == HD_CAN_RES_OK && (fw->request.pending || fw->bg.save_pending)) {
         /* Only a caller that skips hd_fw_background's ordering gets here:
          * the tick has not taken the previous change yet. */
         r.result = HD_CAN_RES_BUSY;
     }
     if (r.result == HD_CAN_RES_OK) {
-        execute(fw, &cmd, &r);
+        execute(fw, &cmd, node, &r);
     }
-    queue_ack(fw, node, &cmd, &r);
+    if (!r.deferred) {
+        queue_ack(fw, node, &cmd, &r);
+    }
 }
 
 bool hd_fw_background(hd_fw_t *fw)
@@ -371,11 +554,12 @@ bool hd_fw_background(hd_fw_t *fw)
         fw->hal->system.reboot(fw->hal->system.ctx);
         return true;
     }
-    bool did = false;
+    bool did = finish_profile_save(fw);
     for (unsigned i = 0; i < HD_FW_CMDS_PER_CALL; i++) {
         /* In order: wait for the tick to take the previous change, and for
          * room to answer. */
-        if (fw->request.pending || hd_fw_queue_full(&fw->ack_queue) || fw->bg.reboot_pending) {
+        if (fw->request.pending || hd_fw_queue_full(&fw->ack_queue) || fw->bg.reboot_pending ||
+            fw->bg.save_pending) {
             break;
         }
         hal_can_frame_t f;

@@ -26,6 +26,18 @@ void hd_fw_config_default(hd_fw_config_t *cfg)
     cfg->angle_telemetry_every = 10u;
     cfg->node_id = 1u;
     cfg->filter_enabled = 1u;
+    cfg->feedforward_timeout_ms = 0u;
+    cfg->feedforward_ramp_ms = HD_FW_DEFAULT_FF_RAMP_MS;
+    cfg->learning_mode = HD_FW_LEARN_COMMISSIONING;
+    cfg->operating_output_learn_scale = HD_FW_DEFAULT_OPERATING_LEARN_SCALE;
+}
+
+void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out)
+{
+    *out = cfg->kf;
+    out->output_learn_scale = (cfg->learning_mode == HD_FW_LEARN_OPERATING)
+                                  ? cfg->operating_output_learn_scale
+                                  : 1.0f;
 }
 
 hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)
@@ -48,10 +60,13 @@ hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)
             return HD_FW_ERR_RANGE;
         }
     }
-    if (hd_kf_config_check(&cfg->kf) != HD_KF_OK) {
+    hd_kf_config_t kf;
+    hd_fw_kf_config(cfg, &kf);
+    if (hd_kf_config_check(&kf) != HD_KF_OK) {
         return HD_FW_ERR_KF;
     }
-    if (hd_expected_config_check(&cfg->expected) != 0) {
+    if (hd_expected_config_check(&cfg->expected) != 0 ||
+        hd_expected_current_check(&cfg->current) != HD_KF_OK) {
         return HD_FW_ERR_EXPECTED;
     }
     return HD_FW_OK;

@@ -25,10 +25,14 @@ extern "C" {
 #define HD_FW_DEFAULT_NOISE_NM 0.02f
 #define HD_FW_DEFAULT_RIPPLE_SETTLE_S 0.05f
 #define HD_FW_DEFAULT_OFFSET_SETTLE_S 0.02f
+/* Slow-torque defaults, from the measurements in docs/slow-torque.md. */
+#define HD_FW_DEFAULT_FF_RAMP_MS 500u
+#define HD_FW_DEFAULT_OPERATING_LEARN_SCALE 0.0f
 
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */
     hd_expected_config_t expected;
+    hd_expected_current_config_t current; /* motor-current term of T_exp (all 0 = unused) */
     float track_bandwidth_hz;       /* output-angle tracking loop */
     float gear_ratio;               /* motor revs per output rev, >= 1 */
     uint32_t motor_cpr;             /* motor encoder counts per rev */
@@ -40,9 +44,18 @@ typedef struct {
     float calib_offset_v;
     uint16_t telemetry_rate_hz;     /* 0 = off, else 1..1000 (period rounded to whole ticks) */
     uint16_t angle_telemetry_every; /* TELEM_C with every Nth TELEM_A/B pair, 0 = off */
+    uint16_t feedforward_timeout_ms; /* 0: no feed-forward expected (frames ignored) */
+    uint16_t feedforward_ramp_ms;   /* stale: the last value ramps to 0 over this */
+    float operating_output_learn_scale; /* kf.output_learn_scale in operating mode */
+    uint8_t learning_mode;          /* HD_FW_LEARN_* */
     uint8_t node_id;                /* 1..127 */
     uint8_t filter_enabled;         /* 0: filtered torque = raw torque */
 } hd_fw_config_t;
+
+/* learning_mode: how fast output-locked (geometric) blocks learn
+ * (docs/slow-torque.md, "Learning schedule"). */
+#define HD_FW_LEARN_COMMISSIONING 0u /* at full rate: output_learn_scale 1 */
+#define HD_FW_LEARN_OPERATING 1u     /* at operating_output_learn_scale */
 
 /* The firmware library's errors (configuration, parameters, configuration
  * text).  hd_fw_err_str names each. */
@@ -77,6 +90,10 @@ void hd_fw_config_default(hd_fw_config_t *cfg);
  * first error; *bad_param (may be NULL) names the parameter id of a range
  * error, else 0. */
 hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param);
+
+/* The filter configuration the firmware runs: cfg->kf with
+ * output_learn_scale set by the learning mode. */
+void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out);
 const char *hd_fw_err_str(int err);
 
 #ifdef __cplusplus

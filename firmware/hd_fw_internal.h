@@ -43,6 +43,16 @@ int hd_fw_calib_save(hd_fw_t *fw, uint32_t unix_s, hd_fw_settings_t *next);
 int hd_fw_calib_load(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux, float *value);
 int hd_fw_config_save(hd_fw_t *fw, uint8_t *aux);
 int hd_fw_config_load(hd_fw_t *fw, hd_fw_config_t *next, uint8_t *aux);
+/* PROFILE_SAVE (lines into the record for next->cfg's joint), PROFILE_LOAD
+ * (the record into bg.profile, checked against next->cfg), PROFILE_CLEAR;
+ * each updates next's profile status and bg.profile on success. */
+int hd_fw_profile_save(hd_fw_t *fw, const hd_kf_profile_t *lines, hd_fw_settings_t *next,
+                       uint8_t *aux);
+int hd_fw_profile_load(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux);
+int hd_fw_profile_clear(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux);
+
+/* hd_pipeline_init with the firmware's filter configuration (hd_fw_kf_config). */
+int hd_fw_pipeline_init(hd_pipeline_t *p, const hd_fw_config_t *c);
 
 /* The configuration hd_fw_init was given: CONFIG_DEFAULTS returns to it. */
 const hd_fw_config_t *hd_fw_boot_defaults(const hd_fw_t *fw);

@@ -87,6 +87,69 @@ hd_record_status_t hd_config_record_decode(const uint8_t *buf, size_t len,
     return HD_RECORD_OK;
 }
 
+/* ------------------------------------------------------- profile record */
+
+size_t hd_profile_record_encode(const hd_profile_record_t *r, uint8_t *buf, size_t cap)
+{
+    const unsigned n = r->profile.line_count;
+    const size_t len = HD_PROFILE_RECORD_HEADER + HD_PROFILE_RECORD_LINE * (size_t)n;
+    if (n > HD_KF_MAX_BLOCKS || len > cap) {
+        return 0u;
+    }
+    hd_le_put_f32(buf, r->gear_ratio);
+    hd_le_put_u32(buf + 4u, r->motor_cpr);
+    hd_le_put_u32(buf + 8u, r->output_cpr);
+    buf[12] = (uint8_t)n;
+    uint8_t *at = buf + HD_PROFILE_RECORD_HEADER;
+    for (unsigned i = 0; i < n; i++, at += HD_PROFILE_RECORD_LINE) {
+        const hd_kf_profile_line_t *l = &r->profile.lines[i];
+        at[0] = l->lock;
+        at[1] = l->order;
+        hd_le_put_f32(at + 2u, l->a_nm);
+        hd_le_put_f32(at + 6u, l->b_nm);
+    }
+    return len;
+}
+
+static bool finite_f32(float v)
+{
+    return (v - v) == 0.0f;
+}
+
+hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len,
+                                            hd_profile_record_t *out)
+{
+    if (buf == NULL || out == NULL || len < HD_PROFILE_RECORD_HEADER) {
+        return HD_RECORD_CORRUPT;
+    }
+    hd_profile_record_t r;
+    memset(&r, 0, sizeof r);
+    r.gear_ratio = hd_le_get_f32(buf);
+    r.motor_cpr = hd_le_get_u32(buf + 4u);
+    r.output_cpr = hd_le_get_u32(buf + 8u);
+    const unsigned n = buf[12];
+    if (n > HD_KF_MAX_BLOCKS || len != HD_PROFILE_RECORD_HEADER + HD_PROFILE_RECORD_LINE * n ||
+        !finite_f32(r.gear_ratio) || !(r.gear_ratio >= 1.0f) || r.motor_cpr == 0u ||
+        r.output_cpr == 0u) {
+        return HD_RECORD_CORRUPT;
+    }
+    const uint8_t *at = buf + HD_PROFILE_RECORD_HEADER;
+    for (unsigned i = 0; i < n; i++, at += HD_PROFILE_RECORD_LINE) {
+        hd_kf_profile_line_t *l = &r.profile.lines[i];
+        l->lock = at[0];
+        l->order = at[1];
+        l->a_nm = hd_le_get_f32(at + 2u);
+        l->b_nm = hd_le_get_f32(at + 6u);
+        if ((l->lock != HD_KF_LOCK_MOTOR && l->lock != HD_KF_LOCK_OUTPUT) || l->order == 0u ||
+            !finite_f32(l->a_nm) || !finite_f32(l->b_nm)) {
+            return HD_RECORD_CORRUPT;
+        }
+    }
+    r.profile.line_count = (uint8_t)n;
+    *out = r;
+    return HD_RECORD_OK;
+}
+
 /* ------------------------------------------------------------ statuses */
 
 static bool usable(hd_record_status_t st)
@@ -155,6 +218,60 @@ static void set_calib(hd_fw_settings_t *s, const hd_calib_record_t *rec, hd_reco
     s->record_faults = (s->record_faults & ~(uint32_t)RECORD_FAULTS_CALIB) | calib_faults_of(st);
 }
 
+/* A profile is only meaningful on the joint it was made on (the same gear
+ * ratio and encoder resolutions: the angles would not line up), and a
+ * line beyond the torque limit is not a ripple a sensor can have. */
+static hd_record_status_t profile_fits(const hd_fw_config_t *c, const hd_profile_record_t *r)
+{
+    const float d = r->gear_ratio - c->gear_ratio;
+    if (d > 1.0e-6f * c->gear_ratio || -d > 1.0e-6f * c->gear_ratio ||
+        r->motor_cpr != c->motor_cpr || r->output_cpr != c->output_cpr) {
+        return HD_RECORD_REFUSED;
+    }
+    const float lim2 = c->torque_limit_nm * c->torque_limit_nm;
+    for (unsigned i = 0; i < r->profile.line_count; i++) {
+        const hd_kf_profile_line_t *l = &r->profile.lines[i];
+        if (l->a_nm * l->a_nm + l->b_nm * l->b_nm > lim2) {
+            return HD_RECORD_CORRUPT;
+        }
+    }
+    return HD_RECORD_OK;
+}
+
+static hd_record_status_t load_profile(const hd_fw_t *fw, const hd_fw_config_t *c,
+                                       hd_kf_profile_t *out)
+{
+    hd_store_io_t io = hd_fw_store_io(fw->hal, NULL, 0u);
+    uint8_t buf[HD_PROFILE_RECORD_MAX];
+    size_t len = 0u;
+    hd_record_status_t st = hd_store_load(&io, HD_RECORD_KIND_PROFILE, HD_PROFILE_RECORD_VERSION,
+                                          buf, sizeof buf, &len, NULL, NULL);
+    if (!usable(st)) {
+        return st;
+    }
+    hd_profile_record_t r;
+    hd_record_status_t dec = hd_profile_record_decode(buf, len, &r);
+    if (dec == HD_RECORD_OK) {
+        dec = profile_fits(c, &r);
+    }
+    if (dec != HD_RECORD_OK) {
+        return dec;
+    }
+    *out = r.profile;
+    return st;
+}
+
+/* A missing profile is the factory state (the filter starts from zero, as
+ * always); one that exists but cannot be used is a fault. */
+static void set_profile_status(hd_fw_settings_t *s, hd_record_status_t st)
+{
+    s->profile_status = (uint8_t)st;
+    s->record_faults &= ~(uint32_t)HD_FAULT_PROFILE_UNUSABLE;
+    if (!usable(st) && st != HD_RECORD_MISSING) {
+        s->record_faults |= HD_FAULT_PROFILE_UNUSABLE;
+    }
+}
+
 /* ------------------------------------------------------------------- boot */
 
 void hd_fw_records_boot(hd_fw_t *fw, const hd_fw_config_t *defaults, hd_fw_settings_t *s)
@@ -170,7 +287,10 @@ void hd_fw_records_boot(hd_fw_t *fw, const hd_fw_config_t *defaults, hd_fw_setti
 
     hd_record_status_t kst = load_calib(fw, &fw->bg.calib, &fw->bg.calib_seq);
     set_calib(s, &fw->bg.calib, kst);
-    s->profile_status = (uint8_t)HD_RECORD_MISSING;
+
+    memset(&fw->bg.profile, 0, sizeof fw->bg.profile);
+    hd_record_status_t pst = load_profile(fw, &s->cfg, &fw->bg.profile);
+    set_profile_status(s, pst);
 }
 
 /* --------------------------------------------------------- calibration */
@@ -234,4 +354,72 @@ int hd_fw_config_load(hd_fw_t *fw, hd_fw_config_t *next, uint8_t *aux)
         return HD_CAN_RES_NO_DATA;
     }
     return usable(st) ? HD_CAN_RES_OK : HD_CAN_RES_NVM_ERROR;
+}
+
+/* ------------------------------------------------------------- profile */
+
+int hd_fw_profile_save(hd_fw_t *fw, const hd_kf_profile_t *lines, hd_fw_settings_t *next,
+                       uint8_t *aux)
+{
+    hd_store_io_t io = hd_fw_store_io(fw->hal, fw->bg.work, sizeof fw->bg.work);
+    if (io.write == NULL || io.erase == NULL) {
+        *aux = (uint8_t)HD_RECORD_IO;
+        return HD_CAN_RES_NVM_ERROR;
+    }
+    const hd_fw_config_t *c = &next->cfg;
+    hd_profile_record_t r = {c->gear_ratio, c->motor_cpr, c->output_cpr, *lines};
+    uint8_t buf[HD_PROFILE_RECORD_MAX];
+    size_t len = hd_profile_record_encode(&r, buf, sizeof buf);
+    hd_record_status_t st = (len == 0u || profile_fits(c, &r) != HD_RECORD_OK)
+                                ? HD_RECORD_CORRUPT
+                                : hd_store_save(&io, HD_RECORD_KIND_PROFILE,
+                                                HD_PROFILE_RECORD_VERSION, buf, len);
+    *aux = (uint8_t)st;
+    if (st == HD_RECORD_CORRUPT) {
+        return HD_CAN_RES_REJECTED; /* a line beyond the torque limit */
+    }
+    if (st != HD_RECORD_OK) {
+        return HD_CAN_RES_NVM_ERROR; /* the stored record is unchanged */
+    }
+    fw->bg.profile = *lines;
+    set_profile_status(next, HD_RECORD_OK);
+    return HD_CAN_RES_OK;
+}
+
+int hd_fw_profile_load(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux)
+{
+    hd_kf_profile_t p;
+    memset(&p, 0, sizeof p);
+    hd_record_status_t st = load_profile(fw, &next->cfg, &p);
+    *aux = (uint8_t)st;
+    if (st == HD_RECORD_MISSING) {
+        return HD_CAN_RES_NO_DATA;
+    }
+    if (st == HD_RECORD_REFUSED) {
+        return HD_CAN_RES_REJECTED;
+    }
+    if (!usable(st)) {
+        return HD_CAN_RES_NVM_ERROR; /* the profile in RAM and the filter are unchanged */
+    }
+    fw->bg.profile = p;
+    set_profile_status(next, st);
+    return HD_CAN_RES_OK;
+}
+
+int hd_fw_profile_clear(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux)
+{
+    hd_store_io_t io = hd_fw_store_io(fw->hal, fw->bg.work, sizeof fw->bg.work);
+    if (io.write == NULL || io.erase == NULL) {
+        *aux = (uint8_t)HD_RECORD_IO;
+        return HD_CAN_RES_NVM_ERROR;
+    }
+    hd_record_status_t st = hd_store_save(&io, HD_RECORD_KIND_PROFILE,
+                                          HD_PROFILE_RECORD_VERSION, NULL, 0u);
+    *aux = (uint8_t)st;
+    if (st != HD_RECORD_OK) {
+        return HD_CAN_RES_NVM_ERROR;
+    }
+    memset(&fw->bg.profile, 0, sizeof fw->bg.profile);
+    set_profile_status(next, HD_RECORD_MISSING);
+    return HD_CAN_RES_OK;
 }

@@ -11,6 +11,14 @@
  * firmware does not know means a newer firmware wrote the record: it is
  * refused as BAD_VERSION rather than half applied.
  *
+ * The profile record's payload (HD_PROFILE_RECORD_VERSION), little-endian:
+ *   f32 gear_ratio, u32 motor_cpr, u32 output_cpr   the joint it was made on
+ *   u8  n;  n x { u8 lock (0 motor, 1 output), u8 order, f32 a_nm, f32 b_nm }
+ * ripple(alpha) = a cos(order alpha) + b sin(order alpha), alpha the absolute
+ * motor or output angle (hd_kf.h, "angle-referenced profiles";
+ * docs/slow-torque.md).  A record for another gear ratio or encoder
+ * resolution is REFUSED by the firmware, never scaled.
+ *
  * Pure: no I/O, no heap, no globals.
  */
 #ifndef HD_FW_RECORDS_H
@@ -29,6 +37,18 @@ extern "C" {
 #define HD_CONFIG_RECORD_VERSION 1u
 #define HD_CONFIG_RECORD_MAX 512u
 
+#define HD_PROFILE_RECORD_VERSION 1u
+#define HD_PROFILE_RECORD_HEADER 13u
+#define HD_PROFILE_RECORD_LINE 10u
+#define HD_PROFILE_RECORD_MAX (HD_PROFILE_RECORD_HEADER + HD_PROFILE_RECORD_LINE * HD_KF_MAX_BLOCKS)
+
+typedef struct {
+    float gear_ratio;
+    uint32_t motor_cpr;
+    uint32_t output_cpr;
+    hd_kf_profile_t profile;
+} hd_profile_record_t;
+
 /* Encodes cfg; returns the length, or 0 if cap is too small. */
 size_t hd_config_record_encode(const hd_fw_config_t *cfg, uint8_t *buf, size_t cap);
 /* Decodes a payload on top of *base into *out (which may be base).
@@ -37,6 +57,16 @@ size_t hd_config_record_encode(const hd_fw_config_t *cfg, uint8_t *buf, size_t c
  * model hd_fw_config_check refuses); *out is written only on OK. */
 hd_record_status_t hd_config_record_decode(const uint8_t *buf, size_t len,
                                            const hd_fw_config_t *base, hd_fw_config_t *out);
+
+/* Encodes r; returns the length, or 0 if cap is too small or r holds more
+ * than HD_KF_MAX_BLOCKS lines. */
+size_t hd_profile_record_encode(const hd_profile_record_t *r, uint8_t *buf, size_t cap);
+/* Decodes a payload.  HD_RECORD_OK, or HD_RECORD_CORRUPT (length, more
+ * lines than HD_KF_MAX_BLOCKS, a lock other than motor/output, order 0, a
+ * non-finite number, a gear ratio below 1 or a cpr of 0); *out is written
+ * only on OK. */
+hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len,
+                                            hd_profile_record_t *out);
 
 #ifdef __cplusplus
 }

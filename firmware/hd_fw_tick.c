@@ -5,6 +5,7 @@
 
 #include "hd_fw.h"
 #include "hd_fw_internal.h"
+#include "hd_trig.h"
 
 /* ---------------------------------------------------------------- timing */
 
@@ -44,8 +45,11 @@ static void apply_request(hd_fw_t *fw)
     if (!r->pending) {
         return;
     }
+    hd_fw_tick_state_t *k = &fw->tick;
     if (r->flags & HD_FW_REQ_PIPE) {
         fw->live_pipe ^= 1u;
+        k->kf_fresh = true; /* a new filter starts from the profile */
+        k->import_pending = fw->bg.profile.line_count > 0u;
     }
     if (r->flags & HD_FW_REQ_SETTINGS) {
         fw->live_settings ^= 1u;
@@ -55,17 +59,54 @@ static void apply_request(hd_fw_t *fw)
     }
     if (r->flags & HD_FW_REQ_KF_RESET) {
         hd_kf_reset(&hd_fw_live_pipe(fw)->kf);
+        k->kf_fresh = true;
+        k->import_pending = fw->bg.profile.line_count > 0u;
     }
     if (r->flags & HD_FW_REQ_BLOCK) {
         (void)hd_kf_set_block_enabled(&hd_fw_live_pipe(fw)->kf, r->block, r->enable != 0u);
+    }
+    if (r->flags & HD_FW_REQ_PROFILE) {
+        k->import_pending = true;
+    }
+    if (r->flags & HD_FW_REQ_SNAPSHOT) {
+        k->snapshot_pending = true;
     }
     r->pending = 0u;
 }
 
 /* --------------------------------------------------------------- receive */
 
+/* A feed-forward frame is latched with this tick, or flagged and ignored
+ * (malformed, not finite, beyond the torque limit: never fed to the
+ * filter).  A repeated sequence number is not new data.  With
+ * feedforward_timeout_ms = 0 no feed-forward is expected: frames are
+ * ignored. */
+static void take_feedforward(hd_fw_t *fw, const hal_can_frame_t *f)
+{
+    const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
+    hd_fw_tick_state_t *k = &fw->tick;
+    if (c->feedforward_timeout_ms == 0u) {
+        return;
+    }
+    hd_can_feedforward_t ff;
+    if (hd_can_decode_feedforward(f, &ff) != HD_CAN_RES_OK || ff.torque_nm > c->torque_limit_nm ||
+        ff.torque_nm < -c->torque_limit_nm) {
+        k->pending_faults |= HD_FAULT_FF_REJECTED;
+        return;
+    }
+    if (k->ff_have && ff.seq == k->ff_seq) {
+        return;
+    }
+    k->ff_have = true;
+    k->ff_seq = ff.seq;
+    k->ff_nm = ff.torque_nm;
+    k->ff_age_ticks = 0u;
+    fw->counters.feedforward_frames++;
+}
+
 /* Commands for this node wait for the background (the queue never
- * overflows: when full, frames stay with the driver); the rest is counted. */
+ * overflows: when full, frames stay with the driver); feed-forward frames
+ * are taken at once; the rest is counted. */
 static void receive_frames(hd_fw_t *fw)
 {
     const hal_can_t *can = &fw->hal->can;
@@ -81,8 +122,13 @@ static void receive_frames(hd_fw_t *fw)
         }
         uint8_t type = 0u;
         uint8_t to = 0u;
-        if ((f.flags & HAL_CAN_FLAG_ERR) != 0u || !hd_can_id_parse(f.id, f.flags, &type, &to) ||
-            to != node || type != HD_CAN_FRAME_CMD) {
+        const bool ours = (f.flags & HAL_CAN_FLAG_ERR) == 0u &&
+                          hd_can_id_parse(f.id, f.flags, &type, &to) && to == node;
+        if (ours && type == HD_CAN_FRAME_FEEDFORWARD) {
+            take_feedforward(fw, &f);
+            continue;
+        }
+        if (!ours || type != HD_CAN_FRAME_CMD) {
             fw->counters.foreign_frames++;
             continue;
         }
@@ -112,6 +158,49 @@ static int32_t encoder_delta(uint32_t counts, uint32_t *prev, int32_t *last_good
     }
     *last_good = d;
     return d;
+}
+
+/* (pos + d) modulo cpr; |d| is below the glitch limit (<= 1e9) and
+ * pos < cpr <= 2^24, so the sum fits an int32. */
+static uint32_t wrap_pos(uint32_t pos, int32_t d, uint32_t cpr)
+{
+    int32_t r = ((int32_t)pos + d) % (int32_t)cpr;
+    return (uint32_t)(r < 0 ? r + (int32_t)cpr : r);
+}
+
+/* The absolute angles the profiles refer to: the first good reading modulo
+ * cpr, then every increment the filter is given (glitch replacements
+ * included, so they follow the filter's own phase). */
+static void track_positions(hd_fw_tick_state_t *k, const hd_fw_settings_t *set, bool good,
+                            const hal_encoder_sample_t *enc, int32_t dm, int32_t dout)
+{
+    const uint32_t mcpr = set->cfg.motor_cpr;
+    const uint32_t ocpr = set->cfg.output_cpr;
+    if (k->pos_valid && (mcpr != k->pos_motor_cpr || ocpr != k->pos_output_cpr)) {
+        k->pos_valid = false; /* counted in other units: start again from a reading */
+    }
+    if (!k->pos_valid) {
+        if (!good) {
+            return;
+        }
+        k->pos_valid = true;
+        k->pos_motor_cpr = mcpr;
+        k->pos_output_cpr = ocpr;
+        k->motor_pos = enc->motor_counts % mcpr;
+        k->output_pos_valid = enc->has_output;
+        k->output_pos = enc->has_output ? enc->output_counts % ocpr : 0u;
+        k->motor_pos_before = k->motor_pos;
+        k->output_pos_before = k->output_pos;
+        return;
+    }
+    k->motor_pos_before = k->motor_pos;
+    k->motor_pos = wrap_pos(k->motor_pos, dm, mcpr);
+    k->output_pos_before = k->output_pos;
+    if (!enc->has_output) {
+        k->output_pos_valid = false;
+    } else if (k->output_pos_valid) {
+        k->output_pos = wrap_pos(k->output_pos, dout, ocpr);
+    }
 }
 
 static uint32_t read_encoders(hd_fw_t *fw, hd_fw_sample_t *s)
@@ -153,6 +242,7 @@ static uint32_t read_encoders(hd_fw_t *fw, hd_fw_sample_t *s)
             faults |= HD_FAULT_ENC_GLITCH;
         }
     }
+    track_positions(k, set, rc == HAL_OK && !enc.fault, &enc, dm, dout);
     s->motor_counts = enc.motor_counts;
     s->output_counts = enc.output_counts;
     s->has_output = enc.has_output;
@@ -200,6 +290,27 @@ static void remember_for_tare(hd_fw_tick_state_t *k, float bridge_v)
     }
 }
 
+/* The optional motor-current channel.  A failed or non-finite reading
+ * holds the last good value; it is a fault only when T_exp uses it. */
+static uint32_t read_current(hd_fw_t *fw, hd_fw_sample_t *s)
+{
+    const hal_sensors_t *sen = &fw->hal->sensors;
+    hd_fw_tick_state_t *k = &fw->tick;
+    s->motor_current_a = NAN;
+    if (sen->current_read == NULL) {
+        return 0u;
+    }
+    hal_current_sample_t cur;
+    memset(&cur, 0, sizeof cur);
+    const int rc = sen->current_read(sen->ctx, &cur);
+    const bool good = rc == HAL_OK && !cur.fault && isfinite(cur.motor_current_a);
+    if (good) {
+        k->current_a = cur.motor_current_a;
+    }
+    s->motor_current_a = k->current_a;
+    return (!good && hd_fw_live(fw)->cfg.current.nm_per_a > 0.0f) ? HD_FAULT_CURRENT_ERROR : 0u;
+}
+
 /* ADC and encoders into *s; returns the sensor faults.  *ended: the sample
  * source is exhausted (replay, simulation end). */
 static uint32_t sense(hd_fw_t *fw, uint64_t t_us, hd_fw_sample_t *s, bool *ended)
@@ -219,7 +330,115 @@ static uint32_t sense(hd_fw_t *fw, uint64_t t_us, hd_fw_sample_t *s, bool *ended
     if (s->valid) {
         remember_for_tare(&fw->tick, s->bridge_v);
     }
-    return faults | read_encoders(fw, s);
+    faults |= read_encoders(fw, s);
+    return faults | read_current(fw, s);
+}
+
+/* ------------------------------------------------------------- profiles */
+
+static float angle_of(uint32_t pos, float rad_per_count)
+{
+    const float a = (float)pos * rad_per_count;
+    return a < HD_TWO_PI_F ? a : 0.0f; /* (cpr - 1) / cpr can round up to 2 pi */
+}
+
+/* Lines whose angle this joint knows: output-locked ones need the output
+ * encoder (docs/slow-torque.md, "Absolute angles"). */
+static void known_lines(const hd_fw_tick_state_t *k, const hd_kf_profile_t *in,
+                        hd_kf_profile_t *out)
+{
+    unsigned n = 0u;
+    for (unsigned i = 0; i < in->line_count && i < HD_KF_MAX_BLOCKS; i++) {
+        if (in->lines[i].lock == HD_KF_LOCK_MOTOR || k->output_pos_valid) {
+            out->lines[n++] = in->lines[i];
+        }
+    }
+    out->line_count = (uint8_t)n;
+}
+
+/* Before this tick's step: the live filter takes bg.profile.  A fresh
+ * filter predicts this sample first (its angles); a running one's
+ * prediction is from the previous sample's angles plus its increment
+ * (hd_kf.h, "Which angle"). */
+static void import_profile(hd_fw_t *fw)
+{
+    hd_fw_tick_state_t *k = &fw->tick;
+    if (!k->pos_valid) {
+        return; /* no absolute angle yet: the next good encoder reading */
+    }
+    k->import_pending = false;
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    hd_kf_profile_t p;
+    known_lines(k, &fw->bg.profile, &p);
+    if (p.line_count == 0u) {
+        return;
+    }
+    const uint32_t mpos = k->kf_fresh ? k->motor_pos : k->motor_pos_before;
+    const uint32_t opos = k->kf_fresh ? k->output_pos : k->output_pos_before;
+    hd_kf_t *kf = &hd_fw_live_pipe(fw)->kf;
+    const int rc = hd_kf_profile_import(kf, &p, angle_of(mpos, set->motor_rad_per_count),
+                                        angle_of(opos, set->output_rad_per_count),
+                                        kf->cfg.r_nm2);
+    if (rc >= 0) {
+        fw->counters.profile_imports++;
+    }
+}
+
+/* After this tick's step: PROFILE_SAVE's snapshot at this sample's angles. */
+static void export_profile(hd_fw_t *fw)
+{
+    hd_fw_tick_state_t *k = &fw->tick;
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    hd_kf_profile_t all;
+    memset(&all, 0, sizeof all);
+    if (k->pos_valid) {
+        (void)hd_kf_profile_export(&hd_fw_live_pipe(fw)->kf,
+                                   angle_of(k->motor_pos, set->motor_rad_per_count),
+                                   angle_of(k->output_pos, set->output_rad_per_count), &all);
+    }
+    known_lines(k, &all, &k->snapshot);
+    k->snapshot_pending = false;
+    k->snapshot_seq = k->snapshot_seq + 1u;
+}
+
+/* ----------------------------------------------------------- slow torque */
+
+/* The feed-forward in T_exp: the latched value while fresh; once older than
+ * the timeout, FF_STALE and a ramp to zero over feedforward_ramp_ms from the
+ * last value (docs/slow-torque.md, "Feed-forward"). */
+static float feedforward_now(hd_fw_t *fw, uint32_t *faults)
+{
+    const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
+    hd_fw_tick_state_t *k = &fw->tick;
+    if (c->feedforward_timeout_ms == 0u) {
+        return 0.0f;
+    }
+    if (k->ff_have && k->ff_age_ticks <= c->feedforward_timeout_ms) {
+        k->ff_stale_ticks = 0u;
+        k->ff_stale_from_nm = k->ff_nm;
+        return k->ff_nm;
+    }
+    *faults |= HD_FAULT_FF_STALE;
+    if (k->ff_stale_ticks < UINT32_MAX) {
+        k->ff_stale_ticks++;
+    }
+    const uint32_t ramp = c->feedforward_ramp_ms;
+    if (k->ff_stale_ticks >= ramp) {
+        return 0.0f;
+    }
+    return k->ff_stale_from_nm * (1.0f - (float)k->ff_stale_ticks / (float)ramp);
+}
+
+/* T_cur of hd_expected.h, with the tracker's velocity and acceleration of
+ * the previous tick (1 ms old; its friction and inertia terms are slow). */
+static float current_torque_nm(const hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s)
+{
+    const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
+    if (!(c->current.nm_per_a > 0.0f) || !isfinite(s->motor_current_a)) {
+        return 0.0f;
+    }
+    return hd_expected_current_nm(&c->current, &p->expected, s->motor_current_a,
+                                  p->output_track.vel_rad_s, p->output_track.acc_rad_s2);
 }
 
 /* ------------------------------------------------------------- pipeline */
@@ -228,8 +447,20 @@ static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
 {
     const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
     hd_pipeline_t *p = hd_fw_live_pipe(fw);
+    hd_fw_tick_state_t *k = &fw->tick;
+    uint32_t faults = 0u;
+    if (k->import_pending) {
+        import_profile(fw);
+    }
+    s->feedforward_nm = feedforward_now(fw, &faults);
+    const float slow_nm = s->feedforward_nm + current_torque_nm(fw, p, s);
     hd_kf_output_t out;
-    hd_pipeline_step(p, s->torque_raw_nm, s->d_motor_angle_rad, s->d_output_angle_rad, 0.0f, &out);
+    hd_pipeline_step(p, s->torque_raw_nm, s->d_motor_angle_rad, s->d_output_angle_rad, slow_nm,
+                     &out);
+    k->kf_fresh = false;
+    if (k->snapshot_pending) {
+        export_profile(fw);
+    }
     s->kf_status = out.status;
     s->torque_expected_nm = p->torque_expected_nm;
     s->motor_velocity_rad_s = p->output_track.vel_rad_s * c->gear_ratio;
@@ -243,7 +474,6 @@ static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
         s->torque_filtered_nm = s->torque_raw_nm;
         s->ripple_nm = 0.0f;
     }
-    uint32_t faults = 0u;
     if ((out.status & HD_KF_STATUS_FROZEN) != 0u) {
         faults |= HD_FAULT_KF_FROZEN;
     }
@@ -404,6 +634,9 @@ void hd_fw_isr(hd_fw_t *fw)
     }
     uint64_t t_us = tick_time_us(fw);
     check_deadline(fw, t_us);
+    if (fw->tick.ff_age_ticks < UINT32_MAX) {
+        fw->tick.ff_age_ticks++;
+    }
     apply_request(fw);
     receive_frames(fw);
     hd_fw_sample_t s;

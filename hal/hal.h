@@ -59,6 +59,11 @@ typedef struct {
 } hal_encoder_sample_t;
 
 typedef struct {
+    float motor_current_a;  /* torque-producing (q-axis) motor current; + = + motor torque */
+    bool fault;             /* the drive reported the reading unusable */
+} hal_current_sample_t;
+
+typedef struct {
     uint32_t can_tx_ok;
     uint32_t can_tx_dropped;   /* queue full */
     uint32_t can_rx;
@@ -75,6 +80,9 @@ typedef struct {
     /* Called once per tick. */
     int (*adc_read)(void *ctx, hal_adc_sample_t *out);
     int (*encoder_read)(void *ctx, hal_encoder_sample_t *out);
+    /* May be NULL (no current channel).  The motor current of this tick,
+     * e.g. the drive's last q-axis current (docs/slow-torque.md). */
+    int (*current_read)(void *ctx, hal_current_sample_t *out);
 } hal_sensors_t;
 
 typedef struct {

@@ -35,6 +35,13 @@ static int encoder_read(void *ctx, hal_encoder_sample_t *out)
     return m->current.enc_rc;
 }
 
+static int current_read(void *ctx, hal_current_sample_t *out)
+{
+    hal_mock_t *m = ctx;
+    *out = m->current.cur;
+    return m->current.cur_rc;
+}
+
 static int can_send(void *ctx, const hal_can_frame_t *f)
 {
     hal_mock_t *m = ctx;
@@ -164,6 +171,7 @@ void hal_mock_bind(hal_mock_t *m, hal_t *hal)
     hal->sensors.ctx = m;
     hal->sensors.adc_read = adc_read;
     hal->sensors.encoder_read = encoder_read;
+    hal->sensors.current_read = m->current_channel ? current_read : NULL;
     hal_mock_bind_can(m, &hal->can);
     hal->nvm.ctx = m;
     hal->nvm.size = HAL_MOCK_NVM_BYTES;

@@ -2,9 +2,10 @@
  * hal_mock: a deterministic, in-memory HAL backend for tests and for the
  * host runner's CAN log.
  *
- * - Sensors: tests queue samples (ADC counts, encoder counts, return codes);
- *   each adc_read takes the next one, encoder_read returns the same sample's
- *   encoder part.  An empty queue returns HAL_ERR_END (or HAL_ERR_NO_DATA).
+ * - Sensors: tests queue samples (ADC counts, encoder counts, motor current,
+ *   return codes); each adc_read takes the next one, encoder_read and
+ *   current_read return the same sample's parts (current_read exists only
+ *   when current_channel is set before binding).  An empty queue returns HAL_ERR_END (or HAL_ERR_NO_DATA).
  * - CAN: every transmitted frame is stored (up to HAL_MOCK_TX_CAP) with the
  *   mock clock's time stamp and passed to an optional hook (the runner writes
  *   a candump log from it).  Tests queue received frames, can make the
@@ -39,6 +40,8 @@ typedef struct {
     hal_adc_sample_t adc;
     int enc_rc;                /* returned by encoder_read */
     hal_encoder_sample_t enc;
+    int cur_rc;                /* returned by current_read */
+    hal_current_sample_t cur;
 } hal_mock_sample_t;
 
 typedef void (*hal_mock_tx_hook_t)(void *hook_ctx, const hal_can_frame_t *frame, uint64_t t_us);
@@ -51,6 +54,7 @@ typedef struct {
     hal_mock_sample_t current;
     bool empty_is_end;         /* default true: HAL_ERR_END when the queue is empty */
     uint32_t adc_reads;
+    bool current_channel;      /* read at bind: false leaves sensors.current_read NULL */
 
     /* CAN transmit */
     hal_can_frame_t tx[HAL_MOCK_TX_CAP];

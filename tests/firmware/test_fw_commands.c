@@ -282,16 +282,23 @@ static void test_random_frames_never_corrupt_the_state(void)
 }
 
 
-static void test_the_tick_only_queues_commands(void)
+/* The frame of "SET_PARAM r_nm2 = 0.25" (opcode replaceable) for node 1. */
+static hal_can_frame_t r_frame(uint8_t opcode)
 {
-    init_fw();
-    run(1, 1000, 1);
     hd_can_cmd_t c = {0};
-    c.opcode = HD_CMD_SET_PARAM;
+    c.opcode = opcode;
     c.arg_u8[0] = HD_PARAM_R_NM2;
     c.value = 0.25f;
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &c, &f);
+    return f;
+}
+
+static void test_the_tick_only_queues_commands(void)
+{
+    init_fw();
+    run(1, 1000, 1);
+    hal_can_frame_t f = r_frame(HD_CMD_SET_PARAM);
     hal_mock_push_rx(&mock, &f);
     for (int i = 0; i < 3; i++) { /* ticks without a background: nothing happens */
         motor += 1;
@@ -313,15 +320,9 @@ static void test_the_tick_only_queues_commands(void)
 static void test_a_direct_caller_gets_busy_while_a_change_is_pending(void)
 {
     init_fw();
-    hd_can_cmd_t c = {0};
-    c.opcode = HD_CMD_SET_PARAM;
-    c.arg_u8[0] = HD_PARAM_R_NM2;
-    c.value = 0.25f;
-    hal_can_frame_t f;
-    hd_can_encode_cmd(1, &c, &f);
+    hal_can_frame_t f = r_frame(HD_CMD_SET_PARAM);
     hd_fw_handle_frame(&fw, &f);
-    c.opcode = HD_CMD_CONFIG_SAVE; /* a model change has not reached the tick */
-    hd_can_encode_cmd(1, &c, &f);
+    f = r_frame(HD_CMD_CONFIG_SAVE); /* a model change has not reached the tick */
     hd_fw_handle_frame(&fw, &f);
     run(2, 1000, 1);
     hd_can_ack_t a;
@@ -354,6 +355,7 @@ static void test_every_parameter_of_the_table_over_can(void)
         if (p->id == HD_PARAM_NODE_ID) {
             continue; /* moves the node: test_node_id_... */
         }
+        hal_mock_tx_clear(&mock); /* room in the transmit log for this row's ACKs */
         hd_can_ack_t a = set_param(p->id, probe_value(p));
         if (p->flags & HD_PF_RO) {
             TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_READ_ONLY, a.result);

@@ -255,6 +255,12 @@ DBC_LAYOUT = {
         ("CalibUnixTime", 32, 32, False, 1, 0, 0, 4294967295, "s", None, "CALIB_SAVE", ""),
         ("VersionItem", 16, 8, False, 1, 0, 0, 15, "", "info", "VERSION", ""),
         ("InfoItem", 16, 8, False, 1, 0, 16, 255, "", "info", "INFO", ""),
+        ("ProfileSaveSource", 16, 8, False, 1, 0, 0, 1, "", None, "PROFILE_SAVE", ""),
+        ("ProfileLoadSource", 16, 8, False, 1, 0, 0, 1, "", None, "PROFILE_LOAD", ""),
+        ("ProfilePutLine", 16, 8, False, 1, 0, 0, 63, "", None, "PROFILE_PUT", ""),
+        ("ProfilePutOrder", 24, 8, False, 1, 0, 1, 255, "", None, "PROFILE_PUT", ""),
+        ("ProfilePutValue", 32, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "Nm", None,
+         "PROFILE_PUT", "float"),
     ],
     "ACK": [
         ("AckOpcode", 0, 8, False, 1, 0, 0, 255, "", "opcode", "M", ""),
