@@ -370,28 +370,35 @@ static void power_frames(hd_kf_t *kf)
     }
 }
 
+/* Fills block s's tile row with a fresh block: [v 0 v], then zero tiles
+ * and offset column. */
+static void fresh_tile_row(hd_kf_t *kf, unsigned s, float v)
+{
+    const unsigned nb = kf->active_blocks, off = offset_on(kf);
+    float *p = &kf->p[tile_row_start(nb, off, s)];
+    p[0] = v;
+    p[1] = 0.0f;
+    p[2] = v;
+    p += 3;
+    for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+        p[0] = p[1] = p[2] = p[3] = 0.0f;
+    }
+    if (off != 0u) {
+        p[0] = p[1] = 0.0f;
+    }
+}
+
 void hd_kf_reset(hd_kf_t *kf)
 {
     const unsigned nb = kf->active_blocks, off = offset_on(kf);
-    for (unsigned i = 0; i < kf->n_states; i++) {
-        kf->x[i] = 0.0f;
-    }
-    for (unsigned k = 0; k < packed_entries(nb, off); k++) {
-        kf->p[k] = 0.0f;
-    }
     for (unsigned s = 0; s < nb; s++) {
-        float *tile = &kf->p[tile_row_start(nb, off, s)];
-        tile[0] = tile[2] = kf->slot[s].p0_nm2;
+        fresh_tile_row(kf, s, kf->slot[s].p0_nm2);
+        kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
     }
     if (off != 0u) {
         kf->p[tile_row_start(nb, off, nb)] = kf->cfg.p0_nm2;
+        kf->x[kf->offset_slot] = 0.0f;
     }
-    for (unsigned i = 0; i < HD_KF_PHASORS; i++) {
-        kf->phasor_cos[i] = 1.0f;
-        kf->phasor_sin[i] = 0.0f;
-    }
-    kf->output_phase_hi_rad = 0.0f;
-    kf->output_phase_lo_rad = 0.0f;
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
     kf->load_ref_primed = 0u;
@@ -412,6 +419,14 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     }
     kf->cfg = *cfg;
     build_layout(kf);
+    /* The frames start at phase 0; a reset leaves them turning (x = 0 and
+     * P = p0 I look the same in every frame). */
+    for (unsigned i = 0; i < HD_KF_PHASORS; i++) {
+        kf->phasor_cos[i] = 1.0f;
+        kf->phasor_sin[i] = 0.0f;
+    }
+    kf->output_phase_hi_rad = 0.0f;
+    kf->output_phase_lo_rad = 0.0f;
     hd_kf_reset(kf);
     kf->status_sticky = 0u;
     kf->reset_count = 0u;
@@ -644,12 +659,7 @@ static void restart_block(hd_kf_t *kf, unsigned s)
         float *tile = &kf->p[tile_row_start(nb, off, r) + 3u + 4u * (s - r - 1u)];
         tile[0] = tile[1] = tile[2] = tile[3] = 0.0f;
     }
-    const unsigned start = tile_row_start(nb, off, s);
-    const unsigned end = tile_row_start(nb, off, s + 1u);
-    for (unsigned k = start; k < end; k++) {
-        kf->p[k] = 0.0f;
-    }
-    kf->p[start] = kf->p[start + 2u] = kf->slot[s].p0_nm2;
+    fresh_tile_row(kf, s, kf->slot[s].p0_nm2);
     kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
 }
 
@@ -872,82 +882,60 @@ static void model_diag_tile(float c, float s, const float *t, float *out)
     out[2] = mid - turn;
 }
 
-/* M = R' D R for a block whose model-coordinate states are scaled by d0,
- * d1 (symmetric: m[0] m[1]; m[1] m[2]). */
-static void frame_scaling(float c, float s, float d0, float d1, float *m)
+/* The scale of a variance v against the ceiling: 1 inside [0, p_max],
+ * sqrt(p_max / v) above it (counted), 0 below 0 (counted); -1 when v is
+ * not a number. */
+static float ceiling_scale(hd_kf_t *kf, float v)
 {
-    m[0] = c * c * d0 + s * s * d1;
-    m[1] = c * s * (d0 - d1);
-    m[2] = s * s * d0 + c * c * d1;
+    const float p_max = kf->cfg.p_max_nm2;
+    if (!is_finite(v)) {
+        return -1.0f;
+    }
+    if (v < 0.0f) {
+        kf->p_negative_count++;
+        return 0.0f;
+    }
+    if (v > p_max) {
+        kf->p_ceiling_count++;
+        return sqrtf(p_max / v);
+    }
+    return 1.0f;
 }
 
-/* t <- L t R' for a 2x2 tile t (row-major) and symmetric L, R (packed as
- * in frame_scaling). */
-static void scale_tile(float *t, const float *l, const float *r)
-{
-    const float u00 = l[0] * t[0] + l[1] * t[2], u01 = l[0] * t[1] + l[1] * t[3];
-    const float u10 = l[1] * t[0] + l[2] * t[2], u11 = l[1] * t[1] + l[2] * t[3];
-    t[0] = u00 * r[0] + u01 * r[1];
-    t[1] = u00 * r[1] + u01 * r[2];
-    t[2] = u10 * r[0] + u11 * r[1];
-    t[3] = u10 * r[1] + u11 * r[2];
-}
-
-/* Slow path, when the probe saw a block tile or the offset leave the bounds
- * or the state was not finite: a non-finite state or covariance resets the
- * filter; otherwise, in model coordinates, P <- D P D with D_ii =
- * sqrt(p_max / P_ii) above the ceiling (a congruence: PSD kept) and 0 for a
- * negative diagonal (its row and column zeroed, the closest PSD choice),
- * applied in the frames as M P M, M = blockdiag(R' D R).  Returns the
- * status bits raised. */
+/* Slow path, when the probe saw a block or the offset leave the bounds or
+ * the state was not finite: a non-finite state or covariance resets the
+ * filter; otherwise P <- D P D, D = sqrt(p_max / lambda_max) on both states
+ * of a block whose largest eigenvalue is above p_max (the same in every
+ * frame, so it is applied in the frames), sqrt(p_max / P_oo) on the
+ * offset, and 0 on a block that is not PSD or a negative offset variance.
+ * Returns the status bits raised. */
 static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
 {
     const unsigned nb = kf->active_blocks;
     const bool off = kf->cfg.offset_enabled != 0u;
-    const float p_max = kf->cfg.p_max_nm2;
-    float m[HD_KF_MAX_BLOCKS][3];
-    float d_off = 1.0f;
+    float d[HD_KF_MAX_BLOCKS + 1u];
     bool scaled = false;
     if (!is_finite(state_sum)) {
         return HD_KF_STATUS_RESET;
     }
     float *p = kf->p;
+    const unsigned row_tail = off ? 2u : 0u;
     for (unsigned s = 0; s < nb; s++) {
-        float model[3];
-        const float fc = kf->phasor_cos[kf->slot[s].frame], fs = kf->phasor_sin[kf->slot[s].frame];
-        model_diag_tile(fc, fs, p, model);
-        float d[2] = {1.0f, 1.0f};
-        for (unsigned i = 0; i < 2u; i++) {
-            const float v = model[2u * i];
-            if (!is_finite(v) || !is_finite(p[1])) {
-                return HD_KF_STATUS_RESET;
-            }
-            if (v < 0.0f) {
-                d[i] = 0.0f;
-                kf->p_negative_count++;
-                scaled = true;
-            } else if (v > p_max) {
-                d[i] = sqrtf(p_max / v);
-                kf->p_ceiling_count++;
-                scaled = true;
-            }
+        const float mid = (p[0] + p[2]) * 0.5f, half = (p[0] - p[2]) * 0.5f;
+        const float det = p[0] * p[2] - p[1] * p[1];
+        const float lmax = mid + sqrtf(half * half + p[1] * p[1]);
+        d[s] = ceiling_scale(kf, (det < 0.0f || mid < 0.0f) ? -1.0f : lmax);
+        if (!is_finite(lmax + det)) {
+            d[s] = -1.0f;
         }
-        frame_scaling(fc, fs, d[0], d[1], m[s]);
-        p += 3u + 4u * (nb - 1u - s) + (off ? 2u : 0u);
+        scaled |= d[s] != 1.0f;
+        p += 3u + 4u * (nb - 1u - s) + row_tail;
     }
-    if (off) {
-        const float v = p[0];
-        if (!is_finite(v)) {
+    d[nb] = off ? ceiling_scale(kf, p[0]) : 1.0f;
+    scaled |= d[nb] != 1.0f;
+    for (unsigned s = 0; s <= nb; s++) {
+        if (d[s] < 0.0f) {
             return HD_KF_STATUS_RESET;
-        }
-        if (v < 0.0f) {
-            d_off = 0.0f;
-            kf->p_negative_count++;
-            scaled = true;
-        } else if (v > p_max) {
-            d_off = sqrtf(p_max / v);
-            kf->p_ceiling_count++;
-            scaled = true;
         }
     }
     if (!scaled) {
@@ -955,24 +943,26 @@ static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
     }
     p = kf->p;
     for (unsigned s = 0; s < nb; s++) {
-        float t[4] = {p[0], p[1], p[1], p[2]};
-        scale_tile(t, m[s], m[s]);
-        p[0] = t[0];
-        p[1] = t[1];
-        p[2] = t[3];
+        const float ds = d[s];
+        p[0] *= ds * ds;
+        p[1] *= ds * ds;
+        p[2] *= ds * ds;
         p += 3;
-        for (unsigned u = s + 1u; u < nb; u++, p += 4) {
-            scale_tile(p, m[s], m[u]);
+        for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+            const float w = ds * d[t];
+            p[0] *= w;
+            p[1] *= w;
+            p[2] *= w;
+            p[3] *= w;
         }
         if (off) {
-            const float v0 = p[0], v1 = p[1];
-            p[0] = (m[s][0] * v0 + m[s][1] * v1) * d_off;
-            p[1] = (m[s][1] * v0 + m[s][2] * v1) * d_off;
+            p[0] *= ds * d[nb];
+            p[1] *= ds * d[nb];
             p += 2;
         }
     }
     if (off) {
-        p[0] = d_off == 0.0f ? 0.0f : (d_off == 1.0f ? p[0] : p_max);
+        p[0] *= d[nb] * d[nb];
     }
     return HD_KF_STATUS_P_CLAMPED;
 }

@@ -51,10 +51,14 @@
  *
  * Invariants kept every step:
  *   - P is stored once (packed upper triangle), so it is exactly symmetric;
- *   - every diagonal entry (in the model's coordinates) is in [0, p_max_nm2]: a diagonal above p_max is
- *     brought down by scaling its row and column (a congruence, keeps PSD,
- *     counted in p_ceiling_count); a negative diagonal (float32 rounding)
- *     has its row and column zeroed (counted in p_negative_count); either
+ *   - each block's 2x2 covariance is positive semi-definite with its
+ *     largest eigenvalue at most p_max_nm2 (so every diagonal entry is in
+ *     [0, p_max], whatever the block's phase), and the offset's variance is
+ *     in [0, p_max]: a block above the ceiling has its two rows and columns
+ *     scaled by sqrt(p_max / lambda_max), the offset by sqrt(p_max / P_oo)
+ *     (congruences: PSD kept; counted in p_ceiling_count); a block
+ *     covariance that is not PSD or a negative offset variance (float32
+ *     rounding) has its rows and columns zeroed (p_negative_count); either
  *     sets HD_KF_STATUS_P_CLAMPED;
  *   - a non-finite increment is taken as 0, and a non-finite or absurd
  *     sample (|T_meas - T_exp| > HD_KF_MAX_ABS_Y_NM) is not corrected
@@ -159,7 +163,7 @@ typedef struct {
 #define HD_KF_STATUS_FROZEN      (1u << 0) /* at least one block over Nyquist this step */
 #define HD_KF_STATUS_BAD_INPUT   (1u << 1) /* non-finite input: correction skipped */
 #define HD_KF_STATUS_RESET       (1u << 2) /* non-finite state or covariance: filter reset */
-#define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* a covariance diagonal clamped to [0, p_max] */
+#define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* covariance brought back to PSD, <= p_max */
 #define HD_KF_STATUS_OFFSET_JUMP (1u << 4) /* innovation beyond the gate: offset jump */
 #define HD_KF_STATUS_BITS 5u               /* bits [0, HD_KF_STATUS_BITS) are defined */
 
@@ -228,8 +232,8 @@ typedef struct {
     uint32_t status_sticky;                   /* OR of all step statuses since init */
     uint32_t reset_count;
     uint32_t bad_input_count;
-    uint32_t p_ceiling_count;                 /* diagonal entries brought down to p_max */
-    uint32_t p_negative_count;                /* negative diagonals zeroed (rounding) */
+    uint32_t p_ceiling_count;                 /* blocks (or the offset) brought down to p_max */
+    uint32_t p_negative_count;                /* non-PSD blocks / negative offset zeroed */
 } hd_kf_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,
@@ -271,7 +275,8 @@ const char *hd_kf_status_name(unsigned bit);
  * counter.  On error the filter is left unchanged. */
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg);
 
-/* Zeroes the state and resets P = p0 I (configuration and counters kept). */
+/* Zeroes the state and resets P = p0 I (configuration, counters and the
+ * blocks' frames kept). */
 void hd_kf_reset(hd_kf_t *kf);
 
 /* Enables or disables configured block i at run time.  The block restarts

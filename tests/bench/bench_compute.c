@@ -1,8 +1,10 @@
 /*
  * bench_compute: host throughput of the filter update, side by side with the
- * dense double-precision reference (tests/filter/ref_kf_dense.c) and a dense
- * float32 textbook transcription (dense_kf_f32.c), all measured in one run
- * on the same input.  Also prints the state sizes per model capacity.
+ * dense double-precision reference (tests/filter/ref_kf_dense.c), a dense
+ * float32 textbook filter (dense_kf_f32.c, Joseph form, agreeing with the
+ * reference) and the step before issue 16 (kf_step_v0.c, the baseline of the
+ * speed-up), all measured in one run on the same input.  Also prints the
+ * state sizes per model capacity.
  *
  *   bench_compute [--steps N] [--reps R] [--warmup W] [--json]
  *
@@ -24,6 +26,7 @@
 #include "dense_kf_f32.h"
 #include "hd_kf.h"
 #include "hd_pipeline.h"
+#include "kf_step_v0.h"
 #include "ref_kf_dense.h"
 
 #define MAX_STEPS 100000
@@ -33,10 +36,17 @@
 #define MOTOR_SPEED_RAD_S 156.0 /* the paper's demo speed */
 #define NOISE_NM 0.02f
 
-typedef enum { IMPL_HD_KF, IMPL_PIPELINE, IMPL_DENSE_F32, IMPL_DENSE_F64, IMPL_COUNT } impl_t;
+typedef enum {
+    IMPL_HD_KF,
+    IMPL_PIPELINE,
+    IMPL_DENSE_F32,
+    IMPL_DENSE_F64,
+    IMPL_V0,
+    IMPL_COUNT
+} impl_t;
 
 static const char *const IMPL_NAMES[IMPL_COUNT] = {
-    "hd_kf_step", "hd_pipeline_step", "dense_f32", "dense_f64_ref"};
+    "hd_kf_step", "hd_pipeline_step", "dense_f32", "dense_f64_ref", "hd_kf_step_v0"};
 
 typedef struct {
     const char *name;
@@ -144,6 +154,7 @@ typedef struct {
     hd_pipeline_t pipe;
     dense_kf_f32_t d32;
     ref_kf_t d64;
+    v0_kf_t v0;
 } filters_t;
 
 static filters_t g_f; /* static: ref_kf_t and the rest are a few KB */
@@ -161,6 +172,9 @@ static int init_filters(impl_t impl, const hd_kf_config_t *cfg)
     }
     case IMPL_DENSE_F32:
         dense_kf_f32_init(&g_f.d32, cfg);
+        return 0;
+    case IMPL_V0:
+        v0_kf_init(&g_f.v0, cfg);
         return 0;
     default:
         ref_kf_init(&g_f.d64, cfg);
@@ -187,6 +201,10 @@ static float run_batch(impl_t impl, int steps, float *out_nm)
         } else if (impl == IMPL_DENSE_F32) {
             dense_kf_f32_output_t o;
             dense_kf_f32_step(&g_f.d32, &in, &o);
+            y = o.torque_filtered_nm;
+        } else if (impl == IMPL_V0) {
+            v0_kf_output_t o;
+            v0_kf_step(&g_f.v0, &in, &o);
             y = o.torque_filtered_nm;
         } else {
             ref_kf_output_t o;
@@ -288,7 +306,7 @@ static void print_memory(int json)
     }
     printf("\nState memory by compile-time capacity (bytes):\n");
     printf("%-16s %-16s %-10s %-14s %-10s %s\n", "HD_KF_MAX_BLOCKS", "max states", "hd_kf_t",
-           "hd_pipeline_t", "dense_f32", "dense_f32 step stack (4 n x n)");
+           "hd_pipeline_t", "dense_f32", "dense_f32 step stack (2 n x n)");
     for (int j = 0; j < i; j++) {
         printf("%-16d %-16d %-10zu %-14zu %-10zu %zu\n", m[j].capacity_blocks,
                m[j].capacity_states, m[j].hd_kf_bytes, m[j].pipeline_bytes, m[j].dense_f32_bytes,
@@ -362,6 +380,12 @@ int main(int argc, char **argv)
                        res[i].median_ns, res[i].min_ns, res[i].max_ns, res[i].max_diff_vs_f64_nm,
                        ratio);
             }
+        }
+        if (!json) {
+            printf("%-37s %-6d hd_kf_step is %.2f x faster than hd_kf_step_v0 and %.2f x faster "
+                   "than dense_f32\n", "", MODELS[m].states,
+                   res[IMPL_V0].median_ns / res[IMPL_HD_KF].median_ns,
+                   res[IMPL_DENSE_F32].median_ns / res[IMPL_HD_KF].median_ns);
         }
     }
     if (json) {

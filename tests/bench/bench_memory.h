@@ -16,7 +16,8 @@ typedef struct {
     size_t hd_kf_bytes;     /* sizeof(hd_kf_t): the filter (state, P, config) */
     size_t pipeline_bytes;  /* sizeof(hd_pipeline_t): filter + tracker + T_exp */
     size_t dense_f32_bytes; /* sizeof(dense_kf_f32_t) */
-    size_t dense_f32_stack_bytes; /* dense step's four n x n work matrices */
+    size_t dense_f32_stack_bytes; /* dense step's two n x n work matrices (its model,
+                                     Phi and three vectors, is static) */
 } bench_mem_sizes_t;
 
 #define BENCH_MEM_CAPS(X) X(2) X(3) X(4) X(8)

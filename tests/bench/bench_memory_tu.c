@@ -17,5 +17,5 @@ void BENCH_MEM_FN(BENCH_MEM_CAP)(bench_mem_sizes_t *m)
     m->hd_kf_bytes = sizeof(hd_kf_t);
     m->pipeline_bytes = sizeof(hd_pipeline_t);
     m->dense_f32_bytes = sizeof(dense_kf_f32_t);
-    m->dense_f32_stack_bytes = 4u * sizeof(float) * DENSE_KF_MAX_N * DENSE_KF_MAX_N;
+    m->dense_f32_stack_bytes = 2u * sizeof(float) * DENSE_KF_MAX_N * DENSE_KF_MAX_N;
 }

@@ -1,17 +1,17 @@
 /* Dense float32 textbook Kalman filter (see dense_kf_f32.h). */
 #include "dense_kf_f32.h"
 
+#include <math.h>
 #include <stddef.h>
 
 #include "hd_trig.h"
 
 #define N DENSE_KF_MAX_N
-#define TWO_PI_F 6.28318530718f
 
 typedef float mat_t[N][N];
 
 /* out = a b (n x n); out must not alias a or b. */
-static void mat_mul(int n, const mat_t a, const mat_t b, mat_t out)
+static void mul(int n, const mat_t a, const mat_t b, mat_t out)
 {
     for (int i = 0; i < n; i++) {
         for (int j = 0; j < n; j++) {
@@ -24,16 +24,23 @@ static void mat_mul(int n, const mat_t a, const mat_t b, mat_t out)
     }
 }
 
-static float block_theta(const hd_kf_config_t *cfg, int b, const hd_kf_input_t *in)
+/* out = a b' (n x n): the Joseph form's right factor without forming b'. */
+static void mul_transposed(int n, const mat_t a, const mat_t b, mat_t out)
 {
-    const hd_kf_block_config_t *bc = &cfg->blocks[b];
-    if (bc->lock == HD_KF_LOCK_MOTOR) {
-        return bc->order * in->d_motor_angle_rad;
+    for (int i = 0; i < n; i++) {
+        for (int j = 0; j < n; j++) {
+            float s = 0.0f;
+            for (int k = 0; k < n; k++) {
+                s += a[i][k] * b[j][k];
+            }
+            out[i][j] = s;
+        }
     }
-    if (bc->lock == HD_KF_LOCK_OUTPUT) {
-        return bc->order * in->d_output_angle_rad;
-    }
-    return TWO_PI_F * bc->order * cfg->ts_s;
+}
+
+static float block_p0(const dense_kf_f32_t *kf, int b)
+{
+    return kf->cfg.blocks[b].lock == HD_KF_LOCK_OUTPUT ? kf->cfg.output_p0_nm2 : kf->cfg.p0_nm2;
 }
 
 void dense_kf_f32_init(dense_kf_f32_t *kf, const hd_kf_config_t *cfg)
@@ -50,40 +57,81 @@ void dense_kf_f32_init(dense_kf_f32_t *kf, const hd_kf_config_t *cfg)
     if (cfg->offset_enabled) {
         kf->offset_slot = kf->n++;
     }
-    for (int i = 0; i < kf->n; i++) {
-        kf->p[i][i] = cfg->p0_nm2;
+    for (int s = 0; s < kf->nb; s++) {
+        kf->p[2 * s][2 * s] = kf->p[2 * s + 1][2 * s + 1] = block_p0(kf, kf->block_of_slot[s]);
+    }
+    if (kf->offset_slot >= 0) {
+        kf->p[kf->offset_slot][kf->offset_slot] = cfg->p0_nm2;
     }
 }
 
-/* Builds the dense Phi, the diagonal of Q and the measurement row C. */
-static void build_model(const dense_kf_f32_t *kf, const hd_kf_input_t *in,
-                        mat_t phi, float q_diag[N], float c[N])
+typedef struct {
+    mat_t phi;
+    float q[N];    /* diagonal of Q */
+    float c[N];    /* measurement row */
+    float gain[N]; /* diagonal of F */
+} model_t;
+
+/* Phi, Q, C and F of this step (hd_kf.h, "Per-block rules"); restarts a
+ * block whose phase is lost. */
+static void build_model(dense_kf_f32_t *kf, const hd_kf_input_t *in, model_t *m)
 {
+    const hd_kf_config_t *cfg = &kf->cfg;
+    const float dm = (in->d_motor_angle_rad - in->d_motor_angle_rad == 0.0f) ? in->d_motor_angle_rad
+                                                                            : 0.0f;
+    const float d_o = (in->d_output_angle_rad - in->d_output_angle_rad == 0.0f)
+                          ? in->d_output_angle_rad
+                          : 0.0f;
     for (int i = 0; i < kf->n; i++) {
         for (int j = 0; j < kf->n; j++) {
-            phi[i][j] = 0.0f;
+            m->phi[i][j] = 0.0f;
         }
-        c[i] = 0.0f;
-        q_diag[i] = 0.0f;
+        m->q[i] = m->c[i] = 0.0f;
+        m->gain[i] = 1.0f;
     }
     for (int s = 0; s < kf->nb; s++) {
-        const int b = kf->block_of_slot[s];
-        const int i = 2 * s;
-        float sn;
-        float cs;
-        hd_sincosf(block_theta(&kf->cfg, b, in), &sn, &cs);
-        phi[i][i] = cs;
-        phi[i][i + 1] = sn;
-        phi[i + 1][i] = -sn;
-        phi[i + 1][i + 1] = cs;
-        q_diag[i] = kf->cfg.blocks[b].q_nm2;
-        q_diag[i + 1] = kf->cfg.blocks[b].q_nm2;
-        c[i] = 1.0f;
+        const int b = kf->block_of_slot[s], i = 2 * s;
+        const hd_kf_block_config_t *bc = &cfg->blocks[b];
+        float theta = HD_TWO_PI_F * bc->order * cfg->ts_s;
+        float motion = 1.0f, gain = 1.0f, q = bc->q_nm2;
+        if (bc->lock != HD_KF_LOCK_FIXED) {
+            theta = bc->order * (bc->lock == HD_KF_LOCK_MOTOR ? dm : d_o);
+            if (cfg->q_motion_ref_rad > 0.0f && fabsf(theta) < cfg->q_motion_ref_rad) {
+                motion = fabsf(theta) / cfg->q_motion_ref_rad;
+            }
+            q *= motion;
+            gain = bc->lock == HD_KF_LOCK_MOTOR ? motion : cfg->output_learn_scale;
+            if (bc->lock == HD_KF_LOCK_OUTPUT) {
+                q *= cfg->output_learn_scale;
+            }
+        }
+        float sn, cs;
+        hd_sincosf(theta, &sn, &cs);
+        m->phi[i][i] = m->phi[i + 1][i + 1] = cs;
+        m->phi[i][i + 1] = sn;
+        m->phi[i + 1][i] = -sn;
+        m->c[i] = 1.0f;
+        if (fabsf(theta) > cfg->nyquist_fraction * HD_PI_F) {
+            m->c[i] = 0.0f;
+            gain = q = 0.0f;
+            if (fabsf(theta) > HD_KF_PHASE_LOST_RAD) {
+                for (int k = i; k < i + 2; k++) {
+                    kf->x[k] = 0.0f;
+                    for (int j = 0; j < kf->n; j++) {
+                        kf->p[k][j] = kf->p[j][k] = 0.0f;
+                    }
+                    kf->p[k][k] = block_p0(kf, b);
+                }
+            }
+        }
+        m->q[i] = m->q[i + 1] = q;
+        m->gain[i] = m->gain[i + 1] = gain;
     }
     if (kf->offset_slot >= 0) {
-        phi[kf->offset_slot][kf->offset_slot] = 1.0f;
-        q_diag[kf->offset_slot] = kf->cfg.offset_q_nm2;
-        c[kf->offset_slot] = 1.0f;
+        const int o = kf->offset_slot;
+        m->phi[o][o] = 1.0f;
+        m->q[o] = cfg->offset_q_nm2;
+        m->c[o] = 1.0f;
     }
 }
 
@@ -91,70 +139,91 @@ void dense_kf_f32_step(dense_kf_f32_t *kf, const hd_kf_input_t *in,
                        dense_kf_f32_output_t *out)
 {
     const int n = kf->n;
-    mat_t phi;
-    mat_t phit;
-    mat_t a;
-    mat_t tmp;
-    float q_diag[N];
-    float c[N];
-    float pc[N];
-    float k[N];
-    float px[N];
+    static model_t m; /* static: the benchmark runs one filter at a time */
+    mat_t a, ap;
+    float pc[N], k[N], px[N];
+    build_model(kf, in, &m);
 
-    build_model(kf, in, phi, q_diag, c);
-
-    /* Outputs from the prior x(k|k-1). */
-    float cx = 0.0f;
+    /* Outputs from the prior. */
+    const float y = in->torque_meas_nm - in->torque_expected_nm;
+    const int valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
     float ripple = 0.0f;
-    for (int i = 0; i < n; i++) {
-        cx += c[i] * kf->x[i];
-        if (i != kf->offset_slot) {
-            ripple += c[i] * kf->x[i];
-        }
+    for (int s = 0; s < kf->nb; s++) {
+        ripple += m.c[2 * s] * kf->x[2 * s];
+    }
+    if (kf->offset_slot >= 0 && !kf->offset_primed && valid) {
+        kf->x[kf->offset_slot] = y - ripple;
+        kf->offset_primed = 1;
     }
     const float offset = kf->offset_slot >= 0 ? kf->x[kf->offset_slot] : 0.0f;
-    const float e = in->torque_meas_nm - in->torque_expected_nm - cx;
+    const float e = valid ? y - ripple - offset : 0.0f;
     out->ripple_nm = ripple;
     out->innovation_nm = e;
     out->torque_filtered_nm = in->torque_meas_nm - ripple -
                               (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
 
-    /* S = C P C' + R;  K = Phi P C' / S   (9) */
+    /* S = C P C' + R; the offset-jump gate widens P_oo first. */
     float s_var = kf->cfg.r_nm2;
     for (int i = 0; i < n; i++) {
         pc[i] = 0.0f;
         for (int j = 0; j < n; j++) {
-            pc[i] += kf->p[i][j] * c[j];
+            pc[i] += kf->p[i][j] * m.c[j];
         }
-        s_var += c[i] * pc[i];
+        s_var += m.c[i] * pc[i];
     }
+    if (valid && kf->offset_slot >= 0 && kf->cfg.offset_jump_nm > 0.0f &&
+        e * e > kf->cfg.offset_jump_nm * kf->cfg.offset_jump_nm && e * e > 16.0f * s_var) {
+        const int o = kf->offset_slot;
+        kf->p[o][o] += e * e;
+        pc[o] += e * e;
+        s_var += e * e;
+    }
+
+    /* K = Phi F P C' / S (0 when the sample is not used) */
     for (int i = 0; i < n; i++) {
         k[i] = 0.0f;
         for (int j = 0; j < n; j++) {
-            k[i] += phi[i][j] * pc[j];
+            k[i] += m.phi[i][j] * m.gain[j] * pc[j];
         }
-        k[i] /= s_var;
+        k[i] = valid ? k[i] / s_var : 0.0f;
     }
-    /* x <- Phi x + K e   (8) */
+    /* x <- Phi x + K e */
     for (int i = 0; i < n; i++) {
         px[i] = k[i] * e;
         for (int j = 0; j < n; j++) {
-            px[i] += phi[i][j] * kf->x[j];
+            px[i] += m.phi[i][j] * kf->x[j];
         }
     }
     for (int i = 0; i < n; i++) {
         kf->x[i] = px[i];
     }
-    /* P <- (Phi - K C) P Phi' + Q   (10) */
+    /* P <- A P A' + K R K' + Q, A = Phi - K C; then symmetrise */
     for (int i = 0; i < n; i++) {
         for (int j = 0; j < n; j++) {
-            a[i][j] = phi[i][j] - k[i] * c[j];
-            phit[j][i] = phi[i][j];
+            a[i][j] = m.phi[i][j] - k[i] * m.c[j];
         }
     }
-    mat_mul(n, (const float(*)[N])a, (const float(*)[N])kf->p, tmp);
-    mat_mul(n, (const float(*)[N])tmp, (const float(*)[N])phit, kf->p);
+    mul(n, (const float(*)[N])a, (const float(*)[N])kf->p, ap);
+    mul_transposed(n, (const float(*)[N])ap, (const float(*)[N])a, kf->p);
     for (int i = 0; i < n; i++) {
-        kf->p[i][i] += q_diag[i];
+        for (int j = 0; j < n; j++) {
+            kf->p[i][j] += k[i] * kf->cfg.r_nm2 * k[j];
+        }
+        kf->p[i][i] += m.q[i];
+    }
+    for (int i = 0; i < n; i++) {
+        for (int j = 0; j < i; j++) {
+            kf->p[i][j] = kf->p[j][i] = 0.5f * (kf->p[i][j] + kf->p[j][i]);
+        }
+    }
+    /* ceiling on the diagonal: P <- D P D, D_ii = sqrt(p_max / P_ii) */
+    for (int i = 0; i < n; i++) {
+        if (kf->p[i][i] > kf->cfg.p_max_nm2) {
+            const float d = sqrtf(kf->cfg.p_max_nm2 / kf->p[i][i]);
+            for (int j = 0; j < n; j++) {
+                kf->p[i][j] *= d;
+                kf->p[j][i] *= d;
+            }
+        }
     }
 }

@@ -1,26 +1,29 @@
 /*
- * dense_kf_f32: a deliberately plain float32 "textbook" implementation of
- * the paper's prediction-type Kalman filter (Taghirad, Helmy & Belanger
- * 1997, equations 8-10), used only as the peer in the compute benchmark.
+ * dense_kf_f32: a plain float32 textbook implementation of the filter of
+ * filter/hd_kf.h, the peer of the compute benchmark: a correct filter
+ * written the direct way, so the speed ratio compares two right answers.
  *
- * It builds the full n x n transition matrix Phi every step and evaluates
- * the equations literally with dense matrix products, O(n^3) per step:
+ * Every step it builds the full n x n transition Phi, the gain-fraction
+ * diagonal F, the measurement row C and Q, and evaluates with dense matrix
+ * products (O(n^3)):
  *
- *   S   = C P C' + R                      (scalar: one torque measurement)
- *   K   = Phi P C' / S                    (9)
- *   x  <- Phi x + K (y - C x)             (8)
- *   P  <- (Phi - K C) P Phi' + Q          (10)
+ *   S = C P C' + R,   K = Phi F P C' / S            (prediction gain)
+ *   x <- Phi x + K (y - C x)
+ *   A = Phi - K C,    P <- A P A' + K R K' + Q       (Joseph form: P stays
+ *                                                      the covariance of the
+ *                                                      estimate for any F)
+ *   P <- (P + P') / 2                                (symmetrisation)
  *
- * Same model as filter/hd_kf.h (blocks locked to motor / output / fixed
- * references, optional random-walk offset state, outputs from the prior),
- * but none of hd_kf's engineering: no symmetry enforcement, no covariance
- * ceiling, no Nyquist freeze, no fault handling.  It is what a direct
- * transcription of the paper costs, so the benchmark can show what the
- * block-diagonal O(n^2) update buys.
+ * Same model features as hd_kf, from its header: lock kinds, motion-scaled
+ * q and motor gains, output_learn_scale, the offset state with priming and
+ * the jump gate, Nyquist freeze and phase loss, the p_max ceiling by
+ * congruence.  Not the load-dependent row: ripple_load_coeff_per_nm must be
+ * 0 (the benchmark's models).  Agreement with the double reference is
+ * printed by the benchmark.
  *
  * Firmware-compatible C (no heap, no VLAs, no libm: sine/cosine from
- * filter/hd_trig.h) so the same file can be cross-compiled for the
- * Cortex-M4 instruction count.
+ * filter/hd_trig.h, sqrtf is VSQRT) so the same file is cross-compiled for
+ * the Cortex-M4 instruction count.
  */
 #ifndef DENSE_KF_F32_H
 #define DENSE_KF_F32_H
@@ -35,6 +38,7 @@ typedef struct {
     int nb;                                  /* active blocks */
     int block_of_slot[HD_KF_MAX_BLOCKS];     /* active slot -> configured block */
     int offset_slot;                         /* -1: no offset state */
+    int offset_primed;
     float x[DENSE_KF_MAX_N];
     float p[DENSE_KF_MAX_N][DENSE_KF_MAX_N];
 } dense_kf_f32_t;
@@ -48,7 +52,7 @@ typedef struct {
 /* Copies cfg (validate it with hd_kf_config_check first), x = 0, P = p0 I. */
 void dense_kf_f32_init(dense_kf_f32_t *kf, const hd_kf_config_t *cfg);
 
-/* One step of equations 8-10 with full dense matrices. */
+/* One step with full dense matrices. */
 void dense_kf_f32_step(dense_kf_f32_t *kf, const hd_kf_input_t *in,
                        dense_kf_f32_output_t *out);
 

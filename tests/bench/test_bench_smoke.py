@@ -35,7 +35,8 @@ def test_bench_quick_output_is_well_formed(tmp_path):
 
     host = res["compute"]["host"]
     impls = {c["impl"] for c in host["compute"]}
-    assert impls == {"hd_kf_step", "hd_pipeline_step", "dense_f32", "dense_f64_ref"}
+    assert impls == {"hd_kf_step", "hd_pipeline_step", "dense_f32", "dense_f64_ref",
+                     "hd_kf_step_v0"}
     assert {c["states"] for c in host["compute"]} >= {4, 6, 8}
     assert all(c["updates_per_s"] > 0 for c in host["compute"])
     assert all(m["hd_kf_bytes"] > 0 for m in host["memory"])

@@ -262,15 +262,28 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     r->last_inc[0] = isfinite(in->d_motor_angle_rad) ? (double)in->d_motor_angle_rad : 0.0;
     r->last_inc[1] = isfinite(in->d_output_angle_rad) ? (double)in->d_output_angle_rad : 0.0;
 
-    /* Ceiling on the diagonal: P <- D P D with D_ii = sqrt(p_max / P_ii). */
+    /* Ceiling: P <- D P D.  A block's two states share D = sqrt(p_max /
+     * lambda_max) when the largest eigenvalue of its 2x2 covariance block
+     * exceeds p_max (a bound on the block's variance in every direction,
+     * whatever the phase); the offset's D = sqrt(p_max / P_oo). */
     double d[N];
     int clamped = 0;
-    for (int i = 0; i < n; i++) {
+    const double p_max = (double)r->cfg.p_max_nm2;
+    for (int i = 0; i < n; i++)
         d[i] = 1.0;
-        if (r->P[i][i] > (double)r->cfg.p_max_nm2) {
-            d[i] = sqrt((double)r->cfg.p_max_nm2 / r->P[i][i]);
+    for (int s = 0; s < r->nb; s++) {
+        int i = 2 * s;
+        double m = 0.5 * (r->P[i][i] + r->P[i + 1][i + 1]);
+        double h = 0.5 * (r->P[i][i] - r->P[i + 1][i + 1]);
+        double lmax = m + sqrt(h * h + r->P[i][i + 1] * r->P[i][i + 1]);
+        if (lmax > p_max) {
+            d[i] = d[i + 1] = sqrt(p_max / lmax);
             clamped = 1;
         }
+    }
+    if (r->offset_slot >= 0 && r->P[r->offset_slot][r->offset_slot] > p_max) {
+        d[r->offset_slot] = sqrt(p_max / r->P[r->offset_slot][r->offset_slot]);
+        clamped = 1;
     }
     if (clamped) {
         out->status |= HD_KF_STATUS_P_CLAMPED;
@@ -278,7 +291,6 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
             for (int j = 0; j < n; j++)
                 r->P[i][j] *= d[i] * d[j];
     }
-
 }
 
 /* Integral order 1..255 of an enabled motor/output block, else 0. */

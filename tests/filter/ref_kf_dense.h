@@ -19,7 +19,10 @@
  *     update): a motor-locked block's is min(1, |theta| / q_motion_ref_rad)
  *     (1 when off), an output-locked block's is cfg.output_learn_scale,
  *     which also multiplies its q;
- *   - covariance diagonal ceiling p_max by congruence scaling of row/column;
+ *   - covariance ceiling p_max by congruence scaling: a block whose 2x2
+ *     covariance has its largest eigenvalue above p_max has both its rows
+ *     and columns scaled by sqrt(p_max / lambda_max); the offset by
+ *     sqrt(p_max / P_oo);
  *   - angle-referenced profiles: ref_kf_profile_export / _import, written
  *     from the definition in hd_kf.h (ripple(alpha) = a cos k alpha +
  *     b sin k alpha, alpha = the lock angle of the sample the prediction is

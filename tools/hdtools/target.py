@@ -637,6 +637,43 @@ def md_table(header: list, rows: list) -> str:
     return "\n".join(lines)
 
 
+# hd_kf_step's slow paths in the bench image (main_bench.c), worst last.
+KF_PATHS = [("kffrozen", "over Nyquist"), ("kflost", "phase lost"), ("kfclamp", "clamp"),
+            ("kfreset", "reset"), ("kfworst", "all at once")]
+
+
+def budget_kf_paths(by: dict, models: list, overhead: int, p) -> dict:
+    """The filter step's typical and slow paths, per model: a table (through
+    p) and {model: {"typical", PATH..., "worst", "worst_path", "dense_ratio"}}
+    (max instructions per call; dense_ratio = dense mean / typical mean)."""
+    if not all(f"{kind}:{key}" in by for kind, _ in KF_PATHS for key, _ in models):
+        return {}
+
+    def mx(label):
+        return max(by[label]["intervals"]) - overhead
+
+    def mean(label):
+        return statistics.mean(by[label]["intervals"]) - overhead
+
+    result, rows = {}, []
+    for key, states in models:
+        r = {"typical": mx(f"kf:{key}")}
+        for kind, _ in KF_PATHS:
+            r[kind] = mx(f"{kind}:{key}")
+        worst = max(KF_PATHS, key=lambda k: r[k[0]])
+        r["worst"], r["worst_path"] = max(r["typical"], r[worst[0]]), worst[1]
+        r["dense_ratio"] = round(mean(f"dense:{key}") / mean(f"kf:{key}"), 2)
+        result[key] = r
+        rows.append([states, r["typical"]] + [r[k] for k, _ in KF_PATHS] +
+                    [f"{r['worst']} ({r['worst_path']})", f"{r['dense_ratio']:.1f}"])
+    p("\nhd_kf_step by path, max instructions per call (the bench image forces each path on "
+      "every call: motor blocks over Nyquist; a phase advance beyond four turns; every "
+      "covariance block above p_max; a non-finite state; all of them with an offset jump):\n")
+    p(md_table(["states", "typical"] + [name for _, name in KF_PATHS] +
+               ["worst case", "dense / typical (mean)"], rows))
+    return result
+
+
 def cmd_budget(a) -> int:
     build_images()
     run_elf, bench_elf = image("hd_image"), image("hd_bench")
@@ -745,6 +782,7 @@ def cmd_budget(a) -> int:
       "per tick, each checked, applied by rebuilding the model and answered with an ACK). "
       "Other command mixes are not enumerated: this is a measured load, not a proof of "
       "the worst case.")
+    kf_paths = budget_kf_paths(by, models, overhead, p)
     text = "\n".join(out)
     print(text)
     if a.json:
@@ -756,7 +794,7 @@ def cmd_budget(a) -> int:
             "flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
             "stack_worst_bytes": st["total"], "heap_symbols": heap,
             "counter_check": loop[1] - loop[0] if len(loop) == 2 else None,
-            "instructions": counts}, indent=1))
+            "instructions": counts, "kf_paths": kf_paths}, indent=1))
     ok = not heap and stack_ok and loop_ok
     if not stack_ok:
         print(f"\nFAIL: worst-case stack {st['total']} B exceeds the reserved {stack_reserved} B")

@@ -19,6 +19,15 @@
  *               because they are not in the tick
  *   dense:NAME  the dense textbook float32 filter, same model and inputs
  *               (tests/bench/dense_kf_f32.c, the compute benchmark's peer)
+ *   kffrozen:NAME, kflost:NAME, kfclamp:NAME, kfreset:NAME, kfworst:NAME
+ *               hd_kf_step on its slow paths, every call: motor blocks over
+ *               Nyquist (held, Joseph weights); a phase advance beyond
+ *               HD_KF_PHASE_LOST_RAD (the blocks restart); every covariance
+ *               diagonal above p_max (p_max below q: the clamp on every
+ *               state); a non-finite state written into the filter before
+ *               the call (the reset); and all at once with a +-1000 N m
+ *               innovation (phase lost, output block frozen, offset jump,
+ *               clamp)
  * and "empty" (begin immediately followed by end) for the marker overhead,
  * and "loop" (hd_bench_loop(10), then hd_bench_loop(1010): the counts must
  * differ by exactly 2 x 1000, a closed-form check of the counter).
@@ -176,6 +185,39 @@ static void bench_dense(const hd_fw_config_t *cfg)
     }
 }
 
+typedef enum { PATH_FROZEN, PATH_LOST, PATH_CLAMP, PATH_RESET, PATH_WORST } kf_path_t;
+
+/* hd_kf_step forced onto one of its slow paths on every call (see above). */
+static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
+{
+    hd_kf_config_t kcfg = cfg_in->kf;
+    if (path == PATH_CLAMP || path == PATH_WORST) {
+        kcfg.p0_nm2 = kcfg.output_p0_nm2 = kcfg.p_max_nm2 = 1.0e-9f;
+    }
+    if (hd_kf_init(&g_kf, &kcfg) != HD_KF_OK) {
+        sh_exit(BOARD_EXIT_INIT);
+    }
+    for (uint32_t k = 0; k < CALLS; k++) {
+        hd_kf_input_t in = bench_input(k, cfg_in);
+        if (path == PATH_FROZEN) {
+            in.d_motor_angle_rad = 1.6f;  /* order 2: 3.2 rad > 0.9 pi */
+        } else if (path == PATH_LOST || path == PATH_WORST) {
+            in.d_motor_angle_rad = 13.0f; /* order 2: 26 rad, beyond four turns */
+        }
+        if (path == PATH_WORST) {
+            in.d_output_angle_rad = 3.0f; /* output order 1 over Nyquist */
+            in.torque_meas_nm = (k & 1u) ? 1000.0f : -1000.0f;
+        }
+        if (path == PATH_RESET) {
+            g_kf.x[0] = (float)__builtin_nanf(""); /* a corrupted state */
+        }
+        hd_kf_output_t out;
+        hd_mark_begin();
+        hd_kf_step(&g_kf, &in, &out);
+        hd_mark_end();
+    }
+}
+
 static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
 {
     hal_mock_init(&g_mock);
@@ -249,6 +291,14 @@ int main(void)
         section("dense", MODELS[m].name, states);
         bench_dense(&cfg);
         hd_mark_section();
+
+        static const char *const PATHS[] = {"kffrozen", "kflost", "kfclamp", "kfreset",
+                                            "kfworst"};
+        for (unsigned p = 0; p < sizeof PATHS / sizeof PATHS[0]; p++) {
+            section(PATHS[p], MODELS[m].name, states);
+            bench_kf_path(&cfg, (kf_path_t)p);
+            hd_mark_section();
+        }
     }
     sh_puts("bench: done\n");
     return BOARD_EXIT_OK;

@@ -38,10 +38,11 @@ def host(steps: int = 5000, reps: int = 31, warmup: int = 3) -> dict:
 
 
 def target(timeout_s: float = 600) -> dict:
-    """Instruction counts per filter update and per ISR on the Cortex-M4F
-    image under QEMU, from `tools/target budget --json` (exact counts from
-    the TCG plugin; the dense textbook filter is tests/bench/dense_kf_f32.c
-    compiled into the same image).  Missing tool or failure is reported,
+    """Instruction counts per filter update (typical and worst of its slow
+    paths) and per ISR on the Cortex-M4F image under QEMU, from
+    `tools/target budget --json` (exact counts from the TCG plugin; the
+    dense textbook filter is tests/bench/dense_kf_f32.c compiled into the
+    same image).  Missing tool or failure is reported,
     never fatal."""
     tool = ROOT / "tools" / "target"
     if not tool.exists():
@@ -61,6 +62,9 @@ def target(timeout_s: float = 600) -> dict:
         kind = key.partition(":")[0]
         if kind in ("kf", "isr", "dense") and v.get("states"):
             rows.setdefault(int(v["states"]), {})[kind] = v["max"]
+    for key, path in budget.get("kf_paths", {}).items():
+        states = budget["instructions"][f"kf:{key}"]["states"]
+        rows.setdefault(int(states), {})["kf_worst"] = path["worst"]
     return {"status": "ok", "instructions_max": rows,
             "flash_bytes": budget.get("flash_bytes"),
             "stack_worst_bytes": budget.get("stack_worst_bytes")}
