@@ -37,6 +37,11 @@ class OneLineParser(argparse.ArgumentParser):
 def version() -> str:
     """The CMake project version (the one place it is written) and the git
     commit of the source tree, if there is one."""
+    from hdtools import paths
+    if not paths.in_source_tree():      # installed: what the build step recorded
+        info = paths.build_info()
+        ver = info.get("version", "unknown")
+        return ver + (f" (git {info['git']})" if info.get("git") else "")
     root = Path(__file__).resolve().parents[2]
     ver = "unknown"
     try:

@@ -12,11 +12,18 @@ import os
 import subprocess
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from . import paths
+
+# The source tree ($HD_ROOT, this checkout, or the one an installed package
+# was built from: hdtools/paths.py).
+ROOT = paths.source_root() or Path(__file__).resolve().parents[2]
 
 
 def build_dir() -> Path:
     env = os.environ.get("HD_BUILD_DIR")
+    if not env and paths.source_root() is None:
+        raise FileNotFoundError("no build of the C libraries: set HD_BUILD_DIR to a build "
+                                "directory or HD_ROOT to the project's source tree")
     return Path(env) if env else ROOT / "build" / "host-release"
 
 

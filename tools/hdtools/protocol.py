@@ -22,11 +22,13 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-FIRMWARE = ROOT / "firmware"
-PROTOCOL_DEF = FIRMWARE / "hd_protocol.def"
-PARAMS_DEF = FIRMWARE / "hd_params.def"
-DBC_PATH = FIRMWARE / "hdjoint.dbc"
+from . import paths  # noqa: E402 - the source tree or the installed copies
+
+ROOT = paths.source_root() or paths.PACKAGE
+PROTOCOL_DEF = paths.firmware_file("hd_protocol.def")
+PARAMS_DEF = paths.firmware_file("hd_params.def")
+DBC_PATH = paths.firmware_file("hdjoint.dbc")
+FIRMWARE = PARAMS_DEF.parent
 
 ID_PREFIX = 0x01D00000
 EXT_FLAG_DBC = 0x80000000          # how a DBC marks a 29-bit identifier

@@ -1,0 +1,60 @@
+"""Where the tools find what they read at run time, in a source tree and
+as an installed package (`pip install ./tools`).
+
+In the source tree (tools/hdtools next to firmware/): the files themselves.
+Installed: the build step (tools/setup.py) copies firmware/hd_params.def,
+hd_protocol.def and hdjoint.dbc into hdtools/data/ and records the source
+tree it was built from and its version (hdtools/data/build_info.txt); no
+second copy lives in git.
+
+The C libraries (libhdfilter.so, libhd_emu.so, ...) are never copied: they
+are found in $HD_BUILD_DIR, else in build/host-release of the source tree:
+$HD_ROOT if set, else this tree, else the tree the package was installed
+from (built there on first use, as in a checkout).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent
+DATA = PACKAGE / "data"
+DATA_FILES = ("hd_params.def", "hd_protocol.def", "hdjoint.dbc")
+_TREE = PACKAGE.parents[1]
+
+
+def in_source_tree() -> bool:
+    return (_TREE / "firmware" / "hd_params.def").is_file() and not DATA.is_dir()
+
+
+def build_info() -> dict[str, str]:
+    """key = value lines the build step wrote (installed package only)."""
+    try:
+        text = (DATA / "build_info.txt").read_text()
+    except OSError:
+        return {}
+    return dict(line.split(" = ", 1) for line in text.splitlines() if " = " in line)
+
+
+def source_root() -> Path | None:
+    """The project's source tree: $HD_ROOT, this tree, or the one the
+    installed package was built from (if it still exists)."""
+    env = os.environ.get("HD_ROOT")
+    if env:
+        return Path(env)
+    if in_source_tree():
+        return _TREE
+    recorded = build_info().get("source_root")
+    if recorded and (Path(recorded) / "CMakeLists.txt").is_file():
+        return Path(recorded)
+    return None
+
+
+def firmware_file(name: str) -> Path:
+    """firmware/<name> of the source tree, or the installed copy."""
+    if in_source_tree():
+        return _TREE / "firmware" / name
+    if (DATA / name).is_file():
+        return DATA / name
+    root = source_root()
+    return (root or _TREE) / "firmware" / name
