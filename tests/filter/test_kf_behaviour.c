@@ -1308,6 +1308,48 @@ static void test_load_coeff_upper_bound(void)
     expect_err(&cfg, HD_KF_ERR_NOISE, "k = 1e20");
 }
 
+/* The covariance bounds, forced: a block's covariance made indefinite (as
+ * only float32 rounding could) is zeroed and counted in p_negative_count; a
+ * block above p_max is scaled to it (largest eigenvalue = p_max, the
+ * contract's invariant) and counted in p_ceiling_count; both raise
+ * P_CLAMPED, and P stays PSD. */
+static void test_covariance_bounds_counted(void)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    narrowband_cfg(&cfg, 0.02, 1);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    hd_kf_input_t in = {1.0f, 0.0f, 0.156f, 0.00156f};
+    hd_kf_output_t o;
+    for (int k = 0; k < 100; k++)
+        hd_kf_step(&kf, &in, &o);
+    TEST_ASSERT_EQUAL_UINT32(0u, kf.p_negative_count + kf.p_ceiling_count);
+    /* block 0's stored tile [a b; b d] made indefinite: b^2 > a d */
+    kf.p[1] = 2.0f * (kf.p[0] + kf.p[2]);
+    hd_kf_step(&kf, &in, &o);
+    TEST_ASSERT_TRUE(o.status & HD_KF_STATUS_P_CLAMPED);
+    TEST_ASSERT_EQUAL_UINT32(1u, kf.p_negative_count);
+    for (unsigned j = 0; j < hd_kf_state_count(&kf); j++) {
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, 0, j));
+        TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, 1, j));
+    }
+    /* block 1 far above the ceiling */
+    kf.cfg.p_max_nm2 = 1e-3f;
+    kf.p_max_bits = 0x3a83126fu; /* 1e-3f: what hd_kf_init derives from p_max */
+    float bits_check = 1e-3f;
+    TEST_ASSERT_EQUAL_MEMORY(&bits_check, &kf.p_max_bits, sizeof bits_check);
+    const unsigned row1 = 3u + 4u * 2u; /* tile row 1 starts after row 0 (3 + 2 tiles) */
+    kf.p[row1] = kf.p[row1 + 2u] = 5.0f;
+    hd_kf_step(&kf, &in, &o);
+    TEST_ASSERT_TRUE(o.status & HD_KF_STATUS_P_CLAMPED);
+    TEST_ASSERT_TRUE(kf.p_ceiling_count >= 1u);
+    const double a = hd_kf_cov(&kf, 2, 2), d = hd_kf_cov(&kf, 3, 3), b = hd_kf_cov(&kf, 2, 3);
+    const double lmax = 0.5 * (a + d) + sqrt(0.25 * (a - d) * (a - d) + b * b);
+    msg("forced bounds: negative count %u, ceiling count %u, block 1's largest eigenvalue "
+        "%.6g (p_max 1e-3)", (unsigned)kf.p_negative_count, (unsigned)kf.p_ceiling_count, lmax);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3 * 1e-5, 1e-3, lmax);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1335,5 +1377,6 @@ int main(void)
     RUN_TEST(test_load_coeff_config_check);
     RUN_TEST(test_load_coeff_standstill_does_not_drift);
     RUN_TEST(test_load_coeff_upper_bound);
+    RUN_TEST(test_covariance_bounds_counted);
     return UNITY_END();
 }

@@ -144,11 +144,17 @@ static void long_run(const char *name, const hd_kf_config_t *cfg, long steps, ui
     }
     TEST_ASSERT_EQUAL_UINT32(0u, kf.reset_count);
     TEST_ASSERT_EQUAL_UINT32(0u, kf.status_sticky & HD_KF_STATUS_RESET);
+    /* every clamped step counted at least one block; rounding never made a
+     * block indefinite */
+    TEST_ASSERT_TRUE(kf.p_ceiling_count >= clamped);
+    TEST_ASSERT_EQUAL_UINT32(0u, kf.p_negative_count);
     char m[300];
     snprintf(m, sizeof(m),
-             "%s: %ld steps, %lu standstill, %lu P-clamped, %lu with a frozen block; max diag "
-             "%.3g; smallest Cholesky pivot / max diag %.3g; symmetric, PSD, finite",
-             name, steps, still, clamped, frozen, max_diag_seen, worst_rel_pivot);
+             "%s: %ld steps, %lu standstill, %lu P-clamped (%u blocks counted), %lu with a "
+             "frozen block; max diag %.3g; smallest Cholesky pivot / max diag %.3g; symmetric, "
+             "PSD, finite",
+             name, steps, still, clamped, (unsigned)kf.p_ceiling_count, frozen, max_diag_seen,
+             worst_rel_pivot);
     TEST_MESSAGE(m);
     TEST_ASSERT_TRUE(still > 1000);  /* the profile did include standstill */
     TEST_ASSERT_TRUE(frozen > 1000); /* and over-Nyquist spans */
