@@ -188,6 +188,21 @@ static bool read_payload(const hd_store_io_t *io, const copy_t *c, const entry_t
            hd_crc32(buf, e->length) == e->crc;
 }
 
+/* Checks a payload's CRC without a buffer of its size, a chunk at a time. */
+static bool payload_intact(const hd_store_io_t *io, const copy_t *c, const entry_t *e)
+{
+    uint8_t chunk[64];
+    uint32_t crc = 0u;
+    for (size_t off = 0; off < e->length; off += sizeof chunk) {
+        size_t n = e->length - off < sizeof chunk ? e->length - off : sizeof chunk;
+        if (io->read(io->ctx, c->base + e->offset + off, chunk, n) != 0) {
+            return false;
+        }
+        crc = hd_crc32_update(crc, chunk, n);
+    }
+    return crc == e->crc;
+}
+
 /* ------------------------------------------------------------------ load */
 
 hd_record_status_t hd_store_load(const hd_store_io_t *io, uint8_t kind, uint16_t version,
@@ -233,20 +248,7 @@ hd_record_status_t hd_store_load(const hd_store_io_t *io, uint8_t kind, uint16_t
         if (read_payload(io, &c[i], ei, buf)) {
             if (i == 0u && !other_bad && c[1].state == COPY_VALID) {
                 const entry_t *eo = find(&c[1], kind);
-                uint8_t probe[64];
-                /* Check the other copy's payload too, a chunk at a time. */
-                if (eo != NULL) {
-                    uint32_t crc = 0u;
-                    for (size_t off = 0; off < eo->length; off += sizeof probe) {
-                        size_t n = eo->length - off < sizeof probe ? eo->length - off : sizeof probe;
-                        if (io->read(io->ctx, c[1].base + eo->offset + off, probe, n) != 0) {
-                            crc = ~eo->crc;
-                            break;
-                        }
-                        crc = hd_crc32_update(crc, probe, n);
-                    }
-                    other_bad = crc != eo->crc;
-                }
+                other_bad = eo != NULL && !payload_intact(io, &c[1], eo);
             }
             *len = ei->length;
             if (sequence != NULL) {

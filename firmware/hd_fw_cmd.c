@@ -245,7 +245,7 @@ static void config_job(hd_fw_t *fw, uint8_t opcode, reply_t *r)
 
 static uint32_t version_word(void)
 {
-    return ((uint32_t)HD_FW_VERSION_MAJOR << 16) | ((uint32_t)HD_FW_VERSION_MINOR << 8) |
+    return (uint32_t)HD_FW_VERSION_MAJOR * 65536u + (uint32_t)HD_FW_VERSION_MINOR * 256u +
            (uint32_t)HD_FW_VERSION_PATCH;
 }
 
