@@ -182,8 +182,7 @@ typedef struct {
     uint32_t pos_output_cpr;
     uint32_t motor_pos;             /* [0, motor cpr) */
     uint32_t output_pos;            /* [0, output cpr) */
-    uint32_t motor_pos_before;      /* before this tick's increment */
-    uint32_t output_pos_before;
+    bool first_reading;             /* this tick's counts are the first (no increment) */
     /* profiles */
     bool kf_fresh;                  /* the live filter has not been stepped yet */
     bool import_pending;            /* take bg.profile before this tick's step */

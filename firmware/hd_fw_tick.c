@@ -189,17 +189,17 @@ static void track_positions(hd_fw_tick_state_t *k, const hd_fw_settings_t *set, 
         k->motor_pos = enc->motor_counts % mcpr;
         k->output_pos_valid = enc->has_output;
         k->output_pos = enc->has_output ? enc->output_counts % ocpr : 0u;
-        k->motor_pos_before = k->motor_pos;
-        k->output_pos_before = k->output_pos;
         return;
     }
-    k->motor_pos_before = k->motor_pos;
     k->motor_pos = wrap_pos(k->motor_pos, dm, mcpr);
-    k->output_pos_before = k->output_pos;
     if (!enc->has_output) {
         k->output_pos_valid = false;
     } else if (k->output_pos_valid) {
         k->output_pos = wrap_pos(k->output_pos, dout, ocpr);
+    } else if (good) {
+        /* the output encoder (back): its counts are absolute */
+        k->output_pos_valid = true;
+        k->output_pos = enc->output_counts % ocpr;
     }
 }
 
@@ -214,6 +214,7 @@ static uint32_t read_encoders(hd_fw_t *fw, hd_fw_sample_t *s)
     uint32_t faults = 0u;
     int32_t dm = 0;
     int32_t dout = 0;
+    k->first_reading = false;
     if (rc != HAL_OK || enc.fault) {
         /* No usable counts: assume the previous motion continues. */
         faults |= HD_FAULT_ENC_FAULT;
@@ -226,6 +227,7 @@ static uint32_t read_encoders(hd_fw_t *fw, hd_fw_sample_t *s)
         enc.output_counts = k->prev_output_counts;
     } else if (!k->have_prev) {
         k->have_prev = true;
+        k->first_reading = true;
         k->prev_motor_counts = enc.motor_counts;
         k->prev_output_counts = enc.output_counts;
         k->output_present = enc.has_output;
@@ -356,29 +358,40 @@ static void known_lines(const hd_fw_tick_state_t *k, const hd_kf_profile_t *in,
     out->line_count = (uint8_t)n;
 }
 
-/* Before this tick's step: the live filter takes bg.profile.  A fresh
- * filter predicts this sample first (its angles); a running one's
- * prediction is from the previous sample's angles plus its increment
- * (hd_kf.h, "Which angle"). */
+static float wrap_angle(float a)
+{
+    if (a < 0.0f) {
+        a += HD_TWO_PI_F;
+    }
+    return (a >= 0.0f && a < HD_TWO_PI_F) ? a : 0.0f;
+}
+
+/* Before this tick's step: the live filter takes bg.profile so that its
+ * prediction for this sample is the profile at this sample's angles, and
+ * after the step it leads by this tick's increment, as a filter that has
+ * learned at this speed does (hd_kf.h, "Which angle": the filter adds its
+ * last increment, 0 when fresh, to the angle passed).  The very first
+ * sample has no increment (no previous reading): the import is repeated
+ * at the second, so the lead is the joint's real one. */
 static void import_profile(hd_fw_t *fw)
 {
     hd_fw_tick_state_t *k = &fw->tick;
     if (!k->pos_valid) {
         return; /* no absolute angle yet: the next good encoder reading */
     }
-    k->import_pending = false;
+    k->import_pending = k->first_reading;
     const hd_fw_settings_t *set = hd_fw_live(fw);
     hd_kf_profile_t p;
     known_lines(k, &fw->bg.profile, &p);
     if (p.line_count == 0u) {
         return;
     }
-    const uint32_t mpos = k->kf_fresh ? k->motor_pos : k->motor_pos_before;
-    const uint32_t opos = k->kf_fresh ? k->output_pos : k->output_pos_before;
+    const float lead_m = k->kf_fresh ? 0.0f : fw->last.d_motor_angle_rad;
+    const float lead_o = k->kf_fresh ? 0.0f : fw->last.d_output_angle_rad;
     hd_kf_t *kf = &hd_fw_live_pipe(fw)->kf;
-    const int rc = hd_kf_profile_import(kf, &p, angle_of(mpos, set->motor_rad_per_count),
-                                        angle_of(opos, set->output_rad_per_count),
-                                        kf->cfg.r_nm2);
+    const int rc = hd_kf_profile_import(
+        kf, &p, wrap_angle(angle_of(k->motor_pos, set->motor_rad_per_count) - lead_m),
+        wrap_angle(angle_of(k->output_pos, set->output_rad_per_count) - lead_o), kf->cfg.r_nm2);
     if (rc >= 0) {
         fw->counters.profile_imports++;
     }
