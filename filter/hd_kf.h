@@ -222,6 +222,8 @@ typedef struct {
     float last_d_output_rad;
     float output_phase_hi_rad;                /* the sum of all output increments since */
     float output_phase_lo_rad;                /* init, in [-pi, pi), as hi + lo */
+    uint32_t output_turns;                    /* steps since the output phasor was last
+                                                 set from that sum */
     hd_kf_slot_t slot[HD_KF_MAX_BLOCKS];      /* active slot -> block parameters */
     float phasor_cos[HD_KF_PHASORS];          /* unit phasors: [k] the motor phase (sum of */
     float phasor_sin[HD_KF_PHASORS];          /* all increments) times k, [HD_KF_MAX_POWER

@@ -116,6 +116,7 @@ class KfState(ctypes.Structure):
                 ("last_d_output_rad", c_float),
                 ("output_phase_hi_rad", c_float),
                 ("output_phase_lo_rad", c_float),
+                ("output_turns", c_uint32),
                 ("slot", KfSlot * MAX_BLOCKS),
                 ("phasor_cos", c_float * PHASORS),
                 ("phasor_sin", c_float * PHASORS),
