@@ -3,6 +3,7 @@ round trip (analyze a log, apply the model over CAN, save, reboot, read
 back, compare), refusals, no answer, bad files."""
 from __future__ import annotations
 
+import re
 import struct
 import time
 
@@ -109,7 +110,11 @@ def test_not_saved_does_not_survive_a_reboot(analyzed, joint, channel, capsys):
         rc, out, err = run_cli(capsys, "send", "-i", "virtual", channel,
                                analyzed / "model.cfg", "--no-save", "--reboot")
     assert rc == 1
-    assert "DIFFERS" in out and "configuration defaults (MISSING)" in out
+    assert "configuration defaults (MISSING)" in out
+    after_boot = out.split("boot = ", 1)[1]
+    assert re.search(r"read back r_nm2 = \S+  DIFFERS from the file's", after_boot)
+    assert re.search(r"read back block_count = \d+  DIFFERS from the file's 2 blocks", after_boot)
+    assert "DIFFERS" not in out.split("boot = ", 1)[0]       # before the reboot all equal
     assert len(err.strip().splitlines()) == 1 and "differ" in err
 
 
