@@ -435,7 +435,8 @@ static void profile_clear(hd_fw_t *fw, reply_t *r)
 
 static void profile_job(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
 {
-    if (fw->tick.import_pending || fw->tick.snapshot_pending) {
+    if (cmd->opcode != HD_CMD_PROFILE_PUT &&
+        (fw->tick.import_pending || fw->tick.snapshot_pending)) {
         r->result = HD_CAN_RES_BUSY; /* the tick still reads bg.profile (no encoder yet) */
         return;
     }

@@ -6,7 +6,8 @@
  * Expectations from docs/firmware.md and docs/calibration.md: the right
  * flag on every tick (telemetry) and the right CalibStatus in the heartbeat;
  * defaults (6.60 N m/V, offset 0) whenever no valid copy exists, the stored
- * values otherwise, checked through the torque the firmware computes from
+ * values otherwise (the profile record's own states: tests/firmware/
+ * test_fw_slow_torque.c; its power-loss sweep is here, with the rig), checked through the torque the firmware computes from
  * known ADC counts; a later good save clears the flag on the next tick.
  * Records with a wrong version are built here with an independent CRC-32. */
 #include <math.h>
@@ -16,6 +17,7 @@
 #include "hal_mock.h"
 #include "hd_calib_record.h"
 #include "hd_fw.h"
+#include "hd_fw_records.h"
 #include "unity.h"
 
 static hal_mock_t mock;
@@ -325,6 +327,105 @@ static void test_power_loss_at_every_byte_of_a_save(void)
            old_seen, new_seen);
 }
 
+/* ------------------------------------- power loss during a PROFILE_SAVE */
+
+#define OLD_A_NM 0.5f
+#define NEW_A_NM 0.9f
+
+static void store_profile(hd_store_io_t *io, float a_nm)
+{
+    hd_profile_record_t r;
+    memset(&r, 0, sizeof r);
+    r.gear_ratio = cfg.gear_ratio;
+    r.motor_cpr = cfg.motor_cpr;
+    r.output_cpr = cfg.output_cpr;
+    r.profile.line_count = 3;
+    const uint8_t order[3] = {2, 4, 1};
+    for (unsigned i = 0; i < 3; i++) {
+        r.profile.lines[i].lock = i == 2 ? HD_KF_LOCK_OUTPUT : HD_KF_LOCK_MOTOR;
+        r.profile.lines[i].order = order[i];
+        r.profile.lines[i].a_nm = a_nm;
+        r.profile.lines[i].b_nm = -0.25f;
+    }
+    uint8_t buf[HD_PROFILE_RECORD_MAX];
+    size_t len = hd_profile_record_encode(&r, buf, sizeof buf);
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_store_save(io, HD_RECORD_KIND_PROFILE,
+                                                      HD_PROFILE_RECORD_VERSION, buf, len));
+}
+
+static void push_cmd(uint8_t op, uint8_t b2, uint8_t b3, float v)
+{
+    hal_can_frame_t f = {0x01D01001u, 8, HAL_CAN_FLAG_EXT, {op, 7, b2, b3, 0, 0, 0, 0}};
+    memcpy(&f.data[4], &v, 4); /* little-endian host */
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
+}
+
+/* Boots with a stored profile (a = 0.5), uploads one with a = 0.9 over CAN,
+ * sends PROFILE_SAVE (the uploaded lines) and lets the power fail after
+ * `budget` flash bytes.  Returns the bytes used. */
+static long profile_save_with_power_cut(long budget)
+{
+    hal_mock_init(&mock);
+    hal_mock_bind(&mock, &hal);
+    hd_calib_storage_t plain = storage(&hal);
+    store_profile(&plain, OLD_A_NM);
+    static cut_nvm_t cut;
+    cut.m = &mock;
+    cut.inner = &hal;
+    cut.budget = -1;
+    cut.used = 0;
+    static hal_t cut_hal;
+    cut_hal = hal;
+    cut_hal.nvm.ctx = &cut;
+    cut_hal.nvm.read = cut_read;
+    cut_hal.nvm.write = cut_write;
+    cut_hal.nvm.erase = cut_erase;
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &cut_hal, &cfg));
+    const uint8_t order[3] = {2, 4, 1};
+    for (unsigned i = 0; i < 3; i++) {
+        const uint8_t out = i == 2 ? 0x20u : 0u;
+        push_cmd(HD_CMD_PROFILE_PUT, (uint8_t)(i | out), order[i], NEW_A_NM);
+        push_cmd(HD_CMD_PROFILE_PUT, (uint8_t)(i | out | 0x10u), order[i], -0.25f);
+    }
+    tick(4); /* queued and handled (no NVM) */
+    push_cmd(HD_CMD_PROFILE_SAVE, 1, 0, 0.0f);
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push(&mock, COUNTS, 0));
+    hd_fw_isr(&fw);        /* queues it */
+    cut.budget = budget;
+    hd_fw_background(&fw); /* the write, cut by the power loss */
+    return cut.used;
+}
+
+static void test_profile_power_loss_at_every_byte_of_a_save(void)
+{
+    long total = profile_save_with_power_cut(-1);
+    TEST_ASSERT_TRUE(total >= HD_PROFILE_RECORD_HEADER + 3 * HD_PROFILE_RECORD_LINE);
+    unsigned old_seen = 0, new_seen = 0;
+    bool switched = false;
+    for (long k = 0; k <= total; k++) {
+        profile_save_with_power_cut(k);
+        TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg)); /* reboot */
+        int st = hd_fw_record_status(&fw, HD_RECORD_KIND_PROFILE);
+        TEST_ASSERT_TRUE(st == HD_RECORD_OK || st == HD_RECORD_ONE_COPY_BAD);
+        TEST_ASSERT_EQUAL_UINT32(0, fw.settings[fw.live_settings].record_faults &
+                                        HD_FAULT_PROFILE_UNUSABLE);
+        TEST_ASSERT_EQUAL_UINT8(3, fw.bg.profile.line_count);
+        const float a = fw.bg.profile.lines[0].a_nm;
+        if (a == OLD_A_NM) {
+            TEST_ASSERT_FALSE_MESSAGE(switched, "old profile came back after the new one");
+            old_seen++;
+        } else {
+            TEST_ASSERT_EQUAL_FLOAT(NEW_A_NM, a);
+            switched = true;
+            new_seen++;
+        }
+    }
+    TEST_ASSERT_EQUAL_FLOAT(NEW_A_NM, fw.bg.profile.lines[0].a_nm); /* complete save */
+    TEST_ASSERT_TRUE(old_seen > 0 && new_seen > 0);
+    printf("RECOVERY %-28s ticks=0 cut_points=%ld old=%u new=%u\n", "profile_power_loss",
+           total + 1, old_seen, new_seen);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -335,5 +436,6 @@ int main(void)
     RUN_TEST(test_nvm_io_error);
     RUN_TEST(test_implausible_gain_record);
     RUN_TEST(test_power_loss_at_every_byte_of_a_save);
+    RUN_TEST(test_profile_power_loss_at_every_byte_of_a_save);
     return UNITY_END();
 }
