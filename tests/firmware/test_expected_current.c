@@ -1,0 +1,75 @@
+/* hd_expected's motor-current term against its closed form, evaluated here
+ * in double:
+ *   T_cur = k_i i - J_r acc - b_r vel - Fc_r vel / (|vel| + v_eps)
+ * and its configuration check.  (A filter-library unit test kept with the
+ * firmware tests: the firmware is its only caller; docs/slow-torque.md.) */
+#include <math.h>
+
+#include "hd_expected.h"
+#include "unity.h"
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static double closed_form(double ki, double fc, double b, double j, double eps, double i,
+                          double v, double a)
+{
+    return ki * i - j * a - b * v - fc * v / (fabs(v) + eps);
+}
+
+static void test_current_term_matches_the_closed_form(void)
+{
+    hd_expected_config_t e;
+    hd_expected_config_default(&e);
+    e.coulomb_vel_eps_rad_s = 0.02f;
+    e.coulomb_nm = 123.0f; /* the load model's own terms do not enter T_cur */
+    const hd_expected_current_config_t c = {161.5f, 1.7f, 0.9f, 2.4f};
+    const float cur[] = {-12.0f, -0.3f, 0.0f, 0.05f, 7.5f};
+    const float vel[] = {-3.0f, -0.01f, 0.0f, 1e-4f, 0.5f, 2.9f};
+    const float acc[] = {-40.0f, 0.0f, 12.5f};
+    unsigned n = 0;
+    for (unsigned a = 0; a < 5; a++) {
+        for (unsigned b = 0; b < 6; b++) {
+            for (unsigned d = 0; d < 3; d++) {
+                double expect = closed_form(161.5, 1.7, 0.9, 2.4, 0.02, (double)cur[a],
+                                            (double)vel[b], (double)acc[d]);
+                double got = (double)hd_expected_current_nm(&c, &e, cur[a], vel[b], acc[d]);
+                TEST_ASSERT_DOUBLE_WITHIN(1e-6 * (1.0 + fabs(expect)), expect, got);
+                n++;
+            }
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT(90, n);
+    /* odd in the current, friction opposes the motion */
+    TEST_ASSERT_EQUAL_FLOAT(-hd_expected_current_nm(&c, &e, 2.0f, 0.0f, 0.0f),
+                            hd_expected_current_nm(&c, &e, -2.0f, 0.0f, 0.0f));
+    TEST_ASSERT_TRUE(hd_expected_current_nm(&c, &e, 0.0f, 1.0f, 0.0f) < 0.0f);
+    /* all zero: no term */
+    const hd_expected_current_config_t off = {0.0f, 0.0f, 0.0f, 0.0f};
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_expected_current_nm(&off, &e, 30.0f, 2.0f, 100.0f));
+}
+
+static void test_current_config_check(void)
+{
+    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f};
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_expected_current_check(NULL));
+    float *f[4] = {&c.nm_per_a, &c.coulomb_nm, &c.viscous_nm_s_rad, &c.inertia_kgm2};
+    const float bad[3] = {-1.0f, NAN, INFINITY};
+    for (unsigned i = 0; i < 4; i++) {
+        for (unsigned k = 0; k < 3; k++) {
+            const float keep = *f[i];
+            *f[i] = bad[k];
+            TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_current_check(&c));
+            *f[i] = keep;
+        }
+    }
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_current_term_matches_the_closed_form);
+    RUN_TEST(test_current_config_check);
+    return UNITY_END();
+}
