@@ -141,6 +141,18 @@ def command_retry_busy(joint: Joint, opcode: str):
         time.sleep(0.02)
 
 
+def reboot(joint: Joint) -> str:
+    """REBOOT, then the joint's BOOT frame as one line."""
+    joint.drain()
+    ack = joint.command("REBOOT")
+    if not ack.ok:
+        raise Refused(f"node {joint.node}: REBOOT refused ({ack.result})")
+    boot = joint.wait_boot()
+    if boot is None:
+        raise NoAnswer(f"node {joint.node}: no BOOT frame within 3 s of REBOOT")
+    return boot_report(boot)
+
+
 def read_back(joint: Joint, want: dict[int, float], blocks: int | None, say) -> int:
     """Compares the joint's values with want; returns the number that differ."""
     bad = 0
@@ -200,14 +212,7 @@ def send(args) -> int:
             say("saved = yes (CONFIG_SAVE)")
         bad = read_back(joint, want, blocks, say)
         if args.reboot:
-            joint.drain()
-            ack = joint.command("REBOOT")
-            if not ack.ok:
-                raise Refused(f"node {joint.node}: REBOOT refused ({ack.result})")
-            boot = joint.wait_boot()
-            if boot is None:
-                raise NoAnswer(f"node {joint.node}: no BOOT frame within 3 s of REBOOT")
-            say("boot = " + boot_report(boot))
+            say("boot = " + reboot(joint))
             time.sleep(0.05)
             bad += read_back(joint, want, blocks, say)
         total = len(want) + (blocks is not None)
@@ -280,14 +285,7 @@ def device(args) -> int:
             lines.append(f"{op[action].lower()} = OK" + (f" (record {status})"
                                                          if action != "defaults" else ""))
         elif action == "reboot":
-            joint.drain()
-            ack = joint.command("REBOOT")
-            if not ack.ok:
-                raise Refused(f"node {args.node}: REBOOT refused ({ack.result})")
-            boot = joint.wait_boot()
-            if boot is None:
-                raise NoAnswer(f"node {args.node}: no BOOT frame within 3 s of REBOOT")
-            lines.append("boot = " + boot_report(boot))
+            lines.append("boot = " + reboot(joint))
         print("\n".join(lines))
     finally:
         bus.shutdown()

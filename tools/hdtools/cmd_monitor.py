@@ -46,6 +46,7 @@ import can
 import numpy as np
 
 from . import canproto, protocol
+from .cmd_canlog import _node
 from .joint import BusError, Joint, NoAnswer, open_bus
 from .safeio import OutputError, UsageError
 
@@ -595,16 +596,6 @@ def run(args) -> int:
         lines.append(f"plot = {args.plot_png}")
     out.write("\n".join(lines) + "\n")
     return 0
-
-
-def _node(text: str) -> int:
-    try:
-        node = int(text, 10)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a decimal node id") from None
-    if not protocol.NODE_MIN <= node <= protocol.NODE_MAX:
-        raise argparse.ArgumentTypeError(f"node id {node} outside 1..127")
-    return node
 
 
 def _positive(text: str) -> float:
