@@ -79,6 +79,7 @@ void hd_sim_nominal(const hd_sim_scenario_t *sc, hd_sim_nominal_t *out)
     out->load_inertia_kgm2 = sc->load_inertia_kgm2;
     out->viscous_nm_s_rad = sc->viscous_nm_s_rad;
     out->coulomb_nm = sc->coulomb_nm;
+    out->motor_kt_nm_per_a = sc->motor.kt_nm_per_a;
 }
 
 /* ------------------------------------------------------------------ kinematics */
@@ -181,14 +182,68 @@ static double sensor_lines_nm(const hd_sim_scenario_t *sc, const hd_sim_sample_t
     return sum;
 }
 
-static bool in_fault_window(const hd_sim_scenario_t *sc, double t_s)
+static bool in_windows(const hd_sim_window_t *w, size_t n, double t_s)
 {
-    for (size_t i = 0; i < sc->encoder_fault_count; i++) {
-        if (t_s >= sc->encoder_faults[i].t_start_s && t_s < sc->encoder_faults[i].t_end_s) {
+    for (size_t i = 0; i < n; i++) {
+        if (t_s >= w[i].t_start_s && t_s < w[i].t_end_s) {
             return true;
         }
     }
     return false;
+}
+
+static bool in_fault_window(const hd_sim_scenario_t *sc, double t_s)
+{
+    return in_windows(sc->encoder_faults, sc->encoder_fault_count, t_s);
+}
+
+static double load_sines_nm(const hd_sim_scenario_t *sc, double t_s)
+{
+    double sum = 0.0;
+    for (size_t i = 0; i < sc->load_sine_count; i++) {
+        const hd_sim_sine_t *w = &sc->load_sines[i];
+        sum += w->amplitude_nm * sin(TWO_PI * fmod(t_s / w->period_s, 1.0) + w->phase_rad);
+    }
+    return sum;
+}
+
+/* The robot controller's model of the same torque: its own gravity and
+ * dynamics parameters, the share of the external load it knows, noise. */
+static double feedforward_nm(hd_sim_plant_t *p, const hd_sim_sample_t *s, double acc_o)
+{
+    const hd_sim_feedforward_t *f = &p->sc.ff;
+    const hd_sim_profile_t *g = f->gravity.n > 0 ? &f->gravity : &p->sc.gravity;
+    const double w = s->output_velocity_rad_s;
+    double v = f->gravity_scale * hd_sim_profile_eval(g, s->t_s) *
+                   sin(s->output_angle_rad + p->sc.gravity_phase_rad + f->gravity_phase_error_rad) +
+               f->load_scale * s->load_torque_nm + f->inertia_kgm2 * acc_o + f->viscous_nm_s_rad * w +
+               f->coulomb_nm * sgn(w);
+    if (f->noise_nm > 0.0) {
+        v += f->noise_nm * rng_gauss(p);
+    }
+    return v;
+}
+
+/* The motor current that drives this motion against the transmitted
+ * torque: the gear passes T_true / (N eta) when the motor drives the load
+ * and T_true eta_b / N when the load drives the motor; the motor also
+ * accelerates its rotor and overcomes its own friction.  The drive's
+ * measurement adds noise; kt_true = kt (1 + kt_error). */
+static double motor_current_a(hd_sim_plant_t *p, const hd_sim_sample_t *s, double acc_m)
+{
+    const hd_sim_motor_t *m = &p->sc.motor;
+    const double n = p->sc.gear_ratio;
+    const double t = s->torque_true_nm;
+    const bool motoring = t * s->output_velocity_rad_s >= 0.0;
+    const double gear = motoring ? t / (n * m->efficiency) : t * m->backdrive_efficiency / n;
+    const double wm = s->motor_velocity_rad_s;
+    const double tm = gear + m->inertia_kgm2 * acc_m + m->viscous_nm_s_rad * wm +
+                      m->coulomb_nm * sgn(wm);
+    double i = tm / (m->kt_nm_per_a * (1.0 + m->kt_error));
+    if (m->current_noise_a > 0.0) {
+        i += m->current_noise_a * rng_gauss(p);
+    }
+    return i;
 }
 
 int hd_sim_plant_next(hd_sim_plant_t *p, hd_sim_sample_t *s)
@@ -210,10 +265,12 @@ int hd_sim_plant_next(hd_sim_plant_t *p, hd_sim_sample_t *s)
     /* Truth: what the flexspline really transmits. */
     const double w = s->output_velocity_rad_s;
     const double ws = sc->stribeck_velocity_rad_s;
-    s->load_torque_nm = hd_sim_profile_eval(&sc->load_torque, s->t_s);
+    s->load_torque_nm = hd_sim_profile_eval(&sc->load_torque, s->t_s) + load_sines_nm(sc, s->t_s);
+    s->gravity_nm = hd_sim_profile_eval(&sc->gravity, s->t_s) *
+                    sin(s->output_angle_rad + sc->gravity_phase_rad);
     s->torque_true_nm = sc->load_inertia_kgm2 * s->output_accel_rad_s2 + sc->viscous_nm_s_rad * w +
                         sc->coulomb_nm * sgn(w) + sc->stribeck_nm * exp(-(w / ws) * (w / ws)) * sgn(w) +
-                        s->load_torque_nm;
+                        s->load_torque_nm + s->gravity_nm;
 
     /* Sensor: lines, offset, then the bridge (which adds its own 2x residual). */
     const double offset_nm = sc->offset_nm + sc->offset_drift_nm_per_s * s->t_s + p->offset_walk_nm;
@@ -255,5 +312,15 @@ int hd_sim_plant_next(hd_sim_plant_t *p, hd_sim_sample_t *s)
     s->has_output = sc->output_encoder_cpr > 0;
     s->output_counts = s->has_output ? encoder_counts(s->output_angle_rad, sc->output_encoder_cpr) : 0u;
     s->encoder_fault = in_fault_window(sc, s->t_s);
+
+    /* Drawn after the sensor's noise so scenarios without them keep their
+     * random stream (and their numbers). */
+    s->feedforward_nm = (double)NAN;
+    if (sc->ff.enabled) {
+        s->feedforward_nm = feedforward_nm(p, s, s->output_accel_rad_s2);
+        s->feedforward_sent = s->index % sc->ff.period_ms == 0u &&
+                              !in_windows(sc->ff.dropouts, sc->ff.dropout_count, s->t_s);
+    }
+    s->motor_current_a = sc->motor.kt_nm_per_a > 0.0 ? motor_current_a(p, s, acc_m) : (double)NAN;
     return 0;
 }

@@ -6,6 +6,8 @@
  *   theta_o     = theta_m / N,  omega_o = omega_m / N,  alpha_o = alpha_m / N
  *   T_true      = J alpha_o + b omega_o + Fc sgn(omega_o)
  *                 + Fs exp(-(omega_o/ws)^2) sgn(omega_o) + T_load(t)
+ *                 + m g l(t) sin(theta_o + phase)          [arm link under gravity]
+ * Motor current and the controller's feed-forward: docs/sim.md.
  * What the sensor adds (ripple_true = measured - truth, before noise):
  *   T_sensed    = T_true + sum_lines (1 + c |T_true|) A sin(order theta + phase)
  *                 + offset(t)    [c applies to motor and output lines only]
@@ -34,7 +36,8 @@ typedef struct {
     double motor_velocity_rad_s;
     double output_velocity_rad_s;
     double output_accel_rad_s2;
-    double load_torque_nm;      /* external load profile at t */
+    double load_torque_nm;      /* external load at t: profile + sines */
+    double gravity_nm;          /* arm link gravity torque at t (part of the truth) */
     double torque_true_nm;      /* ripple-free transmitted torque (ground truth) */
     double ripple_true_nm;      /* measured - truth before noise (incl. bridge residual, offset) */
     double bridge_v;            /* amplified bridge output with noise, before the ADC */
@@ -45,6 +48,9 @@ typedef struct {
     uint32_t output_counts;
     bool has_output;
     bool encoder_fault;
+    double feedforward_nm;      /* the controller's model (NaN without feed-forward) */
+    bool feedforward_sent;      /* a frame goes out this sample */
+    double motor_current_a;     /* measured (NaN without a current channel) */
 } hd_sim_sample_t;
 
 /* Nominal calibration and drive constants for the firmware's defaults. */
@@ -60,6 +66,7 @@ typedef struct {
     double load_inertia_kgm2;
     double viscous_nm_s_rad;
     double coulomb_nm;
+    double motor_kt_nm_per_a;   /* datasheet (not the plant's true) torque constant */
 } hd_sim_nominal_t;
 
 typedef struct {

@@ -36,6 +36,10 @@ void hd_sim_scenario_default(hd_sim_scenario_t *sc)
     sc->encoder_cpr = 4096;
     sc->cal_gain_nm_per_v = (double)NAN;
     sc->cal_offset_v = (double)NAN;
+    sc->ff.gravity_scale = 1.0;
+    sc->ff.period_ms = 1u;
+    sc->motor.efficiency = 1.0;
+    sc->motor.backdrive_efficiency = 1.0;
 }
 
 /* ------------------------------------------------------------------ helpers */
@@ -215,20 +219,49 @@ static int parse_ripple(char *v, hd_sim_scenario_t *sc, char *err, size_t len)
     return 0;
 }
 
-static int parse_window(char *v, hd_sim_scenario_t *sc, char *err, size_t len)
+static int parse_window_into(char *v, const char *key, hd_sim_window_t *list, size_t *count,
+                             char *err, size_t len)
 {
-    if (sc->encoder_fault_count >= HD_SIM_MAX_FAULTS) {
-        fail(err, len, "more than %d encoder fault windows", HD_SIM_MAX_FAULTS);
+    if (*count >= HD_SIM_MAX_FAULTS) {
+        fail(err, len, "more than %d %s windows", HD_SIM_MAX_FAULTS, key);
         return -1;
     }
     char *f[3];
     hd_sim_window_t w;
     if (split(v, ':', f, 2) != 2 || parse_double(f[0], &w.t_start_s) != 0 ||
         parse_double(f[1], &w.t_end_s) != 0 || w.t_start_s < 0.0 || !(w.t_end_s > w.t_start_s)) {
-        fail(err, len, "encoder_fault: expected \"t_start_s:t_end_s\" with 0 <= start < end");
+        fail(err, len, "%s: expected \"t_start_s:t_end_s\" with 0 <= start < end", key);
         return -1;
     }
-    sc->encoder_faults[sc->encoder_fault_count++] = w;
+    list[(*count)++] = w;
+    return 0;
+}
+
+static int parse_window(char *v, hd_sim_scenario_t *sc, char *err, size_t len)
+{
+    if (sc->encoder_fault_count >= HD_SIM_MAX_FAULTS) {
+        fail(err, len, "more than %d encoder fault windows", HD_SIM_MAX_FAULTS);
+        return -1;
+    }
+    return parse_window_into(v, "encoder_fault", sc->encoder_faults, &sc->encoder_fault_count,
+                             err, len);
+}
+
+static int parse_sine(char *v, hd_sim_scenario_t *sc, char *err, size_t len)
+{
+    if (sc->load_sine_count >= HD_SIM_MAX_SINES) {
+        fail(err, len, "more than %d load_sine components", HD_SIM_MAX_SINES);
+        return -1;
+    }
+    char *f[4];
+    hd_sim_sine_t w;
+    if (split(v, ':', f, 3) != 3 || parse_double(f[0], &w.amplitude_nm) != 0 ||
+        parse_double(f[1], &w.period_s) != 0 || parse_double(f[2], &w.phase_rad) != 0 ||
+        !(w.period_s > 0.0)) {
+        fail(err, len, "load_sine: expected \"amplitude_nm : period_s : phase_rad\" with period > 0");
+        return -1;
+    }
+    sc->load_sines[sc->load_sine_count++] = w;
     return 0;
 }
 
@@ -270,6 +303,8 @@ typedef enum {
     K_RIPPLE,      /* list */
     K_WINDOW,      /* list */
     K_PLACEMENT,
+    K_SINE,        /* list */
+    K_FF_DROPOUT,  /* list */
 } key_type_t;
 
 typedef struct {
@@ -314,6 +349,28 @@ static const key_def_t KEYS[] = {
     {"encoder_fault", K_WINDOW, 0},
     {"calibration.gain_nm_per_v", K_DOUBLE_POS, F(cal_gain_nm_per_v)},
     {"calibration.offset_v", K_DOUBLE_ANY, F(cal_offset_v)},
+    {"gravity_profile", K_PROFILE, F(gravity)},
+    {"gravity_phase_rad", K_DOUBLE_ANY, F(gravity_phase_rad)},
+    {"load_sine", K_SINE, 0},
+    {"feedforward", K_INT, F(ff.enabled)},
+    {"feedforward.gravity_scale", K_DOUBLE_ANY, F(ff.gravity_scale)},
+    {"feedforward.gravity_phase_error_rad", K_DOUBLE_ANY, F(ff.gravity_phase_error_rad)},
+    {"feedforward.gravity_profile", K_PROFILE, F(ff.gravity)},
+    {"feedforward.load_scale", K_DOUBLE_ANY, F(ff.load_scale)},
+    {"feedforward.inertia_kgm2", K_DOUBLE_NONNEG, F(ff.inertia_kgm2)},
+    {"feedforward.viscous_nm_s_rad", K_DOUBLE_NONNEG, F(ff.viscous_nm_s_rad)},
+    {"feedforward.coulomb_nm", K_DOUBLE_NONNEG, F(ff.coulomb_nm)},
+    {"feedforward.noise_nm", K_DOUBLE_NONNEG, F(ff.noise_nm)},
+    {"feedforward.period_ms", K_U32, F(ff.period_ms)},
+    {"feedforward.dropout", K_FF_DROPOUT, 0},
+    {"motor.kt_nm_per_a", K_DOUBLE_NONNEG, F(motor.kt_nm_per_a)},
+    {"motor.kt_error", K_DOUBLE_ANY, F(motor.kt_error)},
+    {"motor.efficiency", K_DOUBLE_POS, F(motor.efficiency)},
+    {"motor.backdrive_efficiency", K_DOUBLE_POS, F(motor.backdrive_efficiency)},
+    {"motor.coulomb_nm", K_DOUBLE_NONNEG, F(motor.coulomb_nm)},
+    {"motor.viscous_nm_s_rad", K_DOUBLE_NONNEG, F(motor.viscous_nm_s_rad)},
+    {"motor.inertia_kgm2", K_DOUBLE_NONNEG, F(motor.inertia_kgm2)},
+    {"motor.current_noise_a", K_DOUBLE_NONNEG, F(motor.current_noise_a)},
 };
 #define N_KEYS (sizeof(KEYS) / sizeof(KEYS[0]))
 
@@ -402,6 +459,11 @@ static int apply(hd_sim_scenario_t *sc, const key_def_t *k, char *v, char *err, 
         return parse_window(v, sc, err, len);
     case K_PLACEMENT:
         return parse_placement(v, sc, err, len);
+    case K_SINE:
+        return parse_sine(v, sc, err, len);
+    case K_FF_DROPOUT:
+        return parse_window_into(v, "feedforward.dropout", sc->ff.dropouts, &sc->ff.dropout_count,
+                                 err, len);
     }
     return -1;
 }
@@ -528,7 +590,8 @@ int hd_sim_scenario_parse_n(hd_sim_scenario_t *sc, const char *text, size_t text
             fail(err, err_len, "%s:%u: %s: empty value", name, lineno, key);
             return -1;
         }
-        const int is_list = (k->type == K_RIPPLE || k->type == K_WINDOW);
+        const int is_list = (k->type == K_RIPPLE || k->type == K_WINDOW || k->type == K_SINE ||
+                             k->type == K_FF_DROPOUT);
         if (!is_list && seen_line[idx] != 0u) {
             fail(err, err_len, "%s:%u: %s given twice (first on line %u)", name, lineno, key,
                  seen_line[idx]);
@@ -616,6 +679,22 @@ int hd_sim_scenario_validate(const hd_sim_scenario_t *sc, char *err, size_t err_
     }
     if (!isfinite(hd_bridge_gain_nm_per_v(&sc->bridge))) {
         fail(err, err_len, "bridge: gain is not finite");
+        return -1;
+    }
+    if (sc->ff.enabled != 0 && sc->ff.enabled != 1) {
+        fail(err, err_len, "feedforward must be 0 or 1 (got %d)", sc->ff.enabled);
+        return -1;
+    }
+    if (sc->ff.period_ms < 1u || sc->ff.period_ms > 1000000u) {
+        fail(err, err_len, "feedforward.period_ms must be in [1, 1000000] samples");
+        return -1;
+    }
+    if (sc->motor.efficiency > 1.0 || sc->motor.backdrive_efficiency > 1.0) {
+        fail(err, err_len, "motor.efficiency and motor.backdrive_efficiency must be in (0, 1]");
+        return -1;
+    }
+    if (!(sc->motor.kt_error > -1.0)) {
+        fail(err, err_len, "motor.kt_error must be > -1 (kt_true = kt (1 + kt_error) > 0)");
         return -1;
     }
     return 0;

@@ -27,7 +27,8 @@ extern "C" {
 
 #define HD_SIM_MAX_POINTS 64   /* breakpoints per piecewise-linear profile */
 #define HD_SIM_MAX_RIPPLES 16  /* ripple / pickup lines */
-#define HD_SIM_MAX_FAULTS 8    /* encoder fault windows */
+#define HD_SIM_MAX_FAULTS 8    /* encoder fault windows, feed-forward dropouts */
+#define HD_SIM_MAX_SINES 8     /* slow sinusoidal load components */
 #define HD_SIM_MAX_SAMPLES 100000000ull /* 27.7 h at 1 kHz */
 
 typedef enum {
@@ -56,6 +57,43 @@ typedef struct {
     double t_end_s;
 } hd_sim_window_t;
 
+/* One slow load component: amplitude sin(2 pi t / period + phase). */
+typedef struct {
+    double amplitude_nm;
+    double period_s;
+    double phase_rad;
+} hd_sim_sine_t;
+
+/* The robot controller's model of the joint torque, sent as feed-forward
+ * (docs/sim.md, "Feed-forward and motor current"): its own gravity and
+ * dynamics parameters, never the plant's truth unless a scenario says so. */
+typedef struct {
+    int enabled;                     /* 1: the CSV column and hdjoint-host's frames */
+    double gravity_scale;            /* its m g l over the truth's (payload estimate error) */
+    double gravity_phase_error_rad;  /* its posture offset error */
+    hd_sim_profile_t gravity;        /* its own m g l over time; n = 0: the true profile */
+    double load_scale;               /* share of the external load it knows (0: unknown) */
+    double inertia_kgm2;             /* its J, b, Fc (0: it models none) */
+    double viscous_nm_s_rad;
+    double coulomb_nm;
+    double noise_nm;                 /* Gaussian std of each value */
+    uint32_t period_ms;              /* one frame every this many samples (>= 1) */
+    hd_sim_window_t dropouts[HD_SIM_MAX_FAULTS]; /* no frames inside these */
+    size_t dropout_count;
+} hd_sim_feedforward_t;
+
+/* The motor and its current (docs/sim.md): i = T_motor / kt_true. */
+typedef struct {
+    double kt_nm_per_a;              /* datasheet torque constant; 0 = no current channel */
+    double kt_error;                 /* kt_true = kt (1 + kt_error) */
+    double efficiency;               /* gear efficiency, power motor -> load */
+    double backdrive_efficiency;     /* power load -> motor */
+    double coulomb_nm;               /* motor-side friction, at the motor shaft */
+    double viscous_nm_s_rad;         /* per motor rad/s */
+    double inertia_kgm2;             /* rotor + wave generator */
+    double current_noise_a;          /* Gaussian std of the measured current */
+} hd_sim_motor_t;
+
 typedef struct {
     /* run */
     double duration_s;
@@ -71,6 +109,12 @@ typedef struct {
     double coulomb_nm;
     double stribeck_nm;              /* extra breakaway friction (not told to the filter) */
     double stribeck_velocity_rad_s;
+    hd_sim_profile_t gravity;        /* arm link: m g l [N m] over time (payload changes) */
+    double gravity_phase_rad;        /* gravity torque = m g l sin(theta_out + phase) */
+    hd_sim_sine_t load_sines[HD_SIM_MAX_SINES]; /* added to load_torque */
+    size_t load_sine_count;
+    hd_sim_feedforward_t ff;
+    hd_sim_motor_t motor;
     /* what the sensor adds */
     hd_sim_ripple_t ripples[HD_SIM_MAX_RIPPLES];
     size_t ripple_count;

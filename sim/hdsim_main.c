@@ -79,10 +79,11 @@ static int print_nominal(FILE *f, const hd_sim_nominal_t *n)
 {
     return fprintf(f, "gain_nm_per_v=%.9g\noffset_v=%.9g\nadc_v_per_count=%.9g\nadc_bits=%d\n"
                "gear_ratio=%.9g\nmotor_cpr=%u\noutput_cpr=%u\nts_s=%.9g\n"
-               "load_inertia_kgm2=%.9g\nviscous_nm_s_rad=%.9g\ncoulomb_nm=%.9g\n",
+               "load_inertia_kgm2=%.9g\nviscous_nm_s_rad=%.9g\ncoulomb_nm=%.9g\n"
+               "motor_kt_nm_per_a=%.9g\n",
             n->gain_nm_per_v, n->offset_v, n->adc_v_per_count, n->adc_bits, n->gear_ratio,
             (unsigned)n->motor_cpr, (unsigned)n->output_cpr, n->ts_s, n->load_inertia_kgm2,
-            n->viscous_nm_s_rad, n->coulomb_nm) < 0 ? -1 : 0;
+            n->viscous_nm_s_rad, n->coulomb_nm, n->motor_kt_nm_per_a) < 0 ? -1 : 0;
 }
 
 static int need_arg(int i, int argc, const char *opt)
@@ -212,20 +213,33 @@ int main(int argc, char **argv)
         free(plant);
         return EXIT_WRITE;
     }
+    /* The controller's feed-forward and the motor current exist only in
+     * scenarios that have them (the analysis contract's optional columns). */
+    const bool ff = sc.ff.enabled != 0, cur = sc.motor.kt_nm_per_a > 0.0;
     int ok = hd_out_printf(&csv, "t_s,motor_angle_rad,output_angle_rad,motor_velocity_rad_s,"
                                  "output_velocity_rad_s,torque_nm,torque_true_nm,ripple_true_nm,"
-                                 "bridge_counts,motor_counts,output_counts\n") == 0;
+                                 "bridge_counts,motor_counts,output_counts%s%s\n",
+                           ff ? ",torque_feedforward_nm" : "", cur ? ",motor_current_a" : "") == 0;
     if (ok && raw_path != NULL) {
         ok = write_raw_header(&raw, (uint32_t)(sc.ts_s * 1e6 + 0.5)) == 0;
     }
     hd_sim_sample_t s;
     uint64_t n = 0, saturated = 0;
     while (ok && hd_hostio_signal() == 0 && hd_sim_plant_next(plant, &s) == 0) {
-        ok = hd_out_printf(&csv, "%.6f,%.9g,%.9g,%.9g,%.9g,%.7g,%.7g,%.7g,%ld,%lu,%lu\n", s.t_s,
+        ok = hd_out_printf(&csv, "%.6f,%.9g,%.9g,%.9g,%.9g,%.7g,%.7g,%.7g,%ld,%lu,%lu", s.t_s,
                            s.motor_angle_rad, s.output_angle_rad, s.motor_velocity_rad_s,
                            s.output_velocity_rad_s, s.torque_nm, s.torque_true_nm,
                            s.ripple_true_nm, (long)s.bridge_counts,
                            (unsigned long)s.motor_counts, (unsigned long)s.output_counts) == 0;
+        if (ok && ff) {
+            ok = hd_out_printf(&csv, ",%.7g", s.feedforward_nm) == 0;
+        }
+        if (ok && cur) {
+            ok = hd_out_printf(&csv, ",%.7g", s.motor_current_a) == 0;
+        }
+        if (ok) {
+            ok = hd_out_printf(&csv, "\n") == 0;
+        }
         if (ok && raw_path != NULL) {
             ok = write_raw_record(&raw, &s) == 0;
         }

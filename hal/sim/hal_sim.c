@@ -77,6 +77,21 @@ static int sim_encoder_read(void *ctx, hal_encoder_sample_t *out)
     return HAL_OK;
 }
 
+/* The drive's current of the sample the ADC and encoders gave this tick. */
+static int sim_current_read(void *ctx, hal_current_sample_t *out)
+{
+    hal_sim_t *sim = ctx;
+    if (sim == NULL || out == NULL) {
+        return HAL_ERR_RANGE;
+    }
+    if (sim->ended || !sim->have_cur) {
+        return HAL_ERR_NO_DATA;
+    }
+    out->motor_current_a = (float)sim->cur.motor_current_a;
+    out->fault = false;
+    return HAL_OK;
+}
+
 static uint64_t sim_time_us(void *ctx)
 {
     const hal_sim_t *sim = ctx;
@@ -97,6 +112,7 @@ void hal_sim_bind(hal_sim_t *sim, hal_t *hal)
     hal->sensors.ctx = sim;
     hal->sensors.adc_read = sim_adc_read;
     hal->sensors.encoder_read = sim_encoder_read;
+    hal->sensors.current_read = sim->plant.sc.motor.kt_nm_per_a > 0.0 ? sim_current_read : NULL;
     hal->clock.ctx = sim;
     hal->clock.time_us = sim_time_us;
 }

@@ -3,7 +3,9 @@
  *
  * Fills the sensors and clock parts of an hal_t.  Each tick the firmware
  * reads the ADC and the encoder once (either order); the first read of a
- * part that was already read this tick advances the plant one sample.  So
+ * part that was already read this tick advances the plant one sample.  A
+ * scenario with a motor (motor.kt_nm_per_a > 0) also has the current
+ * channel: current_read gives the sample of this tick, it never advances.  So
  * adc, enc, adc, enc, ... and an ADC-only loop both step once per call pair
  * or call.  After the last sample every read returns HAL_ERR_END.
  *
