@@ -477,6 +477,67 @@ static void test_learn_scale_zero_keeps_gravity_in_the_torque(void)
     TEST_ASSERT_GREATER_THAN_DOUBLE(0.1, drift[0]); /* scale 1 takes gravity into the block */
 }
 
+/* Unknown slow loads (2 N m sinusoids of period 5, 20 and 60 s) while the
+ * joint turns at 0.3-3 rad/s at the output with reversals, T_exp = 0,
+ * profile imported: the RMS error and the fraction of the load's amplitude
+ * kept in the output (a least-squares fit at the load's frequency), per
+ * learn scale.  A measurement for choosing the operating value; asserted
+ * only that scale 0 keeps more of the load than scale 1. */
+static void slow_load_run(float learn, double period_s, double *rms, double *kept)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, learn);
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 21u);
+    const hd_kf_profile_t commissioned = {2, {{HD_KF_LOCK_MOTOR, 2, (float)A2_NM, (float)B2_NM},
+                                              {HD_KF_LOCK_OUTPUT, 1, (float)A1_NM, (float)B1_NM}}};
+    const long n = (long)(3.0 * period_s / TS_S);
+    double se = 0.0, sc = 0.0, ss = 0.0, cc = 0.0, cs = 0.0;
+    long m = 0;
+    for (long k = 1; k <= n; k++) {
+        double t = (double)k * TS_S;
+        /* output speed 0.3-3 rad/s, reversing every 7 s */
+        double w = (1.65 + 1.35 * sin(2.0 * TU_PI * t / 11.0)) * (fmod(t, 14.0) < 7.0 ? 1.0 : -1.0);
+        double load = 2.0 * sin(2.0 * TU_PI * t / period_s);
+        hd_kf_input_t in = joint_next(&j, w * TS_S, load, 0.0);
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        if (k == 1)
+            TEST_ASSERT_EQUAL_INT(2, hd_kf_profile_import(&kf, &commissioned, (float)wrap(j.am),
+                                                          (float)wrap(j.ao), 1e-4f));
+        if (t >= period_s) { /* after the first period */
+            double e = (double)o.torque_filtered_nm - load;
+            double sn = sin(2.0 * TU_PI * t / period_s), cn = cos(2.0 * TU_PI * t / period_s);
+            se += e * e;
+            sc += (double)o.torque_filtered_nm * sn;
+            ss += sn * sn;
+            cs += (double)o.torque_filtered_nm * cn;
+            cc += cn * cn;
+            m++;
+        }
+    }
+    *rms = sqrt(se / (double)m);
+    *kept = hypot(sc / ss, cs / cc) / 2.0;
+}
+
+static void test_learn_scale_slow_loads_measured(void)
+{
+    static const float scales[] = {1.0f, 1e-2f, 1e-3f, 0.0f};
+    static const double periods[] = {5.0, 20.0, 60.0};
+    for (unsigned pi = 0; pi < 3u; pi++) {
+        double rms[4], kept[4];
+        for (unsigned i = 0; i < 4u; i++)
+            slow_load_run(scales[i], periods[pi], &rms[i], &kept[i]);
+        msg("2 N m load, period %.0f s, 0.3-3 rad/s with reversals, profile imported: RMS error "
+            "/ load kept for output_learn_scale 1, 1e-2, 1e-3, 0: %.3f/%.1f%%, %.3f/%.1f%%, "
+            "%.3f/%.1f%%, %.3f/%.1f%%", periods[pi], rms[0], 100.0 * kept[0], rms[1],
+            100.0 * kept[1], rms[2], 100.0 * kept[2], rms[3], 100.0 * kept[3]);
+        TEST_ASSERT_TRUE(kept[3] >= kept[0]);
+    }
+}
+
 /* An output-locked block that does not learn predicts from its profile for
  * as long as the filter runs: 2*10^6 steps (33 min) at constant output speed,
  * increments exactly representable (what the filter is given is what it
@@ -562,6 +623,7 @@ int main(void)
     RUN_TEST(test_profile_refusals_leave_filter_unchanged);
     RUN_TEST(test_learn_scale_config_check_and_default);
     RUN_TEST(test_learn_scale_zero_keeps_gravity_in_the_torque);
+    RUN_TEST(test_learn_scale_slow_loads_measured);
     RUN_TEST(test_learn_scale_zero_profile_holds_for_long_runs);
     RUN_TEST(test_learn_scale_matches_reference);
     return UNITY_END();
