@@ -63,5 +63,19 @@ def analyze(path, **kw):
     return pipeline.analyze(str(path), **kw)
 
 
+@pytest.fixture(scope="session")
+def analyzed(simulate):
+    """analyzed(name, *--set overrides) -> the report of the simulated log
+    (each analysed once per session)."""
+    cache = {}
+
+    def run(name, *sets):
+        key = (name,) + sets
+        if key not in cache:
+            cache[key] = analyze(simulate(name, *sets))
+        return cache[key]
+    return run
+
+
 def added(report):
     return [e for e in report["effects"] if e["added"]]

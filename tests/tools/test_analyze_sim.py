@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from conftest import added, analyze
+from conftest import added
 
 
 def _only(report, kind):
@@ -26,8 +26,8 @@ def _never_worse_out_of_sample(r):
             1 + 1e-6), r["history"]
 
 
-def test_clean_case_adds_nothing(simulate):
-    r = analyze(simulate("clean"))
+def test_clean_case_adds_nothing(analyzed):
+    r = analyzed("clean")
     assert added(r) == []
     assert r["model_after"] == r["model_before"]
     assert r["residual_rms_after_nm"] == r["residual_rms_before_nm"]
@@ -47,8 +47,8 @@ def test_clean_case_adds_nothing(simulate):
     ("output3", "output_order", "order_per_output_rev", 3.0, 0.1),
     ("mains", "fixed_frequency", "frequency_hz", 50.0, 0.1),
 ])
-def test_hidden_line_is_found_and_removed(simulate, name, kind, field, value, tol):
-    r = analyze(simulate(name))
+def test_hidden_line_is_found_and_removed(analyzed, name, kind, field, value, tol):
+    r = analyzed(name)
     adds = _only(r, kind)
     assert abs(adds[0][field] - value) <= tol, adds[0]
     _never_worse_out_of_sample(r)
@@ -69,13 +69,13 @@ def test_hidden_line_is_found_and_removed(simulate, name, kind, field, value, to
         assert ev["peak_ratio_order_spectrum"] > 4 * ev["peak_ratio_time_spectrum"]
 
 
-def test_friction_is_found_with_its_coefficients(simulate):
+def test_friction_is_found_with_its_coefficients(analyzed):
     # friction.ini: viscous 1.0 N m s/rad, Coulomb 2.0 N m, reversals; the
     # simulated joint's load inertia (0.1 kg m^2, its default) shows in the
     # 1 s reversals and is found as well.  The declared output-order-1 line
     # cannot be told from the friction steps before friction is modelled;
     # it joins the profile after.
-    r = analyze(simulate("friction"))
+    r = analyzed("friction")
     adds = added(r)
     assert {e["kind"] for e in adds} <= {"velocity", "acceleration", "output_order"}, adds
     assert all(e["order_per_output_rev"] == 1.0 for e in adds if e["kind"] == "output_order")
@@ -88,13 +88,13 @@ def test_friction_is_found_with_its_coefficients(simulate):
     _never_worse_out_of_sample(r)
 
 
-def test_friction_lowers_the_error(simulate):
+def test_friction_lowers_the_error(analyzed):
     # T_exp enters the filter only through y = T_meas - T_exp; with the
     # offset kept as real torque, a correct friction and inertia model lowers
     # the error against truth by what the offset no longer has to follow.
     # Measured 0.038 -> 0.030 N m (the paper model, with an adaptive output
     # block: 0.090).
-    r = analyze(simulate("friction"))
+    r = analyzed("friction")
     assert r["error_rms_after_nm"] < 0.85 * r["error_rms_before_nm"]
     assert r["error_rms_after_nm"] < 0.5 * r["metrics_reference"]["error_rms_nm"]
     assert r["error_split_hz"] == 2.0
@@ -105,21 +105,21 @@ def test_friction_lowers_the_error(simulate):
     assert r["error_fast_rms_after_nm"] < 1.25 * r["error_fast_rms_before_nm"]
 
 
-def test_offset_drift_is_found_and_removed(simulate):
+def test_offset_drift_is_found_and_removed(analyzed):
     # drift.ini: 0.05 N m/s over 20 s.
-    r = analyze(simulate("drift"))
+    r = analyzed("drift")
     e = _only(r, "offset_drift")[0]
     assert e["parameters"]["drift_nm_per_s"] == pytest.approx(0.05, rel=0.3)
     assert r["model_after"]["offset_is_sensor_error"] is True
     assert r["error_rms_after_nm"] < 0.5 * r["error_rms_before_nm"]
 
 
-def test_load_dependent_ripple_is_traced_to_its_line(simulate):
+def test_load_dependent_ripple_is_traced_to_its_line(analyzed):
     # loadripple.ini: every ripple line grows with |load| as (1 + 0.3 |T|).
     # The residue sits around the modelled motor lines; the line's amplitude
     # in the measured torque follows |load|, and the coefficient is
     # identified and added (hd_kf ripple_load_coeff_per_nm).
-    r = analyze(simulate("loadripple"))
+    r = analyzed("loadripple")
     found = [e for e in r["effects"] if e["kind"] == "motor_order"
              and e.get("action") == "load_scale"]
     assert found, r["effects"]
@@ -136,27 +136,27 @@ def test_load_dependent_ripple_is_traced_to_its_line(simulate):
     assert all(e["kind"] == "motor_order" for e in added(r))
 
 
-def test_load_coefficient_is_not_claimed_without_load_changes(simulate):
+def test_load_coefficient_is_not_claimed_without_load_changes(analyzed):
     # Constant load (clean.ini, 2 N m): no load scaling anywhere.
-    r = analyze(simulate("clean"))
+    r = analyzed("clean")
     assert r["model_after"]["ripple_load_coeff_per_nm"] == 0.0
     assert not [e for e in r["effects"] if e.get("action") == "load_scale"]
 
 
-def test_load_dependent_ripple_lowers_the_ripple_band_error(simulate):
+def test_load_dependent_ripple_lowers_the_ripple_band_error(analyzed):
     # The load coefficient makes the motor-locked lines follow the load at
     # once; their error lives in the ripple band (> 2 Hz; motor order 2 is
     # at 25-64 Hz here): measured 0.077 -> 0.026 N m.
-    r = analyze(simulate("loadripple"))
+    r = analyzed("loadripple")
     assert r["error_fast_rms_after_nm"] < 0.5 * r["error_fast_rms_before_nm"]
 
 
-def test_load_dependent_ripple_under_load_steps_lowers_the_ripple_band(simulate):
+def test_load_dependent_ripple_under_load_steps_lowers_the_ripple_band(analyzed):
     # loadsteps.ini: the same joint and ripple law as loadripple.ini, under a
     # load that steps 0 <-> 6 N m and holds for 3-4 s (a payload), not at the
     # output revolution's period.  The coefficient is found and the ripple
     # band error falls (measured 0.158 -> 0.055 N m).
-    r = analyze(simulate("loadsteps"))
+    r = analyzed("loadsteps")
     found = [e for e in added(r) if e.get("action") == "load_scale"]
     assert found, r["effects"]
     assert found[0]["parameters"]["ripple_load_coeff_per_nm"] == pytest.approx(0.3, rel=0.25)
@@ -175,6 +175,6 @@ SCALED_OUTPUT_LINE = (
 
 @pytest.mark.xfail(strict=True, raises=AssertionError, reason=SCALED_OUTPUT_LINE)
 @pytest.mark.parametrize("name", ["loadripple", "loadsteps"])
-def test_load_dependent_ripple_lowers_the_error(simulate, name):
-    r = analyze(simulate(name))
+def test_load_dependent_ripple_lowers_the_error(analyzed, name):
+    r = analyzed(name)
     assert r["error_rms_after_nm"] < 0.8 * r["error_rms_before_nm"]

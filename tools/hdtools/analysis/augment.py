@@ -141,7 +141,8 @@ def line_amplitude(runs, kind, order, raw=False):
         ph = [2 * math.pi * order * np.asarray(r.t_s[r.warm:], float) for r in runs]
     ts = float(np.median(np.diff(runs[0].t_s))) if len(runs[0].t_s) > 1 else 1e-3
     sig = spectra.highpass_for_line(sig, ph, ts)
-    amp, _, _ = spectra.fit_line(detect._decimated(sig), detect._decimated(ph))
+    amp, _, _ = spectra.fit_line(detect._decimated(sig, LINE_FIT_MAX_SAMPLES),
+                                 detect._decimated(ph, LINE_FIT_MAX_SAMPLES))
     return amp
 
 
@@ -181,11 +182,16 @@ def lines_left(runs, model):
 
 # --- the angle profile ------------------------------------------------------------
 
+GEOMETRY_MAX_SAMPLES = 300_000
+LINE_FIT_MAX_SAMPLES = 150_000
+
+
 def profile_inputs(runs, model, which) -> geometry.Inputs:
     """Signals for the geometry fit from a replay whose output-locked lines
     are a fixed profile (or absent): the model residual plus that profile,
-    i.e. measured - motor-locked ripple - expected torque - feed-forward."""
-    view = rp.analysis_view(runs, which)
+    i.e. measured - motor-locked ripple - expected torque - feed-forward
+    (at most GEOMETRY_MAX_SAMPLES samples of the fold, evenly spread)."""
+    view = rp.analysis_view(runs, which, max_total=GEOMETRY_MAX_SAMPLES)
     has_out = any(p.lock == "output" for p in model.profile)
     sig = [r.residual + (rp.profile_torque(model, r.motor_angle_rad, r.output_angle_rad)
                          if has_out else 0.0) for r in view]
@@ -320,6 +326,7 @@ def judge(c, runs0, m0, runs1, m1, model0, ts_s):
                                       "residual: not a drift")
             return False, ev
         return True, ev
+    ev["rejected_because"] = f"no held-out test for a {c.kind} {c.action}"
     return False, ev
 
 
@@ -354,16 +361,21 @@ class Session:
             c.evidence.setdefault("rejected_because", "cannot be expressed in the firmware model")
             self.effects.append(_finding(c, False, None, None, self.model.gear_ratio))
             return False
-        scored = []
+        best, nlls = None, []
         for t in trials:
             r1 = self.replay(t)
-            scored.append((rp.metrics(r1, rp.TRAIN)["innovation_nll"], t, r1))
-        if len(scored) > 1:
+            nll = rp.metrics(r1, rp.TRAIN)["innovation_nll"]
+            nlls.append(nll)
+            if best is None or nll < best[0]:
+                best = (nll, t, r1)
+            del r1            # only the best replay is kept (memory)
+        if len(nlls) > 1:
             # R is a noise parameter: the in-sample likelihood picks the
             # variant; fold B then judges it like any change.
-            c.evidence["r_variants_in_sample_innovation_nll"] = [round(s[0], 4) for s in scored]
-            c.evidence["r_back_to_noise_estimate"] = bool(scored[1][0] < scored[0][0])
-        _, trial, runs1 = min(scored, key=lambda s: s[0])
+            c.evidence["r_variants_in_sample_innovation_nll"] = [round(x, 4) for x in nlls]
+            c.evidence["r_back_to_noise_estimate"] = bool(nlls[1] < nlls[0])
+        _, trial, runs1 = best
+        best = None
         met1 = rp.metrics(runs1)
         keep, ev = judge(c, self.runs, self.met, runs1, met1, self.model, self.data.ts_s)
         c.evidence.update(ev)

@@ -248,6 +248,8 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
     ripple whose amplitude moves (e.g. with load) leaves sidebands here."""
     out = []
     for i, b in enumerate(model.blocks):
+        if b.lock == "output" and model.output_learn_scale == 0:
+            continue     # a fixed profile: the geometry fit's business
         if b.lock == "fixed":
             spec, at = ctx.spec_time, b.order
         elif b.lock == "motor":

@@ -150,50 +150,55 @@ def _smooth_solve(n, lam, w, rhs):
 
 
 class _Fit:
-    """Per stretch and weight vector: the smoother's solve of [z, A].  A
-    stretch with fewer than 3 weighted samples cannot anchor the smoother:
-    it is left out (its residuals are NaN)."""
+    """Per stretch and weight vector: the smoother's solve of [z, A], and
+    the normal equations of the profile with the smoother profiled out
+    (G = A' M A, h = A' M z over every column, M = W - W S^-1 W), so any
+    column subset is a small solve.  A stretch with fewer than 3 weighted
+    samples cannot anchor the smoother: it is left out (its residuals are
+    NaN)."""
 
     def __init__(self, parts, lam, weights):
         self.parts = parts
         self.rows = []
+        k = parts[0][2].shape[1] if parts else 0
+        self.G = np.zeros((k, k))
+        self.h = np.zeros(k)
         for (z, t, A), w in zip(parts, weights):
             n = len(z)
             if n <= 3 or np.count_nonzero(w) < 3:
                 self.rows.append((np.zeros(n), None))
                 continue
             rhs = np.column_stack([z, A]) * w[:, None]
-            self.rows.append((w, _smooth_solve(n, lam, w, rhs)))
+            sol = _smooth_solve(n, lam, w, rhs)
+            self.rows.append((w, sol))
+            MA = w[:, None] * (A - sol[:, 1:])
+            self.G += A.T @ MA
+            self.h += MA.T @ z
 
     def coef(self, cols):
         """Profile coefficients for the column subset (indices into A)."""
         k = len(cols)
         if k == 0:
             return np.zeros(0)
-        G = np.zeros((k, k))
-        h = np.zeros(k)
-        for (z, t, A), (w, sol) in zip(self.parts, self.rows):
-            if sol is None:
-                continue
-            Ac = A[:, cols]
-            MA = w[:, None] * (Ac - sol[:, 1:][:, cols])
-            Mz = w * (z - sol[:, 0])
-            G += Ac.T @ MA
-            h += Ac.T @ Mz
+        G = self.G[np.ix_(cols, cols)]
         try:
-            return np.linalg.solve(G + 1e-12 * np.trace(G) * np.eye(k), h)
+            return np.linalg.solve(G + 1e-12 * np.trace(G) * np.eye(k), self.h[cols])
         except np.linalg.LinAlgError:
             return np.zeros(k)
 
-    def residuals(self, cols, beta):
-        """z - (A beta + s) per stretch, s the smoother of z - A beta."""
+    def residuals(self, cols, beta, rows=None):
+        """z - (A beta + s) per stretch (at `rows`, a boolean mask per
+        stretch, if given), s the smoother of z - A beta."""
         out = []
-        for (z, t, A), (w, sol) in zip(self.parts, self.rows):
+        for i, ((z, t, A), (w, sol)) in enumerate(zip(self.parts, self.rows)):
+            sel = slice(None) if rows is None else rows[i]
             if sol is None:
-                out.append(np.full(len(z), np.nan))
+                out.append(np.full(len(z[sel]), np.nan))
                 continue
-            s = sol[:, 0] - (sol[:, 1:][:, cols] @ beta if len(cols) else 0.0)
-            out.append(z - s - (A[:, cols] @ beta if len(cols) else 0.0))
+            r = z[sel] - sol[sel, 0]
+            if len(cols):
+                r = r + (sol[sel][:, 1:][:, cols] - A[sel][:, cols]) @ beta
+            out.append(r)
         return out
 
 
@@ -208,17 +213,34 @@ def _inner_blocks(parts, dt_s):
     return ids, base
 
 
+_FITS: dict = {}
+
+
+def _fold_fits(parts, lam, ids):
+    """The INNER_FOLDS fits (held-out fold's weights at zero) for this
+    smoother, cached while the same parts are being selected on."""
+    key = (id(parts), lam)
+    if key not in _FITS:
+        if len(_FITS) > 2 * len(TAU_GRID_S):
+            _FITS.clear()
+        fits = []
+        for f in range(INNER_FOLDS):
+            weights = [(b % INNER_FOLDS != f).astype(float) for b in ids]
+            fits.append((_Fit(parts, lam, weights), [w == 0 for w in weights]))
+        _FITS[key] = (parts, fits)        # parts kept alive with its id
+    return _FITS[key][1]
+
+
 def _cv_block_sse(parts, lam, ids, nblocks, cols_sets):
     """Held-out SSE per block for each column set (list of index lists)."""
     sse = np.zeros((len(cols_sets), nblocks))
-    for f in range(INNER_FOLDS):
-        weights = [(b % INNER_FOLDS != f).astype(float) for b in ids]
-        fit = _Fit(parts, lam, weights)
+    for fit, held in _fold_fits(parts, lam, ids):
+        bids = [b[h] for b, h in zip(ids, held)]
         for j, cols in enumerate(cols_sets):
             beta = fit.coef(cols)
-            for res, b, w in zip(fit.residuals(cols, beta), ids, weights):
-                ho = (w == 0) & np.isfinite(res)
-                np.add.at(sse[j], b[ho], res[ho] ** 2)
+            for res, b in zip(fit.residuals(cols, beta, held), bids):
+                ok = np.isfinite(res)
+                np.add.at(sse[j], b[ok], res[ok] ** 2)
     return sse
 
 

@@ -251,8 +251,9 @@ def _time_unit(t, seg, given, path):
     """Scale of the time column (1, 1e-3 or 1e-6) and how it was decided."""
     if given:
         return TIME_SCALE[given], f"time column in {given} (--time-unit)"
-    d = np.diff(t)
-    same = seg[1:] == seg[:-1]
+    k = _stride(len(t))
+    d = t[1::k] - t[:-1:k]
+    same = seg[1::k] == seg[:-1:k]
     d = d[same & (d > 0) & np.isfinite(d)]
     if len(d) == 0:
         raise InputError(f"{path}: no increasing time steps in 't_s'")
@@ -270,9 +271,20 @@ def _time_unit(t, seg, given, path):
                      f"{which} for a sample rate of 20 Hz..50 kHz; give --time-unit s|ms|us")
 
 
+def _stride(n):
+    """A step that leaves at most UNIT_SAMPLES of n (unit checks need
+    robust statistics, not every sample)."""
+    return max(1, n // UNIT_SAMPLES)
+
+
+UNIT_SAMPLES = 200_000
+
+
 def _speed_p90(angle, t, seg):
-    d, dt = np.diff(angle), np.diff(t)
-    ok = (seg[1:] == seg[:-1]) & (dt > 0) & np.isfinite(d)
+    k = _stride(len(t))
+    d = angle[1::k] - angle[:-1:k]
+    dt = t[1::k] - t[:-1:k]
+    ok = (seg[1::k] == seg[:-1:k]) & (dt > 0) & np.isfinite(d)
     s = np.abs(d[ok]) / dt[ok]
     s = s[s > 0]
     return float(np.percentile(s, 90)) if len(s) > 10 else 0.0
@@ -301,10 +313,11 @@ def _angle_units(cols, seg, given, path):
                                  "unit (--angle-unit rad|deg)")
     if "output_velocity_rad_s" in cols and "output_angle_rad" in cols and unit[
             "output_angle_rad"] == "rad":
-        v = cols["output_velocity_rad_s"]
-        d, dt = np.diff(cols["output_angle_rad"]), np.diff(t)
-        vm = 0.5 * (v[1:] + v[:-1])
-        ok = (seg[1:] == seg[:-1]) & (dt > 0) & np.isfinite(vm) & np.isfinite(d)
+        k = _stride(len(t))
+        v, th = cols["output_velocity_rad_s"], cols["output_angle_rad"]
+        d, dt = th[1::k] - th[:-1:k], t[1::k] - t[:-1:k]
+        vm = 0.5 * (v[1::k] + v[:-1:k])
+        ok = (seg[1::k] == seg[:-1:k]) & (dt > 0) & np.isfinite(vm) & np.isfinite(d)
         big = ok & (np.abs(vm) > 0.2 * (np.percentile(np.abs(vm[ok]), 90) if ok.any() else 0))
         if big.sum() > 20:
             k = float(np.median((d[big] / dt[big]) / vm[big]))
@@ -330,8 +343,9 @@ def _angle_units(cols, seg, given, path):
 
 
 def _encoder_ratio(m, o, seg):
-    dm, do = np.diff(m), np.diff(o)
-    ok = (seg[1:] == seg[:-1]) & np.isfinite(dm) & np.isfinite(do) & (np.abs(do) > 0)
+    k = _stride(len(m))
+    dm, do = m[1::k] - m[:-1:k], o[1::k] - o[:-1:k]
+    ok = (seg[1::k] == seg[:-1:k]) & np.isfinite(dm) & np.isfinite(do) & (np.abs(do) > 0)
     if not ok.any():
         return None
     # Wraps are rare steps far above the rest: leave out the largest 1 %.
@@ -374,8 +388,9 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
         if k in cols:
             ok &= np.isfinite(cols[k])
     stats["non_finite"] = int((~ok).sum())
-    cols = {k: v[ok] for k, v in cols.items()}
-    seg = seg[ok]
+    if stats["non_finite"]:
+        cols = {k: v[ok] for k, v in cols.items()}
+        seg = seg[ok]
     n = int(ok.sum())
     if n < 2:
         raise InputError(f"{path}: fewer than 2 valid rows")
@@ -394,7 +409,7 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
             raise InputError(f"--fs must be a positive number (got {fs_hz})")
         # Time restarts per segment value.
         t = np.empty(n)
-        for s in dict.fromkeys(seg.tolist()):
+        for s in _segment_names(seg):
             m = seg == s
             t[m] = np.arange(int(m.sum())) / fs_hz
         cols["t_s"] = t
@@ -404,9 +419,10 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
         if u == "deg":
             cols[a] = cols[a] * DEG
     raw = []
-    for s in dict.fromkeys(seg.tolist()):
-        m = seg == s
-        raw.extend(_split_back_steps(str(s), {k: v[m] for k, v in cols.items()}, stats))
+    names = _segment_names(seg)
+    for s in names:
+        sub = cols if len(names) == 1 else {k: v[seg == s] for k, v in cols.items()}
+        raw.extend(_split_back_steps(str(s), sub, stats))
     stats["segments"] = len({s for s, _ in raw})
     steps = [np.diff(sub["t_s"]) for _, sub in raw if len(sub["t_s"]) > 1]
     if not steps:
@@ -434,6 +450,14 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
     return data
 
 
+def _segment_names(seg):
+    """Distinct segment values in order of first appearance."""
+    if len(seg) and (seg == seg[0]).all():
+        return [seg[0]]
+    _, first = np.unique(seg, return_index=True)
+    return [seg[i] for i in sorted(first)]
+
+
 def _split_back_steps(s, sub, stats):
     """File order is kept: a time that steps back starts a new segment
     (named s, s#2, ...); a repeated time stamp drops the later row; rows
@@ -442,7 +466,8 @@ def _split_back_steps(s, sub, stats):
     d = np.diff(t)
     dup = np.r_[False, d == 0]
     stats["duplicate_time"] += int(dup.sum())
-    sub = {k: v[~dup] for k, v in sub.items()}
+    if dup.any():
+        sub = {k: v[~dup] for k, v in sub.items()}
     t = sub["t_s"]
     back = np.flatnonzero(np.diff(t) < 0) + 1
     stats["time_steps_back"] += len(back)

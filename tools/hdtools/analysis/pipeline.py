@@ -270,6 +270,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
             fs_hz=None, out_dir=None, json_path=None, node_id=1, log=print, time_unit=None,
             angle_unit=None):
     t0 = time.perf_counter()
+    rp.REPLAYED["samples"] = 0
     outputs = rep.Outputs(out_dir, json_path)      # refuses unwritable places now
     if gear_ratio is not None and not gear_ratio >= 1:
         raise loading.InputError(f"--gear-ratio must be >= 1 (got {gear_ratio})")
@@ -295,25 +296,32 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
                            inertia_kgm2, slow_step_nm=slow)
     ref_runs = rp.replay(data, m_ref, fold)
     ref_met = rp.metrics(ref_runs, bands=True)
+    # The report keeps thinned copies of the reference and starting replays
+    # (lines, spectra, plots), not the replays: one hour at 1 kHz is 0.1 GB
+    # a replay.
+    v_ref, w_ref = rp.analysis_view(ref_runs, copy=True), rp.window(ref_runs)
+    del ref_runs
     m0, start_fit = starting_profile(data, fold, m_ref, output_orders, log)
     session = augment.Session(data, m0, log=log, noise_estimate_nm=noise_est,
                               output_orders=output_orders)
-    runs_before, met_before = session.runs, rp.metrics(session.runs, bands=True)
+    met_before = rp.metrics(session.runs, bands=True)
+    vb, w_b = rp.analysis_view(session.runs, copy=True), rp.window(session.runs)
     noise_table, nyq_table = tune(session, noise_est, log)
     session.loop()
     m1 = session.model
     met_after = rp.metrics(session.runs, bands=True)
-    res = {"runs_before": runs_before, "runs_after": session.runs, "runs_reference": ref_runs,
+    va = rp.analysis_view(session.runs)
+    res = {"views": {"reference": v_ref, "before": vb, "after": va},
+           "windows": {"reference": w_ref, "before": w_b, "after": rp.window(session.runs)},
            "effects": session.effects}
     effects = _merge(session.effects)
-    vb, va = rp.analysis_view(runs_before), rp.analysis_view(session.runs)
     for e in effects:
         if e["kind"] in ("motor_order", "output_order", "fixed_frequency"):
             o = e.get("order_per_motor_rev") if e["kind"] == "motor_order" else (
                 e.get("order_per_output_rev") if e["kind"] == "output_order" else e["frequency_hz"])
             e["line_amplitude_in_filtered_before_nm"] = augment.line_amplitude(vb, e["kind"], o)
             e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(va, e["kind"], o)
-    lines = _lines_table(m_ref, m1, rp.analysis_view(ref_runs), vb, va)
+    lines = _lines_table(m_ref, m1, v_ref, vb, va)
     profile_doc = prof.build(data, m1, g, session.runs, log)
     report = {
         "input": str(path),
@@ -377,6 +385,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         s += f"; error vs truth {met_before['error_rms_nm']:.4g} -> {met_after['error_rms_nm']:.4g} N m"
     report["summary"] = s
     report["elapsed_s"] = time.perf_counter() - t0
+    report["data"]["replays_full_record_equivalent"] = rp.REPLAYED["samples"] / max(data.n, 1)
     outputs.write(report, res, data, m0, m1, title=_stem(path), node_id=node_id)
     return report
 

@@ -68,7 +68,7 @@ def angles(piece, gear_ratio, has_motor, has_output):
     else:
         th_o = piece.output_angle_rad
         th_m = th_o * gear_ratio
-    return th_m.astype(float), th_o.astype(float)
+    return np.asarray(th_m, float), np.asarray(th_o, float)
 
 
 def warmup_samples(n, ts_s):
@@ -106,16 +106,36 @@ def profile_torque(model: Model, th_m, th_o):
     return x
 
 
+_ANGLES: dict = {}
+# Samples replayed through the C filter since the last reset (the
+# benchmark reports it as full-record equivalents).
+REPLAYED = {"samples": 0}
+
+
+def _angles_of(data: Data, gear_ratio):
+    """Per piece (motor angle, output angle, their increments), computed
+    once per log and gear ratio and shared by every replay."""
+    key = (id(data.pieces[0]) if data.pieces else 0, len(data.pieces), gear_ratio)
+    if key not in _ANGLES:
+        if len(_ANGLES) >= 4:
+            _ANGLES.clear()
+        out = []
+        for p in data.pieces:
+            th_m, th_o = angles(p, gear_ratio, data.has_motor, data.has_output)
+            out.append((th_m, th_o, np.diff(th_m, prepend=th_m[0]).astype(np.float32),
+                        np.diff(th_o, prepend=th_o[0]).astype(np.float32)))
+        _ANGLES[key] = (data.pieces, out)     # the pieces keep the key's id alive
+    return _ANGLES[key][1]
+
+
 def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
     cfg = model.kf_config(data.ts_s)
     cfilter.check(cfg)
     exp = model.expected_config()
     fold = folds(data) if fold is None else fold
     runs = []
-    for k, p in enumerate(data.pieces):
-        th_m, th_o = angles(p, model.gear_ratio, data.has_motor, data.has_output)
-        dm = np.diff(th_m, prepend=th_m[0])
-        do = np.diff(th_o, prepend=th_o[0])
+    for k, (p, (th_m, th_o, dm, do)) in enumerate(zip(data.pieces,
+                                                      _angles_of(data, model.gear_ratio))):
         ff = p.feedforward_nm
         imp = None
         if model.profile:
@@ -124,6 +144,7 @@ def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
             imp = (lines, th_m[0], th_o[0], 0.0)
         out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff,
                           track_bandwidth_hz=model.track_bandwidth_hz, profile=imp)
+        REPLAYED["samples"] += len(p)
         runs.append(PieceRun(p.t_s, th_m, th_o, p.torque_nm, p.torque_true_nm, out,
                              warmup_samples(len(p), data.ts_s), fold[k], ff, p.segment))
     return runs
@@ -133,42 +154,65 @@ def _rms(x):
     return float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")
 
 
-def _summary(e, s, res, err, raw):
-    m = {"innovation_rms_nm": _rms(e),
-         "innovation_nll": float(0.5 * np.mean(np.log(s) + e ** 2 / s)) if len(e) else float("nan"),
-         "model_residual_rms_nm": _rms(res - res.mean()) if len(res) else float("nan"),
-         "samples": int(len(e))}
-    if err is not None:
-        m["error_rms_nm"] = _rms(err)
-        m["raw_error_rms_nm"] = _rms(raw)
-    return m
+METRIC_CHUNK = 500_000      # samples at a time: temporaries stay small on long logs
 
 
 def metrics(runs: list[PieceRun], which=None, bands: bool = False) -> dict:
     """RMS metrics over every sample after the warm-up, and per fold as
     in_sample_* (fold A) and out_of_sample_* (fold B); with `which`, the
     plain keys are those of that fold.  bands: also the error against truth
-    split into frequency bands (error_bands; slower)."""
-    def cat(fn):
-        return np.concatenate([np.asarray(fn(r), float)[r.warm:] for r in runs])
-    fold = np.concatenate([r.fold[r.warm:] for r in runs])
-    e = cat(lambda r: r.out["innovation_nm"])
-    s = cat(lambda r: r.out["innovation_var_nm2"])
-    res = cat(lambda r: r.out["torque_filtered_nm"] - r.out["torque_expected_nm"])
+    split into frequency bands (error_bands).  Sums per fold accumulate run
+    by run in float64 (np.bincount over the fold labels): no copy of the
+    record."""
     truth = all(r.torque_true_nm is not None for r in runs)
-    err = cat(lambda r: r.filtered - r.torque_true_nm) if truth else None
-    raw = cat(lambda r: r.torque_nm - r.torque_true_nm) if truth else None
+    names = ("n", "e2", "nll", "r", "r2", "err2", "raw2")
+    acc = {k: np.zeros(2) for k in names}
+    frozen, total = 0, 0
+    for r in runs:
+        o = r.out
+        for a in range(r.warm, len(r.t_s), METRIC_CHUNK):
+            sl = slice(a, min(a + METRIC_CHUNK, len(r.t_s)))
+            f = r.fold[sl].astype(np.intp)
 
-    def part(mask):
-        pick = (lambda x: None if x is None else x[mask]) if mask is not None else (lambda x: x)
-        return _summary(pick(e), pick(s), pick(res), pick(err), pick(raw))
-    m = part(None if which is None else fold == which)
+            def add(key, x):
+                acc[key] += np.bincount(f, weights=x, minlength=2)[:2]
+            e = o["innovation_nm"][sl]
+            s = o["innovation_var_nm2"][sl]
+            res = o["torque_filtered_nm"][sl] - o["torque_expected_nm"][sl]
+            acc["n"] += np.bincount(f, minlength=2)[:2]
+            add("e2", e * e)
+            add("nll", np.log(s) + e * e / s)
+            add("r", res)
+            add("r2", res * res)
+            if truth:
+                tt = r.torque_true_nm[sl]
+                err = o["torque_filtered_nm"][sl] - tt
+                raw = r.torque_nm[sl] - tt
+                add("err2", err * err)
+                add("raw2", raw * raw)
+            frozen += int(np.count_nonzero(o["status"][sl] & cfilter.STATUS_FROZEN))
+            total += len(e)
+
+    def summary(sel):
+        v = {k: float(acc[k][sel].sum()) for k in names}
+        n = v["n"]
+        if not n:
+            return {"innovation_rms_nm": float("nan"), "innovation_nll": float("nan"),
+                    "model_residual_rms_nm": float("nan"), "samples": 0}
+        m = {"innovation_rms_nm": float(np.sqrt(v["e2"] / n)),
+             "innovation_nll": float(0.5 * v["nll"] / n),
+             "model_residual_rms_nm": float(np.sqrt(max(v["r2"] / n - (v["r"] / n) ** 2, 0.0))),
+             "samples": int(n)}
+        if truth:
+            m["error_rms_nm"] = float(np.sqrt(v["err2"] / n))
+            m["raw_error_rms_nm"] = float(np.sqrt(v["raw2"] / n))
+        return m
+    m = summary(slice(None) if which is None else [which])
     m["filter_resets"] = int(sum(r.out["reset_count"] for r in runs))
-    m["frozen_fraction"] = float(np.mean(np.concatenate(
-        [(r.out["status"][r.warm:] & cfilter.STATUS_FROZEN) != 0 for r in runs])))
-    for f, name in FOLD_NAMES.items():
-        for k, v in part(fold == f).items():
-            m[f"{name}_{k}"] = v
+    m["frozen_fraction"] = frozen / total if total else 0.0
+    for fo, name in FOLD_NAMES.items():
+        for key, v in summary([fo]).items():
+            m[f"{name}_{key}"] = v
     if bands and truth:
         m.update(error_bands(runs))
     return m
@@ -177,23 +221,39 @@ def metrics(runs: list[PieceRun], which=None, bands: bool = False) -> dict:
 ERROR_SPLIT_HZ = 2.0
 
 
+def _highpass(x, ts_s, split_hz, chunk=1 << 17):
+    """Zero-phase high-pass with the squared magnitude of a 4th-order
+    Butterworth (what filtfilt of one gives), applied in the frequency
+    domain, chunk by chunk with 2 / split_hz of neighbouring samples on each
+    side (the record's ends reflected), so memory stays bounded."""
+    pad = min(len(x) - 1, int(round(2.0 / (split_hz * ts_s))))
+    xp = np.r_[x[pad:0:-1], x, x[-2:-pad - 2:-1]] if pad > 0 else np.asarray(x)
+    out = np.empty(len(x))
+    for a in range(0, len(x), chunk):
+        b = min(a + chunk, len(x))
+        y = xp[a:b + 2 * pad]
+        f = np.fft.rfftfreq(len(y), ts_s)
+        r = (f / split_hz) ** 8
+        out[a:b] = np.fft.irfft(np.fft.rfft(y) * (r / (1.0 + r)), len(y))[pad:pad + b - a]
+    return out
+
+
 def error_bands(runs: list[PieceRun], split_hz: float = ERROR_SPLIT_HZ) -> dict:
-    """The error against truth split at split_hz (zero-phase 4th-order
-    Butterworth, per piece after its warm-up).  Above it: what the
-    motor-locked (and fixed) blocks leave or inject, i.e. the ripple band
-    at any useful motor speed.  Below it: output-locked lines, the offset
-    and load torque the ripple blocks may take (an output-order-1 line at
-    1.5 rad/s is 0.24 Hz).  A piece shorter than 2/split_hz counts as slow
-    only.  Empty when the sample rate is below 4 x split_hz."""
-    from scipy import signal
+    """The error against truth split at split_hz (zero-phase, the squared
+    magnitude of a 4th-order Butterworth, per piece after its warm-up).
+    Above it: what the motor-locked (and fixed) blocks leave or inject, i.e.
+    the ripple band at any useful motor speed.  Below it: output-locked
+    lines, the offset and load torque the ripple blocks may take (an
+    output-order-1 line at 1.5 rad/s is 0.24 Hz).  A piece shorter than
+    2/split_hz counts as slow only.  Empty when the sample rate is below
+    4 x split_hz."""
     ts = float(np.median(np.diff(runs[0].t_s))) if runs and len(runs[0].t_s) > 1 else 0.0
     if not ts > 0 or 1.0 / ts < 4 * split_hz:
         return {}
-    sos = signal.butter(4, split_hz, "highpass", fs=1.0 / ts, output="sos")
     fast, slow = [], []
     for r in runs:
         e = (r.filtered - r.torque_true_nm)[r.warm:]
-        hp = signal.sosfiltfilt(sos, e) if len(e) * ts >= 2.0 / split_hz else np.zeros_like(e)
+        hp = _highpass(e, ts, split_hz) if len(e) * ts >= 2.0 / split_hz else np.zeros_like(e)
         fast.append(hp)
         slow.append(e - hp)
     fast, slow = np.concatenate(fast), np.concatenate(slow)
@@ -202,29 +262,34 @@ def error_bands(runs: list[PieceRun], split_hz: float = ERROR_SPLIT_HZ) -> dict:
             "error_slow_rms_nm": float(np.sqrt(np.mean(slow ** 2)))}
 
 
-ANALYSIS_MAX_SAMPLES = 600_000
+ANALYSIS_MAX_SAMPLES = 400_000
 ANALYSIS_CHUNK = 100_000
 
 
-def _slice_run(r: PieceRun, a: int, b: int) -> PieceRun:
+def _slice_run(r: PieceRun, a: int, b: int, copy: bool = False) -> PieceRun:
     sl = slice(a, b)
-    o = {k: (v[sl] if isinstance(v, np.ndarray) and len(v) == len(r.t_s) else v)
+
+    def cut(v):
+        if v is None:
+            return None
+        return v[sl].copy() if copy else v[sl]
+    o = {k: (cut(v) if isinstance(v, np.ndarray) and len(v) == len(r.t_s) else v)
          for k, v in r.out.items()}
-    return PieceRun(r.t_s[sl], r.motor_angle_rad[sl], r.output_angle_rad[sl], r.torque_nm[sl],
-                    None if r.torque_true_nm is None else r.torque_true_nm[sl], o, 0,
-                    None if r.fold is None else r.fold[sl],
-                    None if r.feedforward_nm is None else r.feedforward_nm[sl], r.segment)
+    return PieceRun(cut(r.t_s), cut(r.motor_angle_rad), cut(r.output_angle_rad),
+                    cut(r.torque_nm), cut(r.torque_true_nm), o, 0, cut(r.fold),
+                    cut(r.feedforward_nm), r.segment)
 
 
 def analysis_view(runs: list[PieceRun], which=None, max_total: int = ANALYSIS_MAX_SAMPLES,
-                  chunk: int = ANALYSIS_CHUNK) -> list[PieceRun]:
+                  chunk: int = ANALYSIS_CHUNK, copy: bool = False) -> list[PieceRun]:
     """The samples spectra and fits look at: after each piece's warm-up, of
     one fold if `which` is given (TRAIN for detection and fitting, HELD_OUT
     for judging), as contiguous stretches; a long record is thinned to
     evenly spaced contiguous chunks totalling at most max_total samples.
     Deterministic in the run lengths, so views of two replays of the same
     data cover the same samples.  Metrics (RMS values) always use all
-    samples of their fold."""
+    samples of their fold.  copy: the view owns its arrays (the replay can
+    be dropped)."""
     spans = []
     for i, r in enumerate(runs):
         if which is None or r.fold is None:
@@ -246,4 +311,16 @@ def analysis_view(runs: list[PieceRun], which=None, max_total: int = ANALYSIS_MA
         k = max(1, int(max_total // chunk))
         idx = np.unique(np.linspace(0, len(spans) - 1, k).round().astype(int))
         keep = [spans[j] for j in idx]
-    return [_slice_run(runs[i], a, b) for i, a, b in keep]
+    return [_slice_run(runs[i], a, b, copy) for i, a, b in keep]
+
+
+def window(runs: list[PieceRun], seconds: float = 4.0) -> dict:
+    """A short stretch after the warm-up of the longest run (for the torque
+    plot): time, measured, filtered and true torque, copied."""
+    k = int(np.argmax([len(r.t_s) for r in runs]))
+    r = runs[k]
+    ts = float(np.median(np.diff(r.t_s[:100])))
+    sl = slice(r.warm, min(len(r.t_s), r.warm + int(seconds / ts)))
+    return {"piece": k, "t_s": np.array(r.t_s[sl], float), "torque_nm": np.array(r.torque_nm[sl], float),
+            "filtered_nm": r.filtered[sl].copy(),
+            "true_nm": None if r.torque_true_nm is None else np.array(r.torque_true_nm[sl], float)}

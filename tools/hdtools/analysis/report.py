@@ -162,8 +162,8 @@ def _traces(res):
 
 
 def _views(res):
-    return [rp.analysis_view(res["runs_before"]), rp.analysis_view(res["runs_reference"]),
-            rp.analysis_view(res["runs_before"]), rp.analysis_view(res["runs_after"])]
+    v = res["views"]
+    return [v["before"], v["reference"], v["before"], v["after"]]
 
 
 def plot_makers(res, data, m0, m1, report, title):
@@ -220,23 +220,23 @@ def plot_makers(res, data, m0, m1, report, title):
 
     def torque():
         plt = _plt()
-        runs = [res["runs_before"], res["runs_reference"], res["runs_before"], res["runs_after"]]
-        k = int(np.argmax([len(r.t_s) for r in res["runs_after"]]))
-        ra = res["runs_after"][k]
-        n = min(len(ra.t_s) - ra.warm, int(4.0 / data.ts_s))
-        s = slice(ra.warm, ra.warm + n)
+        w = res["windows"]
+        wins = [w["before"], w["reference"], w["before"], w["after"]]
         fig, (ax, ax2) = plt.subplots(2, 1, figsize=(12.8, 7.2), sharex=True)
-        t = ra.t_s[s]
-        w = max(3, int(round(0.2 / data.ts_s)))
-        for (lab, get, kw), rr in zip(traces, runs):
-            x = get(rr[k])
-            ax.plot(t, x[s], label=lab, **kw)
-            ax2.plot(t, (x - np.convolve(x, np.ones(w) / w, mode="same"))[s], **kw)
-        if ra.torque_true_nm is not None:
-            x = np.asarray(ra.torque_true_nm, float)
-            ax.plot(t, x[s], label="truth (simulation)", color="k", ls="--", lw=1.0)
-            ax2.plot(t, (x - np.convolve(x, np.ones(w) / w, mode="same"))[s], color="k", ls="--",
-                     lw=1.0)
+        t = w["after"]["t_s"]
+        k = max(3, int(round(0.2 / data.ts_s)))
+
+        def hp(x):
+            return x - np.convolve(x, np.ones(k) / k, mode="same")
+        for i, ((lab, _, kw), win) in enumerate(zip(traces, wins)):
+            x = win["torque_nm"] if i == 0 else win["filtered_nm"]
+            n = min(len(t), len(x))
+            ax.plot(t[:n], x[:n], label=lab, **kw)
+            ax2.plot(t[:n], hp(x)[:n], **kw)
+        if w["after"]["true_nm"] is not None:
+            x = w["after"]["true_nm"]
+            ax.plot(t, x, label="truth (simulation)", color="k", ls="--", lw=1.0)
+            ax2.plot(t, hp(x), color="k", ls="--", lw=1.0)
         ax.set_ylabel("torque [N m]")
         ax2.set_ylabel("torque minus its 0.2 s mean [N m]")
         ax2.set_xlabel("time [s]")
@@ -252,7 +252,7 @@ def plot_makers(res, data, m0, m1, report, title):
             return None
         plt = _plt()
         from . import augment
-        inp = augment.profile_inputs(res["runs_after"], m1, None)
+        inp = augment.profile_inputs(res["views"]["after"], m1, None)
         th = np.mod(np.concatenate(inp.angles), 2 * np.pi)
         z = np.concatenate([x - np.mean(x) for x in inp.signals])
         bins = np.linspace(0, 2 * np.pi, 73)
