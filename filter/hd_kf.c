@@ -938,18 +938,16 @@ static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
         const float lmax = mid + sqrtf(half * half + p[1] * p[1]);
         d[s] = ceiling_scale(kf, (det < 0.0f || mid < 0.0f) ? -1.0f : lmax);
         if (!is_finite(lmax + det)) {
-            d[s] = -1.0f;
+            return HD_KF_STATUS_RESET;
         }
         scaled |= d[s] != 1.0f;
         p += 3u + 4u * (nb - 1u - s) + row_tail;
     }
     d[nb] = off ? ceiling_scale(kf, p[0]) : 1.0f;
-    scaled |= d[nb] != 1.0f;
-    for (unsigned s = 0; s <= nb; s++) {
-        if (d[s] < 0.0f) {
-            return HD_KF_STATUS_RESET;
-        }
+    if (d[nb] < 0.0f) {
+        return HD_KF_STATUS_RESET;
     }
+    scaled |= d[nb] != 1.0f;
     if (!scaled) {
         return 0u;
     }
