@@ -47,6 +47,7 @@
 #include "hal_replay.h"
 #include "hd_config_text.h"
 #include "hd_fw.h"
+#include "hd_fw_records.h"
 #include "hd_hostio.h"
 #ifdef HD_HAVE_SIM
 #include "hal_sim.h"
@@ -60,6 +61,10 @@
 #define EXIT_WRITE 3
 
 #define HOST_PI 3.14159265358979323846
+
+/* --cmd-at times, held by a global like the other heap blocks of the
+ * options (an early exit is not a leak). */
+static uint64_t *g_heap_cmd_due;
 
 /* "GAIN,OFFSET_V" -> two finite floats; strtof reports overflow (ERANGE),
  * which sscanf does not. */
@@ -88,8 +93,10 @@ typedef struct {
     float calib_gain;
     float calib_offset;
     const char **cmds;   /* argc entries at most */
+    uint64_t *cmd_due;   /* tick from which each may be delivered (--cmd-at) */
     int n_cmds;
     bool quiet;
+    const char *profile; /* profile record file to store in NVM before start */
 } options_t;
 
 static void usage(FILE *f)
@@ -98,7 +105,7 @@ static void usage(FILE *f)
           "                    [--can log:FILE | socketcan:IFNAME | none] [--config FILE]\n"
           "                    [--realtime] [--duration S] [--csv OUT.csv]\n"
           "                    [--calib GAIN_NM_PER_V,OFFSET_V] [--nvm FILE] [--cmd ID#HEX]...\n"
-          "                    [--quiet]\n"
+          "                    [--profile FILE.hdprofile] [--quiet]\n"
           "       hdjoint-host --version | --help\n"
           "  -s, --sensors  sample source: the simulated joint, a recorded raw stream, or a\n"
           "                 built-in synthetic joint (mock)\n"
@@ -113,6 +120,9 @@ static void usage(FILE *f)
           "                 every change (temporary file, fsync, rename)\n"
           "  --cmd          command frame for the firmware, e.g. 01D01001#2100020000000000;\n"
           "                 repeatable, delivered in order from the first tick (log/none CAN)\n"
+          "  --cmd-at       SECONDS:ID#HEX: the same, not before that sample time (in order\n"
+          "                 with the --cmd frames)\n"
+          "  --profile      store this profile record (hdsense profile) in NVM before start\n"
           "  -q, --quiet    no summary on stdout\n"
           "exit status: 0 ok, 1 run failed, 2 bad command line or input, 3 write failed,\n"
           "             130/143 interrupted by SIGINT/SIGTERM (outputs whole)\n",
@@ -138,8 +148,10 @@ static int parse_args(int argc, char **argv, options_t *o)
         {"duration", required_argument, NULL, 'd'},
         {"calib", required_argument, NULL, 'k'},
         {"cmd", required_argument, NULL, 'm'},
+        {"cmd-at", required_argument, NULL, 'T'},
         {"realtime", no_argument, NULL, 'r'},
         {"quiet", no_argument, NULL, 'q'},
+        {"profile", required_argument, NULL, 'P'},
         {"help", no_argument, NULL, 'h'},
         {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0},
@@ -149,6 +161,11 @@ static int parse_args(int argc, char **argv, options_t *o)
     o->duration_s = -1.0;
     o->cmds = calloc((size_t)argc + 1u, sizeof *o->cmds);
     if (o->cmds == NULL) {
+        return bad_arg("out of memory", NULL);
+    }
+    o->cmd_due = calloc((size_t)argc + 1u, sizeof *o->cmd_due);
+    g_heap_cmd_due = o->cmd_due;
+    if (o->cmd_due == NULL) {
         return bad_arg("out of memory", NULL);
     }
     opterr = 0; /* our own one-line messages */
@@ -163,7 +180,18 @@ static int parse_args(int argc, char **argv, options_t *o)
         case 'n': o->nvm_file = optarg; break;
         case 'r': o->realtime = true; break;
         case 'q': o->quiet = true; break;
+        case 'P': o->profile = optarg; break;
         case 'm': o->cmds[o->n_cmds++] = optarg; break;
+        case 'T': {
+            errno = 0;
+            double at = strtod(optarg, &end);
+            if (end == optarg || *end != ':' || errno == ERANGE || !(at >= 0.0) || at > 1e7) {
+                return bad_arg("--cmd-at wants SECONDS:ID#HEX with 0 <= SECONDS <= 1e7", optarg);
+            }
+            o->cmd_due[o->n_cmds] = (uint64_t)llround(at * 1000.0);
+            o->cmds[o->n_cmds++] = end + 1;
+            break;
+        }
         case 'h':
             usage(stdout);
             return 1;
@@ -330,6 +358,8 @@ typedef struct {
     uint64_t n;
     double sum_raw2;
     double sum_filt2;
+    uint64_t n_first;        /* the first second (boot) */
+    double sum_filt2_first;
     uint64_t n_settled;      /* after the first second */
     double sum_raw2_settled;
     double sum_filt2_settled;
@@ -344,6 +374,10 @@ static void err_add(err_t *e, double t_s, double raw, double filt, double truth)
     e->n++;
     e->sum_raw2 += dr * dr;
     e->sum_filt2 += df * df;
+    if (t_s < 1.0) {
+        e->n_first++;
+        e->sum_filt2_first += df * df;
+    }
     if (t_s >= 1.0) {
         e->n_settled++;
         e->sum_raw2_settled += dr * dr;
@@ -362,6 +396,40 @@ static int provision_calibration(hal_t *hal, float gain, float offset)
     static uint8_t work[HD_STORE_IMAGE_MAX];
     const hd_calib_storage_t s = hd_fw_store_io(hal, work, sizeof work);
     return hd_calib_store_save(&s, &rec) == HD_RECORD_OK ? 0 : -1;
+}
+
+/* A profile record file (docs/slow-torque.md, "Record file"): "HDPF", u16
+ * format version, u16 payload length, the payload of hd_fw_records.h, u32
+ * CRC-32 of everything before it.  Stored as is: the firmware checks that
+ * it is for this joint at boot (REFUSED otherwise, as on the MCU). */
+static int provision_profile(hal_t *hal, const char *path, char *err, size_t err_len)
+{
+    size_t len = 0;
+    char *buf = hd_hostio_read_file(path, 4096u, &len, err, err_len);
+    if (buf == NULL) {
+        return -1;
+    }
+    const uint8_t *b = (const uint8_t *)buf;
+    int rc = -1;
+    if (len < 12u || memcmp(b, "HDPF", 4) != 0) {
+        snprintf(err, err_len, "%s: not a profile record file (no HDPF header)", path);
+    } else if (hd_le_get_u16(b + 4) != HD_PROFILE_RECORD_VERSION) {
+        snprintf(err, err_len, "%s: profile record format %u, this firmware reads %u", path,
+                 (unsigned)hd_le_get_u16(b + 4), (unsigned)HD_PROFILE_RECORD_VERSION);
+    } else if ((size_t)hd_le_get_u16(b + 6) + 12u != len ||
+               hd_crc32(b, len - 4u) != hd_le_get_u32(b + len - 4u)) {
+        snprintf(err, err_len, "%s: profile record file damaged (length or CRC)", path);
+    } else {
+        static uint8_t work[HD_STORE_IMAGE_MAX];
+        const hd_store_io_t s = hd_fw_store_io(hal, work, sizeof work);
+        rc = hd_store_save(&s, HD_RECORD_KIND_PROFILE, HD_PROFILE_RECORD_VERSION, b + 8,
+                           len - 12u) == HD_RECORD_OK ? 0 : -1;
+        if (rc != 0) {
+            snprintf(err, err_len, "could not store the profile record in NVM");
+        }
+    }
+    free(buf);
+    return rc;
 }
 
 /* "fault_<name> = count" in the summary: the protocol's fault name, lower case. */
@@ -444,6 +512,7 @@ int main(int argc, char **argv)
     int prc = parse_args(argc, argv, &o);
     if (prc != 0) {
         free(o.cmds);
+        free(o.cmd_due);
         return prc > 0 ? 0 : EXIT_USAGE;
     }
     hd_hostio_catch_signals();
@@ -521,10 +590,9 @@ int main(int argc, char **argv)
             cfg.output_cpr = nom.output_cpr;
         }
         cfg.gear_ratio = (float)nom.gear_ratio;
-        /* the expected-torque model the scenario's plant follows (nominal) */
-        cfg.expected.inertia_kgm2 = (float)nom.load_inertia_kgm2;
-        cfg.expected.viscous_nm_s_rad = (float)nom.viscous_nm_s_rad;
-        cfg.expected.coulomb_nm = (float)nom.coulomb_nm;
+        /* No oracle (issue 12): the sensor's and encoders' constants are the
+         * joint's data sheet; the expected-torque model (J, b, Fc) is NOT
+         * the plant's: the firmware defaults (0) or what --config says. */
 #else
         fprintf(stderr, "hdjoint-host: built without the simulated joint (hal/sim)\n");
         return EXIT_USAGE;
@@ -585,6 +653,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "hdjoint-host: could not store the calibration record in NVM\n");
         return EXIT_RUN;
     }
+    if (o.profile != NULL && provision_profile(&hal, o.profile, err, sizeof err) != 0) {
+        fprintf(stderr, "hdjoint-host: %s\n", err);
+        return EXIT_USAGE;
+    }
 
     int rc = hd_fw_init(&g_fw, &hal, &cfg);
     if (rc != HD_FW_OK) {
@@ -641,7 +713,7 @@ int main(int argc, char **argv)
         csv_open = true;
         hd_out_printf(&csv, "t_s,bridge_counts,torque_raw_nm,torque_filtered_nm,ripple_nm,"
                             "torque_expected_nm,motor_velocity_rad_s,motor_angle_rad,faults,"
-                            "kf_status,torque_true_nm\n");
+                            "kf_status,torque_true_nm,feedforward_nm,motor_current_a\n");
     }
 
     uint64_t max_ticks = (o.duration_s > 0.0) ? (uint64_t)llround(o.duration_s * 1000.0) : UINT64_MAX;
@@ -653,6 +725,13 @@ int main(int argc, char **argv)
     uint64_t wall_start_ns = now_ns();
     uint64_t k = 0;
     int n_fed = 0;
+    /* feed-forward frames come from the simulated controller unless the
+     * bus is a real one */
+    const bool inject_ff = strncmp(o.can, "socketcan:", 10) != 0;
+    uint8_t ff_seq = 0u;
+    uint64_t ff_frames = 0u;
+    (void)inject_ff;
+    (void)ff_seq;
     bool nvm_failed = false;
     for (; k < max_ticks && hd_hostio_signal() == 0; k++) {
         if (o.realtime) {
@@ -675,11 +754,28 @@ int main(int argc, char **argv)
         }
         g_mock.now_us = k * HD_FW_TS_US; /* time stamps of the CAN log: sample time */
         /* --cmd frames, in order, as the receive queue has room */
-        while (n_fed < o.n_cmds && hal_mock_push_rx(&g_mock, &cmds[n_fed]) == HAL_OK) {
+        while (n_fed < o.n_cmds && o.cmd_due[n_fed] <= k &&
+               hal_mock_push_rx(&g_mock, &cmds[n_fed]) == HAL_OK) {
             log_frame(&canlog, &cmds[n_fed], g_mock.now_us);
             n_fed++;
         }
         uint64_t t0 = now_ns();
+#ifdef HD_HAVE_SIM
+        /* The simulated robot controller's feed-forward frame, from the
+         * previous sample (one tick of latency, as on a bus). */
+        if (src == SRC_SIM && inject_ff) {
+            const hd_sim_sample_t *cur = hal_sim_current(sim);
+            if (cur != NULL && cur->feedforward_sent) {
+                hd_can_feedforward_t ffv = {(float)cur->feedforward_nm, ff_seq++};
+                hal_can_frame_t ff;
+                hd_can_encode_feedforward(cfg.node_id, &ffv, &ff);
+                if (hal_mock_push_rx(&g_mock, &ff) == HAL_OK) {
+                    log_frame(&canlog, &ff, g_mock.now_us);
+                    ff_frames++;
+                }
+            }
+        }
+#endif
         hd_fw_isr(&g_fw);
         uint64_t t1 = now_ns();
         if (g_fw.tick.ended) {
@@ -711,11 +807,13 @@ int main(int argc, char **argv)
         double t_s = (double)k * 1e-3;
         err_add(&er, t_s, (double)s->torque_raw_nm, (double)s->torque_filtered_nm, truth);
         if (csv_open) {
-            hd_out_printf(&csv, "%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%u,%u,%.6g\n", t_s,
+            hd_out_printf(&csv, "%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%u,%u,%.6g", t_s,
                           (int)s->bridge_counts, (double)s->torque_raw_nm,
                           (double)s->torque_filtered_nm, (double)s->ripple_nm,
                           (double)s->torque_expected_nm, (double)s->motor_velocity_rad_s,
                           motor_angle, (unsigned)s->faults, (unsigned)s->kf_status, truth);
+            hd_out_printf(&csv, ",%.6g,%.6g\n", (double)s->feedforward_nm,
+                          (double)s->motor_current_a);
         }
         if ((csv_open && hd_out_failed(&csv)) || (canlog.open && hd_out_failed(&canlog.out))) {
             break; /* reported below, with the file and the reason */
@@ -737,6 +835,7 @@ int main(int argc, char **argv)
     const int sig = hd_hostio_signal();
     free(cmds);
     free(o.cmds);
+    free(o.cmd_due);
 
     /* the end: one error line and the old outputs, or whole new outputs */
     int exit_code = 0;
@@ -803,6 +902,11 @@ int main(int argc, char **argv)
             }
         }
         printf("calib_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CALIB));
+        printf("profile_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_PROFILE));
+        printf("profile_imports = %u\n", (unsigned)c->profile_imports);
+        printf("expected_model = %s\n", o.config != NULL ? "config" : "defaults");
+        printf("feedforward_frames_given = %llu\n", (unsigned long long)ff_frames);
+        printf("feedforward_frames_taken = %u\n", (unsigned)c->feedforward_frames);
         printf("config_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CONFIG));
         printf("truth = %s\n", have_truth ? "yes" : "no");
         printf("telemetry_periods = %u\n", (unsigned)c->telemetry_frames);
@@ -825,6 +929,8 @@ int main(int argc, char **argv)
         }
         if (er.n_settled > 0u) {
             printf("rms_error_raw_after_1s_nm = %.4f\n", sqrt(er.sum_raw2_settled / (double)er.n_settled));
+            printf("rms_error_filtered_first_1s_nm = %.4f\n",
+                   er.n_first ? sqrt(er.sum_filt2_first / (double)er.n_first) : 0.0);
             printf("rms_error_filtered_after_1s_nm = %.4f\n",
                    sqrt(er.sum_filt2_settled / (double)er.n_settled));
         }
