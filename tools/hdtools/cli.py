@@ -23,7 +23,8 @@ from pathlib import Path
 
 from hdtools.safeio import HdError
 
-SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "bench", "monitor", "device"]
+SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "bench", "monitor", "device", "profile",
+               "current"]
 EXIT_INTERNAL = 4
 
 
