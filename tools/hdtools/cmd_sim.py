@@ -1,10 +1,16 @@
-"""`hdsense sim`: run the simulated joint (the C `hdsim` executable)."""
+"""`hdsense sim`: run the simulated joint (the C `hdsim` executable).
+
+The exit status is hdsim's (docs/sim.md: 0 ok, 2 bad usage or scenario,
+3 an output could not be written, 130/143 interrupted); 1 if hdsim cannot
+be found or built.
+"""
 from __future__ import annotations
 
 import argparse
 import subprocess
 
 from . import native
+from .safeio import HdError
 
 
 def register(sub) -> None:
@@ -18,5 +24,8 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    exe = native.executable("hdsim")
+    try:
+        exe = native.executable("hdsim")
+    except (OSError, subprocess.CalledProcessError) as exc:
+        raise HdError(f"cannot find or build hdsim: {exc}") from None
     return subprocess.run([str(exe), args.scenario, *args.hdsim_args]).returncode

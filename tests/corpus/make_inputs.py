@@ -1,0 +1,146 @@
+#!/usr/bin/env python3
+"""Writes the corpus inputs that are bytes rather than text one types: CAN
+logs and raw streams made by the project's own programs and then damaged,
+files with NUL, control or non-UTF-8 bytes, calibration CSVs from the
+campaign simulator.  Run it again when a format changes (e.g. the CAN ids):
+
+  tests/corpus/make_inputs.py BUILD_DIR
+
+Every file is small (the largest is a calibration CSV of ~6 KB)."""
+from __future__ import annotations
+
+import re
+import struct
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def run(*argv: str) -> None:
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
+
+
+def put(rel: str, data: bytes | str) -> None:
+    path = HERE / rel
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data.encode() if isinstance(data, str) else data)
+
+
+def canlogs(build: Path, tmp: Path) -> None:
+    log = tmp / "good.log"
+    run(str(build / "firmware/host/hdjoint-host"), "--sensors", "mock", "--duration", "0.01",
+        "--can", f"log:{log}", "--cmd", "01D01001#2100010000000000", "-q")
+    lines = log.read_text().splitlines(keepends=True)
+    good = "".join(lines)
+    put("canlog/good.log", good)
+    put("canlog/cut_last_line.log", good[:-10])     # an interrupted logger: 7 hex digits left
+    put("canlog/cut_last_frame.log", good[:-9])     # ... cut between two bytes: 4 bytes left
+    put("canlog/comment_blank.log", "# captured on the bench\n\n" + good + "\n   \n")
+    telem_a = next(i for i, ln in enumerate(lines) if " 01D00201#" in ln)   # TELEM_A, node 1
+    bad_hex = lines.copy()
+    bad_hex[telem_a] = bad_hex[telem_a].replace("01D00201#", "01D00201#ZZ")
+    put("canlog/bad_hex.log", "".join(bad_hex))
+    short = lines.copy()                                          # DLC 4 for an 8-byte message
+    head, _, data = short[telem_a].rstrip("\n").partition("01D00201#")
+    short[telem_a] = f"{head}01D00201#{data[:8]}\n"
+    put("canlog/wrong_dlc.log", "".join(short))
+    node5 = "".join(re.sub(r" (01D0[0-9A-F]{2})01#", r" \g<1>05#", ln) for ln in lines)
+    put("canlog/node5.log", node5)
+    put("canlog/two_nodes.log", good + node5)
+    put("canlog/binary.log", bytes(range(256)) * 4)
+    put("canlog/empty.log", b"")
+    foreign = ("(0.000100) vcan0 12345678#0011\n(0.000200) vcan0 01D00201#R\n"
+               "(0.000250) vcan0 101#0F000F0000000000\n"
+               "(0.000300) vcan0 124##100112233445566778899AABB\n(0.000400) vcan0 20000080#0000000000000000\n"
+               "(0.000500) vcan0 7E5#00\n")
+    put("canlog/foreign_frames.log", foreign + good)
+    put("canlog/nul_line.log", good.replace("\n", "\n\0junk\n", 1))
+
+
+def replays(build: Path, tmp: Path) -> None:
+    raw = tmp / "g.hdraw"
+    run(str(build / "sim/hdsim"), str(ROOT / "sim/scenarios/paper_156.ini"), "--duration", "0.05",
+        "--csv", str(tmp / "g.csv"), "--raw", str(raw))
+    good = raw.read_bytes()
+    put("host-input/good.hdraw", good)
+    put("host-input/short_header.hdraw", good[:5])
+    put("host-input/bad_magic.hdraw", b"XXXX" + good[4:])
+    put("host-input/period_2ms.hdraw", good[:8] + struct.pack("<I", 2000) + good[12:])
+    put("host-input/trailing.hdraw", good + b"\x01" * 7)
+    put("host-input/empty.hdraw", b"")
+    put("host-input/nvm_zero.bin", b"")
+    nvm = tmp / "nvm.bin"
+    run(str(build / "firmware/host/hdjoint-host"), "--sensors", "mock", "--duration", "0.001",
+        "--nvm", str(nvm), "--calib", "6.6,0", "-q")
+    put("host-output/nvm_good.bin", nvm.read_bytes())
+    put("host-input/nvm_short.bin", b"\xff" * 100)
+
+
+def text_bytes() -> None:
+    """Configuration and scenario files with bytes no editor shows."""
+    put("host-input/cfg_nul.cfg", b"gear_ratio = 100\0\nnode_id = 999\n")
+    put("host-input/cfg_ctrl.cfg", b"gear_ratio = 100\x01\n")
+    put("host-input/cfg_bad_utf8.cfg", b"# \xe9t\xe9\ngear_ratio = 100\n")
+    put("scenario/nul_byte.ini", b"duration_s = 1\nnoise_nm = 0.1\0encoder_cpr = 1\n")
+    put("scenario/ctrl_char.ini", b"duration_s = 1\x1b[0m\n")
+    put("scenario/bad_utf8.ini", b"# caf\xe9\nduration_s = 1\n")
+    put("scenario/cut_utf8.ini", b"duration_s = 1\n# \xc3")
+    put("scenario/utf8_comment.ini", "# café, 5 N·m ±1 %\nduration_s = 0.01\n")
+    put("scenario/crlf.ini", b"duration_s = 0.01\r\nnoise_nm = 0.01\r\n")
+    put("scenario/binary.ini", bytes(range(1, 256)))
+    put("scenario/long_line.ini", "duration_s = 1" + " " * 5000 + "\n")
+    put("calib/nul.csv", b"experiment,direction,position_deg,torque_nm,bridge_v\n"
+                         b"1,load,0,0,0.0\n1,lo\0ad,0,30,4.5\n")
+    put("calib/non_utf8.csv", b"experiment,direction,position_deg,torque_nm,bridge_v\n"
+                              b"# r\xe9sultats\n1,load,0,0,0.0\n")
+    put("canlog/cfg_nul.cfg", b"r_nm2 = 0.0004\0\ntelemetry_rate_hz = 100\n")
+    put("canlog/cfg_non_utf8.cfg", b"# \xff\nr_nm2 = 0.0004\n")
+
+
+def campaigns(build: Path) -> None:
+    exe = str(build / "sim/hdsim-campaign")
+    for name, args in (("good", ["--spread", "0.01", "--seed", "3"]),):
+        out = HERE / "calib" / f"{name}.csv"
+        run(exe, *args, "-o", str(out))
+    good = (HERE / "calib/good.csv").read_text().splitlines()
+    header = [ln for ln in good if not ln.startswith("#")][0]
+    rows = [ln for ln in good if not ln.startswith("#")][1:]
+    # two points per experiment: 0 and +FS, loading only
+    keep = []
+    for e in sorted({r.split(",")[0] for r in rows}, key=int):
+        mine = [r for r in rows if r.split(",")[0] == e and r.split(",")[1] == "load"]
+        fs = max(float(r.split(",")[3]) for r in mine)
+        keep.append(next(r for r in mine if float(r.split(",")[3]) == 0.0))
+        keep.append(next(r for r in mine if float(r.split(",")[3]) == fs))
+    put("calib/two_points.csv", "\n".join([header] + keep) + "\n")
+    put("calib/one_direction.csv", "\n".join([header] + [r for r in rows if ",load," in r]) + "\n")
+    put("calib/single.csv", "\n".join([header] + [r for r in rows if r.startswith("1,")]) + "\n")
+    many = [header] + [f"{e},{d},{p},{t},{v}" for e in range(1, 34)
+                       for _, d, p, t, v in (r.split(",") for r in rows if r.startswith("1,"))]
+    put("calib/33_experiments.csv", "\n".join(many) + "\n")
+    pts = [header] + [r for r in rows if r.startswith("1,")] * 4
+    pts += [r for r in rows if r.startswith("2,")]
+    put("calib/84_points.csv", "\n".join(pts) + "\n")
+    huge = [header] + rows[:40] + [rows[40].rsplit(",", 1)[0] + ",1e39"] + rows[41:]
+    put("calib/huge_value.csv", "\n".join(huge) + "\n")
+
+
+def main() -> int:
+    if len(sys.argv) != 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    build = Path(sys.argv[1]).resolve()
+    with tempfile.TemporaryDirectory() as tmp:
+        canlogs(build, Path(tmp))
+        replays(build, Path(tmp))
+    text_bytes()
+    campaigns(build)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
