@@ -64,18 +64,37 @@ def analyze(path, **kw):
 
 
 @pytest.fixture(scope="session")
-def analyzed(simulate):
-    """analyzed(name, *--set overrides) -> the report of the simulated log
-    (each analysed once per session)."""
-    cache = {}
-
-    def run(name, *sets):
-        key = (name,) + sets
-        if key not in cache:
-            cache[key] = analyze(simulate(name, *sets))
-        return cache[key]
-    return run
+def analyzed(case_report):
+    """analyzed(name) -> the report of the suite case of that scenario."""
+    return case_report
 
 
 def added(report):
     return [e for e in report["effects"] if e["added"]]
+
+
+@pytest.fixture(scope="session")
+def case_report(simulate, tmp_path_factory):
+    """case_report(name) -> the report of a case of hdtools.analysis.results
+    (SUITE or SLOW: scenario, --set overrides, the CSV transform), analysed
+    once per session: the tests and docs/analyze-results.md see the same
+    runs."""
+    from hdtools.analysis import results
+    cases = {c.name: c for c in results.SUITE + results.SLOW}
+    tmp = tmp_path_factory.mktemp("cases")
+    cache = {}
+
+    def run(name):
+        if name not in cache:
+            c = cases[name]
+            cache[name] = analyze(results.prepare(c, simulate, tmp), **c.kwargs)
+        return cache[name]
+    return run
+
+
+def doc_section(name, lines):
+    """The generated section of docs/analyze-results.md and the one these
+    reports give (equal unless the file is stale)."""
+    from hdtools.analysis import results
+    text = results.DOC.read_text() if results.DOC.is_file() else ""
+    return results.extract(text, name), results.section(name, lines)

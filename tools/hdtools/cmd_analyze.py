@@ -38,6 +38,9 @@ def register(sub):
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--bench-hour", action="store_true",
                    help="speed benchmark: simulate one hour at 1 kHz and time the analysis")
+    p.add_argument("--results-doc", metavar="FILE.md",
+                   help="run the simulated cases and the iiwa logs and write the results "
+                        "tables (docs/analyze-results.md); with --bench-hour, the benchmark too")
     p.set_defaults(func=main)
 
 
@@ -77,6 +80,9 @@ def main(args) -> int:
     """Errors are raised as hdtools.safeio errors (one line and the exit
     status from hdtools.cli: 2 bad input, 3 an output could not be written,
     4 internal error)."""
+    if args.results_doc:
+        from .analysis import results
+        return results.main(args.results_doc, with_bench=args.bench_hour)
     if args.bench_hour:
         from .analysis import bench_speed
         return bench_speed.main()

@@ -57,6 +57,12 @@ def _child(csv, baseline):
 
 
 def main(duration_s: float = HOUR_S) -> int:
+    print(run(duration_s))
+    return 0
+
+
+def run(duration_s: float = HOUR_S) -> str:
+    """The benchmark's report (text)."""
     sim = native.find_file("hdsim", target="hdsim_cli")
     with tempfile.TemporaryDirectory() as tmp:
         csv = Path(tmp) / "hour.csv"
@@ -69,15 +75,17 @@ def main(duration_s: float = HOUR_S) -> int:
         base = _child(csv, True)
         full = _child(csv, False)
     n = full["samples"]
-    print(f"analyze-speed: {n} samples ({n * full['ts_s'] / 3600:.2f} h at "
-          f"{1 / full['ts_s']:.0f} Hz), CSV {size_mb:.0f} MB, filter library "
-          f"{native.find_file('libhdfilter.so', target='hdfilter_shared')}")
-    print(f"  simulate + write CSV      : {t_sim:7.2f} s (not part of the analysis)")
-    print(f"  baseline: load + 1 replay : {base['elapsed_s']:7.2f} s (load {base['load_s']:.2f} s), "
-          f"peak {base['peak_rss_mb']:.0f} MB")
-    print(f"  load + full analysis      : {full['elapsed_s']:7.2f} s ({n / full['elapsed_s'] / 1e6:.2f} "
-          f"M samples/s, {full['replays']:.1f} full-record replays), peak {full['peak_rss_mb']:.0f} MB")
-    print(f"  ratio to the baseline     : {full['elapsed_s'] / base['elapsed_s']:.2f} x time, "
-          f"{full['peak_rss_mb'] / base['peak_rss_mb']:.2f} x memory")
-    print(f"  result                    : {full['summary']}")
-    return 0
+    lib = native.find_file("libhdfilter.so", target="hdfilter_shared")
+    return "\n".join([
+        f"analyze-speed: {n} samples ({n * full['ts_s'] / 3600:.2f} h at "
+        f"{1 / full['ts_s']:.0f} Hz), CSV {size_mb:.0f} MB, filter library from "
+        f"{lib.parent.parent.name}",
+        f"  simulate + write CSV      : {t_sim:7.2f} s (not part of the analysis)",
+        f"  baseline: load + 1 replay : {base['elapsed_s']:7.2f} s (load {base['load_s']:.2f} s), "
+        f"peak {base['peak_rss_mb']:.0f} MB",
+        f"  load + full analysis      : {full['elapsed_s']:7.2f} s "
+        f"({n / full['elapsed_s'] / 1e6:.2f} M samples/s, {full['replays']:.1f} full-record "
+        f"replays), peak {full['peak_rss_mb']:.0f} MB",
+        f"  ratio to the baseline     : {full['elapsed_s'] / base['elapsed_s']:.2f} x time, "
+        f"{full['peak_rss_mb'] / base['peak_rss_mb']:.2f} x memory",
+        f"  result                    : {full['summary']}"])

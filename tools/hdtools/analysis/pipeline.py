@@ -247,10 +247,31 @@ def starting_profile(data, fold, model, output_orders, log):
     return m, g
 
 
-def _merge(effects):
-    """Repeated refinements of one slow term become one finding."""
+def _per_order(e, gear_ratio):
+    """A profile change as one finding per output order it adds (or, for a
+    refit of the same orders, per order it changes)."""
+    before = e["evidence"].get("orders_before", [])
+    lines = e.get("profile") or []
+    fresh = [o for o in lines if o["order"] not in before] or lines
+    out = []
+    for o in fresh:
+        f = dict(e)
+        f["order_per_output_rev"] = o["order"]
+        f["order_per_motor_rev"] = o["order"] / gear_ratio
+        f["amplitude_nm"] = o["amplitude_nm"]
+        f["parameters"] = {"a_nm": o["a_nm"], "b_nm": o["b_nm"]}
+        out.append(f)
+    return out
+
+
+def _merge(effects, gear_ratio):
+    """Repeated refinements of one slow term become one finding; a profile
+    change becomes one finding per output order."""
     out, slow = [], {}
     for e in effects:
+        if e.get("action") == "set_profile":
+            out.extend(_per_order(e, gear_ratio))
+            continue
         if e["kind"] in ("velocity", "acceleration") and e["added"]:
             if e["kind"] in slow:
                 f = slow[e["kind"]]
@@ -310,11 +331,12 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     session.loop()
     m1 = session.model
     met_after = rp.metrics(session.runs, bands=True)
+    no_ff = _without_feedforward(data, fold, {"reference": m_ref, "after": m1})
     va = rp.analysis_view(session.runs)
     res = {"views": {"reference": v_ref, "before": vb, "after": va},
            "windows": {"reference": w_ref, "before": w_b, "after": rp.window(session.runs)},
            "effects": session.effects}
-    effects = _merge(session.effects)
+    effects = _merge(session.effects, g["value"])
     for e in effects:
         if e["kind"] in ("motor_order", "output_order", "fixed_frequency"):
             o = e.get("order_per_motor_rev") if e["kind"] == "motor_order" else (
@@ -348,6 +370,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         "metrics_reference": ref_met,
         "metrics_before": met_before,
         "metrics_after": met_after,
+        "metrics_without_feedforward": no_ff,
         "history": session.history,
         "config_before": m0.config_text(),
         "config_after": m1.config_text(),
@@ -388,6 +411,23 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     report["data"]["replays_full_record_equivalent"] = rp.REPLAYED["samples"] / max(data.n, 1)
     outputs.write(report, res, data, m0, m1, title=_stem(path), node_id=node_id)
     return report
+
+
+def _without_feedforward(data, fold, models):
+    """When the analysis had a feed-forward (the log's column or the gravity
+    stand-in), the same models replayed without one: what the firmware does
+    if the controller sends none (or it goes stale).  {} otherwise."""
+    from dataclasses import replace
+    if not any(p.feedforward_nm is not None for p in data.pieces):
+        return {}
+    bare = data.subset([replace(p, feedforward_nm=None) for p in data.pieces])
+    out = {}
+    for name, m in models.items():
+        met = rp.metrics(rp.replay(bare, m, fold))
+        out[name] = {k: met[k] for k in ("innovation_rms_nm", "in_sample_innovation_rms_nm",
+                                         "out_of_sample_innovation_rms_nm", "error_rms_nm",
+                                         "out_of_sample_error_rms_nm") if k in met}
+    return out
 
 
 def _stem(path):
