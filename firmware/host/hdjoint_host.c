@@ -936,10 +936,12 @@ int main(int argc, char **argv)
             printf("rms_error_raw_nm = %.4f\n", sqrt(er.sum_raw2 / (double)er.n));
             printf("rms_error_filtered_nm = %.4f\n", sqrt(er.sum_filt2 / (double)er.n));
         }
+        if (er.n_first > 0u) {
+            printf("rms_error_filtered_first_1s_nm = %.4f\n",
+                   sqrt(er.sum_filt2_first / (double)er.n_first));
+        }
         if (er.n_settled > 0u) {
             printf("rms_error_raw_after_1s_nm = %.4f\n", sqrt(er.sum_raw2_settled / (double)er.n_settled));
-            printf("rms_error_filtered_first_1s_nm = %.4f\n",
-                   er.n_first ? sqrt(er.sum_filt2_first / (double)er.n_first) : 0.0);
             printf("rms_error_filtered_after_1s_nm = %.4f\n",
                    sqrt(er.sum_filt2_settled / (double)er.n_settled));
         }
