@@ -82,28 +82,15 @@ def test_record_layout_matches_documentation():
 # sample std of the fitted gains and sigma^2 = (0.02 x 6.60)^2 plus the fit
 # noise (mean se^2 of the per-experiment gains); the mean gain's t statistic
 # has n-1 degrees of freedom.  Checked over many independent campaigns
-# against those distributions (scipy), not against "2.0 %".
-TRUE_GAIN, TRUE_SPREAD, N_EXP, N_CAMPAIGNS = 6.60, 0.02, 8, 300
+# against those distributions (scipy), not against "2.0 %".  The same
+# figures are written into docs/calibration.md by calib_doc.py.
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import calib_doc  # noqa: E402
+from calib_doc import N_CAMPAIGNS, N_EXP, TRUE_GAIN, TRUE_SPREAD, spread_interval  # noqa: E402,F401
 
 
 def campaign_figures(tmp_path: Path, seed: int) -> dict:
-    from hdtools.calibtool import csvio
-    csv = sim(tmp_path, "c", "--gain", str(TRUE_GAIN), "--spread", str(TRUE_SPREAD),
-              "--experiments", str(N_EXP), "--seed", str(seed))
-    exps = csvio.read_csv(csv.read_text())
-    rep, rc = L.analyze(exps, L.default_thresholds())
-    assert rc == 0
-    se2 = np.mean([rep.fit[i].gain_se_nm_per_v ** 2 for i in range(N_EXP)])
-    return {"mean": rep.gain_mean_nm_per_v, "std": rep.gain_std_nm_per_v,
-            "consistency": rep.consistency, "se2": se2, "accepted": bool(rep.accepted)}
-
-
-def spread_interval(consistency: float, n: int = N_EXP, level: float = 0.95) -> tuple:
-    """Confidence interval for the true spread from a consistency figure:
-    (n-1) c^2 / spread^2 ~ chi-square(n-1)."""
-    from scipy import stats
-    lo_q, hi_q = stats.chi2.ppf([(1 - level) / 2, (1 + level) / 2], n - 1)
-    return consistency * math.sqrt((n - 1) / hi_q), consistency * math.sqrt((n - 1) / lo_q)
+    return calib_doc.campaign_figures(tmp_path, seed)
 
 
 @pytest.fixture(scope="module")
@@ -135,6 +122,12 @@ def test_mean_gain_intervals_cover_the_true_gain(campaigns):
     tq = stats.t.ppf(0.975, N_EXP - 1)
     covered = [abs(c["mean"] - TRUE_GAIN) <= tq * c["std"] / math.sqrt(N_EXP) for c in campaigns]
     assert 0.906 <= np.mean(covered) <= 0.994, np.mean(covered)
+
+
+def test_docs_hold_the_measured_numbers(campaigns):
+    """docs/calibration.md's measured table and Table I paragraph are what
+    calib_doc.py computes now (re-run it after a change)."""
+    assert calib_doc.update(check=True, figs=campaigns) == 0, "run tests/calib/calib_doc.py"
 
 
 def test_table1_shaped_report(tmp_path):
