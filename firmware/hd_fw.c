@@ -20,6 +20,9 @@ void hd_fw_derive(hd_fw_settings_t *s)
     float output_counts = motor_counts / c->gear_ratio * (float)c->output_cpr / (float)c->motor_cpr;
     s->max_motor_delta_counts = motor_counts > 1.0e9f ? 1000000000 : (int32_t)motor_counts + 2;
     s->max_output_delta_counts = output_counts > 1.0e9f ? 1000000000 : (int32_t)output_counts + 2;
+    /* y += alpha (i - y): alpha = w / (1 + w), w = 2 pi f ts (backward Euler) */
+    const float w = HD_TWO_PI_F * c->current_filter_hz * HD_FW_TS_S;
+    s->current_alpha = (c->current_filter_hz > 0.0f) ? w / (1.0f + w) : 1.0f;
     s->telem_divider = (c->telemetry_rate_hz == 0u)
                            ? 0u
                            : (HD_FW_TICK_HZ + c->telemetry_rate_hz / 2u) / c->telemetry_rate_hz;

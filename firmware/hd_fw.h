@@ -101,6 +101,7 @@ typedef struct {
     int32_t max_motor_delta_counts;
     int32_t max_output_delta_counts;
     uint32_t telem_divider;         /* ticks per telemetry frame, 0 = off */
+    float current_alpha;            /* motor-current low-pass gain per tick (1 = none) */
     uint32_t record_faults;         /* sticky HD_FAULT_CALIB_* / CONFIG_DEFAULTS */
     uint8_t calib_status;           /* hd_record_status_t */
     uint8_t config_status;
@@ -174,6 +175,8 @@ typedef struct {
     uint32_t ff_stale_ticks;        /* ticks stale (saturating) */
     /* motor current */
     float current_a;                /* last good reading */
+    float current_lp_a;             /* low-passed for T_exp */
+    bool current_lp_primed;
     /* absolute angles: first good count modulo cpr plus every increment
      * given to the filter, so they follow the filter's own phase */
     bool pos_valid;

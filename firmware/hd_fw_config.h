@@ -28,11 +28,13 @@ extern "C" {
 /* Slow-torque defaults, from the measurements in docs/slow-torque.md. */
 #define HD_FW_DEFAULT_FF_RAMP_MS 500u
 #define HD_FW_DEFAULT_OPERATING_LEARN_SCALE 0.0f
+#define HD_FW_DEFAULT_CURRENT_FILTER_HZ 5.0f
 
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */
     hd_expected_config_t expected;
     hd_expected_current_config_t current; /* motor-current term of T_exp (all 0 = unused) */
+    float current_filter_hz;        /* low-pass of the current before T_exp, 0 = none */
     float track_bandwidth_hz;       /* output-angle tracking loop */
     float gear_ratio;               /* motor revs per output rev, >= 1 */
     uint32_t motor_cpr;             /* motor encoder counts per rev */

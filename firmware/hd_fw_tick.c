@@ -310,6 +310,14 @@ static uint32_t read_current(hd_fw_t *fw, hd_fw_sample_t *s)
         k->current_a = cur.motor_current_a;
     }
     s->motor_current_a = k->current_a;
+    /* T_exp is the slow torque: the drive's current noise (tens of mA, N kt
+     * times that in N m) would otherwise enter the filter's innovation. */
+    if (!k->current_lp_primed) {
+        k->current_lp_a = k->current_a;
+        k->current_lp_primed = good;
+    } else {
+        k->current_lp_a += hd_fw_live(fw)->current_alpha * (k->current_a - k->current_lp_a);
+    }
     return (!good && hd_fw_live(fw)->cfg.current.nm_per_a > 0.0f) ? HD_FAULT_CURRENT_ERROR : 0u;
 }
 
@@ -450,7 +458,7 @@ static float current_torque_nm(const hd_fw_t *fw, const hd_pipeline_t *p, const 
     if (!(c->current.nm_per_a > 0.0f) || !isfinite(s->motor_current_a)) {
         return 0.0f;
     }
-    return hd_expected_current_nm(&c->current, &p->expected, s->motor_current_a,
+    return hd_expected_current_nm(&c->current, &p->expected, fw->tick.current_lp_a,
                                   p->output_track.vel_rad_s, p->output_track.acc_rad_s2);
 }
 

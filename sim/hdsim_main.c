@@ -216,10 +216,14 @@ int main(int argc, char **argv)
     /* The controller's feed-forward and the motor current exist only in
      * scenarios that have them (the analysis contract's optional columns). */
     const bool ff = sc.ff.enabled != 0, cur = sc.motor.kt_nm_per_a > 0.0;
+    /* The slow external torque as truth (for "fraction of the load kept"),
+     * in scenarios with gravity or sinusoidal loads. */
+    const bool slow = sc.gravity.n > 0 || sc.load_sine_count > 0;
     int ok = hd_out_printf(&csv, "t_s,motor_angle_rad,output_angle_rad,motor_velocity_rad_s,"
                                  "output_velocity_rad_s,torque_nm,torque_true_nm,ripple_true_nm,"
-                                 "bridge_counts,motor_counts,output_counts%s%s\n",
-                           ff ? ",torque_feedforward_nm" : "", cur ? ",motor_current_a" : "") == 0;
+                                 "bridge_counts,motor_counts,output_counts%s%s%s\n",
+                           ff ? ",torque_feedforward_nm" : "", cur ? ",motor_current_a" : "",
+                           slow ? ",load_torque_nm,gravity_nm" : "") == 0;
     if (ok && raw_path != NULL) {
         ok = write_raw_header(&raw, (uint32_t)(sc.ts_s * 1e6 + 0.5)) == 0;
     }
@@ -236,6 +240,9 @@ int main(int argc, char **argv)
         }
         if (ok && cur) {
             ok = hd_out_printf(&csv, ",%.7g", s.motor_current_a) == 0;
+        }
+        if (ok && slow) {
+            ok = hd_out_printf(&csv, ",%.7g,%.7g", s.load_torque_nm, s.gravity_nm) == 0;
         }
         if (ok) {
             ok = hd_out_printf(&csv, "\n") == 0;

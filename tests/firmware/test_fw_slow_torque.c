@@ -207,6 +207,7 @@ static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
     mock.current_channel = true;
     hal_mock_bind(&mock, &hal);
     cfg.current.nm_per_a = 50.0f;
+    cfg.current_filter_hz = 0.0f; /* unfiltered: exact values (the low-pass: below) */
     init_fw();
     push_current(0.2f, HAL_OK, false);
     TEST_ASSERT_DOUBLE_WITHIN(1e-5, 10.0, (double)last()->torque_expected_nm);
@@ -231,6 +232,25 @@ static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
     push_current(1.0f, HAL_ERR_IO, false);
     TEST_ASSERT_EQUAL_HEX32(0, last()->faults & HD_FAULT_CURRENT_ERROR);
     TEST_ASSERT_EQUAL_FLOAT(0.0f, last()->torque_expected_nm);
+}
+
+/* The current's low-pass before T_exp: first order, backward Euler,
+ * y_n = y_{n-1} + a (i - y_{n-1}), a = w / (1 + w), w = 2 pi f ts. */
+static void test_motor_current_low_pass(void)
+{
+    mock.current_channel = true;
+    hal_mock_bind(&mock, &hal);
+    cfg.current.nm_per_a = 10.0f;
+    cfg.current_filter_hz = 10.0f;
+    init_fw();
+    push_current(0.0f, HAL_OK, false); /* primes at 0 */
+    const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
+    for (unsigned n = 1; n <= 200; n++) {
+        push_current(1.0f, HAL_OK, false);
+        double expect = 10.0 * (1.0 - pow(1.0 - a, (double)n));
+        TEST_ASSERT_DOUBLE_WITHIN(1e-4, expect, (double)last()->torque_expected_nm);
+    }
+    TEST_ASSERT_TRUE(last()->torque_expected_nm > 9.9f); /* 200 ms = 12.6 time constants */
 }
 
 static void test_no_current_channel(void)
@@ -783,6 +803,7 @@ int main(void)
     RUN_TEST(test_bad_feedforward_frames_are_flagged_and_never_fed);
     RUN_TEST(test_no_feedforward_expected_ignores_frames);
     RUN_TEST(test_motor_current_enters_t_exp_and_a_bad_reading_holds);
+    RUN_TEST(test_motor_current_low_pass);
     RUN_TEST(test_no_current_channel);
     RUN_TEST(test_boot_predicts_the_stored_profile_from_the_first_sample);
     RUN_TEST(test_without_an_output_encoder_output_lines_are_not_used);

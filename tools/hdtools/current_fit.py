@@ -27,13 +27,16 @@ from .safeio import UsageError
 
 CUTOFF_HZ = 5.0          # low-pass of every column before the fit
 DECIMATE_HZ = 10.0       # fit samples per second (about 2 per time constant)
-MIN_FIT_SAMPLES = 200    # 20 s of motion at DECIMATE_HZ
+MIN_FIT_SAMPLES = 100    # 10 s of motion at DECIMATE_HZ
 MIN_REVERSAL_SHARE = 0.1  # each direction at least this share of the moving samples
 MOVING_RAD_S = 0.02      # |w| above this is motion
 MAX_REL_ERR_GAIN = 0.05  # k_i must be known to 5 % (1 sigma)
 SIGNIFICANT = 2.0        # a friction/inertia term below 2 sigma is written as 0
 OUTPUT_ORDERS = 3        # output-locked nuisance lines
-SLOW_MOTOR_RAD_S = 8 * 2 * math.pi * CUTOFF_HZ / 2  # motor order 2 below 8 x the cutoff
+# motor order 2 at 3 x the cutoff: its line is 38 dB down after the
+# two-pass filter; below that (and at standstill, where a motor line is a
+# constant of the posture) the samples are left out
+SLOW_MOTOR_RAD_S = 3 * 2 * math.pi * CUTOFF_HZ / 2
 
 NAMES = ("current_nm_per_a", "current_inertia_kgm2", "current_viscous_nm_s_rad",
          "current_coulomb_nm", "zero_nm")
