@@ -206,7 +206,7 @@ const char *hd_kf_status_name(unsigned bit)
 }
 
 /* ===================================================================== */
-/* Layout: active slots, frames and the packed covariance                 */
+/* Layout: slots, frames and the packed covariance                        */
 /* ===================================================================== */
 
 /* P is stored once, by 2x2 tiles of the upper triangle, tile row by tile
@@ -214,7 +214,8 @@ const char *hd_kf_status_name(unsigned bit)
  *   its diagonal tile      P(2s,2s) P(2s,2s+1) P(2s+1,2s+1)
  *   tiles (s, t), t > s    P(2s,2t) P(2s,2t+1) P(2s+1,2t) P(2s+1,2t+1)
  *   the offset column      P(2s,o)  P(2s+1,o)          (if the offset is on)
- * and P(o,o) comes last.  Each pass of the step walks it front to back. */
+ * and P(o,o) comes last.  Each pass of the step walks it front to back.
+ * Every configured block has its slot (slot s = configured block s). */
 static unsigned tile_row_start(unsigned nb, unsigned off, unsigned s)
 {
     return s * (1u + 2u * off + 4u * nb - 2u * s);
@@ -225,7 +226,8 @@ static unsigned packed_entries(unsigned nb, unsigned off)
     return tile_row_start(nb, off, nb) + off;
 }
 
-/* Packed position of P(i, j) in a layout of nb blocks (+ offset if off). */
+/* Packed position of P(i, j), i and j layout states (block slots, offset
+ * last). */
 static unsigned packed_index(unsigned nb, unsigned off, unsigned i, unsigned j)
 {
     if (i > j) {
@@ -266,13 +268,28 @@ static void need_power(uint32_t *mask, unsigned k)
     }
 }
 
-static void build_slot(hd_kf_t *kf, hd_kf_slot_t *sl, unsigned block)
+/* Appends the step's power operations for one phasor (table entries base +
+ * k), in ascending k, so each reads only powers computed before it. */
+static void add_power_ops(hd_kf_t *kf, uint32_t mask, unsigned base)
+{
+    for (unsigned k = 2u; k <= MAX_POWER_ORDER; k++) {
+        if ((mask & (1u << k)) != 0u) {
+            uint8_t *op = kf->power_op[kf->power_count++];
+            op[0] = (uint8_t)(base + k);
+            op[1] = (uint8_t)(base + ((k % 2u == 0u) ? k / 2u : k - 1u));
+            op[2] = (uint8_t)((k % 2u == 0u) ? op[1] : base + 1u);
+        }
+    }
+}
+
+static void build_slot(hd_kf_t *kf, unsigned block)
 {
     const hd_kf_block_config_t *b = &kf->cfg.blocks[block];
+    hd_kf_slot_t *sl = &kf->slot[block];
     const bool motion_scaled = kf->cfg.q_motion_ref_rad > 0.0f && b->lock != HD_KF_LOCK_FIXED;
     *sl = (hd_kf_slot_t){0};
-    sl->block = (uint8_t)block;
     sl->lock = b->lock;
+    sl->enabled = b->enabled ? 1u : 0u;
     sl->theta_per_unit = b->order;
     sl->motion_inv = motion_scaled ? 1.0f / kf->cfg.q_motion_ref_rad : 0.0f;
     sl->motion_bias = motion_scaled ? 0.0f : 1.0f;
@@ -296,107 +313,73 @@ static void build_slot(hd_kf_t *kf, hd_kf_slot_t *sl, unsigned block)
         sl->frame = (uint8_t)(motor ? k : POWER_TABLE_OUTPUT + k);
     } else {
         sl->frame = (uint8_t)(OWN_PHASORS + block);
+        kf->own_frames |= 1u << block;
     }
 }
 
-/* Rebuilds the active slots from cfg (enabled blocks in configuration
- * order, offset last) and the per-step constants. */
+/* Builds every configured block's slot (offset last), the frames' power
+ * operations and the per-step constants. */
 static void build_layout(hd_kf_t *kf)
 {
-    unsigned slots = 0;
+    unsigned enabled = 0;
     kf->motor_powers = 0u;
     kf->output_powers = 0u;
     kf->own_frames = 0u;
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
-        if (kf->cfg.blocks[i].enabled) {
-            build_slot(kf, &kf->slot[slots], i);
-            if (kf->slot[slots].frame >= OWN_PHASORS) {
-                kf->own_frames |= 1u << slots;
-            }
-            slots++;
-        }
+        build_slot(kf, i);
+        enabled += kf->slot[i].enabled;
     }
-    kf->active_blocks = (uint8_t)slots;
-    kf->offset_slot = (uint8_t)(2u * slots);
-    kf->n_states = (uint8_t)(2u * slots + offset_on(kf));
+    kf->power_count = 0u;
+    add_power_ops(kf, kf->motor_powers, 0u);
+    add_power_ops(kf, kf->output_powers, POWER_TABLE_OUTPUT);
+    kf->n_blocks = kf->cfg.block_count;
+    kf->offset_slot = (uint8_t)(2u * kf->n_blocks);
+    kf->n_states = (uint8_t)(2u * enabled + offset_on(kf));
     kf->p_max_bits = bits_of(kf->cfg.p_max_nm2);
     kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     kf->q_motion_inv_rad = kf->cfg.q_motion_ref_rad > 0.0f ? 1.0f / kf->cfg.q_motion_ref_rad
                                                             : 0.0f;
 }
 
-/* z <- z w, then one Newton step towards |z| = 1 (scale (3 - |z|^2) / 2):
- * the phasors are advanced every step for as long as the filter runs, and
- * without it their magnitude would drift by the rounding of each product. */
-static void turn_phasor(float *c, float *s, float wc, float ws)
+/* Block s starts again: state zero, its tile v I, zero covariance with
+ * every other state (its tile column above, its tile row and offset pair). */
+static void clear_block(hd_kf_t *kf, unsigned s, float v)
 {
-    const float nc = *c * wc - *s * ws;
-    const float ns = *s * wc + *c * ws;
-    const float scale = (3.0f - (nc * nc + ns * ns)) * 0.5f;
-    *c = nc * scale;
-    *s = ns * scale;
-}
-
-/* (cos k u, sin k u) for every k in mask from z = (cos u, sin u) = pc[1],
- * ps[1]: doubling for even k, one product with z for odd k.  The powers are
- * recomputed from the unit-length base every step, so their rounding (angle
- * within 2e-7 rad of k u, |z^k| within 1e-7 of 1 for k <= 8) does not
- * accumulate. */
-static void phasor_powers(uint32_t mask, float *pc, float *ps)
-{
-    for (uint32_t left = mask & ~3u; left != 0u; left &= left - 1u) {
-        const unsigned k = (unsigned)__builtin_ctz(left);
-        if (k % 2u == 0u) {
-            const float sh = ps[k / 2u], ch = pc[k / 2u];
-            pc[k] = 1.0f - 2.0f * sh * sh;
-            ps[k] = 2.0f * sh * ch;
-        } else {
-            pc[k] = pc[k - 1u] * pc[1] - ps[k - 1u] * ps[1];
-            ps[k] = ps[k - 1u] * pc[1] + pc[k - 1u] * ps[1];
-        }
+    const unsigned nb = kf->n_blocks, off = offset_on(kf);
+    unsigned k = 4u * s - 1u; /* tile (0, s), when s > 0 */
+    for (unsigned r = 0; r < s; r++) {
+        kf->p[k] = kf->p[k + 1u] = kf->p[k + 2u] = kf->p[k + 3u] = 0.0f;
+        k += 4u * (nb - 1u - r) + 2u * off - 1u; /* to tile (r + 1, s) */
     }
-}
-
-/* The powers of the motor and output phasors the blocks use. */
-static void power_frames(hd_kf_t *kf)
-{
-    if ((kf->motor_powers & ~3u) != 0u) {
-        phasor_powers(kf->motor_powers, kf->phasor_cos, kf->phasor_sin);
-    }
-    if ((kf->output_powers & ~3u) != 0u) {
-        phasor_powers(kf->output_powers, kf->phasor_cos + POWER_TABLE_OUTPUT,
-                      kf->phasor_sin + POWER_TABLE_OUTPUT);
-    }
-}
-
-/* Fills block s's tile row with a fresh block: [v 0 v], then zero tiles
- * and offset column. */
-static void fresh_tile_row(hd_kf_t *kf, unsigned s, float v)
-{
-    const unsigned nb = kf->active_blocks, off = offset_on(kf);
     float *p = &kf->p[tile_row_start(nb, off, s)];
     p[0] = v;
     p[1] = 0.0f;
     p[2] = v;
-    p += 3;
-    for (unsigned t = s + 1u; t < nb; t++, p += 4) {
-        p[0] = p[1] = p[2] = p[3] = 0.0f;
+    const unsigned rest = 4u * (nb - 1u - s) + 2u * off;
+    for (unsigned i = 3u; i < 3u + rest; i++) {
+        p[i] = 0.0f;
     }
-    if (off != 0u) {
-        p[0] = p[1] = 0.0f;
-    }
+    kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
 }
 
 void hd_kf_reset(hd_kf_t *kf)
 {
-    const unsigned nb = kf->active_blocks, off = offset_on(kf);
+    const unsigned nb = kf->n_blocks, off = offset_on(kf);
+    const unsigned entries = packed_entries(nb, off);
+    for (unsigned k = 0; k < entries; k++) {
+        kf->p[k] = 0.0f;
+    }
+    for (unsigned i = 0; i < 2u * nb + off; i++) {
+        kf->x[i] = 0.0f;
+    }
     for (unsigned s = 0; s < nb; s++) {
-        fresh_tile_row(kf, s, kf->slot[s].p0_nm2);
-        kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
+        if (kf->slot[s].enabled) {
+            float *tile = &kf->p[tile_row_start(nb, off, s)];
+            tile[0] = tile[2] = kf->slot[s].p0_nm2;
+        }
     }
     if (off != 0u) {
-        kf->p[tile_row_start(nb, off, nb)] = kf->cfg.p0_nm2;
-        kf->x[kf->offset_slot] = 0.0f;
+        kf->p[entries - 1u] = kf->cfg.p0_nm2;
     }
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
@@ -436,59 +419,10 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     return HD_KF_OK;
 }
 
-/* (i, j) of every packed position of a layout, in storage order. */
-static unsigned layout_pairs(unsigned nb, unsigned off, uint8_t pair[][2])
-{
-    unsigned k = 0;
-    const uint8_t o = (uint8_t)(2u * nb);
-    for (unsigned s = 0; s < nb; s++) {
-        const uint8_t a = (uint8_t)(2u * s), b = (uint8_t)(a + 1u);
-        const uint8_t diag[3][2] = {{a, a}, {a, b}, {b, b}};
-        for (unsigned e = 0; e < 3u; e++) {
-            pair[k][0] = diag[e][0];
-            pair[k++][1] = diag[e][1];
-        }
-        for (unsigned t = s + 1u; t < nb; t++) {
-            for (unsigned e = 0; e < 4u; e++) {
-                pair[k][0] = (uint8_t)(a + (e >> 1u));
-                pair[k++][1] = (uint8_t)(2u * t + (e & 1u));
-            }
-        }
-        for (unsigned e = 0; e < off * 2u; e++) {
-            pair[k][0] = (uint8_t)(a + e);
-            pair[k++][1] = o;
-        }
-    }
-    if (off != 0u) {
-        pair[k][0] = o;
-        pair[k++][1] = o;
-    }
-    return k;
-}
-
-/* New state i takes old state src[i] (-1: a new state, zero).  In place: the new -> old map of
- * packed positions is monotone (blocks keep their order, whole tile rows
- * and columns come or go), so a compaction (ascending sweep) or an
- * expansion (descending sweep) never reads an entry it already overwrote. */
-static void remap_states(hd_kf_t *kf, const int *src, unsigned old_nb, bool ascending)
-{
-    uint8_t pair[HD_KF_P_ENTRIES][2];
-    const unsigned off = offset_on(kf);
-    const unsigned count = layout_pairs(kf->active_blocks, off, pair);
-    for (unsigned step = 0; step < count; step++) {
-        const unsigned k = ascending ? step : count - 1u - step;
-        const int si = src[pair[k][0]], sj = src[pair[k][1]];
-        kf->p[k] = (si < 0 || sj < 0)
-                       ? 0.0f
-                       : kf->p[packed_index(old_nb, off, (unsigned)si, (unsigned)sj)];
-    }
-    const unsigned n = kf->n_states;
-    for (unsigned step = 0; step < n; step++) {
-        const unsigned i = ascending ? step : n - 1u - step;
-        kf->x[i] = src[i] < 0 ? 0.0f : kf->x[src[i]];
-    }
-}
-
+/* A disabled block keeps its slot with x = 0 and zero rows and columns of
+ * P; the step gives it a zero row entry, no process noise and no gain
+ * weight, so g = P C' is exactly 0 on its states and nothing in the step
+ * changes them or uses them (docs/filter.md, "Run-time block toggles"). */
 hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 {
     if (kf == NULL) {
@@ -500,37 +434,10 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     if ((kf->cfg.blocks[block].enabled != 0u) == enabled) {
         return HD_KF_OK;
     }
-    int old_slot_of[HD_KF_MAX_BLOCKS];
-    for (unsigned i = 0; i < HD_KF_MAX_BLOCKS; i++) {
-        old_slot_of[i] = -1;
-    }
-    const unsigned old_nb = kf->active_blocks;
-    for (unsigned s = 0; s < old_nb; s++) {
-        old_slot_of[kf->slot[s].block] = (int)s;
-    }
-    const unsigned old_offset = kf->offset_slot;
     kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
-    build_layout(kf);
-
-    int src[HD_KF_MAX_STATES];
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        const int old = old_slot_of[kf->slot[s].block];
-        src[2u * s] = old < 0 ? -1 : 2 * old;
-        src[2u * s + 1u] = old < 0 ? -1 : 2 * old + 1;
-    }
-    if (kf->cfg.offset_enabled) {
-        src[kf->offset_slot] = (int)old_offset;
-    }
-    remap_states(kf, src, old_nb, !enabled);
-    power_frames(kf); /* a re-enabled block may need powers no other block used */
-    const unsigned nb = kf->active_blocks, off = offset_on(kf);
-    for (unsigned s = 0; s < nb; s++) {
-        if (src[2u * s] < 0) {
-            /* the re-enabled block restarts from zero with its prior */
-            float *tile = &kf->p[tile_row_start(nb, off, s)];
-            tile[0] = tile[2] = kf->slot[s].p0_nm2;
-        }
-    }
+    kf->slot[block].enabled = enabled ? 1u : 0u;
+    clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
+    kf->n_states = (uint8_t)(enabled ? kf->n_states + 2u : kf->n_states - 2u);
     kf->frozen_mask &= ~(1u << block);
     return HD_KF_OK;
 }
@@ -539,31 +446,31 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 /* The step                                                               */
 /* ===================================================================== */
 
-/* What this step does to one active block (filled by plan_blocks; g by
- * cross_covariance).  h is the block's measurement row in its frame:
- * c (cos phi, sin phi). */
+/* What this step does to the blocks (filled by plan_blocks; g by
+ * cross_covariance).  h is the measurement row in the frames: block s's
+ * (h[2s], h[2s+1]) = c (cos phi_s, sin phi_s), 0 when frozen or disabled. */
 typedef struct {
-    float h0, h1;       /* measurement row (0: frozen) */
-    float g0, g1;       /* its two entries of g = P C' */
-    float gain;         /* gain fraction (1: optimal) */
-    float q;            /* process noise added to each of its states */
-} block_step_t;
-
-typedef struct {
-    block_step_t b[HD_KF_MAX_BLOCKS];
-    float g_off;          /* the offset's entry of g */
-    uint32_t frozen_mask; /* by configured block */
-    uint32_t lost_slots;  /* by slot: phase lost, restart */
-    bool partial_gain;    /* some gain fraction below 1: Joseph weights */
+    float h[2u * HD_KF_MAX_BLOCKS];
+    float g[HD_KF_MAX_STATES];          /* P C' (the offset's entry last) */
+    float gain[HD_KF_MAX_BLOCKS];       /* gain fraction per block (1: optimal) */
+    float q[HD_KF_MAX_BLOCKS];          /* process noise added to each of its states */
+    uint32_t frozen_mask;               /* by configured block */
+    uint32_t lost_slots;                /* phase lost: restart */
+    bool partial_gain;                  /* some gain fraction below 1: Joseph weights */
 } step_plan_t;
 
-/* sin and cos of one step's angle (series below SMALL_ANGLE_RAD). */
+/* sin and cos of one step's angle: series below SMALL_ANGLE_RAD, the
+ * unreduced polynomials below HD_TRIG_NO_REDUCTION_RAD (the bits
+ * hd_sincosf gives there), hd_sincosf beyond. */
 static void sincos_step(float a, float *s, float *c)
 {
     if (a <= SMALL_ANGLE_RAD && a >= -SMALL_ANGLE_RAD) {
         const float a2 = a * a;
         *s = a - a * a2 * (1.0f / 6.0f);
         *c = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
+    } else if (a < HD_TRIG_NO_REDUCTION_RAD && a > -HD_TRIG_NO_REDUCTION_RAD) {
+        *s = hd_sin_poly(a);
+        *c = hd_cos_poly(a);
     } else {
         hd_sincosf(a, s, c);
     }
@@ -603,93 +510,88 @@ static float update_load_scale(hd_kf_t *kf, float torque_expected_nm, float d_mo
 }
 
 /* Measurement row, Nyquist freeze, phase loss, process noise and gain
- * fraction of every active block for this step (increments: motor, output,
- * and 1 for fixed-frequency blocks), g zeroed for the cross covariance.
- * Returns the prior ripple C x (without the offset).  Changes nothing in
- * the filter. */
-static float plan_blocks(const hd_kf_t *kf, const float inc[3], float c_load, step_plan_t *pl)
+ * fraction of every block for this step (increments: motor, output, and 1
+ * for fixed-frequency blocks), g zeroed for the cross covariance.  A
+ * disabled block gets a zero row, no process noise and gain 1 (its states
+ * and covariances are zero, so no weight applies).  Returns the prior
+ * ripple C x (without the offset).  Changes nothing in the filter. */
+static float plan_blocks(const hd_kf_t *kf, const float inc[3], float c_load,
+                         step_plan_t *restrict pl)
 {
     const float limit = kf->nyquist_limit_rad;
-    const hd_kf_slot_t *const end = kf->slot + kf->active_blocks;
+    const float rows[3] = {c_load, 1.0f, 1.0f}; /* by lock */
+    const unsigned nb = kf->n_blocks;
     float ripple = 0.0f;
     float gain_product = 1.0f; /* below 1 exactly when some gain is (all are in [0, 1]) */
-    pl->frozen_mask = 0u;
-    pl->lost_slots = 0u;
-    block_step_t *bs = pl->b;
-    const float *x = kf->x;
-    for (const hd_kf_slot_t *sl = kf->slot; sl < end; sl++, bs++, x += 2) {
+    uint32_t frozen = 0u, lost = 0u;
+    for (unsigned s = 0; s < nb; s++) {
+        const hd_kf_slot_t *sl = &kf->slot[s];
+        float *h = &pl->h[2u * s];
+        pl->g[2u * s] = pl->g[2u * s + 1u] = 0.0f;
+        if (!sl->enabled) {
+            h[0] = h[1] = pl->q[s] = 0.0f;
+            pl->gain[s] = 1.0f;
+            continue;
+        }
         const float a = fabsf(sl->theta_per_unit * inc[sl->lock]);
         float motion = a * sl->motion_inv + sl->motion_bias;
         if (motion > 1.0f) {
             motion = 1.0f;
         }
-        const bool motor = sl->lock == HD_KF_LOCK_MOTOR;
-        float gain = (motor ? motion : 1.0f) * sl->learn;
+        float gain = (sl->lock == HD_KF_LOCK_MOTOR ? motion : 1.0f) * sl->learn;
         float q = sl->q_nm2 * motion;
-        float row = motor ? c_load : 1.0f;
+        float row = rows[sl->lock];
         if (!(a <= limit)) {
             /* Held: not observed, not corrected, no process noise, still
              * turned by the increment (exact at any speed), unless no
              * motion can explain it (an encoder fault). */
-            pl->frozen_mask |= 1u << sl->block;
+            frozen |= 1u << s;
             gain = q = row = 0.0f;
             if (!(a <= HD_KF_PHASE_LOST_RAD)) {
-                pl->lost_slots |= 1u << (unsigned)(sl - kf->slot);
+                lost |= 1u << s;
             }
         }
-        bs->h0 = row * kf->phasor_cos[sl->frame];
-        bs->h1 = row * kf->phasor_sin[sl->frame];
-        bs->q = q;
-        bs->gain = gain;
-        bs->g0 = bs->g1 = 0.0f;
+        h[0] = row * kf->phasor_cos[sl->frame];
+        h[1] = row * kf->phasor_sin[sl->frame];
+        pl->q[s] = q;
+        pl->gain[s] = gain;
         gain_product *= gain;
-        ripple += bs->h0 * x[0];
-        ripple += bs->h1 * x[1];
+        ripple += h[0] * kf->x[2u * s];
+        ripple += h[1] * kf->x[2u * s + 1u];
     }
+    pl->frozen_mask = frozen;
+    pl->lost_slots = lost;
     pl->partial_gain = gain_product < 1.0f;
     return ripple;
 }
 
-/* Phase lost: the block restarts from zero with its prior, decorrelated
- * (its whole tile row and tile column). */
-static void restart_block(hd_kf_t *kf, unsigned s)
-{
-    const unsigned nb = kf->active_blocks, off = offset_on(kf);
-    for (unsigned r = 0; r < s; r++) {
-        float *tile = &kf->p[tile_row_start(nb, off, r) + 3u + 4u * (s - r - 1u)];
-        tile[0] = tile[1] = tile[2] = tile[3] = 0.0f;
-    }
-    fresh_tile_row(kf, s, kf->slot[s].p0_nm2);
-    kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
-}
-
 /* g = P C' over the packed tiles (g zeroed by plan_blocks); returns
- * C P C'. */
-static float cross_covariance(const hd_kf_t *kf, step_plan_t *pl)
+ * C P C'.  Each off-diagonal tile adds to both its rows' and its columns'
+ * entries of g. */
+static float cross_covariance(const float *restrict p, const float *restrict h,
+                              float *restrict g, unsigned nb, bool off)
 {
-    const bool off = kf->cfg.offset_enabled != 0u;
-    const float *p = kf->p;
-    block_step_t *const end = pl->b + kf->active_blocks;
     float g_off = 0.0f, cpc = 0.0f;
-    for (block_step_t *bs = pl->b; bs < end; bs++) {
+    for (unsigned s = 0; s < nb; s++) {
         /* sums accumulate term by term: one multiply-accumulate each */
-        const float h0 = bs->h0, h1 = bs->h1;
-        float ga = bs->g0 + p[0] * h0;
-        float gb = bs->g1 + p[1] * h0;
+        const float h0 = h[2u * s], h1 = h[2u * s + 1u];
+        float ga = g[2u * s] + p[0] * h0;
+        float gb = g[2u * s + 1u] + p[1] * h0;
         ga += p[1] * h1;
         gb += p[2] * h1;
         p += 3;
-        for (block_step_t *bt = bs + 1; bt < end; bt++, p += 4) {
-            ga += p[0] * bt->h0;
-            ga += p[1] * bt->h1;
-            gb += p[2] * bt->h0;
-            gb += p[3] * bt->h1;
-            float gt0 = bt->g0 + p[0] * h0;
-            float gt1 = bt->g1 + p[1] * h0;
+        for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+            const float k0 = h[2u * t], k1 = h[2u * t + 1u];
+            ga += p[0] * k0;
+            ga += p[1] * k1;
+            gb += p[2] * k0;
+            gb += p[3] * k1;
+            float gt0 = g[2u * t] + p[0] * h0;
+            float gt1 = g[2u * t + 1u] + p[1] * h0;
             gt0 += p[2] * h1;
             gt1 += p[3] * h1;
-            bt->g0 = gt0;
-            bt->g1 = gt1;
+            g[2u * t] = gt0;
+            g[2u * t + 1u] = gt1;
         }
         if (off) {
             ga += p[0];
@@ -698,8 +600,8 @@ static float cross_covariance(const hd_kf_t *kf, step_plan_t *pl)
             g_off += p[1] * h1;
             p += 2;
         }
-        bs->g0 = ga;
-        bs->g1 = gb;
+        g[2u * s] = ga;
+        g[2u * s + 1u] = gb;
         cpc += h0 * ga;
         cpc += h1 * gb;
     }
@@ -707,7 +609,7 @@ static float cross_covariance(const hd_kf_t *kf, step_plan_t *pl)
         g_off += p[0];
         cpc += g_off;
     }
-    pl->g_off = g_off;
+    g[2u * nb] = g_off;
     return cpc;
 }
 
@@ -720,19 +622,28 @@ static bool offset_jump(const hd_kf_t *kf, float e, float s_var)
            e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
 }
 
-/* Largest of a bit pattern and that of x. */
-static uint32_t max_bits(uint32_t a, float x)
-{
-    const uint32_t b = bits_of(x);
-    return a > b ? a : b;
-}
-
 /* Largest bit patterns seen by the one-comparison bounds check. */
 typedef struct {
     uint32_t trace; /* a block's trace or the offset's variance: above p_max's
                        (unsigned) when above p_max, negative or not a number */
     uint32_t det;   /* a block's determinant: >= +inf's when negative or not a number */
 } bound_probe_t;
+
+/* One block's diagonal tile: downdate with weight w, Q added; the probe
+ * keeps the largest trace and determinant bit patterns. */
+static void correct_diag_tile(float *restrict p, float w, float ua, float ub, float ga,
+                              float gb, float q, bound_probe_t *probe)
+{
+    const float wa = w * ua, wb = w * ub;
+    const float a = (p[0] - wa * ga) + q, b = p[1] - wa * gb;
+    const float d = (p[2] - wb * gb) + q;
+    p[0] = a;
+    p[1] = b;
+    p[2] = d;
+    const uint32_t tr = bits_of(a + d), det = bits_of(a * d - b * b);
+    probe->trace = tr > probe->trace ? tr : probe->trace;
+    probe->det = det > probe->det ? det : probe->det;
+}
 
 /* x <- x + F g k_e and P <- P - W .* g g' / S + Q in the frames, where the
  * step's rotation is only a turn of the frames (advance_frames): each tile
@@ -743,52 +654,45 @@ typedef struct {
  * in [0, p_max] and determinant >= 0 has both model-coordinate diagonals in
  * [0, p_max] whatever its frame, so that is what the probe records.
  * Returns the sum of the new states (a finiteness probe). */
-static float correct(hd_kf_t *kf, const step_plan_t *pl, float inv_s, float k_e,
+static float correct(hd_kf_t *kf, const step_plan_t *restrict pl, float inv_s, float k_e,
                      bound_probe_t *probe)
 {
     const bool off = kf->cfg.offset_enabled != 0u;
     const bool joseph = pl->partial_gain;
-    const float g_off = pl->g_off;
-    const block_step_t *const end = pl->b + kf->active_blocks;
-    float *p = kf->p;
-    float *x = kf->x;
+    const unsigned nb = kf->n_blocks;
+    const float *restrict g = pl->g;
+    const float g_off = g[2u * nb];
+    float *restrict p = kf->p;
+    float *restrict x = kf->x;
     float sum = 0.0f;
-    uint32_t worst_trace = 0u, worst_det = 0u;
-    for (const block_step_t *bs = pl->b; bs < end; bs++, x += 2) {
-        const float ga = bs->g0, gb = bs->g1;
-        const float fs = bs->gain;
+    probe->trace = probe->det = 0u;
+    for (unsigned s = 0; s < nb; s++, x += 2) {
+        const float ga = g[2u * s], gb = g[2u * s + 1u];
+        const float fs = pl->gain[s];
         const float fk = fs * k_e;
         x[0] += ga * fk;
         x[1] += gb * fk;
         sum += x[0] + x[1];
         const float ua = ga * inv_s, ub = gb * inv_s;
-        {
-            const float w = joseph ? fs + fs - fs * fs : 1.0f;
-            const float wa = w * ua, wb = w * ub;
-            const float a = (p[0] - wa * ga) + bs->q, b = p[1] - wa * gb;
-            const float d = (p[2] - wb * gb) + bs->q;
-            p[0] = a;
-            p[1] = b;
-            p[2] = d;
-            worst_trace = max_bits(worst_trace, a + d);
-            worst_det = max_bits(worst_det, a * d - b * b);
-            p += 3;
-        }
+        correct_diag_tile(p, joseph ? fs + fs - fs * fs : 1.0f, ua, ub, ga, gb, pl->q[s],
+                          probe);
+        p += 3;
         if (joseph) {
-            for (const block_step_t *bt = bs + 1; bt < end; bt++, p += 4) {
-                const float w = fs + bt->gain - fs * bt->gain;
+            for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+                const float ft = pl->gain[t];
+                const float w = fs + ft - fs * ft;
                 const float wa = w * ua, wb = w * ub;
-                p[0] -= wa * bt->g0;
-                p[1] -= wa * bt->g1;
-                p[2] -= wb * bt->g0;
-                p[3] -= wb * bt->g1;
+                p[0] -= wa * g[2u * t];
+                p[1] -= wa * g[2u * t + 1u];
+                p[2] -= wb * g[2u * t];
+                p[3] -= wb * g[2u * t + 1u];
             }
         } else {
-            for (const block_step_t *bt = bs + 1; bt < end; bt++, p += 4) {
-                p[0] -= ua * bt->g0;
-                p[1] -= ua * bt->g1;
-                p[2] -= ub * bt->g0;
-                p[3] -= ub * bt->g1;
+            for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+                p[0] -= ua * g[2u * t];
+                p[1] -= ua * g[2u * t + 1u];
+                p[2] -= ub * g[2u * t];
+                p[3] -= ub * g[2u * t + 1u];
             }
         }
         if (off) {
@@ -799,12 +703,11 @@ static float correct(hd_kf_t *kf, const step_plan_t *pl, float inv_s, float k_e,
     }
     if (off) {
         p[0] = (p[0] - g_off * inv_s * g_off) + kf->cfg.offset_q_nm2;
-        worst_trace = max_bits(worst_trace, p[0]);
+        const uint32_t v = bits_of(p[0]);
+        probe->trace = v > probe->trace ? v : probe->trace;
         x[0] += g_off * k_e;
         sum += x[0];
     }
-    probe->trace = worst_trace;
-    probe->det = worst_det;
     return sum;
 }
 
@@ -828,14 +731,65 @@ static void add_phase(float *hi, float *lo, float d)
     *lo = l - (*hi - h);
 }
 
-/* The phasor of phase hi + lo: sin/cos of hi, then the first-order term in
- * lo (|lo| <= 2.4e-7: the next term is below 3e-14). */
-static void phase_phasor(float hi, float lo, float *c, float *s)
+/* z <- z w, then one Newton step towards |z| = 1 (scale (3 - |z|^2) / 2):
+ * the phasors are advanced every step for as long as the filter runs, and
+ * without it their magnitude would drift by the rounding of each product. */
+static void turn_phasor(float *c, float *s, float wc, float ws)
 {
-    float sh, ch;
-    hd_sincosf(hi, &sh, &ch);
-    *c = ch - lo * sh;
-    *s = sh + lo * ch;
+    const float nc = *c * wc - *s * ws;
+    const float ns = *s * wc + *c * ws;
+    const float scale = (3.0f - (nc * nc + ns * ns)) * 0.5f;
+    *c = nc * scale;
+    *s = ns * scale;
+}
+
+/* The powers of the motor and output phasors the blocks use, from the
+ * unit-length bases (doubling for even k, one product with z for odd k):
+ * recomputed every step, so their rounding (angle within 2e-7 rad of k u,
+ * |z^k| within 1e-7 of 1 for k <= 8) does not accumulate. */
+static void power_frames(hd_kf_t *kf)
+{
+    float *restrict pc = kf->phasor_cos;
+    float *restrict ps = kf->phasor_sin;
+    for (unsigned i = 0; i < kf->power_count; i++) {
+        const uint8_t *op = kf->power_op[i];
+        const unsigned a = op[1], b = op[2];
+        if (a == b) {
+            const float sh = ps[a], ch = pc[a];
+            pc[op[0]] = 1.0f - 2.0f * sh * sh;
+            ps[op[0]] = 2.0f * sh * ch;
+        } else {
+            pc[op[0]] = pc[a] * pc[b] - ps[a] * ps[b];
+            ps[op[0]] = ps[a] * pc[b] + pc[a] * ps[b];
+        }
+    }
+}
+
+/* The output phasor from the exactly accumulated output phase: a slow
+ * output (|increment| <= SMALL_ANGLE_RAD) turns by the series sin/cos,
+ * cheaper than the sin/cos of the whole phase, and is set again from the
+ * exact sum every OUTPUT_TURNS_MAX steps (the drift, < 3e-11 rad per step,
+ * never accumulates); a faster one is set from the sum every step: sin/cos
+ * of hi, then the first-order term in lo (|lo| <= 2.4e-7: the next term is
+ * below 3e-14). */
+static void advance_output_frame(hd_kf_t *kf, float d)
+{
+    float *c = &kf->phasor_cos[POWER_TABLE_OUTPUT + 1u];
+    float *s = &kf->phasor_sin[POWER_TABLE_OUTPUT + 1u];
+    add_phase(&kf->output_phase_hi_rad, &kf->output_phase_lo_rad, d);
+    if (kf->output_turns < OUTPUT_TURNS_MAX && fabsf(d) <= SMALL_ANGLE_RAD) {
+        float sn, cs;
+        sincos_step(d, &sn, &cs);
+        turn_phasor(c, s, cs, sn);
+        kf->output_turns++;
+    } else {
+        const float lo = kf->output_phase_lo_rad;
+        float sh, ch;
+        hd_sincosf(kf->output_phase_hi_rad, &sh, &ch);
+        *c = ch - lo * sh;
+        *s = sh + lo * ch;
+        kf->output_turns = 0u;
+    }
 }
 
 /* The step's rotation Phi: each block's frame turns by its phase advance.
@@ -854,22 +808,7 @@ static void advance_frames(hd_kf_t *kf, const float inc[3])
         turn_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1], c, s);
     }
     if (kf->output_powers != 0u) {
-        const unsigned base = POWER_TABLE_OUTPUT + 1u;
-        const float d = inc[HD_KF_LOCK_OUTPUT];
-        add_phase(&kf->output_phase_hi_rad, &kf->output_phase_lo_rad, d);
-        if (kf->output_turns < OUTPUT_TURNS_MAX && fabsf(d) <= SMALL_ANGLE_RAD) {
-            /* a slow output: turn by the series sin/cos, cheaper than the
-             * sin/cos of the whole phase; the drift (< 3e-11 rad per step)
-             * is reset from the exact sum every OUTPUT_TURNS_MAX steps */
-            float s, c;
-            sincos_step(d, &s, &c);
-            turn_phasor(&kf->phasor_cos[base], &kf->phasor_sin[base], c, s);
-            kf->output_turns++;
-        } else {
-            phase_phasor(kf->output_phase_hi_rad, kf->output_phase_lo_rad,
-                         &kf->phasor_cos[base], &kf->phasor_sin[base]);
-            kf->output_turns = 0u;
-        }
+        advance_output_frame(kf, inc[HD_KF_LOCK_OUTPUT]);
     }
     power_frames(kf);
     for (uint32_t left = kf->own_frames; left != 0u; left &= left - 1u) {
@@ -882,16 +821,10 @@ static void advance_frames(hd_kf_t *kf, const float inc[3])
     }
 }
 
-/* A block's covariance tile in model coordinates, R T R' (R = its frame),
- * by the double angle: [a b; b d] -> out[0..2] = a', b', d'. */
-static void model_diag_tile(float c, float s, const float *t, float *out)
+/* Phase lost: the block restarts from zero with its prior, decorrelated. */
+static void restart_block(hd_kf_t *kf, unsigned s)
 {
-    const float c2 = c * c - s * s, s2 = 2.0f * s * c;
-    const float mid = (t[0] + t[2]) * 0.5f, half = (t[0] - t[2]) * 0.5f;
-    const float turn = half * c2 + t[1] * s2;
-    out[0] = mid + turn;
-    out[1] = t[1] * c2 - half * s2;
-    out[2] = mid - turn;
+    clear_block(kf, s, kf->slot[s].p0_nm2);
 }
 
 /* The scale of a variance v against the ceiling: 1 inside [0, p_max],
@@ -923,7 +856,7 @@ static float ceiling_scale(hd_kf_t *kf, float v)
  * Returns the status bits raised. */
 static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
 {
-    const unsigned nb = kf->active_blocks;
+    const unsigned nb = kf->n_blocks;
     const bool off = kf->cfg.offset_enabled != 0u;
     float d[HD_KF_MAX_BLOCKS + 1u];
     bool scaled = false;
@@ -1003,21 +936,22 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
     }
 
     /* ---- innovation and its variance (the prior's) */
+    const bool off = kf->cfg.offset_enabled != 0u;
     const unsigned o = kf->offset_slot;
-    if (kf->cfg.offset_enabled && !kf->offset_primed && valid) {
+    if (off && !kf->offset_primed && valid) {
         kf->x[o] = y - ripple;
         kf->offset_primed = 1u;
     }
-    const float offset = kf->cfg.offset_enabled ? kf->x[o] : 0.0f;
-    float s_var = kf->cfg.r_nm2 + cross_covariance(kf, &plan);
+    const float offset = off ? kf->x[o] : 0.0f;
+    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, plan.h, plan.g, kf->n_blocks, off);
     const float innovation = y - ripple - offset;
 
     /* ---- gate: an offset jump widens the offset's variance first */
     if (valid && offset_jump(kf, innovation, s_var)) {
         const float e2 = innovation * innovation;
         status |= HD_KF_STATUS_OFFSET_JUMP;
-        kf->p[packed_entries(kf->active_blocks, 1u) - 1u] += e2;
-        plan.g_off += e2;
+        kf->p[packed_entries(kf->n_blocks, 1u) - 1u] += e2;
+        plan.g[o] += e2;
         s_var += e2;
     }
 
@@ -1069,34 +1003,56 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
 /* Read-out                                                               */
 /* ===================================================================== */
 
-/* Active slot of configured block i, or -1. */
-static int slot_of(const hd_kf_t *kf, unsigned block)
+/* Layout state (x index) of active state i (enabled blocks in
+ * configuration order, offset last), or -1 outside the active states. */
+static int layout_state(const hd_kf_t *kf, unsigned i)
 {
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
-        if (kf->slot[s].block == block) {
-            return (int)s;
+    if (i >= kf->n_states) {
+        return -1;
+    }
+    for (unsigned s = 0; s < kf->n_blocks; s++) {
+        if (kf->slot[s].enabled) {
+            if (i < 2u) {
+                return (int)(2u * s + i);
+            }
+            i -= 2u;
         }
     }
-    return -1;
+    return (int)kf->offset_slot;
+}
+
+static bool block_enabled(const hd_kf_t *kf, unsigned block)
+{
+    return block < kf->n_blocks && kf->slot[block].enabled;
+}
+
+/* Layout state l in the model's coordinates: R(phi_s) turns the frame. */
+static float model_state(const hd_kf_t *kf, unsigned l)
+{
+    if (l == kf->offset_slot) {
+        return kf->x[l];
+    }
+    const unsigned f = kf->slot[l / 2u].frame;
+    const float c = kf->phasor_cos[f], sn = kf->phasor_sin[f];
+    const float a = kf->x[l & ~1u], b = kf->x[l | 1u];
+    return (l & 1u) == 0u ? c * a + sn * b : c * b - sn * a;
 }
 
 float hd_kf_block_amplitude_nm(const hd_kf_t *kf, unsigned block)
 {
-    const int s = slot_of(kf, block);
-    if (s < 0) {
+    if (!block_enabled(kf, block)) {
         return 0.0f;
     }
-    const float a = hd_kf_state(kf, 2u * (unsigned)s), b = hd_kf_state(kf, 2u * (unsigned)s + 1u);
+    const float a = model_state(kf, 2u * block), b = model_state(kf, 2u * block + 1u);
     return sqrtf(a * a + b * b);
 }
 
 float hd_kf_block_row(const hd_kf_t *kf, unsigned block)
 {
-    const int s = slot_of(kf, block);
-    if (s < 0 || (kf->frozen_mask & (1u << block)) != 0u) {
+    if (!block_enabled(kf, block) || (kf->frozen_mask & (1u << block)) != 0u) {
         return 0.0f;
     }
-    return kf->slot[s].lock == HD_KF_LOCK_MOTOR ? kf->load_scale : 1.0f;
+    return kf->slot[block].lock == HD_KF_LOCK_MOTOR ? kf->load_scale : 1.0f;
 }
 
 unsigned hd_kf_state_count(const hd_kf_t *kf)
@@ -1106,16 +1062,8 @@ unsigned hd_kf_state_count(const hd_kf_t *kf)
 
 float hd_kf_state(const hd_kf_t *kf, unsigned i)
 {
-    if (i >= kf->n_states) {
-        return 0.0f;
-    }
-    if (kf->cfg.offset_enabled && i == kf->offset_slot) {
-        return kf->x[i];
-    }
-    const unsigned f = kf->slot[i / 2u].frame;
-    const float c = kf->phasor_cos[f], sn = kf->phasor_sin[f];
-    const float a = kf->x[i & ~1u], b = kf->x[i | 1u];
-    return (i & 1u) == 0u ? c * a + sn * b : c * b - sn * a;
+    const int l = layout_state(kf, i);
+    return l < 0 ? 0.0f : model_state(kf, (unsigned)l);
 }
 
 void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
@@ -1123,26 +1071,39 @@ void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
 {
     *amplitude_nm = 0.0f;
     *phase_rad = 0.0f;
-    const int s = slot_of(kf, block);
-    if (s >= 0 && (kf->frozen_mask & (1u << block)) == 0u) {
-        const float a = hd_kf_state(kf, 2u * (unsigned)s), b = hd_kf_state(kf, 2u * (unsigned)s + 1u);
+    if (block_enabled(kf, block) && (kf->frozen_mask & (1u << block)) == 0u) {
+        const float a = model_state(kf, 2u * block), b = model_state(kf, 2u * block + 1u);
         *amplitude_nm = sqrtf(a * a + b * b);
         /* ripple = A cos(phase): x1 = A cos(phase), x2 = -A sin(phase) */
         *phase_rad = atan2f(-b, a);
     }
 }
 
-float hd_kf_cov(const hd_kf_t *kf, unsigned i, unsigned j)
+/* A block's covariance tile in model coordinates, R T R' (R = its frame),
+ * by the double angle: [a b; b d] -> out[0..2] = a', b', d'. */
+static void model_diag_tile(float c, float s, const float *t, float *out)
 {
-    if (i >= kf->n_states || j >= kf->n_states) {
+    const float c2 = c * c - s * s, s2 = 2.0f * s * c;
+    const float mid = (t[0] + t[2]) * 0.5f, half = (t[0] - t[2]) * 0.5f;
+    const float turn = half * c2 + t[1] * s2;
+    out[0] = mid + turn;
+    out[1] = t[1] * c2 - half * s2;
+    out[2] = mid - turn;
+}
+
+float hd_kf_cov(const hd_kf_t *kf, unsigned i_active, unsigned j_active)
+{
+    const int li = layout_state(kf, i_active), lj = layout_state(kf, j_active);
+    if (li < 0 || lj < 0) {
         return 0.0f;
     }
+    unsigned i = (unsigned)li, j = (unsigned)lj;
     if (i > j) {
         const unsigned t = i;
         i = j;
         j = t;
     }
-    const unsigned nb = kf->active_blocks, off = offset_on(kf);
+    const unsigned nb = kf->n_blocks, off = offset_on(kf);
     const float *t = &kf->p[packed_index(nb, off, i & ~1u, j & ~1u)];
     const bool i_off = off != 0u && i == kf->offset_slot;
     const bool j_off = off != 0u && j == kf->offset_slot;
@@ -1179,12 +1140,12 @@ static bool angle_ok(float a)
     return is_finite(a) && a >= 0.0f && a < HD_TWO_PI_F;
 }
 
-/* The block's order if it can be part of a profile (motor- or
+/* The block's order if it can be part of a profile (enabled, motor- or
  * output-locked, integral, 1..255), else 0. */
 static unsigned profile_order(const hd_kf_slot_t *sl)
 {
     const float k = sl->theta_per_unit;
-    if (sl->lock == HD_KF_LOCK_FIXED || !(k >= 1.0f && k <= PROFILE_MAX_ORDER) ||
+    if (!sl->enabled || sl->lock == HD_KF_LOCK_FIXED || !(k >= 1.0f && k <= PROFILE_MAX_ORDER) ||
         k != (float)(unsigned)k) {
         return 0u;
     }
@@ -1212,7 +1173,7 @@ int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_
         return HD_KF_ERR_ANGLE;
     }
     unsigned n = 0;
-    for (unsigned s = 0; s < kf->active_blocks; s++) {
+    for (unsigned s = 0; s < kf->n_blocks; s++) {
         const hd_kf_slot_t *sl = &kf->slot[s];
         const unsigned k = profile_order(sl);
         if (k == 0u) {
@@ -1221,7 +1182,7 @@ int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_
         float c, sn;
         profile_rotation(kf, sl, k, motor_angle_rad, output_angle_rad, &c, &sn);
         /* (a, b) = R(k alpha)' x, x in the model's coordinates */
-        const float x1 = hd_kf_state(kf, 2u * s), x2 = hd_kf_state(kf, 2u * s + 1u);
+        const float x1 = model_state(kf, 2u * s), x2 = model_state(kf, 2u * s + 1u);
         hd_kf_profile_line_t *line = &profile->lines[n++];
         line->lock = sl->lock;
         line->order = (uint8_t)k;
@@ -1260,14 +1221,12 @@ static hd_kf_err_t check_profile(const hd_kf_t *kf, const hd_kf_profile_t *profi
  * block v I, decorrelated. */
 static void set_block(hd_kf_t *kf, unsigned s, float x1, float x2, float var_nm2)
 {
-    restart_block(kf, s);
+    clear_block(kf, s, var_nm2);
     const unsigned f = kf->slot[s].frame;
     const float c = kf->phasor_cos[f], sn = kf->phasor_sin[f];
     /* the frame's R' takes the model's coordinates into the frame */
     kf->x[2u * s] = c * x1 - sn * x2;
     kf->x[2u * s + 1u] = sn * x1 + c * x2;
-    float *tile = &kf->p[tile_row_start(kf->active_blocks, offset_on(kf), s)];
-    tile[0] = tile[2] = var_nm2;
 }
 
 int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float motor_angle_rad,
@@ -1282,7 +1241,7 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
     int count = 0;
     for (unsigned i = 0; i < profile->line_count; i++) {
         const hd_kf_profile_line_t *line = &profile->lines[i];
-        for (unsigned s = 0; s < kf->active_blocks; s++) {
+        for (unsigned s = 0; s < kf->n_blocks; s++) {
             const hd_kf_slot_t *sl = &kf->slot[s];
             if ((matched & (1u << s)) != 0u || sl->lock != line->lock ||
                 profile_order(sl) != line->order) {

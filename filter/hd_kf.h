@@ -68,7 +68,7 @@
  *     HD_KF_STATUS_RESET, reset_count;
  *   - the published filtered torque is always finite.
  *
- * Cost: hd_kf_step is O(n^2) in the ACTIVE states, bounded, never blocks,
+ * Cost: hd_kf_step is O(n^2) in the configured states, bounded, never blocks,
  * never allocates, calls no libm (sine/cosine: hd_trig.h).  The library
  * keeps no globals: all state is in hd_kf_t.
  */
@@ -177,12 +177,12 @@ typedef struct {
     uint32_t status;           /* HD_KF_STATUS_* for this step */
 } hd_kf_output_t;
 
-/* Per active block, derived from the configuration (filled by hd_kf_init
- * and hd_kf_set_block_enabled). */
+/* Per configured block (slot i = configured block i), derived from the
+ * configuration (filled by hd_kf_init; enabled by hd_kf_set_block_enabled). */
 typedef struct {
-    uint8_t block;       /* configured block index */
     uint8_t lock;        /* hd_kf_lock_t, also the index of its increment */
     uint8_t frame;       /* its frame phasor: entry of hd_kf_t.phasor_cos/sin */
+    uint8_t enabled;     /* 0: held at zero (x, its rows and columns of P) */
     uint8_t reserved;
     float theta_per_unit; /* phase advance per unit of its increment: the order
                              (FIXED: 2 pi f ts per step, its increment is 1) */
@@ -195,20 +195,30 @@ typedef struct {
     float fixed_sin;
 } hd_kf_slot_t;
 
+/* Powers of the motor or output phasor computed per step: z_dst = z_a z_b
+ * (z_a^2 by doubling when a == b), indices into phasor_cos/sin. */
+#define HD_KF_POWER_OPS (2 * (HD_KF_MAX_POWER - 1))
+
 /* Filter state.  Treat as opaque; it is public only so it can be allocated
- * statically.  x and p hold each block's state and covariance in the
- * block's co-rotating frame: the model's x_s = R(phi_s) x[2s..2s+1], phi_s
- * the block's accumulated phase (phasor_cos/sin[slot.frame]), so a step
- * turns no state and no covariance, only the frames (docs/filter.md,
- * "Co-rotating frames").  hd_kf_state and hd_kf_cov return the model's
- * coordinates. */
+ * statically.  Every configured block has its place (slot i = configured
+ * block i, states 2i and 2i+1, the offset last at 2 block_count); a
+ * disabled block's state and its rows and columns of P are held at zero,
+ * which keeps it out of every other state's update (hd_kf_set_block_enabled).
+ * x and p hold each block's state and covariance in the block's co-rotating
+ * frame: the model's x_s = R(phi_s) x[2s..2s+1], phi_s the block's
+ * accumulated phase (phasor_cos/sin[slot.frame]), so a step turns no state
+ * and no covariance, only the frames (docs/filter.md, "Co-rotating
+ * frames").  hd_kf_state and hd_kf_cov return the model's coordinates in the
+ * active ordering (enabled blocks, offset last). */
 typedef struct {
     hd_kf_config_t cfg;
-    uint8_t n_states;                         /* active states */
-    uint8_t active_blocks;                    /* number of enabled blocks */
-    uint8_t offset_slot;                      /* state index of the offset, if enabled */
+    uint8_t n_states;                         /* active states: 2 per enabled block (+1) */
+    uint8_t n_blocks;                         /* blocks in the layout: cfg.block_count */
+    uint8_t offset_slot;                      /* x index of the offset (2 n_blocks), if on */
     uint8_t offset_primed;                    /* the offset has taken its first sample */
     uint8_t load_ref_primed;                  /* load_ref_nm has taken its first value */
+    uint8_t power_count;                      /* entries of power_op */
+    uint8_t power_op[HD_KF_POWER_OPS][3];     /* dst, a, b (see HD_KF_POWER_OPS) */
     uint32_t motor_powers;                    /* bit k: the k-th power of the motor phasor is used */
     uint32_t output_powers;                   /* the same for the output phasor */
     uint32_t own_frames;                      /* bit s: slot s turns its own phasor */
@@ -224,7 +234,7 @@ typedef struct {
     float output_phase_lo_rad;                /* init, in [-pi, pi), as hi + lo */
     uint32_t output_turns;                    /* steps since the output phasor was last
                                                  set from that sum */
-    hd_kf_slot_t slot[HD_KF_MAX_BLOCKS];      /* active slot -> block parameters */
+    hd_kf_slot_t slot[HD_KF_MAX_BLOCKS];      /* configured block -> its step parameters */
     float phasor_cos[HD_KF_PHASORS];          /* unit phasors: [k] the motor phase (sum of */
     float phasor_sin[HD_KF_PHASORS];          /* all increments) times k, [HD_KF_MAX_POWER
                                                  + 1 + k] the output phase's, then one per
@@ -281,13 +291,16 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg);
  * blocks' frames kept). */
 void hd_kf_reset(hd_kf_t *kf);
 
-/* Enables or disables configured block i at run time.  The block restarts
- * from zero with covariance p0; other blocks keep their estimates and
- * covariances bit for bit. */
+/* Enables or disables configured block i at run time, in O(n): the block's
+ * state and its rows and columns of P are zeroed (a disabled block is
+ * excluded from C, gets no gain and no process noise, so it stays at zero
+ * and changes no other state); enabled, it restarts from zero with
+ * covariance p0.  The other blocks keep their estimates and covariances bit
+ * for bit, and their steps are the same as without the block. */
 hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled);
 
-/* One filter step: bounded time, O(n^2) in the active states, never blocks,
- * never allocates. */
+/* One filter step: bounded time, O(n^2) in the configured states, never
+ * blocks, never allocates. */
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out);
 
 /* ---- read-out, outside the 1 kHz path ---------------------------------- */

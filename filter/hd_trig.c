@@ -7,25 +7,6 @@
 #define HALF_PI_LO 4.83826794897e-4f
 #define TWO_OVER_PI 0.636619772367581f
 #define MAX_REDUCIBLE_RAD 1.0e5f
-/* Below this |angle| the quadrant is 0 (angle * 2 / pi < 0.4966) and the
- * reduction leaves the angle as it is: skip it. */
-#define NO_REDUCTION_RAD 0.78f
-
-/* Taylor polynomials on [-pi/4, pi/4]: truncation error < 1e-9, far below
- * float32 rounding (6e-8). Horner form, no division. */
-static float sin_poly(float r)
-{
-    const float r2 = r * r;
-    return r * (1.0f + r2 * (-1.0f / 6.0f + r2 * (1.0f / 120.0f
-                + r2 * (-1.0f / 5040.0f + r2 * (1.0f / 362880.0f)))));
-}
-
-static float cos_poly(float r)
-{
-    const float r2 = r * r;
-    return 1.0f + r2 * (-0.5f + r2 * (1.0f / 24.0f + r2 * (-1.0f / 720.0f
-                + r2 * (1.0f / 40320.0f + r2 * (-1.0f / 3628800.0f)))));
-}
 
 void hd_sincosf(float angle_rad, float *sin_out, float *cos_out)
 {
@@ -36,18 +17,19 @@ void hd_sincosf(float angle_rad, float *sin_out, float *cos_out)
         *cos_out = 1.0f;
         return;
     }
-    if (angle_rad < NO_REDUCTION_RAD && angle_rad > -NO_REDUCTION_RAD) {
-        /* quadrant 0: the same bits as the reduction below gives */
-        *sin_out = sin_poly(angle_rad);
-        *cos_out = cos_poly(angle_rad);
+    if (angle_rad < HD_TRIG_NO_REDUCTION_RAD && angle_rad > -HD_TRIG_NO_REDUCTION_RAD) {
+        /* quadrant 0 (angle * 2 / pi < 0.4966): the reduction would leave
+         * the angle as it is */
+        *sin_out = hd_sin_poly(angle_rad);
+        *cos_out = hd_cos_poly(angle_rad);
         return;
     }
     const float scaled = angle_rad * TWO_OVER_PI;
     const int quadrant = (int)(scaled + (scaled >= 0.0f ? 0.5f : -0.5f));
     const float qf = (float)quadrant;
     const float r = (angle_rad - qf * HALF_PI_HI) - qf * HALF_PI_LO;
-    const float s = sin_poly(r);
-    const float c = cos_poly(r);
+    const float s = hd_sin_poly(r);
+    const float c = hd_cos_poly(r);
     switch ((unsigned)quadrant & 3u) {
     case 0u: *sin_out = s; *cos_out = c; break;
     case 1u: *sin_out = c; *cos_out = -s; break;

@@ -21,6 +21,27 @@ extern "C" {
 
 void hd_sincosf(float angle_rad, float *sin_out, float *cos_out);
 
+/* Below this |angle| hd_sincosf applies no reduction (quadrant 0) and
+ * returns exactly hd_sin_poly / hd_cos_poly of the angle. */
+#define HD_TRIG_NO_REDUCTION_RAD 0.78f
+
+/* Taylor polynomials on [-pi/4, pi/4]: truncation error < 1e-9, far below
+ * float32 rounding (6e-8).  Horner form, no division.  Inline, so the
+ * filter's per-step sines of small increments cost no call. */
+static inline float hd_sin_poly(float r)
+{
+    const float r2 = r * r;
+    return r * (1.0f + r2 * (-1.0f / 6.0f + r2 * (1.0f / 120.0f
+                + r2 * (-1.0f / 5040.0f + r2 * (1.0f / 362880.0f)))));
+}
+
+static inline float hd_cos_poly(float r)
+{
+    const float r2 = r * r;
+    return 1.0f + r2 * (-0.5f + r2 * (1.0f / 24.0f + r2 * (-1.0f / 720.0f
+                + r2 * (1.0f / 40320.0f + r2 * (-1.0f / 3628800.0f)))));
+}
+
 #ifdef __cplusplus
 }
 #endif

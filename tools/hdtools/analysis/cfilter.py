@@ -34,6 +34,7 @@ MAX_STATES = 2 * MAX_BLOCKS + 1
 MAX_POWER = 8  # HD_KF_MAX_POWER
 PHASORS = 2 * (MAX_POWER + 1) + MAX_BLOCKS
 P_ENTRIES = MAX_STATES * (MAX_STATES + 1) // 2
+POWER_OPS = 2 * (MAX_POWER - 1)  # HD_KF_POWER_OPS
 DEFAULT_TRACK_BANDWIDTH_HZ = 20.0
 
 LOCK_MOTOR, LOCK_OUTPUT, LOCK_FIXED = 0, 1, 2
@@ -89,7 +90,7 @@ class KfConfig(ctypes.Structure):
 
 class KfSlot(ctypes.Structure):
     """hd_kf_slot_t"""
-    _fields_ = [("block", c_uint8), ("lock", c_uint8), ("frame", c_uint8), ("reserved", c_uint8),
+    _fields_ = [("lock", c_uint8), ("frame", c_uint8), ("enabled", c_uint8), ("reserved", c_uint8),
                 ("theta_per_unit", c_float), ("motion_inv", c_float), ("motion_bias", c_float),
                 ("q_nm2", c_float), ("p0_nm2", c_float), ("learn", c_float),
                 ("fixed_cos", c_float), ("fixed_sin", c_float)]
@@ -99,10 +100,12 @@ class KfState(ctypes.Structure):
     """hd_kf_t (treated as opaque; mirrored for its size/alignment and counters)."""
     _fields_ = [("cfg", KfConfig),
                 ("n_states", c_uint8),
-                ("active_blocks", c_uint8),
+                ("n_blocks", c_uint8),
                 ("offset_slot", c_uint8),
                 ("offset_primed", c_uint8),
                 ("load_ref_primed", c_uint8),
+                ("power_count", c_uint8),
+                ("power_op", (c_uint8 * 3) * POWER_OPS),
                 ("motor_powers", c_uint32),
                 ("output_powers", c_uint32),
                 ("own_frames", c_uint32),
