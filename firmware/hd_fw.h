@@ -175,8 +175,13 @@ typedef struct {
     uint32_t ff_stale_ticks;        /* ticks stale (saturating) */
     /* motor current */
     float current_a;                /* last good reading */
-    float current_lp_a;             /* low-passed for T_exp */
-    bool current_lp_primed;
+    /* the current term's inputs, low-passed alike (two first-order stages
+     * at current_filter_hz): current, output velocity from the motor
+     * increments, its derivative */
+    float cur_i1, cur_i2;
+    float cur_w1, cur_w2;
+    float cur_acc;
+    bool cur_primed;
     /* absolute angles: first good count modulo cpr plus every increment
      * given to the filter, so they follow the filter's own phase */
     bool pos_valid;

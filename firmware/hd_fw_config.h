@@ -28,7 +28,7 @@ extern "C" {
 /* Slow-torque defaults, from the measurements in docs/slow-torque.md. */
 #define HD_FW_DEFAULT_FF_RAMP_MS 500u
 #define HD_FW_DEFAULT_OPERATING_LEARN_SCALE 0.0f
-#define HD_FW_DEFAULT_CURRENT_FILTER_HZ 5.0f
+#define HD_FW_DEFAULT_CURRENT_FILTER_HZ 10.0f
 
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */

@@ -310,14 +310,6 @@ static uint32_t read_current(hd_fw_t *fw, hd_fw_sample_t *s)
         k->current_a = cur.motor_current_a;
     }
     s->motor_current_a = k->current_a;
-    /* T_exp is the slow torque: the drive's current noise (tens of mA, N kt
-     * times that in N m) would otherwise enter the filter's innovation. */
-    if (!k->current_lp_primed) {
-        k->current_lp_a = k->current_a;
-        k->current_lp_primed = good;
-    } else {
-        k->current_lp_a += hd_fw_live(fw)->current_alpha * (k->current_a - k->current_lp_a);
-    }
     return (!good && hd_fw_live(fw)->cfg.current.nm_per_a > 0.0f) ? HD_FAULT_CURRENT_ERROR : 0u;
 }
 
@@ -450,16 +442,38 @@ static float feedforward_now(hd_fw_t *fw, uint32_t *faults)
     return k->ff_stale_from_nm * (1.0f - (float)k->ff_stale_ticks / (float)ramp);
 }
 
-/* T_cur of hd_expected.h, with the tracker's velocity and acceleration of
- * the previous tick (1 ms old; its friction and inertia terms are slow). */
-static float current_torque_nm(const hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s)
+/* T_cur of hd_expected.h on inputs low-passed alike: the current, the
+ * output velocity (from the motor increments: 1/gear ratio finer than the
+ * output encoder) and the derivative of the filtered velocity, through the
+ * same two first-order stages.  T_exp is the slow torque: unfiltered, the
+ * drive's current noise (N kt times tens of mA) and the rotor's inertia
+ * torque against a lagging acceleration estimate would enter the filter's
+ * innovation (docs/slow-torque.md, "Motor current"). */
+static float current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s)
 {
-    const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    const hd_fw_config_t *c = &set->cfg;
+    hd_fw_tick_state_t *k = &fw->tick;
     if (!(c->current.nm_per_a > 0.0f) || !isfinite(s->motor_current_a)) {
+        k->cur_primed = false;
         return 0.0f;
     }
-    return hd_expected_current_nm(&c->current, &p->expected, fw->tick.current_lp_a,
-                                  p->output_track.vel_rad_s, p->output_track.acc_rad_s2);
+    const float a = set->current_alpha;
+    const float w = s->d_motor_angle_rad / (c->gear_ratio * HD_FW_TS_S);
+    if (!k->cur_primed) {
+        k->cur_i1 = k->cur_i2 = s->motor_current_a;
+        k->cur_w1 = k->cur_w2 = w;
+        k->cur_acc = 0.0f;
+        k->cur_primed = true;
+    } else {
+        k->cur_i1 += a * (s->motor_current_a - k->cur_i1);
+        k->cur_i2 += a * (k->cur_i1 - k->cur_i2);
+        k->cur_w1 += a * (w - k->cur_w1);
+        const float dw = a * (k->cur_w1 - k->cur_w2);
+        k->cur_w2 += dw;
+        k->cur_acc = dw / HD_FW_TS_S;
+    }
+    return hd_expected_current_nm(&c->current, &p->expected, k->cur_i2, k->cur_w2, k->cur_acc);
 }
 
 /* ------------------------------------------------------------- pipeline */

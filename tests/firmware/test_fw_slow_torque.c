@@ -234,23 +234,35 @@ static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
     TEST_ASSERT_EQUAL_FLOAT(0.0f, last()->torque_expected_nm);
 }
 
-/* The current's low-pass before T_exp: first order, backward Euler,
- * y_n = y_{n-1} + a (i - y_{n-1}), a = w / (1 + w), w = 2 pi f ts. */
+/* The current term's low-pass: two first-order stages, backward Euler,
+ * y_n = y_{n-1} + a (u_n - y_{n-1}), a = w / (1 + w), w = 2 pi f ts, on the
+ * current; the velocity (from the motor increments / N) likewise, the
+ * acceleration is the filtered velocity's difference / ts.  Computed here in
+ * double from that description. */
 static void test_motor_current_low_pass(void)
 {
     mock.current_channel = true;
     hal_mock_bind(&mock, &hal);
     cfg.current.nm_per_a = 10.0f;
+    cfg.current.viscous_nm_s_rad = 2.0f;
+    cfg.current.inertia_kgm2 = 0.5f;
     cfg.current_filter_hz = 10.0f;
     init_fw();
-    push_current(0.0f, HAL_OK, false); /* primes at 0 */
+    push_current(0.0f, HAL_OK, false); /* primes at 0 A and 0 rad/s; then 3 counts/tick */
     const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
+    const double v0 = 3.0 * 2.0 * TEST_PI / 4096.0 / 100.0 / 0.001; /* output rad/s */
+    double i1 = 0.0, i2 = 0.0, w1 = 0.0, w2 = 0.0; /* the first reading has no increment */
     for (unsigned n = 1; n <= 200; n++) {
         push_current(1.0f, HAL_OK, false);
-        double expect = 10.0 * (1.0 - pow(1.0 - a, (double)n));
-        TEST_ASSERT_DOUBLE_WITHIN(1e-4, expect, (double)last()->torque_expected_nm);
+        i1 += a * (1.0 - i1);
+        i2 += a * (i1 - i2);
+        w1 += a * (v0 - w1);
+        double dw = a * (w1 - w2);
+        w2 += dw;
+        double expect = 10.0 * i2 - 0.5 * dw / 0.001 - 2.0 * w2;
+        TEST_ASSERT_DOUBLE_WITHIN(2e-4, expect, (double)last()->torque_expected_nm);
     }
-    TEST_ASSERT_TRUE(last()->torque_expected_nm > 9.9f); /* 200 ms = 12.6 time constants */
+    TEST_ASSERT_DOUBLE_WITHIN(0.02, 10.0 - 2.0 * v0, (double)last()->torque_expected_nm);
 }
 
 static void test_no_current_channel(void)
