@@ -28,20 +28,8 @@ def hdsim():
 @pytest.fixture(scope="session")
 def simulate(hdsim, tmp_path_factory):
     """simulate(name, *--set overrides) -> path of the CSV (cached)."""
-    cache = {}
-    out_dir = tmp_path_factory.mktemp("sim")
-
-    def run(name, *sets):
-        key = (name,) + sets
-        if key not in cache:
-            out = out_dir / f"{name}_{len(cache)}.csv"
-            cmd = [str(hdsim), str(SCENARIOS / f"{name}.ini"), "--csv", str(out)]
-            for s in sets:
-                cmd += ["--set", s]
-            subprocess.run(cmd, check=True, capture_output=True)
-            cache[key] = out
-        return cache[key]
-    return run
+    from hdtools.analysis import results
+    return results.simulator(hdsim, tmp_path_factory.mktemp("sim"))
 
 
 def read_csv(path):
@@ -98,3 +86,12 @@ def doc_section(name, lines):
     from hdtools.analysis import results
     text = results.DOC.read_text() if results.DOC.is_file() else ""
     return results.extract(text, name), results.section(name, lines)
+
+
+def assert_doc_current(sections):
+    """Each (name, lines) section of docs/analyze-results.md is what these
+    reports give."""
+    for name, lines in sections:
+        in_doc, now = doc_section(name, lines)
+        assert in_doc == now, (f"docs/analyze-results.md section {name!r} is stale: run "
+                               "tools/hdsense analyze --results-doc docs/analyze-results.md")

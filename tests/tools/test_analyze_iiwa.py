@@ -11,7 +11,7 @@ import math
 
 import pytest
 
-from conftest import ROOT, analyze, doc_section
+from conftest import ROOT, analyze, assert_doc_current
 
 REAL = (ROOT / ".." / "shared" / "data" / "real").resolve()
 JOINTS = [2, 4, 5]
@@ -90,6 +90,4 @@ def test_never_worse_out_of_sample_and_gravity_kept(reports, joint):
 
 def test_results_doc_iiwa_table_is_current(reports):
     from hdtools.analysis import results
-    in_doc, now = doc_section("iiwa", results.iiwa_table(reports))
-    assert in_doc == now, ("docs/analyze-results.md section 'iiwa' is stale: run "
-                           "tools/hdsense analyze --results-doc docs/analyze-results.md")
+    assert_doc_current([("iiwa", results.iiwa_table(reports))])

@@ -159,18 +159,6 @@ def test_irregular_sampling_is_resampled(simulate, motor6_report, tmp_path):
     assert r["error_rms_after_nm"] < 1.5 * motor6_report["error_rms_after_nm"]
 
 
-def test_logger_pause_is_a_split_not_a_drift(case_report):
-    # pause.ini: 5 N m of load that creeps while the logger is paused for
-    # 60 s (results.logger_pause removes t in [40, 100) s).  Before: the
-    # pause was read as sensor drift, the offset became a sensor error and
-    # the load was removed (error 0.02 -> 4.9 N m).
-    r = case_report("pause")
-    assert r["data"]["cleaning"]["gaps"] == 1
-    assert r["model_after"]["offset_is_sensor_error"] is False
-    assert not [e for e in added(r) if e["kind"] == "offset_drift"]
-    assert r["error_rms_after_nm"] < 1.5 * 0.02
-
-
 def test_nan_rows_do_not_change_the_model(motor6, motor6_report, tmp_path):
     # Six NaN rows that split the record.  Before: the pieces each covered
     # less than a turn and the gravity polynomial was switched on for a

@@ -183,11 +183,8 @@ def test_load_dependent_ripple_lowers_the_error(analyzed, name):
 def test_results_doc_suite_tables_are_current(analyzed):
     """docs/analyze-results.md's suite tables are these reports' (generated
     by `tools/hdsense analyze --results-doc`, never typed)."""
-    from conftest import doc_section
+    from conftest import assert_doc_current
     from hdtools.analysis import results
     reports = {c.name: analyzed(c.name) for c in results.SUITE}
-    for name, lines in (("suite", results.suite_table(reports, results.SUITE)),
-                        ("bands", results.bands_table(reports, results.SUITE))):
-        in_doc, now = doc_section(name, lines)
-        assert in_doc == now, (f"docs/analyze-results.md section {name!r} is stale: run "
-                               "tools/hdsense analyze --results-doc docs/analyze-results.md")
+    assert_doc_current([("suite", results.suite_table(reports, results.SUITE)),
+                        ("bands", results.bands_table(reports, results.SUITE))])

@@ -134,6 +134,24 @@ SLOW = [
 ]
 
 
+def simulator(hdsim, out_dir: Path):
+    """simulate(scenario, *--set overrides) -> the CSV hdsim writes for it
+    (each run once)."""
+    cache = {}
+
+    def simulate(name, *sets):
+        key = (name,) + sets
+        if key not in cache:
+            out = Path(out_dir) / f"{name}_{len(cache)}.csv"
+            cmd = [str(hdsim), str(SCENARIOS / f"{name}.ini"), "--csv", str(out)]
+            for s in sets:
+                cmd += ["--set", s]
+            subprocess.run(cmd, check=True, capture_output=True)
+            cache[key] = out
+        return cache[key]
+    return simulate
+
+
 def prepare(case: Case, simulate, tmp: Path) -> Path:
     """The case's CSV: simulate(scenario, *sets) -> CSV path, then the
     transform (seeded)."""
@@ -340,18 +358,7 @@ def run_all(log=print, img_dir: Path | None = None):
                 images[f"analyze_{prefix}_{f.name}"] = f.read_bytes()
         return r
     with tempfile.TemporaryDirectory() as tmp:
-        cache = {}
-
-        def simulate(name, *sets):
-            key = (name,) + sets
-            if key not in cache:
-                out = Path(tmp) / f"sim{len(cache)}.csv"
-                cmd = [str(sim), str(SCENARIOS / f"{name}.ini"), "--csv", str(out)]
-                for s in sets:
-                    cmd += ["--set", s]
-                subprocess.run(cmd, check=True, capture_output=True)
-                cache[key] = out
-            return cache[key]
+        simulate = simulator(sim, Path(tmp))
         reports = {}
         for c in SUITE + SLOW:
             log(f"case {c.name}")
