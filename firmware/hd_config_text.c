@@ -305,6 +305,29 @@ static bool text_byte(unsigned char ch)
     return ch == '\t' || ch == '\r' || (ch >= 0x20u && ch < 0x7Fu);
 }
 
+/* Length of the UTF-8 sequence starting at s[i] (2..4), or 0 if it is not
+ * a well-formed one (overlong forms, surrogates and > U+10FFFF refused). */
+static size_t utf8_len(const char *s, size_t i, size_t n)
+{
+    const unsigned char c = (unsigned char)s[i];
+    size_t len = c >= 0xF0u ? 4u : (c >= 0xE0u ? 3u : (c >= 0xC2u ? 2u : 0u));
+    if (len == 0u || c > 0xF4u || i + len > n) {
+        return 0u;
+    }
+    for (size_t k = 1; k < len; k++) {
+        if (((unsigned char)s[i + k] & 0xC0u) != 0x80u) {
+            return 0u;
+        }
+    }
+    const unsigned char c1 = (unsigned char)s[i + 1u];
+    if ((c == 0xE0u && c1 < 0xA0u) || (c == 0xEDu && c1 >= 0xA0u) ||
+        (c == 0xF0u && c1 < 0x90u) || (c == 0xF4u && c1 >= 0x90u)) {
+        return 0u;
+    }
+    return len;
+}
+
+/* Printable ASCII, tab and CR anywhere; UTF-8 text only in comments. */
 static int check_bytes(const char *s, size_t n, hd_cfgtxt_error_t *err, unsigned line)
 {
     bool comment = false;
@@ -314,9 +337,18 @@ static int check_bytes(const char *s, size_t n, hd_cfgtxt_error_t *err, unsigned
         if (ch == 0u) {
             return fail(err, HD_FW_ERR_BYTES, line, "NUL byte");
         }
-        if (!text_byte(ch) && !(comment && ch >= 0x80u)) {
-            return fail(err, HD_FW_ERR_BYTES, line,
-                        ch >= 0x80u ? "non-ASCII byte outside a comment" : "control byte");
+        if (ch >= 0x80u) {
+            size_t len = comment ? utf8_len(s, i, n) : 0u;
+            if (len == 0u) {
+                return fail(err, HD_FW_ERR_BYTES, line,
+                            comment ? "a comment that is not UTF-8 text"
+                                    : "non-ASCII byte outside a comment");
+            }
+            i += len - 1u;
+            continue;
+        }
+        if (!text_byte(ch)) {
+            return fail(err, HD_FW_ERR_BYTES, line, "control byte");
         }
     }
     return HD_FW_OK;

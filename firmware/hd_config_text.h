@@ -17,7 +17,7 @@
  * checked against its table range.  A key given twice is an error naming
  * both lines.  The text must be printable: a NUL or other control byte
  * (except tab and CR) is an error with its line; bytes >= 0x80 are allowed
- * only in comments.  At most HD_CFGTXT_MAX_BYTES bytes.  Parsing is all or
+ * only in comments, as well-formed UTF-8.  At most HD_CFGTXT_MAX_BYTES bytes.  Parsing is all or
  * nothing: on any error the configuration is unchanged and the error names
  * the line.
  *

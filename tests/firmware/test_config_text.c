@@ -127,6 +127,10 @@ static void test_malformed_files_report_the_line_and_change_nothing(void)
         {"block_count = 3\n", HD_FW_ERR_READ_ONLY, 1},
         {"gear_ratio = 80\x01\n", HD_FW_ERR_BYTES, 1},
         {"# ok: \xc3\xa9 in a comment\ngear_ratio = 8\xc3\xa9" "0\n", HD_FW_ERR_BYTES, 2},
+        /* comments are UTF-8 text: a Latin-1 byte, a cut sequence, an overlong form */
+        {"# caf\xe9\n", HD_FW_ERR_BYTES, 1},
+        {"gear_ratio = 80\n# \xe2\x82\n", HD_FW_ERR_BYTES, 2},
+        {"# \xc0\xaf\n", HD_FW_ERR_BYTES, 1},
     };
     for (unsigned i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         hd_fw_config_t cfg = base;
