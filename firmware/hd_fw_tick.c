@@ -386,8 +386,8 @@ static void import_profile(hd_fw_t *fw)
     if (p.line_count == 0u) {
         return;
     }
-    const float lead_m = k->kf_fresh ? 0.0f : fw->last.d_motor_angle_rad;
-    const float lead_o = k->kf_fresh ? 0.0f : fw->last.d_output_angle_rad;
+    const float lead_m = k->kf_fresh ? 0.0f : fw->last.step_motor_rad;
+    const float lead_o = k->kf_fresh ? 0.0f : fw->last.step_output_rad;
     hd_kf_t *kf = &hd_fw_live_pipe(fw)->kf;
     const int rc = hd_kf_profile_import(
         kf, &p, wrap_angle(angle_of(k->motor_pos, set->motor_rad_per_count) - lead_m),
@@ -478,6 +478,27 @@ static float current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_
 
 /* ------------------------------------------------------------- pipeline */
 
+/* The filter turns its prediction for the next sample by the increment it
+ * is given with this one (hd_kf.h); the increment to the next sample is
+ * not known yet, so it is predicted from the last two (constant
+ * acceleration): 2 d_k - d_k-1.  With d_k itself the prediction keeps the
+ * speed of the moment it learned and every speed change leaves motor-locked
+ * blocks a phase error of order x the change (docs/slow-torque.md,
+ * "Increment prediction").  The first reading's zero increment is not
+ * real: no prediction from it. */
+static void step_increments(hd_fw_t *fw, hd_fw_sample_t *s)
+{
+    hd_fw_tick_state_t *k = &fw->tick;
+    const bool predict = hd_fw_live(fw)->cfg.predict_increment != 0u && k->prev_inc_valid;
+    s->step_motor_rad = predict ? 2.0f * s->d_motor_angle_rad - k->prev_dm_rad
+                                : s->d_motor_angle_rad;
+    s->step_output_rad = predict ? 2.0f * s->d_output_angle_rad - k->prev_dout_rad
+                                 : s->d_output_angle_rad;
+    k->prev_dm_rad = s->d_motor_angle_rad;
+    k->prev_dout_rad = s->d_output_angle_rad;
+    k->prev_inc_valid = !k->first_reading;
+}
+
 static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
 {
     const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
@@ -490,7 +511,8 @@ static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
     s->feedforward_nm = feedforward_now(fw, &faults);
     const float slow_nm = s->feedforward_nm + current_torque_nm(fw, p, s);
     hd_kf_output_t out;
-    hd_pipeline_step(p, s->torque_raw_nm, s->d_motor_angle_rad, s->d_output_angle_rad, slow_nm,
+    step_increments(fw, s);
+    hd_pipeline_step(p, s->torque_raw_nm, s->step_motor_rad, s->step_output_rad, slow_nm,
                      &out);
     k->kf_fresh = false;
     if (k->snapshot_pending) {

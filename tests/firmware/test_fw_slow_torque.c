@@ -29,13 +29,13 @@ void setUp(void)
 }
 void tearDown(void) {}
 
-/* n ticks: the motor moves `step` counts, the output step/4 (an exact
- * ratio of counts is not needed: the angles are independent). */
+/* n ticks: the motor moves `step` counts, the output encoder (same cpr)
+ * counts the motor's travel / 100 (the gear ratio). */
 static void tick_n(unsigned n, int32_t counts, uint32_t step)
 {
     for (unsigned i = 0; i < n; i++) {
         motor += step;
-        outc += step / 4u;
+        outc = motor / 100u;
         hal_mock_sample_t s;
         memset(&s, 0, sizeof s);
         s.adc.bridge_counts = counts;
@@ -356,13 +356,12 @@ static void test_boot_predicts_the_stored_profile_from_the_first_sample(void)
 {
     with_output = true;
     motor = 1234567u - 5u; /* any absolute start: the first sample is at 1234567 */
-    outc = 777u - 1u;
     store_profile(100.0f, CPR, CPR, LINES, 3);
     boot_filtering();
     TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_fw_record_status(&fw, HD_RECORD_KIND_PROFILE));
     tick_n(1, 1000, 5);
     TEST_ASSERT_EQUAL_UINT32(1234567u, last()->motor_counts);
-    double expect = predicted(LINES, 3, 1234567u, 777u, true);
+    double expect = predicted(LINES, 3, 1234567u, 12345u, true);
     TEST_ASSERT_DOUBLE_WITHIN(2e-5, expect, (double)last()->ripple_nm);
     TEST_ASSERT_TRUE(fabs(expect) > 0.3); /* not a zero crossing by chance */
     TEST_ASSERT_EQUAL_UINT32(1, hd_fw_counters(&fw)->profile_imports);
@@ -719,7 +718,8 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
     hal_mock_push_rx(&mock, &f);
     const uint32_t seq0 = fw.tick.snapshot_seq;
     float x[3][2] = {{0}};
-    uint32_t at_m = 0, at_o = 0, d_m = 0, d_o = 0;
+    uint32_t at_m = 0, at_o = 0;
+    double d_m = 0.0, d_o = 0.0;
     hd_can_ack_t a;
     memset(&a, 0xEE, sizeof a);
     for (unsigned i = 0; i < 6 && a.token != 0x5A; i++) {
@@ -728,8 +728,10 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
         if (fw.tick.snapshot_seq != seq0 && at_m == 0u) {
             at_m = motor;
             at_o = outc;
-            d_m = 7u; /* the state after the step is at the next sample's angle */
-            d_o = 7u / 4u;
+            /* the state after the step is at this sample's angle plus the
+             * increment the filter turned by (the predicted next one) */
+            d_m = (double)last()->step_motor_rad;
+            d_o = (double)last()->step_output_rad;
             for (unsigned s = 0; s < 3; s++) {
                 x[s][0] = hd_kf_state(&live_pipe()->kf, 2 * s);
                 x[s][1] = hd_kf_state(&live_pipe()->kf, 2 * s + 1);
@@ -752,8 +754,8 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
         const bool o = back[s].lock == HD_KF_LOCK_OUTPUT;
         TEST_ASSERT_EQUAL_UINT8(LINES[s].lock, back[s].lock);
         TEST_ASSERT_EQUAL_UINT8(LINES[s].order, back[s].order);
-        uint32_t cnt = o ? at_o + d_o : at_m + d_m;
-        double k_alpha = back[s].order * 2.0 * TEST_PI * (double)(cnt % CPR) / CPR;
+        double k_alpha = back[s].order * (2.0 * TEST_PI * (double)((o ? at_o : at_m) % CPR) / CPR +
+                                          (o ? d_o : d_m));
         double x1 = (double)back[s].a * cos(k_alpha) + (double)back[s].b * sin(k_alpha);
         double x2 = -(double)back[s].a * sin(k_alpha) + (double)back[s].b * cos(k_alpha);
         TEST_ASSERT_DOUBLE_WITHIN(2e-5, (double)x[s][0], x1);
@@ -799,6 +801,42 @@ static void test_operating_mode_freezes_output_lines(void)
     TEST_ASSERT_TRUE(fabsf(com[2].a - LINES[2].a) + fabsf(com[2].b - LINES[2].b) > 1e-2f);
 }
 
+/* A speed change with the exact profile in the data: the filter, turned by
+ * the predicted increment, keeps predicting the ripple at each sample's
+ * angle; turned by the last increment it lags by order x the change. */
+static double speed_change_error(uint8_t predict)
+{
+    setUp();
+    with_output = true;
+    cfg.predict_increment = predict;
+    cfg.learning_mode = HD_FW_LEARN_OPERATING;
+    store_profile(100.0f, CPR, CPR, LINES, 3);
+    boot_filtering();
+    double worst = 0.0;
+    for (unsigned i = 0; i < 600; i++) {
+        const uint32_t step = i < 300 ? 20u : 60u;
+        /* the torque this sample will carry: 2 N m + the profile's ripple */
+        double t = 2.0 + predicted(LINES, 3, motor + step, (motor + step) / 100u, true);
+        int32_t counts = (int32_t)lround((t / GAIN + OFFSET_V) / VPC);
+        tick_n(1, counts, step);
+        if (i >= 310 || (i >= 2 && i < 30)) { /* after the change, and after boot */
+            double e = fabs((double)last()->ripple_nm - predicted(LINES, 3, motor, outc, true));
+            worst = e > worst ? e : worst;
+        }
+    }
+    return worst;
+}
+
+static void test_predicted_increment_keeps_the_phase_through_a_speed_change(void)
+{
+    double with = speed_change_error(1u);
+    double without = speed_change_error(0u);
+    printf("speed change 20 -> 60 counts/tick: worst ripple error %.4f N m predicted, "
+           "%.4f N m last increment\n", with, without);
+    TEST_ASSERT_TRUE(with < 0.01);   /* ADC step 2 mN m, learning on it */
+    TEST_ASSERT_TRUE(without > 0.05); /* order 2: 2 x 0.06 rad on 0.8 N m */
+}
+
 static void test_profile_record_version_is_reported(void)
 {
     init_fw();
@@ -833,6 +871,7 @@ int main(void)
     RUN_TEST(test_bad_uploads_are_refused);
     RUN_TEST(test_snapshot_save_is_the_filter_at_a_tick_boundary);
     RUN_TEST(test_operating_mode_freezes_output_lines);
+    RUN_TEST(test_predicted_increment_keeps_the_phase_through_a_speed_change);
     RUN_TEST(test_profile_record_version_is_reported);
     return UNITY_END();
 }
