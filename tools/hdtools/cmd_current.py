@@ -27,6 +27,9 @@ def register(sub) -> None:
                    "or velocity")
     p.add_argument("--gear-ratio", type=float, help="N: reports eta kt at the motor, and turns "
                    "a motor angle into the output velocity when there is no output column")
+    p.add_argument("--profile", metavar="PROFILE.json", help="the joint's profile (hdsense "
+                   "analyze, commissioning): its lines are subtracted instead of fitted (needed "
+                   "on an arm, where gravity is an output-order-1 torque)")
     p.add_argument("--config", metavar="OUT.cfg", help="write the firmware configuration lines")
     p.add_argument("--json", metavar="OUT.json", help="write the fit as JSON")
     p.add_argument("--quiet", action="store_true")
@@ -38,8 +41,15 @@ def main(args) -> int:
     if args.gear_ratio is not None and not (math.isfinite(args.gear_ratio) and
                                             args.gear_ratio >= 1):
         raise UsageError(f"--gear-ratio must be a finite number >= 1 (got {args.gear_ratio:g})")
+    lines = None
+    if args.profile:
+        from . import profile_record
+        from .cmd_profile import _load_json
+        lines = [{"lock": ln.lock, "order": ln.order, "a_nm": ln.a_nm, "b_nm": ln.b_nm}
+                 for ln in profile_record.lines_from_json(_load_json(args.profile),
+                                                          args.profile)[0]]
     data = loading.load(args.log)
-    f = current_fit.fit(data, args.gear_ratio, args.log)
+    f = current_fit.fit(data, args.gear_ratio, args.log, lines)
     if not args.quiet:
         print(f"{args.log}: {f.samples} fit samples ({f.seconds:.0f} s at "
               f"{current_fit.DECIMATE_HZ:g} Hz after a {current_fit.CUTOFF_HZ:g} Hz low-pass), "

@@ -10,10 +10,12 @@ on the measured torque against i, a, w and sgn(w), all low-passed alike (the
 fast ripple and the sensor noise are not part of the slow relation) and
 decimated to about two samples per filter time constant, so that the
 residuals are nearly independent and the textbook standard errors hold.
-What passes the low-pass but is not load: output-locked lines (orders
-1..OUTPUT_ORDERS, slow at any speed) are fitted alongside as nuisance
-columns, and samples where the motor turns so slowly that its lines pass
-too (below SLOW_MOTOR_RAD_S) are left out.
+What passes the low-pass but is not load: output-locked lines (slow at any
+speed) are either subtracted (a stored profile, `--profile`: on an arm the
+gravity torque is itself an output-order-1 function and nuisance columns
+would take it) or fitted alongside as nuisance columns (orders
+1..OUTPUT_ORDERS), and samples where the motor turns so slowly that its
+lines pass too (below SLOW_MOTOR_RAD_S) are left out.
 """
 from __future__ import annotations
 
@@ -59,7 +61,21 @@ def _lowpass(x, ts_s):
     return signal.filtfilt(b, a, x)
 
 
-def _columns(piece, ts_s, gear_ratio):
+def profile_torque(piece, lines) -> np.ndarray:
+    """The ripple a profile (lines of profile.json: lock, order, a_nm, b_nm)
+    predicts at the piece's absolute angles."""
+    r = np.zeros(len(piece))
+    for ln in lines:
+        ang = piece.motor_angle_rad if ln["lock"] == "motor" else piece.output_angle_rad
+        if ang is None:
+            raise UsageError(f"the profile has a {ln['lock']}-locked line and the log no "
+                             f"{ln['lock']}_angle_rad column")
+        k = float(ln["order"]) * np.asarray(ang, float)
+        r += ln["a_nm"] * np.cos(k) + ln["b_nm"] * np.sin(k)
+    return r
+
+
+def _columns(piece, ts_s, gear_ratio, lines=None, nuisance=True):
     """([torque, current, w, a, sgn, nuisance...], w) of one piece,
     low-passed and decimated; None if the piece is too short, "angle" if it
     has no way to the output velocity."""
@@ -84,6 +100,8 @@ def _columns(piece, ts_s, gear_ratio):
         i = np.interp(idx, idx[ok], i[ok])
         w = np.interp(idx, idx[ok], w[ok])
     t = np.asarray(piece.torque_nm, float)
+    if lines:
+        t = t - profile_torque(piece, lines)
     t = np.where(np.isfinite(t), t, np.interp(np.arange(n), np.flatnonzero(np.isfinite(t)),
                                               t[np.isfinite(t)]))
     wl = _lowpass(w, ts_s)
@@ -91,7 +109,7 @@ def _columns(piece, ts_s, gear_ratio):
     cols = [_lowpass(t, ts_s), _lowpass(i, ts_s), wl, np.gradient(wl, ts_s), _lowpass(sg, ts_s)]
     theta = (np.asarray(piece.output_angle_rad, float) if piece.output_angle_rad is not None
              else np.cumsum(w) * ts_s)
-    for k in range(1, OUTPUT_ORDERS + 1):
+    for k in range(1, OUTPUT_ORDERS + 1 if nuisance else 1):
         cols += [_lowpass(np.cos(k * theta), ts_s), _lowpass(np.sin(k * theta), ts_s)]
     step = max(1, int(round(1.0 / (DECIMATE_HZ * ts_s))))
     keep = np.zeros(n, bool)
@@ -113,12 +131,14 @@ def _ratio(piece, ts_s) -> float:
     return float(np.sum(np.abs(np.diff(piece.motor_angle_rad)))) / o if o > 0 else 1.0
 
 
-def fit(data, gear_ratio: float | None = None, name: str = "log") -> Fit:
+def fit(data, gear_ratio: float | None = None, name: str = "log", lines=None) -> Fit:
+    """lines: a stored profile's lines to subtract (then no nuisance
+    columns)."""
     if not data.has_current:
         raise UsageError(f"{name}: no motor_current_a column: nothing to fit")
     parts, speeds = [], []
     for p in data.pieces:
-        c = _columns(p, data.ts_s, gear_ratio)
+        c = _columns(p, data.ts_s, gear_ratio, lines, nuisance=not lines)
         if c == "angle":
             raise UsageError(f"{name}: no output_velocity_rad_s or output_angle_rad column "
                              "(with only a motor angle, give --gear-ratio)")
@@ -128,7 +148,7 @@ def fit(data, gear_ratio: float | None = None, name: str = "log") -> Fit:
     if not parts:
         raise UsageError(f"{name}: no stretch long enough to low-pass ({CUTOFF_HZ:g} Hz)")
     T, I, W, A, S = (np.concatenate([p[k] for p in parts]) for k in range(5))
-    nuis = [np.concatenate([p[k] for p in parts]) for k in range(5, 5 + 2 * OUTPUT_ORDERS)]
+    nuis = [np.concatenate([p[k] for p in parts]) for k in range(5, len(parts[0]))]
     w = np.concatenate(speeds)
     moving = np.abs(w) > MOVING_RAD_S
     if len(T) < MIN_FIT_SAMPLES:
