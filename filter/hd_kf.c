@@ -34,6 +34,17 @@
  * the exactly accumulated output phase. */
 #define OUTPUT_TURNS_MAX 256u
 
+/* The step's kernels are written once with loops over the blocks and
+ * instantiated per layout size, where every loop unrolls (docs/filter.md,
+ * "Instances per layout size"). */
+#define KF_INLINE static inline __attribute__((always_inline))
+#define KF_UNROLL _Pragma("GCC unroll 8")
+/* Layouts of up to this many blocks have their own instance; larger models
+ * are laid out with HD_KF_MAX_BLOCKS slots, the unused ones held at zero
+ * like a disabled block. */
+#define UNROLLED_BLOCKS 4u
+#define JOSEPH_ARG true
+
 typedef union {
     float f;
     uint32_t u;
@@ -268,20 +279,6 @@ static void need_power(uint32_t *mask, unsigned k)
     }
 }
 
-/* Appends the step's power operations for one phasor (table entries base +
- * k), in ascending k, so each reads only powers computed before it. */
-static void add_power_ops(hd_kf_t *kf, uint32_t mask, unsigned base)
-{
-    for (unsigned k = 2u; k <= MAX_POWER_ORDER; k++) {
-        if ((mask & (1u << k)) != 0u) {
-            uint8_t *op = kf->power_op[kf->power_count++];
-            op[0] = (uint8_t)(base + k);
-            op[1] = (uint8_t)(base + ((k % 2u == 0u) ? k / 2u : k - 1u));
-            op[2] = (uint8_t)((k % 2u == 0u) ? op[1] : base + 1u);
-        }
-    }
-}
-
 static void build_slot(hd_kf_t *kf, unsigned block)
 {
     const hd_kf_block_config_t *b = &kf->cfg.blocks[block];
@@ -329,10 +326,11 @@ static void build_layout(hd_kf_t *kf)
         build_slot(kf, i);
         enabled += kf->slot[i].enabled;
     }
-    kf->power_count = 0u;
-    add_power_ops(kf, kf->motor_powers, 0u);
-    add_power_ops(kf, kf->output_powers, POWER_TABLE_OUTPUT);
-    kf->n_blocks = kf->cfg.block_count;
+    kf->n_blocks = (uint8_t)(kf->cfg.block_count <= UNROLLED_BLOCKS ? kf->cfg.block_count
+                                                                    : HD_KF_MAX_BLOCKS);
+    for (unsigned i = kf->cfg.block_count; i < kf->n_blocks; i++) {
+        kf->slot[i] = (hd_kf_slot_t){0}; /* unused: held at zero */
+    }
     kf->offset_slot = (uint8_t)(2u * kf->n_blocks);
     kf->n_states = (uint8_t)(2u * enabled + offset_on(kf));
     kf->p_max_bits = bits_of(kf->cfg.p_max_nm2);
@@ -446,29 +444,24 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 /* The step                                                               */
 /* ===================================================================== */
 
-/* What this step does to the blocks (filled by plan_blocks; g by
- * cross_covariance).  h is the measurement row in the frames: block s's
- * (h[2s], h[2s+1]) = c (cos phi_s, sin phi_s), 0 when frozen or disabled. */
-typedef struct {
-    float h[2u * HD_KF_MAX_BLOCKS];
-    float g[HD_KF_MAX_STATES];          /* P C' (the offset's entry last) */
-    float gain[HD_KF_MAX_BLOCKS];       /* gain fraction per block (1: optimal) */
-    float q[HD_KF_MAX_BLOCKS];          /* process noise added to each of its states */
-    uint32_t frozen_mask;               /* by configured block */
-    uint32_t lost_slots;                /* phase lost: restart */
-    bool partial_gain;                  /* some gain fraction below 1: Joseph weights */
-} step_plan_t;
+/* sin and cos of a small angle (|a| <= SMALL_ANGLE_RAD) by the series
+ * a - a^3/6 and 1 - a^2/2 + a^4/24: the next terms are < 1e-8 relative. */
+KF_INLINE void sincos_series(float a, float *s, float *c)
+{
+    const float a2 = a * a;
+    *s = a - a * a2 * (1.0f / 6.0f);
+    *c = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
+}
 
-/* sin and cos of one step's angle: series below SMALL_ANGLE_RAD, the
+/* sin and cos of one step's angle: the series below SMALL_ANGLE_RAD, the
  * unreduced polynomials below HD_TRIG_NO_REDUCTION_RAD (the bits
  * hd_sincosf gives there), hd_sincosf beyond. */
-static void sincos_step(float a, float *s, float *c)
+KF_INLINE void sincos_step(float a, float *s, float *c)
 {
-    if (a <= SMALL_ANGLE_RAD && a >= -SMALL_ANGLE_RAD) {
-        const float a2 = a * a;
-        *s = a - a * a2 * (1.0f / 6.0f);
-        *c = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
-    } else if (a < HD_TRIG_NO_REDUCTION_RAD && a > -HD_TRIG_NO_REDUCTION_RAD) {
+    const float m = fabsf(a);
+    if (m <= SMALL_ANGLE_RAD) {
+        sincos_series(a, s, c);
+    } else if (m < HD_TRIG_NO_REDUCTION_RAD) {
         *s = hd_sin_poly(a);
         *c = hd_cos_poly(a);
     } else {
@@ -509,89 +502,102 @@ static float update_load_scale(hd_kf_t *kf, float torque_expected_nm, float d_mo
     return 1.0f + k * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);
 }
 
-/* Measurement row, Nyquist freeze, phase loss, process noise and gain
- * fraction of every block for this step (increments: motor, output, and 1
- * for fixed-frequency blocks), g zeroed for the cross covariance.  A
- * disabled block gets a zero row, no process noise and gain 1 (its states
- * and covariances are zero, so no weight applies).  Returns the prior
- * ripple C x (without the offset).  Changes nothing in the filter. */
-static float plan_blocks(const hd_kf_t *kf, const float inc[3], float c_load,
-                         step_plan_t *restrict pl)
+/* Largest bit patterns seen by the one-comparison bounds check. */
+typedef struct {
+    uint32_t trace; /* a block's trace or the offset's variance: above p_max's
+                       (unsigned) when above p_max, negative or not a number */
+    uint32_t det;   /* a block's determinant: >= +inf's when negative or not a number */
+} bound_probe_t;
+
+/* The increments and row scales by lock as the blocks see them, and what
+ * the block part of the step leaves for the rest of it. */
+typedef struct {
+    float inc[3];          /* motor, output, 1 (the fixed blocks' unit) */
+    float rows[3];         /* measurement-row scale: 1 + k |T_ref|, 1, 1 */
+    float state_sum;       /* sum of the new states and S: a finiteness probe */
+    uint32_t status;       /* HD_KF_STATUS_* so far */
+    bound_probe_t probe;
+} step_io_t;
+
+/* What the plan of the blocks adds up. */
+typedef struct {
+    float ripple;          /* prior ripple C x (without the offset) */
+    uint32_t partial;      /* blocks with a gain fraction below 1 */
+    uint32_t frozen;       /* by configured block */
+    uint32_t lost;         /* phase lost: restart */
+} plan_sum_t;
+
+/* Block s's part of this step: measurement row h (in its frame: c (cos phi,
+ * sin phi), 0 when frozen or disabled), gain fraction f and process noise q
+ * per state.  A disabled block gets a zero row, no q and gain 1 (its
+ * states and covariances are zero: no weight applies to them). */
+KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, float *h,
+                          float *f, float *q, plan_sum_t *sum)
 {
-    const float limit = kf->nyquist_limit_rad;
-    const float rows[3] = {c_load, 1.0f, 1.0f}; /* by lock */
-    const unsigned nb = kf->n_blocks;
-    float ripple = 0.0f;
-    float gain_product = 1.0f; /* below 1 exactly when some gain is (all are in [0, 1]) */
-    uint32_t frozen = 0u, lost = 0u;
-    for (unsigned s = 0; s < nb; s++) {
-        const hd_kf_slot_t *sl = &kf->slot[s];
-        float *h = &pl->h[2u * s];
-        pl->g[2u * s] = pl->g[2u * s + 1u] = 0.0f;
-        if (!sl->enabled) {
-            h[0] = h[1] = pl->q[s] = 0.0f;
-            pl->gain[s] = 1.0f;
-            continue;
-        }
-        const float a = fabsf(sl->theta_per_unit * inc[sl->lock]);
-        float motion = a * sl->motion_inv + sl->motion_bias;
-        if (motion > 1.0f) {
-            motion = 1.0f;
-        }
-        float gain = (sl->lock == HD_KF_LOCK_MOTOR ? motion : 1.0f) * sl->learn;
-        float q = sl->q_nm2 * motion;
-        float row = rows[sl->lock];
-        if (!(a <= limit)) {
-            /* Held: not observed, not corrected, no process noise, still
-             * turned by the increment (exact at any speed), unless no
-             * motion can explain it (an encoder fault). */
-            frozen |= 1u << s;
-            gain = q = row = 0.0f;
-            if (!(a <= HD_KF_PHASE_LOST_RAD)) {
-                lost |= 1u << s;
-            }
-        }
-        h[0] = row * kf->phasor_cos[sl->frame];
-        h[1] = row * kf->phasor_sin[sl->frame];
-        pl->q[s] = q;
-        pl->gain[s] = gain;
-        gain_product *= gain;
-        ripple += h[0] * kf->x[2u * s];
-        ripple += h[1] * kf->x[2u * s + 1u];
+    const hd_kf_slot_t *sl = &kf->slot[s];
+    if (!sl->enabled) {
+        h[0] = h[1] = *q = 0.0f;
+        *f = 1.0f;
+        return;
     }
-    pl->frozen_mask = frozen;
-    pl->lost_slots = lost;
-    pl->partial_gain = gain_product < 1.0f;
-    return ripple;
+    const unsigned lock = sl->lock;
+    const float a = fabsf(sl->theta_per_unit * io->inc[lock]);
+    float motion = a * sl->motion_inv + sl->motion_bias;
+    motion = motion < 1.0f ? motion : 1.0f;
+    /* a motor block learns as it turns; learn is 1 for motor blocks */
+    float gain = lock == HD_KF_LOCK_MOTOR ? motion : sl->learn;
+    float qs = sl->q_nm2 * motion;
+    float row = io->rows[lock];
+    if (!(a <= kf->nyquist_limit_rad)) {
+        /* Held: not observed, not corrected, no process noise, still
+         * turned by the increment (exact at any speed), unless no motion
+         * can explain it (an encoder fault). */
+        sum->frozen |= 1u << s;
+        gain = qs = row = 0.0f;
+        if (!(a <= HD_KF_PHASE_LOST_RAD)) {
+            sum->lost |= 1u << s;
+        }
+    }
+    if (gain < 1.0f) {
+        sum->partial |= 1u << s;
+    }
+    h[0] = row * kf->phasor_cos[sl->frame];
+    h[1] = row * kf->phasor_sin[sl->frame];
+    *f = gain;
+    *q = qs;
+    sum->ripple += h[0] * kf->x[2u * s];
+    sum->ripple += h[1] * kf->x[2u * s + 1u];
 }
 
-/* g = P C' over the packed tiles (g zeroed by plan_blocks); returns
- * C P C'.  Each off-diagonal tile adds to both its rows' and its columns'
- * entries of g. */
-static float cross_covariance(const float *restrict p, const float *restrict h,
-                              float *restrict g, unsigned nb, bool off)
+/* g = P C' over the packed tiles; returns C P C'.  Each off-diagonal tile
+ * adds to both its rows' and its columns' entries of g; sums accumulate
+ * term by term (one multiply-accumulate each), rows above first. */
+KF_INLINE float cross_covariance(const float *restrict p, const float *restrict h,
+                                 float *restrict g, unsigned nb, bool off)
 {
+    float acc[2u * HD_KF_MAX_BLOCKS + 1u]; /* column sums of the rows above */
     float g_off = 0.0f, cpc = 0.0f;
+    KF_UNROLL
     for (unsigned s = 0; s < nb; s++) {
-        /* sums accumulate term by term: one multiply-accumulate each */
         const float h0 = h[2u * s], h1 = h[2u * s + 1u];
-        float ga = g[2u * s] + p[0] * h0;
-        float gb = g[2u * s + 1u] + p[1] * h0;
+        float ga = s == 0u ? p[0] * h0 : acc[2u * s] + p[0] * h0;
+        float gb = s == 0u ? p[1] * h0 : acc[2u * s + 1u] + p[1] * h0;
         ga += p[1] * h1;
         gb += p[2] * h1;
         p += 3;
+        KF_UNROLL
         for (unsigned t = s + 1u; t < nb; t++, p += 4) {
             const float k0 = h[2u * t], k1 = h[2u * t + 1u];
             ga += p[0] * k0;
             ga += p[1] * k1;
             gb += p[2] * k0;
             gb += p[3] * k1;
-            float gt0 = g[2u * t] + p[0] * h0;
-            float gt1 = g[2u * t + 1u] + p[1] * h0;
-            gt0 += p[2] * h1;
-            gt1 += p[3] * h1;
-            g[2u * t] = gt0;
-            g[2u * t + 1u] = gt1;
+            float t0 = s == 0u ? p[0] * h0 : acc[2u * t] + p[0] * h0;
+            float t1 = s == 0u ? p[1] * h0 : acc[2u * t + 1u] + p[1] * h0;
+            t0 += p[2] * h1;
+            t1 += p[3] * h1;
+            acc[2u * t] = t0;
+            acc[2u * t + 1u] = t1;
         }
         if (off) {
             ga += p[0];
@@ -613,28 +619,11 @@ static float cross_covariance(const float *restrict p, const float *restrict h,
     return cpc;
 }
 
-/* Offset-jump gate: e beyond offset_jump_nm and 4 sigma. */
-static bool offset_jump(const hd_kf_t *kf, float e, float s_var)
+/* A block's diagonal tile [a b; b d]: downdate with weight w, Q added;
+ * the probe keeps the largest trace and determinant bit patterns. */
+KF_INLINE void correct_diag_tile(float *p, float wa, float wb, float ga, float gb, float q,
+                                 bound_probe_t *probe)
 {
-    const float jump_nm = kf->cfg.offset_jump_nm;
-    const float e2 = e * e;
-    return kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
-           e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
-}
-
-/* Largest bit patterns seen by the one-comparison bounds check. */
-typedef struct {
-    uint32_t trace; /* a block's trace or the offset's variance: above p_max's
-                       (unsigned) when above p_max, negative or not a number */
-    uint32_t det;   /* a block's determinant: >= +inf's when negative or not a number */
-} bound_probe_t;
-
-/* One block's diagonal tile: downdate with weight w, Q added; the probe
- * keeps the largest trace and determinant bit patterns. */
-static void correct_diag_tile(float *restrict p, float w, float ua, float ub, float ga,
-                              float gb, float q, bound_probe_t *probe)
-{
-    const float wa = w * ua, wb = w * ub;
     const float a = (p[0] - wa * ga) + q, b = p[1] - wa * gb;
     const float d = (p[2] - wb * gb) + q;
     p[0] = a;
@@ -645,50 +634,67 @@ static void correct_diag_tile(float *restrict p, float w, float ua, float ub, fl
     probe->det = det > probe->det ? det : probe->det;
 }
 
+/* The Joseph tiles: tile (s, t) with W_st = f_s + f_t - f_s f_t below 1,
+ * i.e. both blocks' fractions below 1 (partial), which the unrolled pass
+ * leaves; the weight is 1 wherever one of the fractions is 1. */
+static void correct_partial(float *p, const float *g, const float *f, const float *q,
+                            float inv_s, unsigned nb, bool off, uint32_t partial,
+                            bound_probe_t *probe)
+{
+    for (uint32_t rows = partial; rows != 0u; rows &= rows - 1u) {
+        const unsigned s = (unsigned)__builtin_ctz(rows);
+        float *row = &p[tile_row_start(nb, off ? 1u : 0u, s)];
+        const float fs = f[s], ga = g[2u * s], gb = g[2u * s + 1u];
+        const float ua = ga * inv_s, ub = gb * inv_s;
+        const float ws = fs + fs - fs * fs;
+        correct_diag_tile(row, ws * ua, ws * ub, ga, gb, q[s], probe);
+        for (uint32_t cols = partial & ~((2u << s) - 1u); cols != 0u; cols &= cols - 1u) {
+            const unsigned t = (unsigned)__builtin_ctz(cols);
+            float *tile = row + 3u + 4u * (t - s - 1u);
+            const float w = fs + f[t] - fs * f[t];
+            const float wa = w * ua, wb = w * ub;
+            tile[0] -= wa * g[2u * t];
+            tile[1] -= wa * g[2u * t + 1u];
+            tile[2] -= wb * g[2u * t];
+            tile[3] -= wb * g[2u * t + 1u];
+        }
+    }
+}
+
 /* x <- x + F g k_e and P <- P - W .* g g' / S + Q in the frames, where the
  * step's rotation is only a turn of the frames (advance_frames): each tile
- * loaded once, downdated, Q added, stored once.  W_ij = f_i + f_j - f_i f_j
- * (the Joseph form for the gain F g / S) is 1 when every fraction is 1 and
- * is applied only otherwise; the offset's fraction is 1, so its column's
- * weight is 1.  inv_s = k_e = 0: prediction only.  A block tile with trace
- * in [0, p_max] and determinant >= 0 has both model-coordinate diagonals in
- * [0, p_max] whatever its frame, so that is what the probe records.
- * Returns the sum of the new states (a finiteness probe). */
-static float correct(hd_kf_t *kf, const step_plan_t *restrict pl, float inv_s, float k_e,
-                     bound_probe_t *probe)
+ * loaded once, downdated, Q added, stored once.  W_st = f_s + f_t - f_s f_t
+ * (the Joseph form for the gain F g / S) is 1 unless both fractions are
+ * below 1 (the offset's fraction is 1): those tiles, in partial, are left to
+ * correct_partial.  inv_s = k_e = 0: prediction only.  A block tile with
+ * trace in [0, p_max] and determinant >= 0 has both model-coordinate
+ * diagonals in [0, p_max] whatever its frame, so that is what the probe
+ * records.  Returns the sum of the new states (a finiteness probe). */
+KF_INLINE float correct(float *restrict p, float *restrict x, const float *restrict g,
+                        const float *restrict f, const float *restrict q, float inv_s,
+                        float k_e, float q_off, unsigned nb, bool off, uint32_t partial,
+                        bound_probe_t *probe)
 {
-    const bool off = kf->cfg.offset_enabled != 0u;
-    const bool joseph = pl->partial_gain;
-    const unsigned nb = kf->n_blocks;
-    const float *restrict g = pl->g;
+    float *const p_start = p;
     const float g_off = g[2u * nb];
-    float *restrict p = kf->p;
-    float *restrict x = kf->x;
     float sum = 0.0f;
-    probe->trace = probe->det = 0u;
+    bound_probe_t worst = {0u, 0u};
+    KF_UNROLL
     for (unsigned s = 0; s < nb; s++, x += 2) {
         const float ga = g[2u * s], gb = g[2u * s + 1u];
-        const float fs = pl->gain[s];
-        const float fk = fs * k_e;
+        const float fk = f[s] * k_e;
         x[0] += ga * fk;
         x[1] += gb * fk;
         sum += x[0] + x[1];
         const float ua = ga * inv_s, ub = gb * inv_s;
-        correct_diag_tile(p, joseph ? fs + fs - fs * fs : 1.0f, ua, ub, ga, gb, pl->q[s],
-                          probe);
+        if ((partial & (1u << s)) == 0u) {
+            correct_diag_tile(p, ua, ub, ga, gb, q[s], &worst);
+        }
         p += 3;
-        if (joseph) {
-            for (unsigned t = s + 1u; t < nb; t++, p += 4) {
-                const float ft = pl->gain[t];
-                const float w = fs + ft - fs * ft;
-                const float wa = w * ua, wb = w * ub;
-                p[0] -= wa * g[2u * t];
-                p[1] -= wa * g[2u * t + 1u];
-                p[2] -= wb * g[2u * t];
-                p[3] -= wb * g[2u * t + 1u];
-            }
-        } else {
-            for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+        KF_UNROLL
+        for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+            const uint32_t both = (1u << s) | (1u << t);
+            if ((partial & both) != both) {
                 p[0] -= ua * g[2u * t];
                 p[1] -= ua * g[2u * t + 1u];
                 p[2] -= ub * g[2u * t];
@@ -702,19 +708,101 @@ static float correct(hd_kf_t *kf, const step_plan_t *restrict pl, float inv_s, f
         }
     }
     if (off) {
-        p[0] = (p[0] - g_off * inv_s * g_off) + kf->cfg.offset_q_nm2;
+        p[0] = (p[0] - g_off * inv_s * g_off) + q_off;
         const uint32_t v = bits_of(p[0]);
-        probe->trace = v > probe->trace ? v : probe->trace;
+        worst.trace = v > worst.trace ? v : worst.trace;
         x[0] += g_off * k_e;
         sum += x[0];
+    }
+    *probe = worst;
+    if (partial != 0u) {
+        correct_partial(p_start, g, f, q, inv_s, nb, off, partial, probe);
     }
     return sum;
 }
 
+/* Offset-jump gate: e beyond offset_jump_nm and 4 sigma. */
+KF_INLINE bool offset_jump(const hd_kf_t *kf, float e, float s_var)
+{
+    const float jump_nm = kf->cfg.offset_jump_nm;
+    const float e2 = e * e;
+    return kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
+           e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
+}
+
+static void restart_lost_blocks(hd_kf_t *kf, uint32_t lost);
+
+/* The block part of the step for a layout of nb blocks (a constant in
+ * each instance, so every loop unrolls and h, g, f, q live in registers):
+ * the plan of every block, restarts, offset priming, the innovation and
+ * its variance, the offset gate, the outputs, the correction. */
+KF_INLINE void step_blocks(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out,
+                           step_io_t *io, unsigned nb)
+{
+    float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
+    float g[HD_KF_MAX_STATES];
+    const bool off = kf->cfg.offset_enabled != 0u;
+    const float y = in->torque_meas_nm - in->torque_expected_nm;
+    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
+    plan_sum_t sum = {0.0f, 0u, 0u, 0u};
+    KF_UNROLL
+    for (unsigned s = 0; s < nb; s++) {
+        plan_block(kf, s, io, &h[2u * s], &f[s], &q[s], &sum);
+    }
+    if (sum.lost != 0u) {
+        restart_lost_blocks(kf, sum.lost);
+    }
+    const float ripple = sum.ripple;
+    const unsigned o = 2u * nb;
+    if (off && !kf->offset_primed && valid) {
+        kf->x[o] = y - ripple;
+        kf->offset_primed = 1u;
+    }
+    const float offset = off ? kf->x[o] : 0.0f;
+    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb, off);
+    const float innovation = y - ripple - offset;
+    if (valid && offset_jump(kf, innovation, s_var)) {
+        /* an offset jump widens the offset's variance first */
+        const float e2 = innovation * innovation;
+        io->status |= HD_KF_STATUS_OFFSET_JUMP;
+        kf->p[packed_entries(nb, 1u) - 1u] += e2;
+        g[o] += e2;
+        s_var += e2;
+    }
+    out->ripple_nm = ripple;
+    out->offset_nm = offset;
+    out->innovation_nm = valid ? innovation : 0.0f;
+    out->innovation_var_nm2 = s_var;
+    out->torque_filtered_nm = in->torque_meas_nm - ripple -
+                              (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    out->frozen_mask = sum.frozen;
+    if (sum.frozen != 0u) {
+        io->status |= HD_KF_STATUS_FROZEN;
+    }
+    const float inv_s = valid ? 1.0f / s_var : 0.0f;
+    const float k_e = valid ? innovation * inv_s : 0.0f;
+    io->state_sum = correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->cfg.offset_q_nm2, nb, off,
+                            sum.partial, &io->probe) + s_var;
+}
+
+/* One instance per layout size (layout_blocks). */
+#define STEP_INSTANCE(NAME, N)                                                \
+    static __attribute__((noinline)) void step_blocks_##NAME(                 \
+        hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out, step_io_t *io) \
+    {                                                                         \
+        step_blocks(kf, in, out, io, (N) < HD_KF_MAX_BLOCKS ? (N) : HD_KF_MAX_BLOCKS); \
+    }
+STEP_INSTANCE(0, 0u)
+STEP_INSTANCE(1, 1u)
+STEP_INSTANCE(2, 2u)
+STEP_INSTANCE(3, 3u)
+STEP_INSTANCE(4, 4u)
+STEP_INSTANCE(max, HD_KF_MAX_BLOCKS)
+
 /* phase += d, kept as an unevaluated sum hi + lo in [-pi, pi) (Knuth's
  * two-sum): the increments add up exactly (to ~1e-14 rad) however long the
  * filter runs. */
-static void add_phase(float *hi, float *lo, float d)
+KF_INLINE void add_phase(float *hi, float *lo, float d)
 {
     const float s = *hi + d;
     const float bp = s - *hi;
@@ -734,7 +822,7 @@ static void add_phase(float *hi, float *lo, float d)
 /* z <- z w, then one Newton step towards |z| = 1 (scale (3 - |z|^2) / 2):
  * the phasors are advanced every step for as long as the filter runs, and
  * without it their magnitude would drift by the rounding of each product. */
-static void turn_phasor(float *c, float *s, float wc, float ws)
+KF_INLINE void turn_phasor(float *c, float *s, float wc, float ws)
 {
     const float nc = *c * wc - *s * ws;
     const float ns = *s * wc + *c * ws;
@@ -743,24 +831,24 @@ static void turn_phasor(float *c, float *s, float wc, float ws)
     *s = ns * scale;
 }
 
-/* The powers of the motor and output phasors the blocks use, from the
- * unit-length bases (doubling for even k, one product with z for odd k):
- * recomputed every step, so their rounding (angle within 2e-7 rad of k u,
- * |z^k| within 1e-7 of 1 for k <= 8) does not accumulate. */
-static void power_frames(hd_kf_t *kf)
+/* z^k for every k of mask (2..HD_KF_MAX_POWER) into pc/ps[k], from the
+ * unit-length base z = pc/ps[1]: doubling for even k, one product with z
+ * for odd k.  Recomputed from the base every step, so their rounding (angle
+ * within 2e-7 rad of k u, |z^k| within 1e-7 of 1 for k <= 8) does not
+ * accumulate. */
+static void phasor_powers(uint32_t mask, float *restrict pc, float *restrict ps)
 {
-    float *restrict pc = kf->phasor_cos;
-    float *restrict ps = kf->phasor_sin;
-    for (unsigned i = 0; i < kf->power_count; i++) {
-        const uint8_t *op = kf->power_op[i];
-        const unsigned a = op[1], b = op[2];
-        if (a == b) {
-            const float sh = ps[a], ch = pc[a];
-            pc[op[0]] = 1.0f - 2.0f * sh * sh;
-            ps[op[0]] = 2.0f * sh * ch;
-        } else {
-            pc[op[0]] = pc[a] * pc[b] - ps[a] * ps[b];
-            ps[op[0]] = ps[a] * pc[b] + pc[a] * ps[b];
+    KF_UNROLL
+    for (unsigned k = 2u; k <= MAX_POWER_ORDER; k++) {
+        if ((mask & (1u << k)) != 0u) {
+            if (k % 2u == 0u) {
+                const float sh = ps[k / 2u], ch = pc[k / 2u];
+                pc[k] = 1.0f - 2.0f * sh * sh;
+                ps[k] = 2.0f * sh * ch;
+            } else {
+                pc[k] = pc[k - 1u] * pc[1] - ps[k - 1u] * ps[1];
+                ps[k] = ps[k - 1u] * pc[1] + pc[k - 1u] * ps[1];
+            }
         }
     }
 }
@@ -772,14 +860,14 @@ static void power_frames(hd_kf_t *kf)
  * never accumulates); a faster one is set from the sum every step: sin/cos
  * of hi, then the first-order term in lo (|lo| <= 2.4e-7: the next term is
  * below 3e-14). */
-static void advance_output_frame(hd_kf_t *kf, float d)
+KF_INLINE void advance_output_frame(hd_kf_t *kf, float d)
 {
     float *c = &kf->phasor_cos[POWER_TABLE_OUTPUT + 1u];
     float *s = &kf->phasor_sin[POWER_TABLE_OUTPUT + 1u];
     add_phase(&kf->output_phase_hi_rad, &kf->output_phase_lo_rad, d);
     if (kf->output_turns < OUTPUT_TURNS_MAX && fabsf(d) <= SMALL_ANGLE_RAD) {
         float sn, cs;
-        sincos_step(d, &sn, &cs);
+        sincos_series(d, &sn, &cs);
         turn_phasor(c, s, cs, sn);
         kf->output_turns++;
     } else {
@@ -806,11 +894,17 @@ static void advance_frames(hd_kf_t *kf, const float inc[3])
         float s, c;
         sincos_step(inc[HD_KF_LOCK_MOTOR], &s, &c);
         turn_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1], c, s);
+        if ((kf->motor_powers & ~3u) != 0u) {
+            phasor_powers(kf->motor_powers, kf->phasor_cos, kf->phasor_sin);
+        }
     }
     if (kf->output_powers != 0u) {
         advance_output_frame(kf, inc[HD_KF_LOCK_OUTPUT]);
+        if ((kf->output_powers & ~3u) != 0u) {
+            phasor_powers(kf->output_powers, kf->phasor_cos + POWER_TABLE_OUTPUT,
+                          kf->phasor_sin + POWER_TABLE_OUTPUT);
+        }
     }
-    power_frames(kf);
     for (uint32_t left = kf->own_frames; left != 0u; left &= left - 1u) {
         const hd_kf_slot_t *sl = &kf->slot[__builtin_ctz(left)];
         float sn = sl->fixed_sin, cs = sl->fixed_cos;
@@ -821,10 +915,14 @@ static void advance_frames(hd_kf_t *kf, const float inc[3])
     }
 }
 
-/* Phase lost: the block restarts from zero with its prior, decorrelated. */
-static void restart_block(hd_kf_t *kf, unsigned s)
+/* Phase lost: the blocks restart from zero with their priors,
+ * decorrelated. */
+static void restart_lost_blocks(hd_kf_t *kf, uint32_t lost)
 {
-    clear_block(kf, s, kf->slot[s].p0_nm2);
+    for (; lost != 0u; lost &= lost - 1u) {
+        const unsigned s = (unsigned)__builtin_ctz(lost);
+        clear_block(kf, s, kf->slot[s].p0_nm2);
+    }
 }
 
 /* The scale of a variance v against the ceiling: 1 inside [0, p_max],
@@ -912,83 +1010,57 @@ static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
 
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
 {
-    /* ---- inputs: a non-finite increment counts as no motion; the fixed
-     * blocks' "increment" is 1 (their phase advance per step) */
-    float inc[3] = {in->d_motor_angle_rad, in->d_output_angle_rad, 1.0f};
-    const float y = in->torque_meas_nm - in->torque_expected_nm;
-    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
-    uint32_t status = valid ? 0u : HD_KF_STATUS_BAD_INPUT;
-    if (!is_finite(inc[0] + inc[1])) {
+    /* ---- inputs: a non-finite or absurd sample is not corrected; a
+     * non-finite increment counts as no motion; the fixed blocks'
+     * "increment" is 1 (their phase advance per step) */
+    step_io_t io;
+    io.inc[HD_KF_LOCK_MOTOR] = in->d_motor_angle_rad;
+    io.inc[HD_KF_LOCK_OUTPUT] = in->d_output_angle_rad;
+    io.inc[HD_KF_LOCK_FIXED] = 1.0f;
+    io.status = fabsf(in->torque_meas_nm - in->torque_expected_nm) <= HD_KF_MAX_ABS_Y_NM
+                    ? 0u
+                    : HD_KF_STATUS_BAD_INPUT;
+    if (!is_finite(io.inc[0] + io.inc[1])) {
         for (unsigned i = 0; i < 2u; i++) {
-            if (!is_finite(inc[i])) {
-                inc[i] = 0.0f;
-                status = HD_KF_STATUS_BAD_INPUT;
+            if (!is_finite(io.inc[i])) {
+                io.inc[i] = 0.0f;
+                io.status |= HD_KF_STATUS_BAD_INPUT;
             }
         }
     }
+    const float c_load = update_load_scale(kf, in->torque_expected_nm, io.inc[HD_KF_LOCK_MOTOR]);
+    io.rows[HD_KF_LOCK_MOTOR] = c_load;
+    io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
 
-    /* ---- measurement row and what this step does to each block */
-    const float c_load = update_load_scale(kf, in->torque_expected_nm, inc[HD_KF_LOCK_MOTOR]);
-    step_plan_t plan;
-    const float ripple = plan_blocks(kf, inc, c_load, &plan);
-    for (uint32_t lost = plan.lost_slots; lost != 0u; lost &= lost - 1u) {
-        restart_block(kf, (unsigned)__builtin_ctz(lost));
+    /* ---- plan, innovation, gate, outputs, correction: unrolled per layout */
+    switch (kf->n_blocks) {
+    case 0: step_blocks_0(kf, in, out, &io); break;
+    case 1: step_blocks_1(kf, in, out, &io); break;
+    case 2: step_blocks_2(kf, in, out, &io); break;
+    case 3: step_blocks_3(kf, in, out, &io); break;
+    case 4: step_blocks_4(kf, in, out, &io); break;
+    default: step_blocks_max(kf, in, out, &io); break;
     }
 
-    /* ---- innovation and its variance (the prior's) */
-    const bool off = kf->cfg.offset_enabled != 0u;
-    const unsigned o = kf->offset_slot;
-    if (off && !kf->offset_primed && valid) {
-        kf->x[o] = y - ripple;
-        kf->offset_primed = 1u;
-    }
-    const float offset = off ? kf->x[o] : 0.0f;
-    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, plan.h, plan.g, kf->n_blocks, off);
-    const float innovation = y - ripple - offset;
-
-    /* ---- gate: an offset jump widens the offset's variance first */
-    if (valid && offset_jump(kf, innovation, s_var)) {
-        const float e2 = innovation * innovation;
-        status |= HD_KF_STATUS_OFFSET_JUMP;
-        kf->p[packed_entries(kf->n_blocks, 1u) - 1u] += e2;
-        plan.g[o] += e2;
-        s_var += e2;
-    }
-
-    /* ---- outputs */
-    out->ripple_nm = ripple;
-    out->offset_nm = offset;
-    out->innovation_nm = valid ? innovation : 0.0f;
-    out->innovation_var_nm2 = s_var;
-    out->torque_filtered_nm = in->torque_meas_nm - ripple -
-                              (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
-
-    /* ---- correct, propagate (turn the frames); bounds on the slow path */
-    const float inv_s = valid ? 1.0f / s_var : 0.0f;
-    const float k_e = valid ? innovation * inv_s : 0.0f;
-    bound_probe_t probe;
-    const float state_sum = correct(kf, &plan, inv_s, k_e, &probe) + s_var;
-    advance_frames(kf, inc);
-    kf->frozen_mask = plan.frozen_mask;
+    /* ---- propagate (turn the frames); bounds on the slow path */
+    advance_frames(kf, io.inc);
+    kf->frozen_mask = out->frozen_mask;
     kf->load_scale = c_load;
-    kf->last_d_motor_rad = inc[HD_KF_LOCK_MOTOR];
-    kf->last_d_output_rad = inc[HD_KF_LOCK_OUTPUT];
-    if (probe.trace > kf->p_max_bits || probe.det >= FLOAT_INF_BITS || !is_finite(state_sum)) {
-        const uint32_t bounded = bound_covariance(kf, state_sum);
+    kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
+    kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
+    uint32_t status = io.status;
+    if (io.probe.trace > kf->p_max_bits || io.probe.det >= FLOAT_INF_BITS ||
+        !is_finite(io.state_sum)) {
+        const uint32_t bounded = bound_covariance(kf, io.state_sum);
         if (bounded & HD_KF_STATUS_RESET) {
             hd_kf_reset(kf);
             kf->reset_count++;
         }
         status |= bounded;
     }
-
-    if (plan.frozen_mask != 0u) {
-        status |= HD_KF_STATUS_FROZEN;
-    }
     if (status & HD_KF_STATUS_BAD_INPUT) {
         kf->bad_input_count++;
     }
-    out->frozen_mask = plan.frozen_mask;
     out->status = status;
     kf->status_sticky |= status;
     if (!is_finite(out->torque_filtered_nm)) {

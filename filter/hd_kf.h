@@ -195,10 +195,6 @@ typedef struct {
     float fixed_sin;
 } hd_kf_slot_t;
 
-/* Powers of the motor or output phasor computed per step: z_dst = z_a z_b
- * (z_a^2 by doubling when a == b), indices into phasor_cos/sin. */
-#define HD_KF_POWER_OPS (2 * (HD_KF_MAX_POWER - 1))
-
 /* Filter state.  Treat as opaque; it is public only so it can be allocated
  * statically.  Every configured block has its place (slot i = configured
  * block i, states 2i and 2i+1, the offset last at 2 block_count); a
@@ -217,8 +213,6 @@ typedef struct {
     uint8_t offset_slot;                      /* x index of the offset (2 n_blocks), if on */
     uint8_t offset_primed;                    /* the offset has taken its first sample */
     uint8_t load_ref_primed;                  /* load_ref_nm has taken its first value */
-    uint8_t power_count;                      /* entries of power_op */
-    uint8_t power_op[HD_KF_POWER_OPS][3];     /* dst, a, b (see HD_KF_POWER_OPS) */
     uint32_t motor_powers;                    /* bit k: the k-th power of the motor phasor is used */
     uint32_t output_powers;                   /* the same for the output phasor */
     uint32_t own_frames;                      /* bit s: slot s turns its own phasor */

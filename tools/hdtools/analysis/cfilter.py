@@ -34,7 +34,6 @@ MAX_STATES = 2 * MAX_BLOCKS + 1
 MAX_POWER = 8  # HD_KF_MAX_POWER
 PHASORS = 2 * (MAX_POWER + 1) + MAX_BLOCKS
 P_ENTRIES = MAX_STATES * (MAX_STATES + 1) // 2
-POWER_OPS = 2 * (MAX_POWER - 1)  # HD_KF_POWER_OPS
 DEFAULT_TRACK_BANDWIDTH_HZ = 20.0
 
 LOCK_MOTOR, LOCK_OUTPUT, LOCK_FIXED = 0, 1, 2
@@ -104,8 +103,6 @@ class KfState(ctypes.Structure):
                 ("offset_slot", c_uint8),
                 ("offset_primed", c_uint8),
                 ("load_ref_primed", c_uint8),
-                ("power_count", c_uint8),
-                ("power_op", (c_uint8 * 3) * POWER_OPS),
                 ("motor_powers", c_uint32),
                 ("output_powers", c_uint32),
                 ("own_frames", c_uint32),
