@@ -27,7 +27,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=Path, default=ROOT / "out" / "bench",
                    help="output directory (default out/bench)")
     p.add_argument("--skip", action="append", default=[],
-                   choices=["accuracy", "real", "host", "target"], help="skip a part")
+                   choices=["accuracy", "slow", "real", "host", "target"], help="skip a part")
     p.add_argument("--quick", action="store_true",
                    help="tiny sizes (smoke test): short runs, 2 real segments, few reps")
     p.add_argument("--update-docs", action="store_true",
@@ -49,6 +49,10 @@ def run(args) -> int:
     if "accuracy" not in args.skip:
         print("accuracy benchmark (simulated scenarios)...", file=sys.stderr)
         results["accuracy"] = accuracy.run(residual, duration_scale=0.3 if args.quick else 1.0)
+    if "slow" not in args.skip:
+        from .bench import slow
+        print("slow-torque benchmark (firmware on the simulated joint)...", file=sys.stderr)
+        results["slow"] = slow.run(quick=bool(args.quick))
     if "real" not in args.skip:
         print("real iiwa logs...", file=sys.stderr)
         files = sorted(real.DATA_DIR.glob("*.csv"))

@@ -63,6 +63,7 @@ def tables(results: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                      "slow-speed step settle", "speed change reconverge",
                      "through-zero RMS mNm", "stopped RMS mNm", "step while stopped settle",
                      "restart reconverge"], rows))
+    out += slow_tables(results.get("slow"))
     real = results.get("real")
     if real:
         rows = []
@@ -99,6 +100,66 @@ def tables(results: dict) -> list[tuple[str, list[str], list[list[str]]]]:
         out.append(("Filter state memory [bytes] by compile-time capacity",
                     ["HD_KF_MAX_BLOCKS", "max states", "hd_kf_t", "hd_pipeline_t",
                      "dense_kf_f32_t", "dense step stack"], rows))
+    return out
+
+
+SLOW_ORDER = ["arm_gravity", "slow_loads", "misalign_orders", "dyn_off"]
+
+
+def _slow_get(slow, sc, row, key):
+    try:
+        return slow["scenarios"][sc]["rows"][row][key]
+    except KeyError:
+        return None
+
+
+def slow_tables(slow: dict | None) -> list:
+    """The slow-torque benchmark (tools/hdtools/bench/slow.py)."""
+    if not slow:
+        return []
+    scs = [s for s in SLOW_ORDER if s in slow["scenarios"]]
+    rows = list(slow["rows"])
+    out = []
+
+    def cell(r, s):
+        v, x = _slow_get(slow, s, r, "rms_nm"), _slow_get(slow, s, r, "x_floor")
+        return "-" if v is None else f"{v * 1e3:.0f} ({x:.2f}x)"
+    out.append(("Slow torque: RMS error after the first second [mN m] (x the noise floor)",
+                ["row"] + scs, [[r] + [cell(r, s) for s in scs] for r in rows]))
+    out.append(("Slow torque: slow load kept [%] (1 + slope of the error below 1 Hz on the "
+                "load below 1 Hz)", ["row"] + scs,
+                [[r] + [_f(_slow_get(slow, s, r, "load_kept"), 100, "{:.1f}") for s in scs]
+                 for r in rows]))
+    out.append(("Slow torque: boot, RMS error in the first second [mN m]", ["row"] + scs,
+                [[r] + [_f(_slow_get(slow, s, r, "first_s_rms_nm"), 1e3) for s in scs]
+                 for r in rows]))
+    steady = [s for s in scs if any("attenuation_db" in m
+                                    for m in slow["scenarios"][s]["rows"].values())]
+    if steady:
+        head, body = ["row"], []
+        for s in steady:
+            lines = list(slow["scenarios"][s]["rows"]["raw"]["attenuation_db"])
+            head += [f"{s}: {ln}" for ln in lines] + [f"{s}: x floor"]
+        for r in rows:
+            line = [r]
+            for s in steady:
+                att = _slow_get(slow, s, r, "attenuation_db") or {}
+                lines = list(slow["scenarios"][s]["rows"]["raw"]["attenuation_db"])
+                line += [_f(att.get(ln), 1, "{:.0f}") for ln in lines]
+                st = _slow_get(slow, s, r, "steady_rms_nm")
+                fl = _slow_get(slow, s, "ideal", "steady_rms_nm")
+                line.append(_f(st / fl if st is not None and fl else None, 1, "{:.2f}"))
+            body.append(line)
+        out.append(("Slow torque: ripple band in the constant-speed windows, line attenuation "
+                    "[dB] and RMS over the noise floor", head, body))
+    first = slow["scenarios"][scs[0]]["told"] if scs else {}
+    told = [[r, t.get("config", "-"), t.get("profile", "-"), t.get("slow_torque", "-")]
+            if "pending" not in t else [r, "pending: " + t["pending"], "-", "-"]
+            for r, t in first.items()]
+    if told:
+        out.append((f"Slow torque: what each firmware row was told ({scs[0]}; the others "
+                    "alike with their own commissioning run)",
+                    ["row", "configuration", "profile", "slow torque"], told))
     return out
 
 
