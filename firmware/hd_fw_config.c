@@ -30,7 +30,7 @@ void hd_fw_config_default(hd_fw_config_t *cfg)
     cfg->current_filter_hz = HD_FW_DEFAULT_CURRENT_FILTER_HZ;
     cfg->predict_increment = 1u;
     cfg->feedforward_ramp_ms = HD_FW_DEFAULT_FF_RAMP_MS;
-    cfg->learning_mode = HD_FW_LEARN_COMMISSIONING;
+    cfg->learning_mode = HD_FW_LEARN_ADAPTIVE;
     cfg->operating_output_learn_scale = HD_FW_DEFAULT_OPERATING_LEARN_SCALE;
 }
 
@@ -40,6 +40,9 @@ void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out)
     out->output_learn_scale = (cfg->learning_mode == HD_FW_LEARN_OPERATING)
                                   ? cfg->operating_output_learn_scale
                                   : 1.0f;
+    if (cfg->learning_mode == HD_FW_LEARN_COMMISSIONING) {
+        out->offset_q_nm2 = cfg->kf.offset_q_nm2 * HD_FW_COMMISSIONING_OFFSET_Q_SCALE;
+    }
 }
 
 hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)

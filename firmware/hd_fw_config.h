@@ -57,8 +57,13 @@ typedef struct {
 
 /* learning_mode: how fast output-locked (geometric) blocks learn
  * (docs/slow-torque.md, "Learning schedule"). */
-#define HD_FW_LEARN_COMMISSIONING 0u /* at full rate: output_learn_scale 1 */
-#define HD_FW_LEARN_OPERATING 1u     /* at operating_output_learn_scale */
+#define HD_FW_LEARN_ADAPTIVE 0u      /* every block at its full rate (before issue 12) */
+#define HD_FW_LEARN_OPERATING 1u     /* output-locked at operating_output_learn_scale */
+#define HD_FW_LEARN_COMMISSIONING 2u /* no or a known load: output-locked at full rate,
+                                        the offset HD_FW_COMMISSIONING_OFFSET_Q_SCALE slower */
+/* Commissioning: the offset's random walk times this (settles 10x slower),
+ * so that it does not take a share of the slow output-locked lines. */
+#define HD_FW_COMMISSIONING_OFFSET_Q_SCALE 0.01f
 
 /* The firmware library's errors (configuration, parameters, configuration
  * text).  hd_fw_err_str names each. */
@@ -95,7 +100,8 @@ void hd_fw_config_default(hd_fw_config_t *cfg);
 hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param);
 
 /* The filter configuration the firmware runs: cfg->kf with
- * output_learn_scale set by the learning mode. */
+ * output_learn_scale (and, commissioning, the offset's q) set by the
+ * learning mode. */
 void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out);
 const char *hd_fw_err_str(int err);
 

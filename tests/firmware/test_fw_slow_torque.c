@@ -796,9 +796,15 @@ static void test_operating_mode_freezes_output_lines(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-5, LINES[2].a, op[2].a);
     TEST_ASSERT_DOUBLE_WITHIN(1e-5, LINES[2].b, op[2].b);
     TEST_ASSERT_TRUE(fabsf(op[0].a - LINES[0].a) > 1e-3f); /* motor 2 learned */
-    learn_and_save(HD_FW_LEARN_COMMISSIONING, com);
+    learn_and_save(HD_FW_LEARN_ADAPTIVE, com);
     TEST_ASSERT_EQUAL_FLOAT(1.0f, live_pipe()->kf.cfg.output_learn_scale);
     TEST_ASSERT_TRUE(fabsf(com[2].a - LINES[2].a) + fabsf(com[2].b - LINES[2].b) > 1e-2f);
+    /* commissioning: output lines at full rate, the offset 100x slower */
+    line_t bench[8];
+    learn_and_save(HD_FW_LEARN_COMMISSIONING, bench);
+    TEST_ASSERT_EQUAL_FLOAT(1.0f, live_pipe()->kf.cfg.output_learn_scale);
+    TEST_ASSERT_EQUAL_FLOAT(0.01f * cfg.kf.offset_q_nm2, live_pipe()->kf.cfg.offset_q_nm2);
+    TEST_ASSERT_EQUAL_FLOAT(cfg.kf.offset_q_nm2, live_cfg()->kf.offset_q_nm2); /* the setting */
 }
 
 /* A speed change with the exact profile in the data: the filter, turned by

@@ -89,7 +89,7 @@ def methods(residual_model: dict | None) -> list[Method]:
     fc20 = peers.butterworth_cutoff_for(line2_hz, 20.0)
     fc40 = peers.butterworth_cutoff_for(line2_hz, 40.0)
     out = [
-        Method("kf_recommended", "this filter, recommended tuning (7 states)", "kf",
+        Method("kf_recommended", "this filter, recommended tuning (7 states), T_exp = 0", "kf",
                {"config": "recommended"}),
         Method("kf_residual", "this filter, model from `hdsense analyze`", "kf",
                {"config": "residual", "model": residual_model}),
@@ -207,8 +207,9 @@ def _run_opaque(cfg_buf, ex, torque, d_motor, d_output, feedforward=None,
 
 def run_kf(params, d, nom, d_motor, d_output):
     ts = nom["ts_s"]
-    ex = cfilter.ExpectedConfig(nom["load_inertia_kgm2"], nom["viscous_nm_s_rad"],
-                                nom["coulomb_nm"])
+    # No oracle (issue 12): the plant's J, b, Fc are not handed to the
+    # filter; T_exp is the firmware default (0) unless a row says otherwise.
+    ex = cfilter.ExpectedConfig()
     ff = None
     if params.get("oracle"):
         # The paper assumes a good expected torque; give it the exact one.
