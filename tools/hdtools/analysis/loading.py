@@ -372,12 +372,16 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
     with open(path, "rb") as fh:
         head = fh.read(64)
     stats = _new_stats(0)
-    if head.lstrip().startswith(b"("):
-        cols = _read_candump(path)
-        source = "candump"
-    else:
-        cols = _read_csv(path, stats)
-        source = "csv"
+    try:
+        if head.lstrip().startswith(b"("):
+            cols = _read_candump(path)
+            source = "candump"
+        else:
+            cols = _read_csv(path, stats)
+            source = "csv"
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (byte {exc.start}): expected a CSV or "
+                         "candump -l log") from None
     n = len(cols[TORQUE])
     stats["rows_in"] = int(n) + stats["blank_rows"]
     seg = cols.pop("segment", None)
