@@ -14,7 +14,7 @@ from hdtools.bench import report, slow  # noqa: E402
 def test_slow_bench_quick_is_well_formed(tmp_path):
     res = slow.run(quick=True, workdir=tmp_path, scenarios=["slow_loads"])
     sc = res["scenarios"]["slow_loads"]
-    assert set(sc["rows"]) >= {"fw_default", "fw_commissioning", "butter_20db", "order_notch",
+    assert set(sc["rows"]) >= {"fw_default", "fw_adaptive", "butter_20db", "order_notch",
                                "fourier_table", "kf_paper6", "raw", "ideal"}
     for key, m in sc["rows"].items():
         assert math.isfinite(m["rms_nm"]) and m["rms_nm"] >= 0, key

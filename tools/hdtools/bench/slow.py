@@ -4,11 +4,13 @@ controller model 25-30 % off, against the peers.
 
 Nothing here hands the firmware the simulated joint's truth.  The firmware
 rows run the firmware itself (hdjoint-host on the simulated joint) with:
-  * its defaults (fw_default, fw_commissioning), or
+  * its defaults (fw_default, fw_adaptive), or
   * what the project's tools identified from OTHER logs of the joint: the
     model (blocks, tuning, J, b, Fc) and profile of `hdsense analyze` on a
-    commissioning run on the bench (no link, no load), and the current model
-    of `hdsense current` on an earlier run of the same task (another seed);
+    commissioning run on the bench (no link, no load), the profile the
+    firmware itself saved at the end of that run (learning_mode 2,
+    PROFILE_SAVE), and the current model of `hdsense current` on an earlier
+    run of the same task (another seed);
   * the feed-forward frames of the simulated controller, whose model is its
     own (25-30 % off, its own payload estimate), never the plant's.
 Each row's configuration is kept in the results (`told`).
@@ -80,8 +82,8 @@ def rows() -> list[Row]:
     return [
         Row("fw_default", "firmware defaults, operating mode, no profile, no slow torque", "fw",
             {"model": False, "profile": False, "slow": None}),
-        Row("fw_commissioning", "firmware defaults in commissioning mode (output lines learn "
-            "at full rate: the old behaviour)", "fw",
+        Row("fw_adaptive", "firmware defaults, learning_mode 0 adaptive (every block at full "
+            "rate: the behaviour before this issue)", "fw",
             {"model": False, "profile": False, "slow": None, "mode": 0}),
         Row("fw_profile", "firmware + analyze model and stored profile, T_exp = 0", "fw",
             {"model": True, "profile": True, "slow": None}),
@@ -95,6 +97,9 @@ def rows() -> list[Row]:
         Row("fourier_table", "Fourier table fitted on the commissioning run", "table", {}),
         Row("kf_paper6", "paper tuning Q = 1e3 I, R = 1, 6th order, T_exp = feed-forward",
             "paper", {}),
+        Row("fw_selfprofile_ff", "firmware + its own commissioning profile (PROFILE_SAVE at the "
+            "end of the commissioning run in learning_mode 2) + feed-forward", "fw",
+            {"model": True, "profile": "firmware", "slow": "ff"}),
         Row("fw_last_increment", "fw_profile_ff with the filter turned by the last increment "
             "(predict_increment off: before this issue)", "fw",
             {"model": True, "profile": True, "slow": "ff", "extra": {"predict_increment": "off"}}),
@@ -150,6 +155,8 @@ class Commissioning:
     record: Path | None
     note: str
     table: peers.FourierTable | None = None
+    nvm: Path | None = None          # NVM image with the firmware's own PROFILE_SAVE
+    nvm_note: str = ""
 
 
 def commission(name: str, wd: Path, nominal: dict, quick: bool) -> Commissioning:
@@ -164,11 +171,14 @@ def commission(name: str, wd: Path, nominal: dict, quick: bool) -> Commissioning
         d["torque_nm"][d["t_s"] >= 1.0], ang[0][d["t_s"] >= 1.0], _out_angle(d, nominal)
         [d["t_s"] >= 1.0])
     an = wd / f"{name}_analyze"
+    dur = 12.0 if quick else None
     try:
         _run([HDSENSE, "analyze", csv, "--out", an, "--json", an / "report.json", "--quiet"],
              f"hdsense analyze {csv.name}")
     except RuntimeError as exc:
-        return Commissioning(name, csv, None, None, None, None, str(exc), table)
+        nvm, nvm_note = firmware_commissioning(ini, wd, nominal, dur, "")
+        return Commissioning(name, csv, None, None, None, None, str(exc), table, nvm, nvm_note)
+    nvm, nvm_note = firmware_commissioning(ini, wd, nominal, dur, (an / "model.cfg").read_text())
     rep = json.loads((an / "report.json").read_text())
     model = rep.get("model_after") or rep.get("model")
     rec = wd / f"{name}.hdprofile"
@@ -180,7 +190,32 @@ def commission(name: str, wd: Path, nominal: dict, quick: bool) -> Commissioning
     except RuntimeError as exc:
         rec, note = None, f"{note}; no profile record: {exc}"
     return Commissioning(name, csv, (an / "model.cfg").read_text(), model,
-                         an / "profile.json", rec, note, table)
+                         an / "profile.json", rec, note, table, nvm, nvm_note)
+
+
+def firmware_commissioning(ini: Path, wd: Path, nominal: dict, duration: float | None,
+                           model_cfg: str) -> tuple[Path | None, str]:
+    """The firmware learns on the commissioning run itself (learning_mode
+    2, the blocks of the analyze model) and saves its profile with
+    PROFILE_SAVE at the end: the NVM image."""
+    nvm = wd / f"{ini.stem}.nvm"
+    nvm.unlink(missing_ok=True)
+    cfg = wd / f"{ini.stem}_commissioning.cfg"
+    cfg.write_text(compose_config(model_cfg, {"learning_mode": "2", "inertia_kgm2": "0",
+                                              "viscous_nm_s_rad": "0", "coulomb_nm": "0"}))
+    end = duration if duration is not None else float(_ini_value(ini, "duration_s"))
+    save = "01D01001#7000000000000000"    # PROFILE_SAVE of the running filter, node 1
+    try:
+        out = _run([_host(), "--sensors", f"sim:{ini}", "--config", cfg, "--nvm", nvm,
+                    "--calib", f"{nominal['gain_nm_per_v']:.9g},{nominal['offset_v']:.9g}",
+                    "--cmd-at", f"{end - 0.01:.3f}:{save}"] +
+                   (["--duration", duration] if duration is not None else []),
+                   f"hdjoint-host commissioning {ini.name}").stdout
+    except RuntimeError as exc:
+        return None, str(exc)
+    if _summary(out).get("profile_status") != "0":
+        return None, f"PROFILE_SAVE on {ini.name} did not store a profile"
+    return nvm, f"the firmware's own PROFILE_SAVE after {ini.name} in commissioning mode"
 
 
 def _out_angle(d: dict, nominal: dict):
@@ -254,7 +289,14 @@ def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: 
            "--csv", csv]
     if duration is not None:
         cmd += ["--duration", duration]
-    if p["profile"]:
+    if p["profile"] == "firmware":
+        if com.nvm is None:
+            return None, {"pending": com.nvm_note}
+        nvm = wd / f"{sc.name}_{row.key}.nvm"
+        nvm.write_bytes(com.nvm.read_bytes())
+        cmd += ["--nvm", nvm]
+        told["profile"] = com.nvm_note
+    elif p["profile"]:
         if com.record is None:
             return None, {"pending": com.note}
         cmd += ["--profile", com.record]
