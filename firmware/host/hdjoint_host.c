@@ -913,7 +913,11 @@ int main(int argc, char **argv)
         printf("calib_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CALIB));
         printf("profile_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_PROFILE));
         printf("profile_imports = %u\n", (unsigned)c->profile_imports);
-        printf("expected_model = %s\n", o.config != NULL ? "config" : "defaults");
+        const hd_fw_config_t *fc = hd_fw_config(&g_fw);
+        printf("expected_model = J %g kg m^2, b %g N m s/rad, Fc %g N m (%s)\n",
+               (double)fc->expected.inertia_kgm2, (double)fc->expected.viscous_nm_s_rad,
+               (double)fc->expected.coulomb_nm, o.config != NULL ? "defaults + --config" :
+               "defaults");
         printf("feedforward_frames_given = %llu\n", (unsigned long long)ff_frames);
         printf("feedforward_frames_taken = %u\n", (unsigned)c->feedforward_frames);
         printf("config_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CONFIG));

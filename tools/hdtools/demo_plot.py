@@ -1,6 +1,9 @@
 """Plots raw torque, filtered torque and truth from hdjoint-host's CSV.
 
-  python tools/hdtools/demo_plot.py samples.csv demo.png [--zoom T0 T1]
+  python tools/hdtools/demo_plot.py samples.csv demo.png [--zoom T0 T1] [--told TEXT]
+
+--told: what the firmware was told (printed under the title: the demo
+never hands it the simulated plant's parameters).
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("csv")
     ap.add_argument("png")
     ap.add_argument("--zoom", nargs=2, type=float, default=[5.0, 5.2], metavar=("T0", "T1"))
+    ap.add_argument("--told", default="", help="what the firmware was told (subtitle)")
     args = ap.parse_args(argv)
     import matplotlib
     matplotlib.use("Agg")
@@ -35,7 +39,8 @@ def main(argv: list[str] | None = None) -> int:
         ax.set_xlabel("time [s]")
         ax.set_ylabel("torque [N m]")
         ax.grid(alpha=0.3)
-    axes[0].set_title("Ripple cancellation in the firmware ISR (simulated joint)")
+    title = "Ripple cancellation in the firmware ISR (simulated joint)"
+    axes[0].set_title(title + (f"\nfirmware told: {args.told}" if args.told else ""))
     axes[1].set_title(f"zoom {args.zoom[0]:g}-{args.zoom[1]:g} s")
     axes[0].legend(loc="lower right")
     fig.tight_layout()
