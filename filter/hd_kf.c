@@ -43,14 +43,13 @@
  * are laid out with HD_KF_MAX_BLOCKS slots, the unused ones held at zero
  * like a disabled block. */
 #define UNROLLED_BLOCKS 4u
-#define JOSEPH_ARG true
 
 typedef union {
     float f;
     uint32_t u;
 } float_bits_t;
 
-#define FLOAT_INF_BITS 0x7f800000u
+#define FLOAT_SIGN_BIT 0x80000000u
 /* 2 pi as hi + lo: hi has 16 significant bits, so hi's multiples and
  * differences near pi are exact. */
 #define TWO_PI_HI 6.28125f
@@ -224,22 +223,24 @@ const char *hd_kf_status_name(unsigned bit)
  * row.  Tile row s (block slot s, states 2s and 2s+1) holds
  *   its diagonal tile      P(2s,2s) P(2s,2s+1) P(2s+1,2s+1)
  *   tiles (s, t), t > s    P(2s,2t) P(2s,2t+1) P(2s+1,2t) P(2s+1,2t+1)
- *   the offset column      P(2s,o)  P(2s+1,o)          (if the offset is on)
+ *   the offset column      P(2s,o)  P(2s+1,o)
  * and P(o,o) comes last.  Each pass of the step walks it front to back.
- * Every configured block has its slot (slot s = configured block s). */
-static unsigned tile_row_start(unsigned nb, unsigned off, unsigned s)
+ * Every configured block has its slot (slot s = configured block s), and
+ * the offset its column even when it is disabled: then its state, q and
+ * covariances are zero and stay zero. */
+static unsigned tile_row_start(unsigned nb, unsigned s)
 {
-    return s * (1u + 2u * off + 4u * nb - 2u * s);
+    return s * (3u + 4u * nb - 2u * s);
 }
 
-static unsigned packed_entries(unsigned nb, unsigned off)
+static unsigned packed_entries(unsigned nb)
 {
-    return tile_row_start(nb, off, nb) + off;
+    return tile_row_start(nb, nb) + 1u;
 }
 
 /* Packed position of P(i, j), i and j layout states (block slots, offset
- * last). */
-static unsigned packed_index(unsigned nb, unsigned off, unsigned i, unsigned j)
+ * at 2 nb). */
+static unsigned packed_index(unsigned nb, unsigned i, unsigned j)
 {
     if (i > j) {
         const unsigned t = i;
@@ -247,11 +248,11 @@ static unsigned packed_index(unsigned nb, unsigned off, unsigned i, unsigned j)
         j = t;
     }
     const unsigned si = i >> 1u;
-    if (off != 0u && i == 2u * nb) {
-        return tile_row_start(nb, off, nb);
+    if (i == 2u * nb) {
+        return tile_row_start(nb, nb);
     }
-    const unsigned row = tile_row_start(nb, off, si);
-    if (off != 0u && j == 2u * nb) {
+    const unsigned row = tile_row_start(nb, si);
+    if (j == 2u * nb) {
         return row + 3u + 4u * (nb - 1u - si) + (i & 1u);
     }
     const unsigned sj = j >> 1u;
@@ -259,11 +260,6 @@ static unsigned packed_index(unsigned nb, unsigned off, unsigned i, unsigned j)
         return row + (i & 1u) + (j & 1u);
     }
     return row + 3u + 4u * (sj - si - 1u) + 2u * (i & 1u) + (j & 1u);
-}
-
-static unsigned offset_on(const hd_kf_t *kf)
-{
-    return kf->cfg.offset_enabled ? 1u : 0u;
 }
 
 /* Marks the powers z^k that computing z^order by doubling (even k) and one
@@ -314,8 +310,9 @@ static void build_slot(hd_kf_t *kf, unsigned block)
     }
 }
 
-/* Builds every configured block's slot (offset last), the frames' power
- * operations and the per-step constants. */
+/* Builds every configured block's slot and the per-step constants.  A
+ * model of more than UNROLLED_BLOCKS blocks gets HD_KF_MAX_BLOCKS slots,
+ * the unused ones disabled. */
 static void build_layout(hd_kf_t *kf)
 {
     unsigned enabled = 0;
@@ -329,11 +326,11 @@ static void build_layout(hd_kf_t *kf)
     kf->n_blocks = (uint8_t)(kf->cfg.block_count <= UNROLLED_BLOCKS ? kf->cfg.block_count
                                                                     : HD_KF_MAX_BLOCKS);
     for (unsigned i = kf->cfg.block_count; i < kf->n_blocks; i++) {
-        kf->slot[i] = (hd_kf_slot_t){0}; /* unused: held at zero */
+        kf->slot[i] = (hd_kf_slot_t){0};
     }
     kf->offset_slot = (uint8_t)(2u * kf->n_blocks);
-    kf->n_states = (uint8_t)(2u * enabled + offset_on(kf));
-    kf->p_max_bits = bits_of(kf->cfg.p_max_nm2);
+    kf->n_states = (uint8_t)(2u * enabled + (kf->cfg.offset_enabled ? 1u : 0u));
+    kf->offset_q_nm2 = kf->cfg.offset_enabled ? kf->cfg.offset_q_nm2 : 0.0f;
     kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     kf->q_motion_inv_rad = kf->cfg.q_motion_ref_rad > 0.0f ? 1.0f / kf->cfg.q_motion_ref_rad
                                                             : 0.0f;
@@ -343,17 +340,17 @@ static void build_layout(hd_kf_t *kf)
  * every other state (its tile column above, its tile row and offset pair). */
 static void clear_block(hd_kf_t *kf, unsigned s, float v)
 {
-    const unsigned nb = kf->n_blocks, off = offset_on(kf);
+    const unsigned nb = kf->n_blocks;
     unsigned k = 4u * s - 1u; /* tile (0, s), when s > 0 */
     for (unsigned r = 0; r < s; r++) {
         kf->p[k] = kf->p[k + 1u] = kf->p[k + 2u] = kf->p[k + 3u] = 0.0f;
-        k += 4u * (nb - 1u - r) + 2u * off - 1u; /* to tile (r + 1, s) */
+        k += 4u * (nb - 1u - r) + 1u; /* to tile (r + 1, s) */
     }
-    float *p = &kf->p[tile_row_start(nb, off, s)];
+    float *p = &kf->p[tile_row_start(nb, s)];
     p[0] = v;
     p[1] = 0.0f;
     p[2] = v;
-    const unsigned rest = 4u * (nb - 1u - s) + 2u * off;
+    const unsigned rest = 4u * (nb - 1u - s) + 2u;
     for (unsigned i = 3u; i < 3u + rest; i++) {
         p[i] = 0.0f;
     }
@@ -362,21 +359,21 @@ static void clear_block(hd_kf_t *kf, unsigned s, float v)
 
 void hd_kf_reset(hd_kf_t *kf)
 {
-    const unsigned nb = kf->n_blocks, off = offset_on(kf);
-    const unsigned entries = packed_entries(nb, off);
+    const unsigned nb = kf->n_blocks;
+    const unsigned entries = packed_entries(nb);
     for (unsigned k = 0; k < entries; k++) {
         kf->p[k] = 0.0f;
     }
-    for (unsigned i = 0; i < 2u * nb + off; i++) {
+    for (unsigned i = 0; i <= 2u * nb; i++) {
         kf->x[i] = 0.0f;
     }
     for (unsigned s = 0; s < nb; s++) {
         if (kf->slot[s].enabled) {
-            float *tile = &kf->p[tile_row_start(nb, off, s)];
+            float *tile = &kf->p[tile_row_start(nb, s)];
             tile[0] = tile[2] = kf->slot[s].p0_nm2;
         }
     }
-    if (off != 0u) {
+    if (kf->cfg.offset_enabled) {
         kf->p[entries - 1u] = kf->cfg.p0_nm2;
     }
     kf->frozen_mask = 0u;
@@ -418,9 +415,9 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
 }
 
 /* A disabled block keeps its slot with x = 0 and zero rows and columns of
- * P; the step gives it a zero row entry, no process noise and no gain
- * weight, so g = P C' is exactly 0 on its states and nothing in the step
- * changes them or uses them (docs/filter.md, "Run-time block toggles"). */
+ * P; the step gives it a zero row entry, no process noise and gain 1, so
+ * g = P C' is exactly 0 on its states and nothing in the step changes them
+ * or uses them (docs/filter.md, "Run-time block toggles"). */
 hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 {
     if (kf == NULL) {
@@ -453,15 +450,12 @@ KF_INLINE void sincos_series(float a, float *s, float *c)
     *c = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
 }
 
-/* sin and cos of one step's angle: the series below SMALL_ANGLE_RAD, the
- * unreduced polynomials below HD_TRIG_NO_REDUCTION_RAD (the bits
- * hd_sincosf gives there), hd_sincosf beyond. */
+/* sin and cos of one step's angle: the unreduced polynomials below
+ * HD_TRIG_NO_REDUCTION_RAD (the bits hd_sincosf gives there), hd_sincosf
+ * beyond. */
 KF_INLINE void sincos_step(float a, float *s, float *c)
 {
-    const float m = fabsf(a);
-    if (m <= SMALL_ANGLE_RAD) {
-        sincos_series(a, s, c);
-    } else if (m < HD_TRIG_NO_REDUCTION_RAD) {
+    if (fabsf(a) < HD_TRIG_NO_REDUCTION_RAD) {
         *s = hd_sin_poly(a);
         *c = hd_cos_poly(a);
     } else {
@@ -478,16 +472,12 @@ static float motion_fraction(const hd_kf_t *kf, float angle_rad)
                : a * kf->q_motion_inv_rad;
 }
 
-/* Measurement-row scale of motor-locked blocks: 1 + k |T_ref|, with T_ref
- * following T_exp (+ the offset when it is real torque) by the motor's
- * motion fraction, held at standstill; 1 when k = 0.  |T_ref| is capped at
+/* Measurement-row scale of motor-locked blocks with k > 0: 1 + k |T_ref|,
+ * with T_ref following T_exp (+ the offset when it is real torque) by the
+ * motor's motion fraction, held at standstill.  |T_ref| is capped at
  * HD_KF_MAX_ABS_Y_NM so the entry stays finite. */
 static float update_load_scale(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad)
 {
-    const float k = kf->cfg.ripple_load_coeff_per_nm;
-    if (k <= 0.0f) {
-        return 1.0f;
-    }
     float t_now = is_finite(torque_expected_nm) ? torque_expected_nm : 0.0f;
     if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
         t_now += kf->x[kf->offset_slot];
@@ -499,14 +489,17 @@ static float update_load_scale(hd_kf_t *kf, float torque_expected_nm, float d_mo
         kf->load_ref_nm += motion_fraction(kf, d_motor_rad) * (t_now - kf->load_ref_nm);
     }
     const float t = fabsf(kf->load_ref_nm);
-    return 1.0f + k * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);
+    return 1.0f + kf->cfg.ripple_load_coeff_per_nm * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);
 }
 
-/* Largest bit patterns seen by the one-comparison bounds check. */
+/* The step's probes: a block tile with trace in [0, p_max] and
+ * determinant >= 0 has both model-coordinate diagonals in [0, p_max]
+ * whatever its frame; the sum of the traces (and P_oo) is compared with
+ * p_max (not a number fails too), the sign bits of every trace,
+ * determinant and P_oo are ORed. */
 typedef struct {
-    uint32_t trace; /* a block's trace or the offset's variance: above p_max's
-                       (unsigned) when above p_max, negative or not a number */
-    uint32_t det;   /* a block's determinant: >= +inf's when negative or not a number */
+    float traces;   /* sum of the block traces and P_oo */
+    uint32_t signs; /* OR of the bit patterns of traces, determinants, P_oo */
 } bound_probe_t;
 
 /* The increments and row scales by lock as the blocks see them, and what
@@ -514,7 +507,10 @@ typedef struct {
 typedef struct {
     float inc[3];          /* motor, output, 1 (the fixed blocks' unit) */
     float rows[3];         /* measurement-row scale: 1 + k |T_ref|, 1, 1 */
-    float state_sum;       /* sum of the new states and S: a finiteness probe */
+    float y;               /* T_meas - T_exp */
+    bool valid;            /* y is corrected */
+    float finite_probe;    /* prior ripple + offset + S + k_e: not finite when
+                              any state, g or the gain is not */
     uint32_t status;       /* HD_KF_STATUS_* so far */
     bound_probe_t probe;
 } step_io_t;
@@ -571,9 +567,10 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
 
 /* g = P C' over the packed tiles; returns C P C'.  Each off-diagonal tile
  * adds to both its rows' and its columns' entries of g; sums accumulate
- * term by term (one multiply-accumulate each), rows above first. */
+ * term by term (one multiply-accumulate each), rows above first.  The
+ * offset's row entry is 1. */
 KF_INLINE float cross_covariance(const float *restrict p, const float *restrict h,
-                                 float *restrict g, unsigned nb, bool off)
+                                 float *restrict g, unsigned nb)
 {
     float acc[2u * HD_KF_MAX_BLOCKS + 1u]; /* column sums of the rows above */
     float g_off = 0.0f, cpc = 0.0f;
@@ -599,28 +596,24 @@ KF_INLINE float cross_covariance(const float *restrict p, const float *restrict 
             acc[2u * t] = t0;
             acc[2u * t + 1u] = t1;
         }
-        if (off) {
-            ga += p[0];
-            gb += p[1];
-            g_off += p[0] * h0;
-            g_off += p[1] * h1;
-            p += 2;
-        }
+        ga += p[0];
+        gb += p[1];
+        g_off += p[0] * h0;
+        g_off += p[1] * h1;
+        p += 2;
         g[2u * s] = ga;
         g[2u * s + 1u] = gb;
         cpc += h0 * ga;
         cpc += h1 * gb;
     }
-    if (off) {
-        g_off += p[0];
-        cpc += g_off;
-    }
+    g_off += p[0];
+    cpc += g_off;
     g[2u * nb] = g_off;
     return cpc;
 }
 
-/* A block's diagonal tile [a b; b d]: downdate with weight w, Q added;
- * the probe keeps the largest trace and determinant bit patterns. */
+/* A block's diagonal tile [a b; b d]: downdate with weights (wa, wb), Q
+ * added, into the probe. */
 KF_INLINE void correct_diag_tile(float *p, float wa, float wb, float ga, float gb, float q,
                                  bound_probe_t *probe)
 {
@@ -629,21 +622,20 @@ KF_INLINE void correct_diag_tile(float *p, float wa, float wb, float ga, float g
     p[0] = a;
     p[1] = b;
     p[2] = d;
-    const uint32_t tr = bits_of(a + d), det = bits_of(a * d - b * b);
-    probe->trace = tr > probe->trace ? tr : probe->trace;
-    probe->det = det > probe->det ? det : probe->det;
+    const float trace = a + d;
+    probe->traces += trace;
+    probe->signs |= bits_of(trace) | bits_of(a * d - b * b);
 }
 
 /* The Joseph tiles: tile (s, t) with W_st = f_s + f_t - f_s f_t below 1,
  * i.e. both blocks' fractions below 1 (partial), which the unrolled pass
  * leaves; the weight is 1 wherever one of the fractions is 1. */
 static void correct_partial(float *p, const float *g, const float *f, const float *q,
-                            float inv_s, unsigned nb, bool off, uint32_t partial,
-                            bound_probe_t *probe)
+                            float inv_s, unsigned nb, uint32_t partial, bound_probe_t *probe)
 {
     for (uint32_t rows = partial; rows != 0u; rows &= rows - 1u) {
         const unsigned s = (unsigned)__builtin_ctz(rows);
-        float *row = &p[tile_row_start(nb, off ? 1u : 0u, s)];
+        float *row = &p[tile_row_start(nb, s)];
         const float fs = f[s], ga = g[2u * s], gb = g[2u * s + 1u];
         const float ua = ga * inv_s, ub = gb * inv_s;
         const float ws = fs + fs - fs * fs;
@@ -666,26 +658,20 @@ static void correct_partial(float *p, const float *g, const float *f, const floa
  * loaded once, downdated, Q added, stored once.  W_st = f_s + f_t - f_s f_t
  * (the Joseph form for the gain F g / S) is 1 unless both fractions are
  * below 1 (the offset's fraction is 1): those tiles, in partial, are left to
- * correct_partial.  inv_s = k_e = 0: prediction only.  A block tile with
- * trace in [0, p_max] and determinant >= 0 has both model-coordinate
- * diagonals in [0, p_max] whatever its frame, so that is what the probe
- * records.  Returns the sum of the new states (a finiteness probe). */
-KF_INLINE float correct(float *restrict p, float *restrict x, const float *restrict g,
-                        const float *restrict f, const float *restrict q, float inv_s,
-                        float k_e, float q_off, unsigned nb, bool off, uint32_t partial,
-                        bound_probe_t *probe)
+ * correct_partial.  inv_s = k_e = 0: prediction only. */
+KF_INLINE void correct(float *restrict p, float *restrict x, const float *restrict g,
+                       const float *restrict f, const float *restrict q, float inv_s, float k_e,
+                       float q_off, unsigned nb, uint32_t partial, bound_probe_t *probe)
 {
     float *const p_start = p;
     const float g_off = g[2u * nb];
-    float sum = 0.0f;
-    bound_probe_t worst = {0u, 0u};
+    bound_probe_t worst = {0.0f, 0u};
     KF_UNROLL
     for (unsigned s = 0; s < nb; s++, x += 2) {
         const float ga = g[2u * s], gb = g[2u * s + 1u];
         const float fk = f[s] * k_e;
         x[0] += ga * fk;
         x[1] += gb * fk;
-        sum += x[0] + x[1];
         const float ua = ga * inv_s, ub = gb * inv_s;
         if ((partial & (1u << s)) == 0u) {
             correct_diag_tile(p, ua, ub, ga, gb, q[s], &worst);
@@ -701,24 +687,30 @@ KF_INLINE float correct(float *restrict p, float *restrict x, const float *restr
                 p[3] -= ub * g[2u * t + 1u];
             }
         }
-        if (off) {
-            p[0] -= ua * g_off;
-            p[1] -= ub * g_off;
-            p += 2;
-        }
+        p[0] -= ua * g_off;
+        p[1] -= ub * g_off;
+        p += 2;
     }
-    if (off) {
-        p[0] = (p[0] - g_off * inv_s * g_off) + q_off;
-        const uint32_t v = bits_of(p[0]);
-        worst.trace = v > worst.trace ? v : worst.trace;
-        x[0] += g_off * k_e;
-        sum += x[0];
+    p[0] = (p[0] - g_off * inv_s * g_off) + q_off;
+    worst.traces += p[0];
+    worst.signs |= bits_of(p[0]);
+    x[0] += g_off * k_e;
+    if (partial != 0u) {
+        /* copies, so that g, f, q and worst stay in registers elsewhere */
+        float gc[HD_KF_MAX_STATES], fc[HD_KF_MAX_BLOCKS], qc[HD_KF_MAX_BLOCKS];
+        KF_UNROLL
+        for (unsigned s = 0; s < nb; s++) {
+            gc[2u * s] = g[2u * s];
+            gc[2u * s + 1u] = g[2u * s + 1u];
+            fc[s] = f[s];
+            qc[s] = q[s];
+        }
+        bound_probe_t joseph = {0.0f, 0u};
+        correct_partial(p_start, gc, fc, qc, inv_s, nb, partial, &joseph);
+        worst.traces += joseph.traces;
+        worst.signs |= joseph.signs;
     }
     *probe = worst;
-    if (partial != 0u) {
-        correct_partial(p_start, g, f, q, inv_s, nb, off, partial, probe);
-    }
-    return sum;
 }
 
 /* Offset-jump gate: e beyond offset_jump_nm and 4 sigma. */
@@ -741,9 +733,6 @@ KF_INLINE void step_blocks(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
 {
     float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
     float g[HD_KF_MAX_STATES];
-    const bool off = kf->cfg.offset_enabled != 0u;
-    const float y = in->torque_meas_nm - in->torque_expected_nm;
-    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
     plan_sum_t sum = {0.0f, 0u, 0u, 0u};
     KF_UNROLL
     for (unsigned s = 0; s < nb; s++) {
@@ -754,24 +743,24 @@ KF_INLINE void step_blocks(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     }
     const float ripple = sum.ripple;
     const unsigned o = 2u * nb;
-    if (off && !kf->offset_primed && valid) {
-        kf->x[o] = y - ripple;
+    if (!kf->offset_primed && kf->cfg.offset_enabled && io->valid) {
+        kf->x[o] = io->y - ripple;
         kf->offset_primed = 1u;
     }
-    const float offset = off ? kf->x[o] : 0.0f;
-    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb, off);
-    const float innovation = y - ripple - offset;
-    if (valid && offset_jump(kf, innovation, s_var)) {
+    const float offset = kf->x[o]; /* 0 when the offset is disabled */
+    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb);
+    const float innovation = io->y - ripple - offset;
+    if (io->valid && offset_jump(kf, innovation, s_var)) {
         /* an offset jump widens the offset's variance first */
         const float e2 = innovation * innovation;
         io->status |= HD_KF_STATUS_OFFSET_JUMP;
-        kf->p[packed_entries(nb, 1u) - 1u] += e2;
+        kf->p[packed_entries(nb) - 1u] += e2;
         g[o] += e2;
         s_var += e2;
     }
     out->ripple_nm = ripple;
     out->offset_nm = offset;
-    out->innovation_nm = valid ? innovation : 0.0f;
+    out->innovation_nm = io->valid ? innovation : 0.0f;
     out->innovation_var_nm2 = s_var;
     out->torque_filtered_nm = in->torque_meas_nm - ripple -
                               (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
@@ -779,13 +768,15 @@ KF_INLINE void step_blocks(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     if (sum.frozen != 0u) {
         io->status |= HD_KF_STATUS_FROZEN;
     }
-    const float inv_s = valid ? 1.0f / s_var : 0.0f;
-    const float k_e = valid ? innovation * inv_s : 0.0f;
-    io->state_sum = correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->cfg.offset_q_nm2, nb, off,
-                            sum.partial, &io->probe) + s_var;
+    const float inv_s = io->valid ? 1.0f / s_var : 0.0f;
+    const float k_e = io->valid ? innovation * inv_s : 0.0f;
+    /* S is not finite when some g is not (each enters C P C'), the ripple
+     * when some state is not: then neither are the new states */
+    io->finite_probe = ripple + offset + s_var + k_e;
+    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, &io->probe);
 }
 
-/* One instance per layout size (layout_blocks). */
+/* One instance per layout size (build_layout). */
 #define STEP_INSTANCE(NAME, N)                                                \
     static __attribute__((noinline)) void step_blocks_##NAME(                 \
         hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out, step_io_t *io) \
@@ -952,17 +943,15 @@ static float ceiling_scale(hd_kf_t *kf, float v)
  * frame, so it is applied in the frames), sqrt(p_max / P_oo) on the
  * offset, and 0 on a block that is not PSD or a negative offset variance.
  * Returns the status bits raised. */
-static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
+static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe)
 {
     const unsigned nb = kf->n_blocks;
-    const bool off = kf->cfg.offset_enabled != 0u;
     float d[HD_KF_MAX_BLOCKS + 1u];
     bool scaled = false;
-    if (!is_finite(state_sum)) {
+    if (!is_finite(finite_probe)) {
         return HD_KF_STATUS_RESET;
     }
     float *p = kf->p;
-    const unsigned row_tail = off ? 2u : 0u;
     for (unsigned s = 0; s < nb; s++) {
         const float mid = (p[0] + p[2]) * 0.5f, half = (p[0] - p[2]) * 0.5f;
         const float det = p[0] * p[2] - p[1] * p[1];
@@ -972,9 +961,9 @@ static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
             return HD_KF_STATUS_RESET;
         }
         scaled |= d[s] != 1.0f;
-        p += 3u + 4u * (nb - 1u - s) + row_tail;
+        p += 5u + 4u * (nb - 1u - s);
     }
-    d[nb] = off ? ceiling_scale(kf, p[0]) : 1.0f;
+    d[nb] = ceiling_scale(kf, p[0]);
     if (d[nb] < 0.0f) {
         return HD_KF_STATUS_RESET;
     }
@@ -996,15 +985,11 @@ static uint32_t bound_covariance(hd_kf_t *kf, float state_sum)
             p[2] *= w;
             p[3] *= w;
         }
-        if (off) {
-            p[0] *= ds * d[nb];
-            p[1] *= ds * d[nb];
-            p += 2;
-        }
+        p[0] *= ds * d[nb];
+        p[1] *= ds * d[nb];
+        p += 2;
     }
-    if (off) {
-        p[0] *= d[nb] * d[nb];
-    }
+    p[0] *= d[nb] * d[nb];
     return HD_KF_STATUS_P_CLAMPED;
 }
 
@@ -1017,18 +1002,21 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
     io.inc[HD_KF_LOCK_MOTOR] = in->d_motor_angle_rad;
     io.inc[HD_KF_LOCK_OUTPUT] = in->d_output_angle_rad;
     io.inc[HD_KF_LOCK_FIXED] = 1.0f;
-    io.status = fabsf(in->torque_meas_nm - in->torque_expected_nm) <= HD_KF_MAX_ABS_Y_NM
-                    ? 0u
-                    : HD_KF_STATUS_BAD_INPUT;
+    io.y = in->torque_meas_nm - in->torque_expected_nm;
+    io.valid = fabsf(io.y) <= HD_KF_MAX_ABS_Y_NM;
+    io.status = io.valid ? 0u : HD_KF_STATUS_BAD_INPUT;
     if (!is_finite(io.inc[0] + io.inc[1])) {
         for (unsigned i = 0; i < 2u; i++) {
             if (!is_finite(io.inc[i])) {
                 io.inc[i] = 0.0f;
-                io.status |= HD_KF_STATUS_BAD_INPUT;
+                io.status = HD_KF_STATUS_BAD_INPUT;
             }
         }
     }
-    const float c_load = update_load_scale(kf, in->torque_expected_nm, io.inc[HD_KF_LOCK_MOTOR]);
+    const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
+                             ? update_load_scale(kf, in->torque_expected_nm,
+                                                 io.inc[HD_KF_LOCK_MOTOR])
+                             : 1.0f;
     io.rows[HD_KF_LOCK_MOTOR] = c_load;
     io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
 
@@ -1049,9 +1037,9 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
     kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
     kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
     uint32_t status = io.status;
-    if (io.probe.trace > kf->p_max_bits || io.probe.det >= FLOAT_INF_BITS ||
-        !is_finite(io.state_sum)) {
-        const uint32_t bounded = bound_covariance(kf, io.state_sum);
+    if (!(io.probe.traces <= kf->cfg.p_max_nm2) || (io.probe.signs & FLOAT_SIGN_BIT) != 0u ||
+        !is_finite(io.finite_probe)) {
+        const uint32_t bounded = bound_covariance(kf, io.finite_probe);
         if (bounded & HD_KF_STATUS_RESET) {
             hd_kf_reset(kf);
             kf->reset_count++;
@@ -1175,10 +1163,9 @@ float hd_kf_cov(const hd_kf_t *kf, unsigned i_active, unsigned j_active)
         i = j;
         j = t;
     }
-    const unsigned nb = kf->n_blocks, off = offset_on(kf);
-    const float *t = &kf->p[packed_index(nb, off, i & ~1u, j & ~1u)];
-    const bool i_off = off != 0u && i == kf->offset_slot;
-    const bool j_off = off != 0u && j == kf->offset_slot;
+    const float *t = &kf->p[packed_index(kf->n_blocks, i & ~1u, j & ~1u)];
+    const bool i_off = i == kf->offset_slot;
+    const bool j_off = j == kf->offset_slot;
     if (i_off) {
         return t[0];
     }

@@ -197,9 +197,10 @@ typedef struct {
 
 /* Filter state.  Treat as opaque; it is public only so it can be allocated
  * statically.  Every configured block has its place (slot i = configured
- * block i, states 2i and 2i+1, the offset last at 2 block_count); a
- * disabled block's state and its rows and columns of P are held at zero,
- * which keeps it out of every other state's update (hd_kf_set_block_enabled).
+ * block i, states 2i and 2i+1, the offset last at 2 n_blocks, also when it
+ * is disabled); a disabled block's (or offset's) state and its rows and
+ * columns of P are held at zero, which keeps it out of every other state's
+ * update (hd_kf_set_block_enabled).
  * x and p hold each block's state and covariance in the block's co-rotating
  * frame: the model's x_s = R(phi_s) x[2s..2s+1], phi_s the block's
  * accumulated phase (phasor_cos/sin[slot.frame]), so a step turns no state
@@ -210,14 +211,14 @@ typedef struct {
     hd_kf_config_t cfg;
     uint8_t n_states;                         /* active states: 2 per enabled block (+1) */
     uint8_t n_blocks;                         /* blocks in the layout: cfg.block_count */
-    uint8_t offset_slot;                      /* x index of the offset (2 n_blocks), if on */
+    uint8_t offset_slot;                      /* x index of the offset: 2 n_blocks */
     uint8_t offset_primed;                    /* the offset has taken its first sample */
     uint8_t load_ref_primed;                  /* load_ref_nm has taken its first value */
     uint32_t motor_powers;                    /* bit k: the k-th power of the motor phasor is used */
     uint32_t output_powers;                   /* the same for the output phasor */
     uint32_t own_frames;                      /* bit s: slot s turns its own phasor */
-    uint32_t p_max_bits;                      /* p_max_nm2's bit pattern */
     uint32_t frozen_mask;                     /* by configured block index, last step */
+    float offset_q_nm2;                       /* the offset's q per step (0: disabled) */
     float nyquist_limit_rad;                  /* nyquist_fraction * pi */
     float q_motion_inv_rad;                   /* 1 / q_motion_ref_rad (0: off) */
     float load_ref_nm;                        /* T_ref of the load-dependent row [Nm] */
