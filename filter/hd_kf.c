@@ -50,6 +50,7 @@ typedef union {
 } float_bits_t;
 
 #define FLOAT_SIGN_BIT 0x80000000u
+#define FLOAT_INF_BITS 0x7f800000u
 /* 2 pi as hi + lo: hi has 16 significant bits, so hi's multiples and
  * differences near pi are exact. */
 #define TWO_PI_HI 6.28125f
@@ -228,7 +229,7 @@ const char *hd_kf_status_name(unsigned bit)
  * Every configured block has its slot (slot s = configured block s), and
  * the offset its column even when it is disabled: then its state, q and
  * covariances are zero and stay zero. */
-static unsigned tile_row_start(unsigned nb, unsigned s)
+KF_INLINE unsigned tile_row_start(unsigned nb, unsigned s)
 {
     return s * (3u + 4u * nb - 2u * s);
 }
@@ -275,6 +276,39 @@ static void need_power(uint32_t *mask, unsigned k)
     }
 }
 
+/* The first non-negative float d (by bit pattern, which orders them) for
+ * which pred(kf, sl, d) holds, pred being monotone: false below it, true
+ * from it on (0x7f800000, +inf, if never). */
+static float first_float(const hd_kf_t *kf, const hd_kf_slot_t *sl,
+                         bool (*pred)(const hd_kf_t *, const hd_kf_slot_t *, float))
+{
+    uint32_t lo = 0u, hi = FLOAT_INF_BITS; /* pred(hi) taken as true */
+    while (lo < hi) {
+        const uint32_t mid = lo + (hi - lo) / 2u;
+        const float_bits_t b = {.u = mid};
+        if (pred(kf, sl, b.f)) {
+            hi = mid;
+        } else {
+            lo = mid + 1u;
+        }
+    }
+    const float_bits_t b = {.u = lo};
+    return b.f;
+}
+
+/* plan_block's motion fraction reaches 1 (with its arithmetic). */
+static bool motion_full(const hd_kf_t *kf, const hd_kf_slot_t *sl, float d)
+{
+    (void)kf;
+    return fabsf(sl->theta_per_unit * d) * sl->motion_inv + sl->motion_bias >= 1.0f;
+}
+
+/* plan_block's Nyquist test fails (with its arithmetic). */
+static bool over_nyquist(const hd_kf_t *kf, const hd_kf_slot_t *sl, float d)
+{
+    return !(fabsf(sl->theta_per_unit * d) <= kf->nyquist_limit_rad);
+}
+
 static void build_slot(hd_kf_t *kf, unsigned block)
 {
     const hd_kf_block_config_t *b = &kf->cfg.blocks[block];
@@ -298,6 +332,10 @@ static void build_slot(hd_kf_t *kf, unsigned block)
         sl->theta_per_unit = HD_TWO_PI_F * b->order * kf->cfg.ts_s;
         hd_sincosf(sl->theta_per_unit, &sl->fixed_sin, &sl->fixed_cos);
     }
+    if (b->lock == HD_KF_LOCK_MOTOR) {
+        sl->full_rad = first_float(kf, sl, motion_full);
+        sl->frozen_rad = first_float(kf, sl, over_nyquist);
+    }
     if (b->lock != HD_KF_LOCK_FIXED && b->order <= (float)MAX_POWER_ORDER &&
         b->order == (float)(unsigned)b->order) {
         const unsigned k = (unsigned)b->order;
@@ -310,6 +348,28 @@ static void build_slot(hd_kf_t *kf, unsigned block)
     }
 }
 
+/* The motor increments for which every enabled motor block is at motion
+ * fraction 1 and none is over Nyquist: |d| in [motor_full_rad,
+ * motor_frozen_rad), the intersection of the blocks' own ranges (empty
+ * when there is no enabled motor block).  O(n): run-time toggles. */
+static void motor_full_range(hd_kf_t *kf)
+{
+    bool any = false;
+    kf->motor_full_rad = kf->motor_frozen_rad = 0.0f;
+    for (unsigned s = 0; s < kf->n_blocks; s++) {
+        const hd_kf_slot_t *sl = &kf->slot[s];
+        if (sl->enabled && sl->lock == HD_KF_LOCK_MOTOR) {
+            if (!any || sl->full_rad > kf->motor_full_rad) {
+                kf->motor_full_rad = sl->full_rad;
+            }
+            if (!any || sl->frozen_rad < kf->motor_frozen_rad) {
+                kf->motor_frozen_rad = sl->frozen_rad;
+            }
+            any = true;
+        }
+    }
+}
+
 /* Builds every configured block's slot and the per-step constants.  A
  * model of more than UNROLLED_BLOCKS blocks gets HD_KF_MAX_BLOCKS slots,
  * the unused ones disabled. */
@@ -319,6 +379,7 @@ static void build_layout(hd_kf_t *kf)
     kf->motor_powers = 0u;
     kf->output_powers = 0u;
     kf->own_frames = 0u;
+    kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
         build_slot(kf, i);
         enabled += kf->slot[i].enabled;
@@ -331,9 +392,19 @@ static void build_layout(hd_kf_t *kf)
     kf->offset_slot = (uint8_t)(2u * kf->n_blocks);
     kf->n_states = (uint8_t)(2u * enabled + (kf->cfg.offset_enabled ? 1u : 0u));
     kf->offset_q_nm2 = kf->cfg.offset_enabled ? kf->cfg.offset_q_nm2 : 0.0f;
-    kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     kf->q_motion_inv_rad = kf->cfg.q_motion_ref_rad > 0.0f ? 1.0f / kf->cfg.q_motion_ref_rad
                                                             : 0.0f;
+    motor_full_range(kf);
+}
+
+/* Zeroes n tiles of 4 from p (written tile by tile: GCC turns a plain
+ * zeroing loop into a memset call, which the bare-metal boards provide
+ * byte by byte). */
+KF_INLINE void zero_tiles(float *p, unsigned n)
+{
+    for (; n > 0u; n--, p += 4) {
+        p[0] = p[1] = p[2] = p[3] = 0.0f;
+    }
 }
 
 /* Block s starts again: state zero, its tile v I, zero covariance with
@@ -343,39 +414,27 @@ static void clear_block(hd_kf_t *kf, unsigned s, float v)
     const unsigned nb = kf->n_blocks;
     unsigned k = 4u * s - 1u; /* tile (0, s), when s > 0 */
     for (unsigned r = 0; r < s; r++) {
-        kf->p[k] = kf->p[k + 1u] = kf->p[k + 2u] = kf->p[k + 3u] = 0.0f;
+        zero_tiles(&kf->p[k], 1u);
         k += 4u * (nb - 1u - r) + 1u; /* to tile (r + 1, s) */
     }
     float *p = &kf->p[tile_row_start(nb, s)];
     p[0] = v;
     p[1] = 0.0f;
     p[2] = v;
-    const unsigned rest = 4u * (nb - 1u - s) + 2u;
-    for (unsigned i = 3u; i < 3u + rest; i++) {
-        p[i] = 0.0f;
-    }
+    zero_tiles(p + 3, nb - 1u - s);
+    p += 3u + 4u * (nb - 1u - s);
+    p[0] = p[1] = 0.0f;
     kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
 }
 
 void hd_kf_reset(hd_kf_t *kf)
 {
     const unsigned nb = kf->n_blocks;
-    const unsigned entries = packed_entries(nb);
-    for (unsigned k = 0; k < entries; k++) {
-        kf->p[k] = 0.0f;
-    }
-    for (unsigned i = 0; i <= 2u * nb; i++) {
-        kf->x[i] = 0.0f;
-    }
     for (unsigned s = 0; s < nb; s++) {
-        if (kf->slot[s].enabled) {
-            float *tile = &kf->p[tile_row_start(nb, s)];
-            tile[0] = tile[2] = kf->slot[s].p0_nm2;
-        }
+        clear_block(kf, s, kf->slot[s].enabled ? kf->slot[s].p0_nm2 : 0.0f);
     }
-    if (kf->cfg.offset_enabled) {
-        kf->p[entries - 1u] = kf->cfg.p0_nm2;
-    }
+    kf->p[packed_entries(nb) - 1u] = kf->cfg.offset_enabled ? kf->cfg.p0_nm2 : 0.0f;
+    kf->x[kf->offset_slot] = 0.0f;
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
     kf->load_ref_primed = 0u;
@@ -432,6 +491,7 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
     kf->slot[block].enabled = enabled ? 1u : 0u;
     clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
+    motor_full_range(kf);
     kf->n_states = (uint8_t)(enabled ? kf->n_states + 2u : kf->n_states - 2u);
     kf->frozen_mask &= ~(1u << block);
     return HD_KF_OK;
@@ -509,6 +569,7 @@ typedef struct {
     float rows[3];         /* measurement-row scale: 1 + k |T_ref|, 1, 1 */
     float y;               /* T_meas - T_exp */
     bool valid;            /* y is corrected */
+    bool motor_full;       /* every enabled motor block at motion 1, none frozen */
     float finite_probe;    /* prior ripple + offset + S + k_e: not finite when
                               any state, g or the gain is not */
     uint32_t status;       /* HD_KF_STATUS_* so far */
@@ -537,6 +598,17 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
         return;
     }
     const unsigned lock = sl->lock;
+    if (io->motor_full && lock == HD_KF_LOCK_MOTOR) {
+        /* what the rules below give at motion 1, not frozen */
+        const float row = io->rows[HD_KF_LOCK_MOTOR];
+        h[0] = row * kf->phasor_cos[sl->frame];
+        h[1] = row * kf->phasor_sin[sl->frame];
+        *f = 1.0f;
+        *q = sl->q_nm2;
+        sum->ripple += h[0] * kf->x[2u * s];
+        sum->ripple += h[1] * kf->x[2u * s + 1u];
+        return;
+    }
     const float a = fabsf(sl->theta_per_unit * io->inc[lock]);
     float motion = a * sl->motion_inv + sl->motion_bias;
     motion = motion < 1.0f ? motion : 1.0f;
@@ -919,7 +991,7 @@ static void restart_lost_blocks(hd_kf_t *kf, uint32_t lost)
 /* The scale of a variance v against the ceiling: 1 inside [0, p_max],
  * sqrt(p_max / v) above it (counted), 0 below 0 (counted); -1 when v is
  * not a number. */
-static float ceiling_scale(hd_kf_t *kf, float v)
+KF_INLINE float ceiling_scale(hd_kf_t *kf, float v)
 {
     const float p_max = kf->cfg.p_max_nm2;
     if (!is_finite(v)) {
@@ -1013,6 +1085,8 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
             }
         }
     }
+    const float motor_abs = fabsf(io.inc[HD_KF_LOCK_MOTOR]);
+    io.motor_full = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad;
     const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
                              ? update_load_scale(kf, in->torque_expected_nm,
                                                  io.inc[HD_KF_LOCK_MOTOR])

@@ -92,7 +92,8 @@ class KfSlot(ctypes.Structure):
     _fields_ = [("lock", c_uint8), ("frame", c_uint8), ("enabled", c_uint8), ("reserved", c_uint8),
                 ("theta_per_unit", c_float), ("motion_inv", c_float), ("motion_bias", c_float),
                 ("q_nm2", c_float), ("p0_nm2", c_float), ("learn", c_float),
-                ("fixed_cos", c_float), ("fixed_sin", c_float)]
+                ("fixed_cos", c_float), ("fixed_sin", c_float), ("full_rad", c_float),
+                ("frozen_rad", c_float)]
 
 
 class KfState(ctypes.Structure):
@@ -109,6 +110,8 @@ class KfState(ctypes.Structure):
                 ("frozen_mask", c_uint32),
                 ("offset_q_nm2", c_float),
                 ("nyquist_limit_rad", c_float),
+                ("motor_full_rad", c_float),
+                ("motor_frozen_rad", c_float),
                 ("q_motion_inv_rad", c_float),
                 ("load_ref_nm", c_float),
                 ("load_scale", c_float),
