@@ -368,18 +368,29 @@ static void profile_put(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     fw->bg.upload_mask = (uint16_t)(before | (1u << (2u * i + (is_b ? 1u : 0u))));
 }
 
-static void profile_save(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
+/* PROFILE_SAVE / LOAD's source byte: 0 the filter or the record, 1 the
+ * upload (which must be complete).  Returns false with r->result set if
+ * the command cannot go on. */
+static bool profile_source(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
     const uint8_t source = cmd->arg_u8[0];
     if (source > 1u) {
         r->result = HD_CAN_RES_OUT_OF_RANGE;
+        return false;
+    }
+    if (source == 1u && !upload_complete(fw)) {
+        r->result = HD_CAN_RES_NO_DATA;
+        return false;
+    }
+    return true;
+}
+
+static void profile_save(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
+{
+    if (!profile_source(fw, cmd, r)) {
         return;
     }
-    if (source == 1u) {
-        if (!upload_complete(fw)) {
-            r->result = HD_CAN_RES_NO_DATA;
-            return;
-        }
+    if (cmd->arg_u8[0] == 1u) {
         hd_fw_settings_t next = *hd_fw_live(fw);
         r->value = (float)fw->bg.upload.line_count;
         r->result = hd_fw_profile_save(fw, &fw->bg.upload, &next, &r->aux);
@@ -400,17 +411,11 @@ static void profile_save(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, rep
 
 static void profile_load(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
-    const uint8_t source = cmd->arg_u8[0];
     hd_fw_settings_t next = *hd_fw_live(fw);
-    if (source > 1u) {
-        r->result = HD_CAN_RES_OUT_OF_RANGE;
+    if (!profile_source(fw, cmd, r)) {
         return;
     }
-    if (source == 1u) {
-        if (!upload_complete(fw)) {
-            r->result = HD_CAN_RES_NO_DATA;
-            return;
-        }
+    if (cmd->arg_u8[0] == 1u) {
         fw->bg.profile = fw->bg.upload;
         r->aux = next.profile_status;
         r->value = (float)fw->bg.profile.line_count;

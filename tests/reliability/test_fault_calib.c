@@ -259,6 +259,23 @@ static int cut_erase(void *ctx, size_t off, size_t len)
     return HAL_OK;
 }
 
+/* The mock's NVM behind a power switch (cut->budget bytes still reach the
+ * flash, < 0: all); returns the HAL that uses it. */
+static const hal_t *cut_power(cut_nvm_t *cut)
+{
+    static hal_t cut_hal;
+    cut->m = &mock;
+    cut->inner = &hal;
+    cut->budget = -1;
+    cut->used = 0;
+    cut_hal = hal;
+    cut_hal.nvm.ctx = cut;
+    cut_hal.nvm.read = cut_read;
+    cut_hal.nvm.write = cut_write;
+    cut_hal.nvm.erase = cut_erase;
+    return &cut_hal;
+}
+
 /* Boots on `hal` with a stored record (gain 6.0), sets gain 7.0 over CAN,
  * sends CALIB_SAVE, and lets the power fail after `budget` flash bytes
  * (erase or write).  Returns the bytes used. */
@@ -268,17 +285,8 @@ static long save_with_power_cut(long budget)
     hal_mock_bind(&mock, &hal);
     store(STORED_GAIN, STORED_OFFSET);
     static cut_nvm_t cut;
-    cut.m = &mock;
-    cut.inner = &hal;
-    cut.budget = -1;
-    cut.used = 0;
-    static hal_t cut_hal;
-    cut_hal = hal;
-    cut_hal.nvm.ctx = &cut;
-    cut_hal.nvm.read = cut_read;
-    cut_hal.nvm.write = cut_write;
-    cut_hal.nvm.erase = cut_erase;
-    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &cut_hal, &cfg));
+    const hal_t *cut_hal = cut_power(&cut);
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, cut_hal, &cfg));
     uint8_t set[8] = {0x20, 1, 12, 0, 0, 0, 0, 0};
     float g = NEW_GAIN;
     memcpy(&set[4], &g, 4); /* little-endian host */
@@ -370,17 +378,8 @@ static long profile_save_with_power_cut(long budget)
     hd_calib_storage_t plain = storage(&hal);
     store_profile(&plain, OLD_A_NM);
     static cut_nvm_t cut;
-    cut.m = &mock;
-    cut.inner = &hal;
-    cut.budget = -1;
-    cut.used = 0;
-    static hal_t cut_hal;
-    cut_hal = hal;
-    cut_hal.nvm.ctx = &cut;
-    cut_hal.nvm.read = cut_read;
-    cut_hal.nvm.write = cut_write;
-    cut_hal.nvm.erase = cut_erase;
-    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &cut_hal, &cfg));
+    const hal_t *cut_hal = cut_power(&cut);
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, cut_hal, &cfg));
     const uint8_t order[3] = {2, 4, 1};
     for (unsigned i = 0; i < 3; i++) {
         const uint8_t out = i == 2 ? 0x20u : 0u;

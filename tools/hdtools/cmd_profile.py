@@ -108,24 +108,22 @@ def _commands(args) -> int:
         if not (math.isfinite(args.gear_ratio) and args.gear_ratio >= 1):
             raise UsageError("--gear-ratio must be a finite number >= 1")
         pr.check_gear(gear, args.gear_ratio, args.profile)
-    text = "".join(canproto.cansend_str(f) + "\n"
-                   for f in pr.commands(lines, args.node_id, args.save))
-    if args.out:
+    _emit("".join(canproto.cansend_str(f) + "\n"
+                  for f in pr.commands(lines, args.node_id, args.save)), args.out)
+    return 0
+
+
+def _emit(text: str, path: str | None) -> None:
+    """text into path (whole, or not at all), or to stdout."""
+    if path:
         with Outputs() as out:
-            out.write_text(args.out, text)
+            out.write_text(path, text)
             out.commit()
     else:
         sys.stdout.write(text)
-    return 0
 
 
 def _json(args) -> int:
     rec = pr.parse_file(read_bytes(args.record, 1 << 16), args.record)
-    text = json.dumps(pr.to_json(rec, args.record), indent=1) + "\n"
-    if args.out:
-        with Outputs() as out:
-            out.write_text(args.out, text)
-            out.commit()
-    else:
-        sys.stdout.write(text)
+    _emit(json.dumps(pr.to_json(rec, args.record), indent=1) + "\n", args.out)
     return 0
