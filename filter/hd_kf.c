@@ -562,18 +562,12 @@ typedef struct {
     uint32_t signs; /* OR of the bit patterns of traces, determinants, P_oo */
 } bound_probe_t;
 
-/* The increments and row scales by lock as the blocks see them, and what
- * the block part of the step leaves for the rest of it. */
+/* The step's inputs as the blocks see them: increments and row scales by
+ * lock. */
 typedef struct {
     float inc[3];          /* motor, output, 1 (the fixed blocks' unit) */
     float rows[3];         /* measurement-row scale: 1 + k |T_ref|, 1, 1 */
-    float y;               /* T_meas - T_exp */
-    bool valid;            /* y is corrected */
     bool motor_full;       /* every enabled motor block at motion 1, none frozen */
-    float finite_probe;    /* prior ripple + offset + S + k_e: not finite when
-                              any state, g or the gain is not */
-    uint32_t status;       /* HD_KF_STATUS_* so far */
-    bound_probe_t probe;
 } step_io_t;
 
 /* What the plan of the blocks adds up. */
@@ -796,64 +790,129 @@ KF_INLINE bool offset_jump(const hd_kf_t *kf, float e, float s_var)
 
 static void restart_lost_blocks(hd_kf_t *kf, uint32_t lost);
 
-/* The block part of the step for a layout of nb blocks (a constant in
- * each instance, so every loop unrolls and h, g, f, q live in registers):
- * the plan of every block, restarts, offset priming, the innovation and
- * its variance, the offset gate, the outputs, the correction. */
-KF_INLINE void step_blocks(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out,
-                           step_io_t *io, unsigned nb)
+static void advance_frames(hd_kf_t *kf, const float inc[3]);
+static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe);
+
+/* The step for a layout of nb blocks (a constant in each instance, so
+ * every loop unrolls and h, g, f, q live in registers): inputs, the plan of
+ * every block, restarts, offset priming, the innovation and its variance,
+ * the offset gate, the outputs, the correction, the turn of the frames and
+ * the bounds. */
+KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out,
+                           unsigned nb)
 {
+    /* ---- inputs: a non-finite or absurd sample is not corrected; a
+     * non-finite increment counts as no motion; the fixed blocks'
+     * "increment" is 1 (their phase advance per step) */
+    step_io_t io;
+    io.inc[HD_KF_LOCK_MOTOR] = in->d_motor_angle_rad;
+    io.inc[HD_KF_LOCK_OUTPUT] = in->d_output_angle_rad;
+    io.inc[HD_KF_LOCK_FIXED] = 1.0f;
+    const float y = in->torque_meas_nm - in->torque_expected_nm;
+    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
+    uint32_t status = valid ? 0u : HD_KF_STATUS_BAD_INPUT;
+    if (!is_finite(io.inc[0] + io.inc[1])) {
+        for (unsigned i = 0; i < 2u; i++) {
+            if (!is_finite(io.inc[i])) {
+                io.inc[i] = 0.0f;
+                status = HD_KF_STATUS_BAD_INPUT;
+            }
+        }
+    }
+    const float motor_abs = fabsf(io.inc[HD_KF_LOCK_MOTOR]);
+    io.motor_full = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad;
+    const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
+                             ? update_load_scale(kf, in->torque_expected_nm,
+                                                 io.inc[HD_KF_LOCK_MOTOR])
+                             : 1.0f;
+    io.rows[HD_KF_LOCK_MOTOR] = c_load;
+    io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
+
+    /* ---- what this step does to each block */
     float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
     float g[HD_KF_MAX_STATES];
     plan_sum_t sum = {0.0f, 0u, 0u, 0u};
     KF_UNROLL
     for (unsigned s = 0; s < nb; s++) {
-        plan_block(kf, s, io, &h[2u * s], &f[s], &q[s], &sum);
+        plan_block(kf, s, &io, &h[2u * s], &f[s], &q[s], &sum);
     }
     if (sum.lost != 0u) {
         restart_lost_blocks(kf, sum.lost);
     }
+
+    /* ---- innovation and its variance (the prior's) */
     const float ripple = sum.ripple;
     const unsigned o = 2u * nb;
-    if (!kf->offset_primed && kf->cfg.offset_enabled && io->valid) {
-        kf->x[o] = io->y - ripple;
+    if (!kf->offset_primed && kf->cfg.offset_enabled && valid) {
+        kf->x[o] = y - ripple;
         kf->offset_primed = 1u;
     }
     const float offset = kf->x[o]; /* 0 when the offset is disabled */
     float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb);
-    const float innovation = io->y - ripple - offset;
-    if (io->valid && offset_jump(kf, innovation, s_var)) {
+    const float innovation = y - ripple - offset;
+    if (valid && offset_jump(kf, innovation, s_var)) {
         /* an offset jump widens the offset's variance first */
         const float e2 = innovation * innovation;
-        io->status |= HD_KF_STATUS_OFFSET_JUMP;
+        status |= HD_KF_STATUS_OFFSET_JUMP;
         kf->p[packed_entries(nb) - 1u] += e2;
         g[o] += e2;
         s_var += e2;
     }
+
+    /* ---- outputs */
     out->ripple_nm = ripple;
     out->offset_nm = offset;
-    out->innovation_nm = io->valid ? innovation : 0.0f;
+    out->innovation_nm = valid ? innovation : 0.0f;
     out->innovation_var_nm2 = s_var;
-    out->torque_filtered_nm = in->torque_meas_nm - ripple -
-                              (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    const float filtered = in->torque_meas_nm - ripple -
+                           (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    out->torque_filtered_nm = filtered;
     out->frozen_mask = sum.frozen;
-    if (sum.frozen != 0u) {
-        io->status |= HD_KF_STATUS_FROZEN;
-    }
-    const float inv_s = io->valid ? 1.0f / s_var : 0.0f;
-    const float k_e = io->valid ? innovation * inv_s : 0.0f;
+
+    /* ---- correct, propagate (turn the frames); bounds on the slow path */
+    const float inv_s = valid ? 1.0f / s_var : 0.0f;
+    const float k_e = valid ? innovation * inv_s : 0.0f;
     /* S is not finite when some g is not (each enters C P C'), the ripple
      * when some state is not: then neither are the new states */
-    io->finite_probe = ripple + offset + s_var + k_e;
-    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, &io->probe);
+    const float finite_probe = ripple + offset + s_var + k_e;
+    bound_probe_t probe;
+    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, &probe);
+    advance_frames(kf, io.inc);
+    kf->frozen_mask = sum.frozen;
+    kf->load_scale = c_load;
+    kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
+    kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
+    if (!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
+        !is_finite(finite_probe)) {
+        const uint32_t bounded = bound_covariance(kf, finite_probe);
+        if (bounded & HD_KF_STATUS_RESET) {
+            hd_kf_reset(kf);
+            kf->reset_count++;
+        }
+        status |= bounded;
+    }
+    if (sum.frozen != 0u) {
+        status |= HD_KF_STATUS_FROZEN;
+    }
+    if (status & HD_KF_STATUS_BAD_INPUT) {
+        kf->bad_input_count++;
+    }
+    out->status = status;
+    kf->status_sticky |= status;
+    if (!is_finite(filtered)) {
+        /* Never publish a non-finite estimate: fall back to the measurement
+         * (or 0 if that is not finite either). */
+        out->torque_filtered_nm = is_finite(in->torque_meas_nm) ? in->torque_meas_nm : 0.0f;
+        out->ripple_nm = 0.0f;
+    }
 }
 
 /* One instance per layout size (build_layout). */
-#define STEP_INSTANCE(NAME, N)                                                \
-    static __attribute__((noinline)) void step_blocks_##NAME(                 \
-        hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out, step_io_t *io) \
-    {                                                                         \
-        step_blocks(kf, in, out, io, (N) < HD_KF_MAX_BLOCKS ? (N) : HD_KF_MAX_BLOCKS); \
+#define STEP_INSTANCE(NAME, N)                                                     \
+    static __attribute__((noinline)) void step_##NAME(hd_kf_t *kf, const hd_kf_input_t *in, \
+                                                      hd_kf_output_t *out)         \
+    {                                                                              \
+        step_layout(kf, in, out, (N) < HD_KF_MAX_BLOCKS ? (N) : HD_KF_MAX_BLOCKS); \
     }
 STEP_INSTANCE(0, 0u)
 STEP_INSTANCE(1, 1u)
@@ -1073,69 +1132,13 @@ static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe)
 
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
 {
-    /* ---- inputs: a non-finite or absurd sample is not corrected; a
-     * non-finite increment counts as no motion; the fixed blocks'
-     * "increment" is 1 (their phase advance per step) */
-    step_io_t io;
-    io.inc[HD_KF_LOCK_MOTOR] = in->d_motor_angle_rad;
-    io.inc[HD_KF_LOCK_OUTPUT] = in->d_output_angle_rad;
-    io.inc[HD_KF_LOCK_FIXED] = 1.0f;
-    io.y = in->torque_meas_nm - in->torque_expected_nm;
-    io.valid = fabsf(io.y) <= HD_KF_MAX_ABS_Y_NM;
-    io.status = io.valid ? 0u : HD_KF_STATUS_BAD_INPUT;
-    if (!is_finite(io.inc[0] + io.inc[1])) {
-        for (unsigned i = 0; i < 2u; i++) {
-            if (!is_finite(io.inc[i])) {
-                io.inc[i] = 0.0f;
-                io.status = HD_KF_STATUS_BAD_INPUT;
-            }
-        }
-    }
-    const float motor_abs = fabsf(io.inc[HD_KF_LOCK_MOTOR]);
-    io.motor_full = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad;
-    const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
-                             ? update_load_scale(kf, in->torque_expected_nm,
-                                                 io.inc[HD_KF_LOCK_MOTOR])
-                             : 1.0f;
-    io.rows[HD_KF_LOCK_MOTOR] = c_load;
-    io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
-
-    /* ---- plan, innovation, gate, outputs, correction: unrolled per layout */
     switch (kf->n_blocks) {
-    case 0: step_blocks_0(kf, in, out, &io); break;
-    case 1: step_blocks_1(kf, in, out, &io); break;
-    case 2: step_blocks_2(kf, in, out, &io); break;
-    case 3: step_blocks_3(kf, in, out, &io); break;
-    case 4: step_blocks_4(kf, in, out, &io); break;
-    default: step_blocks_max(kf, in, out, &io); break;
-    }
-
-    /* ---- propagate (turn the frames); bounds on the slow path */
-    advance_frames(kf, io.inc);
-    kf->frozen_mask = out->frozen_mask;
-    kf->load_scale = c_load;
-    kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
-    kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
-    uint32_t status = io.status;
-    if (!(io.probe.traces <= kf->cfg.p_max_nm2) || (io.probe.signs & FLOAT_SIGN_BIT) != 0u ||
-        !is_finite(io.finite_probe)) {
-        const uint32_t bounded = bound_covariance(kf, io.finite_probe);
-        if (bounded & HD_KF_STATUS_RESET) {
-            hd_kf_reset(kf);
-            kf->reset_count++;
-        }
-        status |= bounded;
-    }
-    if (status & HD_KF_STATUS_BAD_INPUT) {
-        kf->bad_input_count++;
-    }
-    out->status = status;
-    kf->status_sticky |= status;
-    if (!is_finite(out->torque_filtered_nm)) {
-        /* Never publish a non-finite estimate: fall back to the measurement
-         * (or 0 if that is not finite either). */
-        out->torque_filtered_nm = is_finite(in->torque_meas_nm) ? in->torque_meas_nm : 0.0f;
-        out->ripple_nm = 0.0f;
+    case 0: step_0(kf, in, out); break;
+    case 1: step_1(kf, in, out); break;
+    case 2: step_2(kf, in, out); break;
+    case 3: step_3(kf, in, out); break;
+    case 4: step_4(kf, in, out); break;
+    default: step_max(kf, in, out); break;
     }
 }
 
