@@ -5,13 +5,15 @@ files hdtools reads at run time copied from firmware/ into hdtools/data
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 from setuptools import setup
 from setuptools.command.build_py import build_py
 
 ROOT = Path(__file__).resolve().parent.parent
-DATA_FILES = ("hd_params.def", "hd_protocol.def", "hdjoint.dbc")
+sys.path.insert(0, str(ROOT / "tools"))
+from hdtools.paths import DATA_FILES  # noqa: E402  (stdlib only)
 
 
 def version() -> str:
@@ -33,8 +35,8 @@ class BuildPy(build_py):
         super().run()
         data = Path(self.build_lib) / "hdtools" / "data"
         data.mkdir(parents=True, exist_ok=True)
-        for name in DATA_FILES:
-            shutil.copy2(ROOT / "firmware" / name, data / name)
+        for rel in DATA_FILES:
+            shutil.copy2(ROOT / rel, data / Path(rel).name)
         (data / "build_info.txt").write_text(
             f"version = {version()}\ngit = {git_revision()}\nsource_root = {ROOT}\n")
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT
+from hdtools import paths
 
 
 @pytest.fixture(scope="module")
@@ -25,10 +26,11 @@ def installed(tmp_path_factory):
     # the parts of the tree the build step reads, copied so the build's
     # scratch files (build/, *.egg-info) never land in the working tree
     src = tmp / "src"
-    (src / "firmware").mkdir(parents=True)
+    src.mkdir()
     shutil.copy2(ROOT / "CMakeLists.txt", src)
-    for name in ("hd_params.def", "hd_protocol.def", "hdjoint.dbc"):
-        shutil.copy2(ROOT / "firmware" / name, src / "firmware" / name)
+    for rel in paths.DATA_FILES:
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / rel, src / rel)
     shutil.copytree(ROOT / "tools" / "hdtools", src / "tools" / "hdtools",
                     ignore=shutil.ignore_patterns("__pycache__"))
     for name in ("pyproject.toml", "setup.py"):

@@ -2,8 +2,9 @@
 as an installed package (`pip install ./tools`).
 
 In the source tree (tools/hdtools next to firmware/): the files themselves.
-Installed: the build step (tools/setup.py) copies firmware/hd_params.def,
-hd_protocol.def and hdjoint.dbc into hdtools/data/ and records the source
+Installed: the build step (tools/setup.py) copies the files of DATA_FILES
+(the parameter table, the protocol vocabulary, the DBC and the two headers
+whose constants the tools read) into hdtools/data/ and records the source
 tree it was built from and its version (hdtools/data/build_info.txt); no
 second copy lives in git.
 
@@ -19,7 +20,9 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 DATA = PACKAGE / "data"
-DATA_FILES = ("hd_params.def", "hd_protocol.def", "hdjoint.dbc")
+# Source-tree files the tools read at run time (copied by tools/setup.py).
+DATA_FILES = ("firmware/hd_params.def", "firmware/hd_protocol.def", "firmware/hdjoint.dbc",
+              "firmware/hd_fw_records.h", "filter/hd_kf.h")
 _TREE = PACKAGE.parents[1]
 
 
@@ -50,11 +53,17 @@ def source_root() -> Path | None:
     return None
 
 
+def source_file(rel: str) -> Path:
+    """A file of DATA_FILES: in the source tree, or the installed copy."""
+    if in_source_tree():
+        return _TREE / rel
+    copy = DATA / Path(rel).name
+    if copy.is_file():
+        return copy
+    root = source_root()
+    return (root or _TREE) / rel
+
+
 def firmware_file(name: str) -> Path:
     """firmware/<name> of the source tree, or the installed copy."""
-    if in_source_tree():
-        return _TREE / "firmware" / name
-    if (DATA / name).is_file():
-        return DATA / name
-    root = source_root()
-    return (root or _TREE) / "firmware" / name
+    return source_file(f"firmware/{name}")

@@ -18,7 +18,7 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 
-from . import canproto, protocol
+from . import canproto, paths, protocol
 from .safeio import UsageError
 
 ROOT = protocol.ROOT
@@ -30,7 +30,7 @@ SCHEMA = "hdjoint-profile/1"     # tools/hdtools/analysis/profile.py
 
 def _define(path: str, name: str) -> int:
     """An integer #define of a C header (one fact, one place)."""
-    text = (ROOT / path).read_text()
+    text = paths.source_file(path).read_text()
     m = re.search(rf"#define {name} \(?(\d+)u?\)?", text)
     if m is None:
         raise RuntimeError(f"{path}: no #define {name}")
