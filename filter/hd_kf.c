@@ -693,20 +693,37 @@ KF_INLINE void correct_diag_tile(float *p, float wa, float wb, float ga, float g
     probe->signs |= bits_of(trace) | bits_of(a * d - b * b);
 }
 
+/* A block's unchanged diagonal tile into the probe. */
+KF_INLINE void probe_diag_tile(const float *p, bound_probe_t *probe)
+{
+    const float trace = p[0] + p[2];
+    probe->traces += trace;
+    probe->signs |= bits_of(trace) | bits_of(p[0] * p[2] - p[1] * p[1]);
+}
+
 /* The Joseph tiles: tile (s, t) with W_st = f_s + f_t - f_s f_t below 1,
  * i.e. both blocks' fractions below 1 (partial), which the unrolled pass
- * leaves; the weight is 1 wherever one of the fractions is 1. */
+ * leaves; the weight is 1 wherever one of the fractions is 1.  A frozen
+ * block's fraction is 0: W is 0 between two frozen blocks (those tiles and
+ * a frozen block's own, which gets no q either, stay as they are). */
 static void correct_partial(float *p, const float *g, const float *f, const float *q,
-                            float inv_s, unsigned nb, uint32_t partial, bound_probe_t *probe)
+                            float inv_s, unsigned nb, uint32_t partial, uint32_t frozen,
+                            bound_probe_t *probe)
 {
     for (uint32_t rows = partial; rows != 0u; rows &= rows - 1u) {
         const unsigned s = (unsigned)__builtin_ctz(rows);
         float *row = &p[tile_row_start(nb, s)];
         const float fs = f[s], ga = g[2u * s], gb = g[2u * s + 1u];
         const float ua = ga * inv_s, ub = gb * inv_s;
-        const float ws = fs + fs - fs * fs;
-        correct_diag_tile(row, ws * ua, ws * ub, ga, gb, q[s], probe);
-        for (uint32_t cols = partial & ~((2u << s) - 1u); cols != 0u; cols &= cols - 1u) {
+        uint32_t cols = partial & ~((2u << s) - 1u);
+        if ((frozen & (1u << s)) != 0u) {
+            probe_diag_tile(row, probe);
+            cols &= ~frozen;
+        } else {
+            const float ws = fs + fs - fs * fs;
+            correct_diag_tile(row, ws * ua, ws * ub, ga, gb, q[s], probe);
+        }
+        for (; cols != 0u; cols &= cols - 1u) {
             const unsigned t = (unsigned)__builtin_ctz(cols);
             float *tile = row + 3u + 4u * (t - s - 1u);
             const float w = fs + f[t] - fs * f[t];
@@ -727,7 +744,8 @@ static void correct_partial(float *p, const float *g, const float *f, const floa
  * correct_partial.  inv_s = k_e = 0: prediction only. */
 KF_INLINE void correct(float *restrict p, float *restrict x, const float *restrict g,
                        const float *restrict f, const float *restrict q, float inv_s, float k_e,
-                       float q_off, unsigned nb, uint32_t partial, bound_probe_t *probe)
+                       float q_off, unsigned nb, uint32_t partial, uint32_t frozen,
+                       bound_probe_t *probe)
 {
     float *const p_start = p;
     const float g_off = g[2u * nb];
@@ -772,7 +790,7 @@ KF_INLINE void correct(float *restrict p, float *restrict x, const float *restri
             qc[s] = q[s];
         }
         bound_probe_t joseph = {0.0f, 0u};
-        correct_partial(p_start, gc, fc, qc, inv_s, nb, partial, &joseph);
+        correct_partial(p_start, gc, fc, qc, inv_s, nb, partial, frozen, &joseph);
         worst.traces += joseph.traces;
         worst.signs |= joseph.signs;
     }
@@ -876,7 +894,8 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
      * when some state is not: then neither are the new states */
     const float finite_probe = ripple + offset + s_var + k_e;
     bound_probe_t probe;
-    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, &probe);
+    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, sum.frozen,
+            &probe);
     advance_frames(kf, io.inc);
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
@@ -1044,12 +1063,28 @@ static void advance_frames(hd_kf_t *kf, const float inc[3])
 }
 
 /* Phase lost: the blocks restart from zero with their priors,
- * decorrelated. */
+ * decorrelated; one pass over P for all of them. */
 static void restart_lost_blocks(hd_kf_t *kf, uint32_t lost)
 {
-    for (; lost != 0u; lost &= lost - 1u) {
-        const unsigned s = (unsigned)__builtin_ctz(lost);
-        clear_block(kf, s, kf->slot[s].p0_nm2);
+    const unsigned nb = kf->n_blocks;
+    float *p = kf->p;
+    for (unsigned s = 0; s < nb; s++) {
+        const bool row = (lost & (1u << s)) != 0u;
+        if (row) {
+            p[0] = p[2] = kf->slot[s].p0_nm2;
+            p[1] = 0.0f;
+            kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
+        }
+        p += 3;
+        for (unsigned t = s + 1u; t < nb; t++, p += 4) {
+            if (row || (lost & (1u << t)) != 0u) {
+                zero_tiles(p, 1u);
+            }
+        }
+        if (row) {
+            p[0] = p[1] = 0.0f;
+        }
+        p += 2;
     }
 }
 
