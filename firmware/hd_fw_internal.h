@@ -34,6 +34,13 @@ bool hd_fw_queue_pop(hd_fw_queue_t *q, hal_can_frame_t *f);
 bool hd_fw_queue_full(const hd_fw_queue_t *q);
 bool hd_fw_queue_empty(const hd_fw_queue_t *q);
 
+/* Tick steps in their own files (tick context only). */
+uint32_t hd_fw_sense(hd_fw_t *fw, uint64_t t_us, hd_fw_sample_t *s, bool *ended);
+float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults);
+float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s);
+void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s);
+void hd_fw_stop(hd_fw_t *fw);
+
 /* Records (hd_fw_records.c).  Boot: loads the calibration and configuration
  * records into *s (defaults and status where unusable). */
 void hd_fw_records_boot(hd_fw_t *fw, const hd_fw_config_t *defaults, hd_fw_settings_t *s);

@@ -1,0 +1,120 @@
+/* hd_fw_publish: what the tick sends (boot report, telemetry, heartbeat,
+ * the ACKs the background queued).  Tick context only: the tick owns the
+ * transmitter. */
+#include <math.h> /* isfinite, NAN: compiler builtins, no libm call */
+#include <string.h>
+
+#include "hd_fw.h"
+#include "hd_fw_internal.h"
+
+/* --------------------------------------------------------------- publish */
+
+static void send_frame(hd_fw_t *fw, const hal_can_frame_t *f)
+{
+    const hal_can_t *can = &fw->hal->can;
+    if (can->send == NULL) {
+        return;
+    }
+    int rc = can->send(can->ctx, f);
+    if (rc == HAL_OK) {
+        return;
+    }
+    /* Dropped: the fault shows in the next frame that gets through. */
+    fw->counters.frames_dropped++;
+    fw->tick.pending_faults |= (rc == HAL_ERR_FAULT) ? HD_FAULT_CAN_BUS_OFF : HD_FAULT_CAN_TX_FULL;
+}
+
+static void send_boot(hd_fw_t *fw)
+{
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    const hal_boot_info_t *b = &fw->bg.boot;
+    hd_can_boot_t boot = {(uint8_t)b->reset_cause, b->fault_valid, fw->bg.config_from_record,
+                          b->fault_valid ? b->fault_pc : 0u, (uint8_t)HD_CAN_PROTOCOL_VERSION,
+                          set->config_status};
+    hal_can_frame_t f;
+    hd_can_encode_boot(set->cfg.node_id, &boot, &f);
+    send_frame(fw, &f);
+    fw->tick.boot_sent = true;
+}
+
+static void send_telemetry(hd_fw_t *fw, const hd_fw_sample_t *s)
+{
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    hd_fw_tick_state_t *k = &fw->tick;
+    if (set->telem_divider == 0u) {
+        return;
+    }
+    if (k->telem_countdown > 0u) {
+        k->telem_countdown--;
+        return;
+    }
+    k->telem_countdown = set->telem_divider - 1u;
+    hd_can_telem_t t = {s->torque_filtered_nm, s->torque_raw_nm, s->ripple_nm, s->valid,
+                        s->motor_velocity_rad_s, k->telem_faults, k->telem_kf_status,
+                        k->telem_seq};
+    k->telem_faults = 0u;
+    k->telem_kf_status = 0u;
+    hal_can_frame_t a;
+    hal_can_frame_t b;
+    hd_can_encode_telem(set->cfg.node_id, &t, &a, &b);
+    send_frame(fw, &a);
+    send_frame(fw, &b);
+    const uint16_t every = set->cfg.angle_telemetry_every;
+    if (every != 0u && k->telem_pairs % every == 0u) {
+        hd_can_angle_t c = {s->motor_counts, s->output_counts, s->has_output, k->telem_seq};
+        hd_can_encode_angle(set->cfg.node_id, &c, &a);
+        send_frame(fw, &a);
+    }
+    k->telem_pairs++;
+    k->telem_seq++;
+    fw->counters.telemetry_frames++;
+}
+
+static uint16_t sat16(uint32_t v)
+{
+    return v > 0xFFFFu ? 0xFFFFu : (uint16_t)v;
+}
+
+static void send_heartbeat(hd_fw_t *fw, bool now)
+{
+    hd_fw_tick_state_t *k = &fw->tick;
+    if (k->hb_countdown > 0u && !now) {
+        k->hb_countdown--;
+        return;
+    }
+    k->hb_countdown = HD_FW_HEARTBEAT_TICKS - 1u;
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    hd_can_heartbeat_t h = {k->state, k->hb_faults, sat16(fw->counters.deadline_misses),
+                            set->calib_status, set->config_status, set->profile_status};
+    k->hb_faults = 0u;
+    hal_can_frame_t f;
+    hd_can_encode_heartbeat(set->cfg.node_id, &h, &f);
+    send_frame(fw, &f);
+}
+
+/* ACKs were encoded by the background; the tick owns the transmitter. */
+static void send_acks(hd_fw_t *fw)
+{
+    hal_can_frame_t f;
+    for (unsigned i = 0; i < HD_FW_ACKS_PER_TICK && hd_fw_queue_pop(&fw->ack_queue, &f); i++) {
+        send_frame(fw, &f);
+    }
+}
+
+void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s)
+{
+    if (!fw->tick.boot_sent) {
+        send_boot(fw);
+    }
+    send_telemetry(fw, s);
+    send_heartbeat(fw, false);
+    send_acks(fw);
+}
+
+void hd_fw_stop(hd_fw_t *fw)
+{
+    fw->tick.ended = true;
+    fw->tick.state = HD_STATE_STOPPED;
+    send_heartbeat(fw, true); /* say so at once */
+    send_acks(fw);
+}
