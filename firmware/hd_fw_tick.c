@@ -111,6 +111,9 @@ static void take_feedforward(hd_fw_t *fw, const hal_can_frame_t *f)
  * are taken at once; the rest is counted. */
 static void receive_frames(hd_fw_t *fw)
 {
+    if (fw->tick.ff_age_ticks < UINT32_MAX) {
+        fw->tick.ff_age_ticks++; /* the latched feed-forward is one tick older */
+    }
     const hal_can_t *can = &fw->hal->can;
     if (can->recv == NULL) {
         return;
@@ -322,9 +325,6 @@ void hd_fw_isr(hd_fw_t *fw)
     }
     uint64_t t_us = tick_time_us(fw);
     check_deadline(fw, t_us);
-    if (fw->tick.ff_age_ticks < UINT32_MAX) {
-        fw->tick.ff_age_ticks++;
-    }
     apply_request(fw);
     receive_frames(fw);
     hd_fw_sample_t s;
