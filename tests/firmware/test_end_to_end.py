@@ -41,7 +41,12 @@ def test_dbc_loads_strict_without_warnings():
 
 
 def test_telemetry_decodes_to_the_runner_output_and_beats_raw(tmp_path):
-    log, csv, summary = run_host(tmp_path, duration=6.0)
+    # No stored profile here: the output-locked (misalignment) block learns
+    # online (learning_mode 0), as during commissioning; in the default
+    # operating mode it would stay at zero until a profile is saved.
+    cfg = tmp_path / "adaptive.cfg"
+    cfg.write_text("learning_mode = 0\n")
+    log, csv, summary = run_host(tmp_path, "--config", str(cfg), duration=6.0)
     res = canproto.decode_log(log)
     telem = res["telemetry"]
     n = len(csv)
