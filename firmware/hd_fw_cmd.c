@@ -160,6 +160,27 @@ static void block_enable(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     post(fw, HD_FW_REQ_SETTINGS | HD_FW_REQ_BLOCK, i, cmd->arg_u8[1]);
 }
 
+/* BLOCK_GET: one field of a configured block, so a host can read a model
+ * back (hdsense send). */
+static void block_get(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
+{
+    const hd_kf_config_t *kf = &hd_fw_live(fw)->cfg.kf;
+    const uint8_t i = cmd->arg_u8[0];
+    r->aux = i;
+    if (i >= kf->block_count) {
+        r->result = HD_CAN_RES_BAD_INDEX;
+        return;
+    }
+    const hd_kf_block_config_t *b = &kf->blocks[i];
+    switch (cmd->arg_u8[1]) {
+    case 0u: r->value = (float)b->lock; break;
+    case 1u: r->value = b->order; break;
+    case 2u: r->value = b->q_nm2; break;
+    case 3u: r->value = (float)b->enabled; break;
+    default: r->result = HD_CAN_RES_OUT_OF_RANGE; break;
+    }
+}
+
 static void blocks_clear(hd_fw_t *fw, reply_t *r)
 {
     hd_fw_settings_t next = *hd_fw_live(fw);
@@ -489,6 +510,7 @@ static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t 
     case HD_CMD_ADD_FIXED: add_block(fw, cmd, r); break;
     case HD_CMD_BLOCK_ENABLE: block_enable(fw, cmd, r); break;
     case HD_CMD_BLOCKS_CLEAR: blocks_clear(fw, r); break;
+    case HD_CMD_BLOCK_GET: block_get(fw, cmd, r); break;
     case HD_CMD_SET_PARAM: set_param(fw, cmd->arg_u8[0], cmd->value, r); break;
     case HD_CMD_GET_PARAM: get_param(fw, cmd->arg_u8[0], r); break;
     case HD_CMD_TARE: tare(fw, r); break;

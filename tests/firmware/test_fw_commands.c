@@ -140,6 +140,25 @@ static void test_filter_blocks_by_command(void)
     e.arg_u8[0] = 8;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, send_cmd(&e).result);
 
+    /* read back, field by field (BLOCK_GET) */
+    hd_can_cmd_t g = {0};
+    g.opcode = HD_CMD_BLOCK_GET;
+    g.arg_u8[0] = (uint8_t)n0;
+    g.arg_u8[1] = 1u; /* order */
+    TEST_ASSERT_EQUAL_FLOAT(50.0f, send_cmd(&g).value);
+    g.arg_u8[1] = 0u; /* lock */
+    TEST_ASSERT_EQUAL_FLOAT((float)HD_KF_LOCK_FIXED, send_cmd(&g).value);
+    g.arg_u8[1] = 2u; /* q */
+    TEST_ASSERT_EQUAL_FLOAT(1e-4f, send_cmd(&g).value);
+    g.arg_u8[0] = 1u;
+    g.arg_u8[1] = 3u; /* enabled: block 1 was disabled above */
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, send_cmd(&g).value);
+    g.arg_u8[1] = 4u;
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, send_cmd(&g).result);
+    g.arg_u8[0] = HD_KF_MAX_BLOCKS;
+    g.arg_u8[1] = 0u;
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, send_cmd(&g).result);
+
     hd_can_cmd_t clr = {0};
     clr.opcode = HD_CMD_BLOCKS_CLEAR;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, send_cmd(&clr).result);

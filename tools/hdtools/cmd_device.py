@@ -101,13 +101,15 @@ def describe(db, data: bytes) -> str:
     return f"{op} {args}".strip()
 
 
-def expectations(payloads: list[bytes]) -> tuple[dict[int, float], int | None]:
+def expectations(payloads: list[bytes]) -> tuple[dict[int, float], list | None]:
     """What reading back must show: {param id: float32 value} of the
-    SET_PARAMs (and FILTER_ENABLE), and block_count when the model clears
-    the blocks first (None otherwise)."""
+    SET_PARAMs (and FILTER_ENABLE), and, when the model clears the blocks
+    first, each block as [lock, order, q_nm2, enabled] in BLOCK_GET's field
+    order (None otherwise)."""
     want: dict[int, float] = {}
     blocks = None
     codes = {e.name: e.code for e in protocol.opcodes()}
+    adds = {codes["ADD_MOTOR"]: 0, codes["ADD_OUTPUT"]: 1, codes["ADD_FIXED"]: 2}
     for data in payloads:
         op = data[0]
         if op == codes["SET_PARAM"]:
@@ -115,9 +117,12 @@ def expectations(payloads: list[bytes]) -> tuple[dict[int, float], int | None]:
         elif op == codes["FILTER_ENABLE"]:
             want[protocol.param_by_key("filter").id] = float(data[2])
         elif op == codes["BLOCKS_CLEAR"]:
-            blocks = 0
-        elif op in (codes["ADD_MOTOR"], codes["ADD_OUTPUT"], codes["ADD_FIXED"]):
-            blocks = None if blocks is None else blocks + 1
+            blocks = []
+        elif op in adds and blocks is not None:
+            order = f32(struct.unpack("<H", data[2:4])[0] / 100.0)
+            blocks.append([float(adds[op]), order, struct.unpack("<f", data[4:8])[0], 1.0])
+        elif op == codes["BLOCK_ENABLE"] and blocks is not None and data[2] < len(blocks):
+            blocks[data[2]][3] = float(data[3])
     return want, blocks
 
 
@@ -169,10 +174,17 @@ def read_back(joint: Joint, want: dict[int, float], blocks: int | None, say) -> 
             ("" if same else f"  DIFFERS from the file's {value:.9g}"))
     if blocks is not None:
         ack = joint.get(protocol.param_by_key("block_count"))
-        same = ack.ok and int(ack.value) == blocks
+        same = ack.ok and int(ack.value) == len(blocks)
         bad += not same
         say(f"read back block_count = {ack.value:g}" +
-            ("" if same else f"  DIFFERS from the file's {blocks} blocks"))
+            ("" if same else f"  DIFFERS from the file's {len(blocks)} blocks"))
+        for i, fields in enumerate(blocks if same else []):
+            got = [joint.block_field(i, k) for k in range(len(protocol.BLOCK_FIELDS))]
+            ok = all(g is not None and f32(g) == f32(w) for g, w in zip(got, fields))
+            bad += not ok
+            shown = ", ".join(f"{n.lower()} {g:.9g}" if g is not None else f"{n.lower()} ?"
+                              for n, g in zip(protocol.BLOCK_FIELDS, got))
+            say(f"read back block {i}: {shown}" + ("" if ok else "  DIFFERS from the file"))
     return bad
 
 
@@ -215,7 +227,7 @@ def send(args) -> int:
             say("boot = " + reboot(joint))
             time.sleep(0.05)
             bad += read_back(joint, want, blocks, say)
-        total = len(want) + (blocks is not None)
+        total = len(want) + (0 if blocks is None else 1 + len(blocks))
         say(f"verified = {total * (2 if args.reboot else 1) - bad} of "
             f"{total * (2 if args.reboot else 1)} read-backs equal")
         if bad:

@@ -153,6 +153,12 @@ class Joint:
     def get(self, param: protocol.Param) -> Ack:
         return self.command("GET_PARAM", GetParamId=param.name)
 
+    def block_field(self, index: int, field: int) -> float | None:
+        """One field of a configured filter block (BLOCK_GET; protocol.BLOCK_FIELDS),
+        or None if refused."""
+        ack = self.command("BLOCK_GET", BlockGetIndex=index, BlockGetField=field)
+        return ack.value if ack.ok else None
+
     def set(self, param: protocol.Param, value: float) -> Ack:
         ack = self.command("SET_PARAM", SetParamId=param.name, SetParamValue=float(value))
         if ack.ok and param.key == "node_id":

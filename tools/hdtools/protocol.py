@@ -251,6 +251,8 @@ DBC_LAYOUT = {
         ("FixedQ", 32, 32, True, 1, 0, 0, F32_MAX, "Nm^2", None, "ADD_FIXED", "float"),
         ("BlockIndex", 16, 8, False, 1, 0, 0, 7, "", None, "BLOCK_ENABLE", ""),
         ("BlockEnable", 24, 8, False, 1, 0, 0, 1, "", None, "BLOCK_ENABLE", ""),
+        ("BlockGetIndex", 16, 8, False, 1, 0, 0, 7, "", None, "BLOCK_GET", ""),
+        ("BlockGetField", 24, 8, False, 1, 0, 0, 3, "", "block_field", "BLOCK_GET", ""),
         ("SetParamId", 16, 8, False, 1, 0, 1, 255, "", "param", "SET_PARAM", ""),
         ("SetParamValue", 32, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "", None, "SET_PARAM", "float"),
         ("GetParamId", 16, 8, False, 1, 0, 1, 255, "", "param", "GET_PARAM", ""),
@@ -291,6 +293,7 @@ DBC_LAYOUT = {
 }
 
 U32_ACK_OPCODES = ("VERSION", "INFO")
+BLOCK_FIELDS = ("LOCK", "ORDER", "Q_NM2", "ENABLED")   # BLOCK_GET's field byte (hd_fw_cmd.c)
 KF_STATUS_DOC = "1 frozen, 2 bad input, 4 reset, 8 P clamped, 16 offset jump"
 
 
@@ -313,6 +316,8 @@ def _value_table(key: str) -> dict[int, str]:
         return {e.code: e.name for e in info_items()}
     if key == "param":
         return {p.id: p.name for p in params()}
+    if key == "block_field":
+        return dict(enumerate(BLOCK_FIELDS))
     raise KeyError(key)
 
 
