@@ -39,9 +39,10 @@
  * "Instances per layout size"). */
 #define KF_INLINE static inline __attribute__((always_inline))
 #define KF_UNROLL _Pragma("GCC unroll 8")
-/* Layouts of up to this many blocks have their own instance; larger models
- * are laid out with HD_KF_MAX_BLOCKS slots, the unused ones held at zero
- * like a disabled block. */
+/* Layouts of MIN_LAYOUT_BLOCKS to UNROLLED_BLOCKS blocks have their own
+ * instance; smaller models take the smallest, larger ones HD_KF_MAX_BLOCKS
+ * slots, the unused slots held at zero like a disabled block. */
+#define MIN_LAYOUT_BLOCKS (HD_KF_MAX_BLOCKS < 2 ? HD_KF_MAX_BLOCKS : 2u)
 #define UNROLLED_BLOCKS 4u
 
 typedef union {
@@ -384,8 +385,9 @@ static void build_layout(hd_kf_t *kf)
         build_slot(kf, i);
         enabled += kf->slot[i].enabled;
     }
-    kf->n_blocks = (uint8_t)(kf->cfg.block_count <= UNROLLED_BLOCKS ? kf->cfg.block_count
-                                                                    : HD_KF_MAX_BLOCKS);
+    kf->n_blocks = (uint8_t)(kf->cfg.block_count < MIN_LAYOUT_BLOCKS ? MIN_LAYOUT_BLOCKS
+                             : kf->cfg.block_count <= UNROLLED_BLOCKS ? kf->cfg.block_count
+                                                                      : HD_KF_MAX_BLOCKS);
     for (unsigned i = kf->cfg.block_count; i < kf->n_blocks; i++) {
         kf->slot[i] = (hd_kf_slot_t){0};
     }
@@ -808,138 +810,6 @@ KF_INLINE bool offset_jump(const hd_kf_t *kf, float e, float s_var)
 
 static void restart_lost_blocks(hd_kf_t *kf, uint32_t lost);
 
-static void advance_frames(hd_kf_t *kf, const float inc[3]);
-static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe);
-
-/* The step for a layout of nb blocks (a constant in each instance, so
- * every loop unrolls and h, g, f, q live in registers): inputs, the plan of
- * every block, restarts, offset priming, the innovation and its variance,
- * the offset gate, the outputs, the correction, the turn of the frames and
- * the bounds. */
-KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out,
-                           unsigned nb)
-{
-    /* ---- inputs: a non-finite or absurd sample is not corrected; a
-     * non-finite increment counts as no motion; the fixed blocks'
-     * "increment" is 1 (their phase advance per step) */
-    step_io_t io;
-    io.inc[HD_KF_LOCK_MOTOR] = in->d_motor_angle_rad;
-    io.inc[HD_KF_LOCK_OUTPUT] = in->d_output_angle_rad;
-    io.inc[HD_KF_LOCK_FIXED] = 1.0f;
-    const float y = in->torque_meas_nm - in->torque_expected_nm;
-    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
-    uint32_t status = valid ? 0u : HD_KF_STATUS_BAD_INPUT;
-    if (!is_finite(io.inc[0] + io.inc[1])) {
-        for (unsigned i = 0; i < 2u; i++) {
-            if (!is_finite(io.inc[i])) {
-                io.inc[i] = 0.0f;
-                status = HD_KF_STATUS_BAD_INPUT;
-            }
-        }
-    }
-    const float motor_abs = fabsf(io.inc[HD_KF_LOCK_MOTOR]);
-    io.motor_full = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad;
-    const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
-                             ? update_load_scale(kf, in->torque_expected_nm,
-                                                 io.inc[HD_KF_LOCK_MOTOR])
-                             : 1.0f;
-    io.rows[HD_KF_LOCK_MOTOR] = c_load;
-    io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
-
-    /* ---- what this step does to each block */
-    float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
-    float g[HD_KF_MAX_STATES];
-    plan_sum_t sum = {0.0f, 0u, 0u, 0u};
-    KF_UNROLL
-    for (unsigned s = 0; s < nb; s++) {
-        plan_block(kf, s, &io, &h[2u * s], &f[s], &q[s], &sum);
-    }
-    if (sum.lost != 0u) {
-        restart_lost_blocks(kf, sum.lost);
-    }
-
-    /* ---- innovation and its variance (the prior's) */
-    const float ripple = sum.ripple;
-    const unsigned o = 2u * nb;
-    if (!kf->offset_primed && kf->cfg.offset_enabled && valid) {
-        kf->x[o] = y - ripple;
-        kf->offset_primed = 1u;
-    }
-    const float offset = kf->x[o]; /* 0 when the offset is disabled */
-    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb);
-    const float innovation = y - ripple - offset;
-    if (valid && offset_jump(kf, innovation, s_var)) {
-        /* an offset jump widens the offset's variance first */
-        const float e2 = innovation * innovation;
-        status |= HD_KF_STATUS_OFFSET_JUMP;
-        kf->p[packed_entries(nb) - 1u] += e2;
-        g[o] += e2;
-        s_var += e2;
-    }
-
-    /* ---- outputs */
-    out->ripple_nm = ripple;
-    out->offset_nm = offset;
-    out->innovation_nm = valid ? innovation : 0.0f;
-    out->innovation_var_nm2 = s_var;
-    const float filtered = in->torque_meas_nm - ripple -
-                           (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
-    out->torque_filtered_nm = filtered;
-    out->frozen_mask = sum.frozen;
-
-    /* ---- correct, propagate (turn the frames); bounds on the slow path */
-    const float inv_s = valid ? 1.0f / s_var : 0.0f;
-    const float k_e = valid ? innovation * inv_s : 0.0f;
-    /* S is not finite when some g is not (each enters C P C'), the ripple
-     * when some state is not: then neither are the new states */
-    const float finite_probe = ripple + offset + s_var + k_e;
-    bound_probe_t probe;
-    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, sum.frozen,
-            &probe);
-    advance_frames(kf, io.inc);
-    kf->frozen_mask = sum.frozen;
-    kf->load_scale = c_load;
-    kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
-    kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
-    if (!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
-        !is_finite(finite_probe)) {
-        const uint32_t bounded = bound_covariance(kf, finite_probe);
-        if (bounded & HD_KF_STATUS_RESET) {
-            hd_kf_reset(kf);
-            kf->reset_count++;
-        }
-        status |= bounded;
-    }
-    if (sum.frozen != 0u) {
-        status |= HD_KF_STATUS_FROZEN;
-    }
-    if (status & HD_KF_STATUS_BAD_INPUT) {
-        kf->bad_input_count++;
-    }
-    out->status = status;
-    kf->status_sticky |= status;
-    if (!is_finite(filtered)) {
-        /* Never publish a non-finite estimate: fall back to the measurement
-         * (or 0 if that is not finite either). */
-        out->torque_filtered_nm = is_finite(in->torque_meas_nm) ? in->torque_meas_nm : 0.0f;
-        out->ripple_nm = 0.0f;
-    }
-}
-
-/* One instance per layout size (build_layout). */
-#define STEP_INSTANCE(NAME, N)                                                     \
-    static __attribute__((noinline)) void step_##NAME(hd_kf_t *kf, const hd_kf_input_t *in, \
-                                                      hd_kf_output_t *out)         \
-    {                                                                              \
-        step_layout(kf, in, out, (N) < HD_KF_MAX_BLOCKS ? (N) : HD_KF_MAX_BLOCKS); \
-    }
-STEP_INSTANCE(0, 0u)
-STEP_INSTANCE(1, 1u)
-STEP_INSTANCE(2, 2u)
-STEP_INSTANCE(3, 3u)
-STEP_INSTANCE(4, 4u)
-STEP_INSTANCE(max, HD_KF_MAX_BLOCKS)
-
 /* phase += d, kept as an unevaluated sum hi + lo in [-pi, pi) (Knuth's
  * two-sum): the increments add up exactly (to ~1e-14 rad) however long the
  * filter runs. */
@@ -1027,6 +897,7 @@ KF_INLINE void advance_output_frame(hd_kf_t *kf, float d)
     }
 }
 
+
 /* The step's rotation Phi: each block's frame turns by its phase advance.
  * Integral orders take powers of the motor and output phasors; the others
  * turn their own.  The motor phasor turns by one sin/cos of the increment:
@@ -1035,7 +906,7 @@ KF_INLINE void advance_output_frame(hd_kf_t *kf, float d)
  * up.  The output phasor comes from the exactly accumulated output phase:
  * an output-locked block that does not learn (output_learn_scale 0) keeps
  * its profile against the absolute angle for as long as the filter runs. */
-static void advance_frames(hd_kf_t *kf, const float inc[3])
+KF_INLINE void advance_frames(hd_kf_t *kf, const float inc[3])
 {
     if (kf->motor_powers != 0u) {
         float s, c;
@@ -1061,6 +932,138 @@ static void advance_frames(hd_kf_t *kf, const float inc[3])
         turn_phasor(&kf->phasor_cos[sl->frame], &kf->phasor_sin[sl->frame], cs, sn);
     }
 }
+
+static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe);
+
+/* The step for a layout of nb blocks (a constant in each instance, so
+ * every loop unrolls and h, g, f, q live in registers): inputs, the plan of
+ * every block, restarts, offset priming, the innovation and its variance,
+ * the offset gate, the outputs, the correction, the turn of the frames and
+ * the bounds. */
+KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out,
+                           unsigned nb)
+{
+    /* ---- inputs: a non-finite or absurd sample is not corrected; a
+     * non-finite increment counts as no motion; the fixed blocks'
+     * "increment" is 1 (their phase advance per step) */
+    step_io_t io;
+    io.inc[HD_KF_LOCK_MOTOR] = in->d_motor_angle_rad;
+    io.inc[HD_KF_LOCK_OUTPUT] = in->d_output_angle_rad;
+    io.inc[HD_KF_LOCK_FIXED] = 1.0f;
+    const float y = in->torque_meas_nm - in->torque_expected_nm;
+    const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
+    uint32_t status = valid ? 0u : HD_KF_STATUS_BAD_INPUT;
+    if (!is_finite(io.inc[0] + io.inc[1])) {
+        for (unsigned i = 0; i < 2u; i++) {
+            if (!is_finite(io.inc[i])) {
+                io.inc[i] = 0.0f;
+                status = HD_KF_STATUS_BAD_INPUT;
+            }
+        }
+    }
+    const float motor_abs = fabsf(io.inc[HD_KF_LOCK_MOTOR]);
+    io.motor_full = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad;
+    const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
+                             ? update_load_scale(kf, in->torque_expected_nm,
+                                                 io.inc[HD_KF_LOCK_MOTOR])
+                             : 1.0f;
+    io.rows[HD_KF_LOCK_MOTOR] = c_load;
+    io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
+
+    /* ---- what this step does to each block */
+    float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
+    float g[HD_KF_MAX_STATES];
+    plan_sum_t sum = {0.0f, 0u, 0u, 0u};
+    KF_UNROLL
+    for (unsigned s = 0; s < nb; s++) {
+        plan_block(kf, s, &io, &h[2u * s], &f[s], &q[s], &sum);
+    }
+    if (sum.lost != 0u) {
+        restart_lost_blocks(kf, sum.lost);
+    }
+    /* The step's rotation (the frames turn for the next sample) needs only
+     * the increments, and nothing below reads the frames: here its long
+     * dependency chains overlap the passes on a superscalar host. */
+    advance_frames(kf, io.inc);
+
+    /* ---- innovation and its variance (the prior's) */
+    const float ripple = sum.ripple;
+    const unsigned o = 2u * nb;
+    if (!kf->offset_primed && kf->cfg.offset_enabled && valid) {
+        kf->x[o] = y - ripple;
+        kf->offset_primed = 1u;
+    }
+    const float offset = kf->x[o]; /* 0 when the offset is disabled */
+    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb);
+    const float innovation = y - ripple - offset;
+    if (valid && offset_jump(kf, innovation, s_var)) {
+        /* an offset jump widens the offset's variance first */
+        const float e2 = innovation * innovation;
+        status |= HD_KF_STATUS_OFFSET_JUMP;
+        kf->p[packed_entries(nb) - 1u] += e2;
+        g[o] += e2;
+        s_var += e2;
+    }
+
+    /* ---- outputs */
+    out->ripple_nm = ripple;
+    out->offset_nm = offset;
+    out->innovation_nm = valid ? innovation : 0.0f;
+    out->innovation_var_nm2 = s_var;
+    const float filtered = in->torque_meas_nm - ripple -
+                           (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    out->torque_filtered_nm = filtered;
+    out->frozen_mask = sum.frozen;
+
+    /* ---- correct; bounds on the slow path */
+    const float inv_s = valid ? 1.0f / s_var : 0.0f;
+    const float k_e = valid ? innovation * inv_s : 0.0f;
+    /* S is not finite when some g is not (each enters C P C'), the ripple
+     * when some state is not: then neither are the new states */
+    const float finite_probe = ripple + offset + s_var + k_e;
+    bound_probe_t probe;
+    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, sum.frozen,
+            &probe);
+    kf->frozen_mask = sum.frozen;
+    kf->load_scale = c_load;
+    kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
+    kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
+    if (!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
+        !is_finite(finite_probe)) {
+        const uint32_t bounded = bound_covariance(kf, finite_probe);
+        if (bounded & HD_KF_STATUS_RESET) {
+            hd_kf_reset(kf);
+            kf->reset_count++;
+        }
+        status |= bounded;
+    }
+    if (sum.frozen != 0u) {
+        status |= HD_KF_STATUS_FROZEN;
+    }
+    if (status & HD_KF_STATUS_BAD_INPUT) {
+        kf->bad_input_count++;
+    }
+    out->status = status;
+    kf->status_sticky |= status;
+    if (!is_finite(filtered)) {
+        /* Never publish a non-finite estimate: fall back to the measurement
+         * (or 0 if that is not finite either). */
+        out->torque_filtered_nm = is_finite(in->torque_meas_nm) ? in->torque_meas_nm : 0.0f;
+        out->ripple_nm = 0.0f;
+    }
+}
+
+/* One instance per layout size (build_layout). */
+#define STEP_INSTANCE(NAME, N)                                                     \
+    static __attribute__((noinline)) void step_##NAME(hd_kf_t *kf, const hd_kf_input_t *in, \
+                                                      hd_kf_output_t *out)         \
+    {                                                                              \
+        step_layout(kf, in, out, (N) < HD_KF_MAX_BLOCKS ? (N) : HD_KF_MAX_BLOCKS); \
+    }
+STEP_INSTANCE(2, 2u)
+STEP_INSTANCE(3, 3u)
+STEP_INSTANCE(4, 4u)
+STEP_INSTANCE(max, HD_KF_MAX_BLOCKS)
 
 /* Phase lost: the blocks restart from zero with their priors,
  * decorrelated; one pass over P for all of them. */
@@ -1168,8 +1171,6 @@ static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe)
 void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out)
 {
     switch (kf->n_blocks) {
-    case 0: step_0(kf, in, out); break;
-    case 1: step_1(kf, in, out); break;
     case 2: step_2(kf, in, out); break;
     case 3: step_3(kf, in, out); break;
     case 4: step_4(kf, in, out); break;
