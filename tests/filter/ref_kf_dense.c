@@ -132,6 +132,12 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
             gain[i] = gain[i + 1] = (double)r->cfg.output_learn_scale;
             q[i][i] = q[i + 1][i + 1] = q[i][i] * (double)r->cfg.output_learn_scale;
         }
+        if (r->held[s]) {
+            /* disabled at run time: held like a frozen block, not reported */
+            q[i][i] = q[i + 1][i + 1] = 0.0;
+            gain[i] = gain[i + 1] = 0.0;
+            continue;
+        }
         frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
         if (frozen[s]) {
             /* Held: unobserved (C = 0), uncorrected (gain 0), no process
@@ -309,13 +315,78 @@ static double ref_alpha(const ref_kf_t *r, int lock, double motor_angle, double 
                                     : output_angle + r->last_inc[1];
 }
 
+void ref_kf_set_block_enabled(ref_kf_t *r, int b, int enabled)
+{
+    int s = 0;
+    while (s < r->nb && r->block_of_slot[s] != b)
+        s++;
+    r->cfg.blocks[b].enabled = (uint8_t)(enabled != 0);
+    if (!enabled) {
+        if (s < r->nb)
+            r->held[s] = 1;
+        return;
+    }
+    if (s == r->nb) {
+        /* not in the model: insert its two states before the first slot of
+         * a later configured block (or the offset) */
+        s = 0;
+        while (s < r->nb && r->block_of_slot[s] < b)
+            s++;
+        const int at = 2 * s, n = r->n;
+        for (int i = n + 1; i >= at + 2; i--) {
+            r->x[i] = r->x[i - 2];
+            for (int j = 0; j < n + 2; j++)
+                r->P[i][j] = r->P[i - 2][j];
+        }
+        for (int j = n + 1; j >= at + 2; j--)
+            for (int i = 0; i < n + 2; i++)
+                r->P[i][j] = r->P[i][j - 2];
+        for (int k = r->nb; k > s; k--) {
+            r->block_of_slot[k] = r->block_of_slot[k - 1];
+            r->held[k] = r->held[k - 1];
+        }
+        r->block_of_slot[s] = b;
+        r->nb++;
+        r->n += 2;
+        if (r->offset_slot >= 0)
+            r->offset_slot += 2;
+    }
+    r->held[s] = 0;
+    for (int k = 2 * s; k < 2 * s + 2; k++) {
+        r->x[k] = 0.0;
+        for (int j = 0; j < r->n; j++)
+            r->P[k][j] = r->P[j][k] = 0.0;
+        r->P[k][k] = block_p0(r, b);
+    }
+}
+
+int ref_kf_active_index(const ref_kf_t *r, int i)
+{
+    for (int s = 0; s < r->nb; s++) {
+        if (r->held[s])
+            continue;
+        if (i < 2)
+            return 2 * s + i;
+        i -= 2;
+    }
+    return (i == 0 && r->offset_slot >= 0) ? r->offset_slot : -1;
+}
+
+int ref_kf_active_count(const ref_kf_t *r)
+{
+    int n = r->offset_slot >= 0 ? 1 : 0;
+    for (int s = 0; s < r->nb; s++)
+        n += r->held[s] ? 0 : 2;
+    return n;
+}
+
 int ref_kf_profile_export(const ref_kf_t *r, double motor_angle_rad, double output_angle_rad,
                           int lock[], int order[], double a[], double b[])
 {
     int n = 0;
     for (int s = 0; s < r->nb; s++) {
         const hd_kf_block_config_t *bc = &r->cfg.blocks[r->block_of_slot[s]];
-        int k = ref_profile_order(bc);
+        int k = r->held[s] ? 0 : ref_profile_order(bc);
         if (k == 0)
             continue;
         double t = k * ref_alpha(r, bc->lock, motor_angle_rad, output_angle_rad);
@@ -338,7 +409,7 @@ int ref_kf_profile_import(ref_kf_t *r, int lines, const int lock[], const int or
     for (int i = 0; i < lines; i++) {
         for (int s = 0; s < r->nb; s++) {
             const hd_kf_block_config_t *bc = &r->cfg.blocks[r->block_of_slot[s]];
-            if (used[s] || bc->lock != lock[i] || ref_profile_order(bc) != order[i])
+            if (used[s] || r->held[s] || bc->lock != lock[i] || ref_profile_order(bc) != order[i])
                 continue;
             double t = order[i] * ref_alpha(r, bc->lock, motor_angle_rad, output_angle_rad);
             for (int k = 2 * s; k < 2 * s + 2; k++)

@@ -28,6 +28,7 @@
  *     b sin k alpha, alpha = the lock angle of the sample the prediction is
  *     for = the caller's angle plus the last step's increment);
  *   - a non-finite measurement skips the correction (prediction only);
+ *   - run-time block toggles: ref_kf_set_block_enabled below;
  *   - load-dependent ripple (cfg.ripple_load_coeff_per_nm = k, 0 by default,
  *     so callers that never set it get the paper's C): the C entry of the
  *     first state of every unfrozen MOTOR-locked block is
@@ -51,7 +52,8 @@ typedef struct {
     hd_kf_config_t cfg;
     int n;                            /* active states */
     int nb;                           /* active (enabled) blocks */
-    int block_of_slot[HD_KF_MAX_BLOCKS]; /* active slot -> configured block */
+    int block_of_slot[HD_KF_MAX_BLOCKS]; /* slot -> configured block */
+    int held[HD_KF_MAX_BLOCKS];       /* slot disabled at run time: kept, held */
     int offset_slot;                  /* -1 if no offset state */
     double x[REF_KF_MAX_N];
     double P[REF_KF_MAX_N][REF_KF_MAX_N];
@@ -86,6 +88,21 @@ void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg);
 
 /* One step of equations 8-10 with a full dense Phi. */
 void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out);
+
+/* Run-time enable/disable of configured block b (hd_kf.h): disabled, a
+ * block keeps its place and is held like a block over Nyquist (no row in C,
+ * gain 0, no process noise, still turned by Phi; not reported as frozen);
+ * enabled, it restarts from zero with its p0, its rows and columns of P
+ * zeroed; a block not in the model (disabled at init) is inserted so, in
+ * configuration order.  Other states are untouched. */
+void ref_kf_set_block_enabled(ref_kf_t *r, int b, int enabled);
+
+/* Index in x / P of active state i (enabled blocks' states in
+ * configuration order, the offset last), or -1. */
+int ref_kf_active_index(const ref_kf_t *r, int i);
+
+/* Number of active states. */
+int ref_kf_active_count(const ref_kf_t *r);
 
 /* Profile of every enabled motor/output block of integral order (1..255),
  * in configuration order: lock[i], order[i], a[i], b[i]; returns the count.

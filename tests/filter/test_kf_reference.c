@@ -19,7 +19,12 @@
  * P is what float32 can keep.  After an offset jump S = S0 + e^2 holds the
  * innovation itself: the part of its deviation that the innovation's
  * deviation de explains, (2|e| + |de|) |de|, is already checked with the
- * innovation, and S0's part is compared relative to S as on any step.
+ * innovation, and S0's part is compared relative to S as on any step.  The
+ * offset's variance then held e^2 and the update took it out again, so
+ * float32 kept it to u e^2 (u = 2^-24) per rounding: the next step's S may
+ * differ by up to 4 u e^2 more (a run-time toggle that drops a 2 N m line
+ * makes such a jump); the covariance P, compared relative to its largest
+ * diagonal entry (1e-3, like S), may differ by 4 u e^2 more on both steps.
  *
  * Load-dependent ripple (ripple_load_coeff_per_nm = k): a second signal
  * (SIG_LOAD) has T_exp with steps and ramps through zero, an unmodelled
@@ -45,6 +50,7 @@
 #define RUN_S 60.0
 #define TOL_REL_SCALE 1e-4
 #define TOL_REL_S 1e-3
+#define FLT_UNIT_ROUNDOFF 5.9604644775390625e-8 /* 2^-24 */
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -102,15 +108,25 @@ static void make_signal(signal_t sig, double t, double am, double ao, tu_rng_t *
     in->torque_expected_nm = (float)t_exp;
 }
 
+/* A run-time block toggle at time t_s, applied to the filter and the
+ * reference before that step. */
 typedef struct {
-    double max_filtered, max_ripple, max_innov, max_s_rel, max_state, max_amp;
+    double t_s;
+    int block;
+    int enable;
+} toggle_t;
+
+typedef struct {
+    double max_filtered, max_ripple, max_innov, max_s_rel, max_state, max_amp, max_cov_rel;
     double max_filtered_k0; /* vs a reference with k = 0 (only when k > 0) */
     double scale;
     unsigned long frozen_steps, clamped_steps, jumps, jump_disagreements;
 } dev_t_;
 
-static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t sig)
+static void compare_run_toggles(const char *name, const hd_kf_config_t *cfg, signal_t sig,
+                                const toggle_t *toggles, size_t n_toggles)
 {
+    size_t next_toggle = 0;
     static hd_kf_t kf;
     static ref_kf_t ref, ref_k0;
     const int with_k = cfg->ripple_load_coeff_per_nm > 0.0f;
@@ -131,11 +147,20 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
     tu_rng_seed(&rng, 12345u);
 
     long steps = (long)(RUN_S / TS_S);
+    double prev_jump_e2 = 0.0; /* e^2 of the previous step if it was an offset jump */
     double max_meas = 0.0, max_exp = 0.0;
     for (long k = 0; k < steps; k++) {
         tu_motion_next(&mo);
         double t = (double)mo.k * TS_S;
         double am = mo.angle_rad, ao = am / GEAR_RATIO;
+        for (; next_toggle < n_toggles && toggles[next_toggle].t_s <= t; next_toggle++) {
+            const toggle_t *tg = &toggles[next_toggle];
+            TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_set_block_enabled(&kf, (unsigned)tg->block,
+                                                                    tg->enable != 0));
+            ref_kf_set_block_enabled(&ref, tg->block, tg->enable);
+            if (with_k)
+                ref_kf_set_block_enabled(&ref_k0, tg->block, tg->enable);
+        }
         hd_kf_input_t in;
         make_signal(sig, t, am, ao, &rng, &in);
         in.d_motor_angle_rad = (float)mo.d_angle_rad;
@@ -184,6 +209,10 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
                 double de = fabs((double)o.innovation_nm - r.innovation_nm);
                 ds = fmax(0.0, ds - (2.0 * fabs(r.innovation_nm) + de) * de);
             }
+            /* the step after a jump: float32 kept the offset's variance to
+             * its precision relative to the e^2 it held (added, then taken
+             * out by the update): up to 4 u e^2 */
+            ds = fmax(0.0, ds - 4.0 * FLT_UNIT_ROUNDOFF * prev_jump_e2);
             TRACK_MAX(max_s_rel, ds / r.innovation_var_nm2);
         }
         /* the amplitude read-out (prior amplitude x the step's row entry c,
@@ -195,8 +224,27 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
             TRACK_MAX(max_amp, fabs(amp - r.amplitude_nm[b]) /
                                    (r.load_scale > 1.0 ? r.load_scale : 1.0));
         }
-        for (int i = 0; i < ref.n; i++)
-            TRACK_MAX(max_state, fabs((double)hd_kf_state(&kf, (unsigned)i) - ref.x[i]));
+        /* active states (enabled blocks, offset last) and their covariance,
+         * the latter relative to P's largest diagonal entry */
+        const int na = ref_kf_active_count(&ref);
+        TEST_ASSERT_EQUAL_UINT((unsigned)na, hd_kf_state_count(&kf));
+        double p_diag = 0.0, p_dev = 0.0;
+        for (int i = 0; i < na; i++) {
+            const int ri = ref_kf_active_index(&ref, i);
+            TRACK_MAX(max_state, fabs((double)hd_kf_state(&kf, (unsigned)i) - ref.x[ri]));
+            p_diag = fmax(p_diag, ref.P[ri][ri]);
+            for (int j = 0; j < na; j++) {
+                const double dev = fabs((double)hd_kf_cov(&kf, (unsigned)i, (unsigned)j) -
+                                        ref.P[ri][ref_kf_active_index(&ref, j)]);
+                p_dev = fmax(p_dev, dev);
+            }
+        }
+        /* an offset jump puts e^2 into a variance before the update takes it
+         * out again: float32 keeps P to 4 u e^2 then and on the next step */
+        const double jump_e2 = jumped ? r.innovation_nm * r.innovation_nm : 0.0;
+        p_dev = fmax(0.0, p_dev - 4.0 * FLT_UNIT_ROUNDOFF * (jump_e2 + prev_jump_e2));
+        TRACK_MAX(max_cov_rel, p_dev / p_diag);
+        prev_jump_e2 = jump_e2;
         if (with_k) {
             ref_kf_output_t r0;
             ref_k0.jump_override = -1; /* its own decisions: it is a different filter */
@@ -208,12 +256,13 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
     char msg[600];
     snprintf(msg, sizeof(msg),
              "%s (%d states, k %.3g /Nm): max |dev| filtered %.3g Nm, ripple %.3g Nm, "
-             "innovation %.3g Nm, state %.3g Nm, amplitude %.3g Nm; S rel %.3g; scale %.1f Nm "
-             "-> tol %.3g Nm; frozen steps %lu, P-clamped steps %lu, offset jumps %lu (%lu "
-             "decided by rounding)",
+             "innovation %.3g Nm, state %.3g Nm, amplitude %.3g Nm; S rel %.3g; P rel %.3g; "
+             "scale %.1f Nm -> tol %.3g Nm; frozen steps %lu, P-clamped steps %lu, offset jumps "
+             "%lu (%lu decided by rounding)",
              name, ref.n, (double)cfg->ripple_load_coeff_per_nm, d.max_filtered, d.max_ripple,
-             d.max_innov, d.max_state, d.max_amp, d.max_s_rel, d.scale, TOL_REL_SCALE * d.scale,
-             d.frozen_steps, d.clamped_steps, d.jumps, d.jump_disagreements);
+             d.max_innov, d.max_state, d.max_amp, d.max_s_rel, d.max_cov_rel, d.scale,
+             TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps, d.jumps,
+             d.jump_disagreements);
     TEST_MESSAGE(msg);
     double tol = TOL_REL_SCALE * d.scale;
     if (with_k) {
@@ -231,6 +280,12 @@ static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t si
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(tol, d.max_amp, "amplitude_nm vs reference");
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(TOL_REL_S, d.max_s_rel,
                                             "innovation variance vs reference");
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(TOL_REL_S, d.max_cov_rel, "covariance vs reference");
+}
+
+static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t sig)
+{
+    compare_run_toggles(name, cfg, sig, NULL, 0u);
 }
 
 /* 4 states: the paper's fourth-order model (Q = 1e3 I, R = 1). */
@@ -362,6 +417,32 @@ static void test_reference_load_coeff_zero(void)
     compare_run("load run, k = 0, recommended + motor 8", &cfg, SIG_LOAD);
 }
 
+/* ---- run-time block toggles (hd_kf_set_block_enabled) ---------------------
+ * The recommended tuning plus motor order 8, configured disabled (the
+ * reference leaves it out of its model until it is enabled, then inserts
+ * it), toggled through the 60 s run: a motor block off and on at speed, the
+ * output block off through a reversal, order 8 on (inserted), off again
+ * around the 450 rad/s span where it would be frozen, two blocks at once,
+ * one back while another goes, and all blocks off for a while (the offset
+ * alone).  The reference implements the documented semantics
+ * independently: a disabled block is held (no row, no gain, no q, still
+ * turned), an enabled one restarts at zero with p0, decorrelated. */
+static void test_reference_block_toggles(void)
+{
+    static const toggle_t toggles[] = {
+        {5.0, 0, 0},  {9.0, 0, 1},  {13.0, 2, 0}, {17.5, 3, 1}, {20.0, 2, 1},
+        {24.0, 1, 0}, {24.0, 3, 0}, {28.0, 1, 1}, {33.0, 0, 0}, {34.0, 3, 1},
+        {36.5, 3, 0}, {41.0, 3, 1}, {44.0, 0, 1}, {48.0, 0, 0}, {48.0, 1, 0},
+        {48.0, 2, 0}, {48.0, 3, 0}, {51.0, 2, 1}, {52.5, 0, 1}, {55.0, 1, 1},
+    };
+    hd_kf_config_t cfg;
+    recommended_8_cfg(&cfg, 0.0f);
+    cfg.blocks[3].enabled = 0;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    compare_run_toggles("block toggles, recommended + motor 8 (configured off)", &cfg, SIG_BASE,
+                        toggles, sizeof toggles / sizeof toggles[0]);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -374,5 +455,6 @@ int main(void)
     RUN_TEST(test_reference_load_coeff_max_states);
     RUN_TEST(test_reference_load_coeff_paper);
     RUN_TEST(test_reference_load_coeff_zero);
+    RUN_TEST(test_reference_block_toggles);
     return UNITY_END();
 }
