@@ -1349,6 +1349,75 @@ static void test_covariance_bounds_counted(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-3 * 1e-5, 1e-3, lmax);
 }
 
+/* The short plan of motor blocks (every enabled motor block at motion 1 and
+ * none over Nyquist, decided per step from thresholds found at init) must
+ * give the same bits as the full rules.  Filter B is filter A plus a motor
+ * block of order 200, placed last: it is over Nyquist at every increment
+ * used here (|d| > 0.0142 rad), so it is held (zero row, gain 0: it adds
+ * exact zeros to every other state's sums) and it keeps B on the full plan.
+ * The increments straddle A's thresholds (one float below and above each)
+ * and sweep the rest; every output (but the frozen mask) and every state
+ * and covariance of A's blocks must match B's bit for bit. */
+static int same_bits(float a, float b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+static void test_motor_short_plan_is_bit_exact(void)
+{
+    static hd_kf_t a, b;
+    hd_kf_config_t cfg_a, cfg_b;
+    hd_kf_config_recommended(&cfg_a, (float)TS_S, 0.02f, 0.05f, 0.02f);
+    cfg_b = cfg_a;
+    TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(&cfg_b, HD_KF_LOCK_MOTOR, 200.0f,
+                                                    cfg_b.blocks[0].q_nm2));
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&a, &cfg_a));
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&b, &cfg_b));
+    /* A's thresholds: the first |d| at motion 1 of order 2 (0.025 rad) and
+     * the first over Nyquist of order 4 (0.9 pi / 4) */
+    const float full = a.motor_full_rad, frozen = a.motor_frozen_rad;
+    TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.025, full);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.9 * TU_PI / 4.0, frozen);
+    const float probes[] = {nextafterf(full, 0.0f), full, nextafterf(full, 1.0f),
+                            nextafterf(frozen, 0.0f), frozen, nextafterf(frozen, 1.0f)};
+    tu_rng_t rng;
+    tu_rng_seed(&rng, 77u);
+    double am = 0.0;
+    unsigned fast = 0;
+    for (int k = 0; k < 20000; k++) {
+        float d = k % 7 < 6 ? probes[k % 7] : (float)(0.015 + 0.9 * tu_uniform(&rng));
+        if (k % 2)
+            d = -d;
+        am += (double)d;
+        hd_kf_input_t in = {(float)(cos(2 * am) + 0.4 * cos(4 * am) + 0.05 * tu_gauss(&rng)),
+                            0.0f, d, d / (float)GEAR_RATIO};
+        const float m = fabsf(d);
+        fast += m >= full && m < frozen;
+        hd_kf_output_t oa, ob;
+        hd_kf_step(&a, &in, &oa);
+        hd_kf_step(&b, &in, &ob);
+        TEST_ASSERT_TRUE(same_bits(oa.torque_filtered_nm, ob.torque_filtered_nm));
+        TEST_ASSERT_TRUE(same_bits(oa.ripple_nm, ob.ripple_nm));
+        TEST_ASSERT_TRUE(same_bits(oa.offset_nm, ob.offset_nm));
+        TEST_ASSERT_TRUE(same_bits(oa.innovation_nm, ob.innovation_nm));
+        TEST_ASSERT_TRUE(same_bits(oa.innovation_var_nm2, ob.innovation_var_nm2));
+        TEST_ASSERT_EQUAL_UINT32(oa.frozen_mask, ob.frozen_mask & 7u);
+        TEST_ASSERT_EQUAL_UINT32(oa.status & ~HD_KF_STATUS_FROZEN,
+                                 ob.status & ~HD_KF_STATUS_FROZEN);
+        /* active states: A's 0..5 are B's 0..5; the offset is last in both */
+        for (unsigned i = 0; i < 7u; i++) {
+            const unsigned ib = i < 6u ? i : 8u;
+            TEST_ASSERT_TRUE(same_bits(hd_kf_state(&a, i), hd_kf_state(&b, ib)));
+            for (unsigned j = 0; j < 7u; j++) {
+                const unsigned jb = j < 6u ? j : 8u;
+                TEST_ASSERT_TRUE(same_bits(hd_kf_cov(&a, i, j), hd_kf_cov(&b, ib, jb)));
+            }
+        }
+    }
+    msg("short motor plan: %u of 20000 steps took it, bit-identical to the full rules", fast);
+    TEST_ASSERT_TRUE(fast > 5000u && fast < 15000u); /* both plans were exercised */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1377,5 +1446,6 @@ int main(void)
     RUN_TEST(test_load_coeff_standstill_does_not_drift);
     RUN_TEST(test_load_coeff_upper_bound);
     RUN_TEST(test_covariance_bounds_counted);
+    RUN_TEST(test_motor_short_plan_is_bit_exact);
     return UNITY_END();
 }
