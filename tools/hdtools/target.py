@@ -631,6 +631,19 @@ def worst_stack(elf: Path, isrs: tuple = ("SysTick_Handler",), fault_entry: str 
             "fault": fault, "frame": frame, "total": total, "notes": sorted(notes)}
 
 
+def fw_tick_limits() -> tuple:
+    """HD_FW_RX_PER_TICK and HD_FW_ACKS_PER_TICK from firmware/hd_fw.h (the
+    one place they are set)."""
+    text = (ROOT / "firmware" / "hd_fw.h").read_text()
+    values = []
+    for name in ("HD_FW_RX_PER_TICK", "HD_FW_ACKS_PER_TICK"):
+        m = re.search(rf"^#define {name} (\d+)u?\b", text, re.M)
+        if m is None:
+            raise TargetError(f"firmware/hd_fw.h: no #define {name}")
+        values.append(int(m.group(1)))
+    return tuple(values)
+
+
 def md_table(header: list, rows: list) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
@@ -638,8 +651,9 @@ def md_table(header: list, rows: list) -> str:
 
 
 # hd_kf_step's slow paths in the bench image (main_bench.c), worst last.
-KF_PATHS = [("kffrozen", "over Nyquist"), ("kflost", "phase lost"), ("kfclamp", "clamp"),
-            ("kfreset", "reset"), ("kfworst", "all at once")]
+KF_PATHS = [("kfpartial", "partial gains"), ("kffrozen", "over Nyquist"),
+            ("kflost", "phase lost"), ("kfclamp", "clamp"), ("kfreset", "reset"),
+            ("kfworst", "all at once")]
 
 
 def budget_kf_paths(by: dict, models: list, overhead: int, p) -> dict:
@@ -667,8 +681,10 @@ def budget_kf_paths(by: dict, models: list, overhead: int, p) -> dict:
         rows.append([states, r["typical"]] + [r[k] for k, _ in KF_PATHS] +
                     [f"{r['worst']} ({r['worst_path']})", f"{r['dense_ratio']:.1f}"])
     p("\nhd_kf_step by path, max instructions per call (the bench image forces each path on "
-      "every call: motor blocks over Nyquist; a phase advance beyond four turns; every "
-      "covariance block above p_max; a non-finite state; all of them with an offset jump):\n")
+      "every call: every gain fraction below 1, no block frozen (motor blocks below "
+      "q_motion_ref_rad, output_learn_scale 0.5); motor blocks over Nyquist; a phase "
+      "advance beyond four turns; every covariance block above p_max; a non-finite state; "
+      "all of them (but partial gains) with an offset jump):\n")
     p(md_table(["states", "typical"] + [name for _, name in KF_PATHS] +
                ["worst case", "dense / typical (mean)"], rows))
     return result
@@ -751,8 +767,10 @@ def cmd_budget(a) -> int:
       "VDIV/VSQRT 14, push/pop 1+N), zero wait states; range = best..worst case.\n")
     models = [("4", "4"), ("6", "6"), ("8", "8"), ("default", "7 (firmware default)"),
               ("max", "17 (max)")]
+    rx, acks = fw_tick_limits()
+    cmd_label = f"ISR + commands ({rx} in, {acks} ACK out)"
     kinds = [("kf", "hd_kf_step"), ("isr", "ISR (hd_fw_isr)"),
-             ("isrcmd", "ISR + 4 commands"), ("dense", "dense textbook KF")]
+             ("isrcmd", cmd_label), ("dense", "dense textbook KF")]
     mhz = MCU_CLOCKS_MHZ[0][1]
     insn_rows, cycle_rows = [], []
     for key, states in models:
@@ -766,10 +784,14 @@ def cmd_budget(a) -> int:
             worst_us = max(iv) * (hi / statistics.mean(iv)) / mhz
             irow.append(f"{statistics.mean(iv):.0f} / {max(iv)}")
             crow.append(f"{lo:.0f}-{hi:.0f} ({worst_us:.1f} us)")
+        isr_max = max(by[f"isr:{key}"]["intervals"]) - overhead
+        cmd_max = max(by[f"isrcmd:{key}"]["intervals"]) - overhead
+        irow.append(f"{cmd_max / isr_max:.2f}")
         insn_rows.append(irow)
         cycle_rows.append(crow)
     p("Instructions per call, mean / max:\n")
-    p(md_table(["states"] + [k[1] for k in kinds], insn_rows))
+    p(md_table(["states"] + [k[1] for k in kinds] + ["with commands / ISR (max)"],
+               insn_rows))
     p("\nEstimated Cortex-M4 cycles per call, mean best-worst (worst-case time):\n")
     p(md_table(["states"] + [k[1] for k in kinds], cycle_rows))
     p(f"\nus = worst-case time at {mhz} MHz ({MCU_CLOCKS_MHZ[0][0]}; "
@@ -777,11 +799,13 @@ def cmd_budget(a) -> int:
       "instructions x worst-case cycles per instruction of that section.  The ISR budget "
       "is 1000 us per tick.  ISR = the whole 1 kHz tick body: ADC and encoder reads "
       "(hal_mock), calibration, encoder deltas, tracker, expected torque, filter, faults, "
-      "telemetry (2 frames at 1 kHz) and the heartbeat (tick 0); 'ISR + 4 commands' adds "
-      "the most command frames a tick handles (HD_FW_RX_PER_TICK = 4 SET_PARAM R commands "
-      "per tick, each checked, applied by rebuilding the model and answered with an ACK). "
-      "Other command mixes are not enumerated: this is a measured load, not a proof of "
-      "the worst case.")
+      f"telemetry (2 frames at 1 kHz) and the heartbeat (tick 0); '{cmd_label}' adds "
+      f"command frames on every tick: the tick takes at most HD_FW_RX_PER_TICK = {rx} "
+      "frames (a BLOCK_ENABLE toggle of block 0, applied by the tick to the running "
+      "filter, and a SET_PARAM r_nm2, whose model rebuild the background does between "
+      f"ticks, outside the count), applies the change the background prepared and sends "
+      f"at most HD_FW_ACKS_PER_TICK = {acks} ACK.  Other command mixes are not "
+      "enumerated: this is a measured load, not a proof of the worst case.")
     kf_paths = budget_kf_paths(by, models, overhead, p)
     text = "\n".join(out)
     print(text)

@@ -11,15 +11,16 @@
  *               deltas, tracker, expected torque, filter, faults, telemetry
  *               (2 frames per tick at 1 kHz) and the heartbeat on tick 0
  *   isrcmd:NAME hd_fw_isr with commands arriving every tick (HD_FW_RX_PER_TICK
- *               frames: a BLOCK_ENABLE toggle, then SET_PARAM r_nm2, which
- *               rebuilds the model), hd_fw_background run between ticks
- *               (outside the markers): each tick takes frames, applies the
- *               change the background prepared and sends up to
- *               HD_FW_ACKS_PER_TICK ACKs; the model builds are not counted
- *               because they are not in the tick
+ *               frames: a BLOCK_ENABLE toggle of block 0, which the tick
+ *               applies to the running filter with hd_kf_set_block_enabled,
+ *               O(n), then SET_PARAM r_nm2, which rebuilds the model),
+ *               hd_fw_background run between ticks (outside the markers):
+ *               each tick takes frames, applies the change the background
+ *               prepared and sends up to HD_FW_ACKS_PER_TICK ACKs; the model
+ *               builds are not counted because they are not in the tick
  *   dense:NAME  the dense textbook float32 filter, same model and inputs
  *               (tests/bench/dense_kf_f32.c, the compute benchmark's peer)
- *   kffrozen:NAME, kflost:NAME, kfclamp:NAME, kfreset:NAME, kfworst:NAME
+ *   kffrozen:NAME, kflost:NAME, kfclamp:NAME, kfreset:NAME, kfworst:NAME,
  *               hd_kf_step on its slow paths, every call: motor blocks over
  *               Nyquist (held, Joseph weights); a phase advance beyond
  *               HD_KF_PHASE_LOST_RAD (the blocks restart); every covariance
@@ -28,6 +29,9 @@
  *               the call (the reset); and all at once with a +-1000 N m
  *               innovation (phase lost, output block frozen, offset jump,
  *               clamp)
+ *   kfpartial:NAME hd_kf_step with every gain fraction below 1 and no block
+ *               frozen (Joseph weights on every tile): motor blocks below
+ *               q_motion_ref_rad, output_learn_scale 0.5
  * and "empty" (begin immediately followed by end) for the marker overhead,
  * and "loop" (hd_bench_loop(10), then hd_bench_loop(1010): the counts must
  * differ by exactly 2 x 1000, a closed-form check of the counter).
@@ -185,7 +189,7 @@ static void bench_dense(const hd_fw_config_t *cfg)
     }
 }
 
-typedef enum { PATH_FROZEN, PATH_LOST, PATH_CLAMP, PATH_RESET, PATH_WORST } kf_path_t;
+typedef enum { PATH_FROZEN, PATH_LOST, PATH_CLAMP, PATH_RESET, PATH_WORST, PATH_PARTIAL } kf_path_t;
 
 /* hd_kf_step forced onto one of its slow paths on every call (see above). */
 static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
@@ -194,12 +198,17 @@ static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
     if (path == PATH_CLAMP || path == PATH_WORST) {
         kcfg.p0_nm2 = kcfg.output_p0_nm2 = kcfg.p_max_nm2 = 1.0e-9f;
     }
+    if (path == PATH_PARTIAL) {
+        kcfg.output_learn_scale = 0.5f; /* the operating mode's kind of value */
+    }
     if (hd_kf_init(&g_kf, &kcfg) != HD_KF_OK) {
         sh_exit(BOARD_EXIT_INIT);
     }
     for (uint32_t k = 0; k < CALLS; k++) {
         hd_kf_input_t in = bench_input(k, cfg_in);
-        if (path == PATH_FROZEN) {
+        if (path == PATH_PARTIAL) {
+            in.d_motor_angle_rad = 0.01f; /* every motor block below q_motion_ref */
+        } else if (path == PATH_FROZEN) {
             in.d_motor_angle_rad = 1.6f;  /* order 2: 3.2 rad > 0.9 pi */
         } else if (path == PATH_LOST || path == PATH_WORST) {
             in.d_motor_angle_rad = 13.0f; /* order 2: 26 rad, beyond four turns */
@@ -240,7 +249,7 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
             memset(&cmd, 0, sizeof cmd);
             cmd.token = (uint8_t)c;
             if (c == 0u) {
-                cmd.opcode = HD_CMD_BLOCK_ENABLE; /* the costliest request: in place */
+                cmd.opcode = HD_CMD_BLOCK_ENABLE; /* applied by the tick itself */
                 cmd.arg_u8[0] = 0u;
                 cmd.arg_u8[1] = (uint8_t)(k & 1u);
             } else {
@@ -293,7 +302,7 @@ int main(void)
         hd_mark_section();
 
         static const char *const PATHS[] = {"kffrozen", "kflost", "kfclamp", "kfreset",
-                                            "kfworst"};
+                                            "kfworst", "kfpartial"};
         for (unsigned p = 0; p < sizeof PATHS / sizeof PATHS[0]; p++) {
             section(PATHS[p], MODELS[m].name, states);
             bench_kf_path(&cfg, (kf_path_t)p);
