@@ -690,11 +690,17 @@ def budget_kf_paths(by: dict, models: list, overhead: int, p) -> dict:
     return result
 
 
-def cmd_budget(a) -> int:
+def budget(p=None) -> dict:
+    """Builds the mps2-an386 images, measures them and returns the budget's
+    numbers: {flash_bytes, ram_bytes, stack_reserved_bytes, stack_worst_bytes,
+    heap_symbols, counter_check, instructions: {LABEL: {states, calls, mean,
+    max}}, kf_paths, failures: [...]} (failures: what failed, empty when all
+    checks passed).  p, if given, receives the markdown tables line by line.
+    Raises TargetError on a setup problem."""
     build_images()
     run_elf, bench_elf = image("hd_image"), image("hd_bench")
-    out = []
-    p = out.append
+    if p is None:
+        p = lambda _line: None  # noqa: E731 (quiet)
 
     # --- memory
     sizes = section_sizes(run_elf)
@@ -807,24 +813,39 @@ def cmd_budget(a) -> int:
       f"at most HD_FW_ACKS_PER_TICK = {acks} ACK.  Other command mixes are not "
       "enumerated: this is a measured load, not a proof of the worst case.")
     kf_paths = budget_kf_paths(by, models, overhead, p)
-    text = "\n".join(out)
-    print(text)
-    if a.json:
-        counts = {s["label"]: {"states": s["states"], "calls": len(s["intervals"]),
-                               "mean": statistics.mean(s["intervals"]) - overhead,
-                               "max": max(s["intervals"]) - overhead}
-                  for s in sections if s["intervals"]}
-        Path(a.json).write_text(json.dumps({
-            "flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
+    counts = {s["label"]: {"states": s["states"], "calls": len(s["intervals"]),
+                           "mean": statistics.mean(s["intervals"]) - overhead,
+                           "max": max(s["intervals"]) - overhead}
+              for s in sections if s["intervals"]}
+    failures = [f"allocator symbols linked: {', '.join(heap)}"] if heap else []
+    if not stack_ok:
+        failures.append(f"worst-case stack {st['total']} B exceeds the reserved "
+                        f"{stack_reserved} B")
+    if not loop_ok:
+        failures.append(f"the instruction counter check failed: {loop}")
+    return {"flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
             "stack_worst_bytes": st["total"], "heap_symbols": heap,
             "counter_check": loop[1] - loop[0] if len(loop) == 2 else None,
-            "instructions": counts, "kf_paths": kf_paths}, indent=1))
-    ok = not heap and stack_ok and loop_ok
-    if not stack_ok:
-        print(f"\nFAIL: worst-case stack {st['total']} B exceeds the reserved {stack_reserved} B")
-    if not loop_ok:
-        print(f"\nFAIL: the instruction counter check failed: {loop}")
-    return 0 if ok else 1
+            "instructions": counts, "kf_paths": kf_paths, "failures": failures}
+
+
+def cmd_budget(a) -> int:
+    out = []
+    numbers = budget(out.append)
+    print("\n".join(out))
+    if a.json:
+        dest = Path(a.json)
+        tmp = dest.with_name(dest.name + ".tmp")
+        try:
+            tmp.write_text(json.dumps({k: v for k, v in numbers.items() if k != "failures"},
+                                      indent=1))
+            os.replace(tmp, dest)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise TargetError(f"cannot write {dest}: {exc.strerror or exc}") from exc
+    for failure in numbers["failures"]:
+        print(f"\nFAIL: {failure}")
+    return 1 if numbers["failures"] else 0
 
 
 # --------------------------------------------------------------------- main

@@ -3,15 +3,12 @@ Cortex-M4 tooling exists, collects its instruction counts."""
 from __future__ import annotations
 
 import json
-import tempfile
 import os
 import platform
 import subprocess
 from pathlib import Path
 
 from .. import native
-
-ROOT = Path(__file__).resolve().parents[3]
 
 
 def machine() -> dict:
@@ -37,26 +34,20 @@ def host(steps: int = 5000, reps: int = 31, warmup: int = 3) -> dict:
     return json.loads(out)
 
 
-def target(timeout_s: float = 600) -> dict:
+def target() -> dict:
     """Instruction counts per filter update (typical and worst of its slow
-    paths) and per ISR on the Cortex-M4F image under QEMU, from
-    `tools/target budget --json` (exact counts from the TCG plugin; the
-    dense textbook filter is tests/bench/dense_kf_f32.c compiled into the
-    same image).  Missing tool or failure is reported,
-    never fatal."""
-    tool = ROOT / "tools" / "target"
-    if not tool.exists():
-        return {"status": "not available", "note": "tools/target not in this tree"}
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "budget.json"
-        try:
-            proc = subprocess.run([str(tool), "budget", "--json", str(out)],
-                                  capture_output=True, text=True, timeout=timeout_s, cwd=ROOT)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            return {"status": "failed", "note": str(exc)}
-        if proc.returncode != 0 or not out.exists():
-            return {"status": "failed", "note": (proc.stderr or proc.stdout).strip()[-500:]}
-        budget = json.loads(out.read_text())
+    paths) and per ISR on the Cortex-M4F image under QEMU, from the budget
+    code of hdtools.target (exact counts from the TCG plugin; the dense
+    textbook filter is tests/bench/dense_kf_f32.c compiled into the same
+    image).  A missing tool or a failure is reported, never fatal."""
+    from .. import target as budget_tool
+    try:
+        budget_tool.select_board("mps2-an386")
+        budget = budget_tool.budget()
+    except (budget_tool.TargetError, OSError) as exc:
+        return {"status": "failed", "note": str(exc)[-500:]}
+    if budget["failures"]:
+        return {"status": "failed", "note": "; ".join(budget["failures"])[-500:]}
     rows = {}
     for key, v in budget.get("instructions", {}).items():
         kind = key.partition(":")[0]
