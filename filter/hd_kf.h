@@ -65,10 +65,14 @@
  *     (prediction only); both set HD_KF_STATUS_BAD_INPUT, counted once per
  *     step in bad_input_count;
  *   - a non-finite state or covariance resets the filter (hd_kf_reset),
- *     HD_KF_STATUS_RESET, reset_count;
+ *     HD_KF_STATUS_RESET, reset_count: in the step that uses it (a state
+ *     that overflows in a correction is seen by the next step's prior);
  *   - the published filtered torque is always finite.
  *
- * Cost: hd_kf_step is O(n^2) in the configured states, bounded, never blocks,
+ *   - run-time toggles (hd_kf_set_block_enabled) change no other state.
+ *
+ * Cost: hd_kf_step is O(n^2) in the configured states (a model of more than
+ * 4 blocks runs at the cost of HD_KF_MAX_BLOCKS), bounded, never blocks,
  * never allocates, calls no libm (sine/cosine: hd_trig.h).  The library
  * keeps no globals: all state is in hd_kf_t.
  */
