@@ -357,9 +357,11 @@ static void motor_full_range(hd_kf_t *kf)
 {
     bool any = false;
     kf->motor_full_rad = kf->motor_frozen_rad = 0.0f;
+    kf->motor_slots = 0u;
     for (unsigned s = 0; s < kf->n_blocks; s++) {
         const hd_kf_slot_t *sl = &kf->slot[s];
         if (sl->enabled && sl->lock == HD_KF_LOCK_MOTOR) {
+            kf->motor_slots |= 1u << s;
             if (!any || sl->full_rad > kf->motor_full_rad) {
                 kf->motor_full_rad = sl->full_rad;
             }
@@ -569,7 +571,8 @@ typedef struct {
 typedef struct {
     float inc[3];          /* motor, output, 1 (the fixed blocks' unit) */
     float rows[3];         /* measurement-row scale: 1 + k |T_ref|, 1, 1 */
-    bool motor_full;       /* every enabled motor block at motion 1, none frozen */
+    uint32_t short_slots;  /* the motor blocks' short plan (every enabled motor
+                              block at motion 1, none frozen): their slots */
 } step_io_t;
 
 /* What the plan of the blocks adds up. */
@@ -588,13 +591,7 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
                           float *f, float *q, plan_sum_t *sum)
 {
     const hd_kf_slot_t *sl = &kf->slot[s];
-    if (!sl->enabled) {
-        h[0] = h[1] = *q = 0.0f;
-        *f = 1.0f;
-        return;
-    }
-    const unsigned lock = sl->lock;
-    if (io->motor_full && lock == HD_KF_LOCK_MOTOR) {
+    if ((io->short_slots & (1u << s)) != 0u) {
         /* what the rules below give at motion 1, not frozen */
         const float row = io->rows[HD_KF_LOCK_MOTOR];
         h[0] = row * kf->phasor_cos[sl->frame];
@@ -605,6 +602,12 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
         sum->ripple += h[1] * kf->x[2u * s + 1u];
         return;
     }
+    if (!sl->enabled) {
+        h[0] = h[1] = *q = 0.0f;
+        *f = 1.0f;
+        return;
+    }
+    const unsigned lock = sl->lock;
     const float a = fabsf(sl->theta_per_unit * io->inc[lock]);
     float motion = a * sl->motion_inv + sl->motion_bias;
     motion = motion < 1.0f ? motion : 1.0f;
@@ -962,7 +965,9 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
         }
     }
     const float motor_abs = fabsf(io.inc[HD_KF_LOCK_MOTOR]);
-    io.motor_full = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad;
+    io.short_slots = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad
+                         ? kf->motor_slots
+                         : 0u;
     const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
                              ? update_load_scale(kf, in->torque_expected_nm,
                                                  io.inc[HD_KF_LOCK_MOTOR])

@@ -223,6 +223,7 @@ typedef struct {
     uint32_t motor_powers;                    /* bit k: the k-th power of the motor phasor is used */
     uint32_t output_powers;                   /* the same for the output phasor */
     uint32_t own_frames;                      /* bit s: slot s turns its own phasor */
+    uint32_t motor_slots;                     /* bit s: slot s is an enabled motor block */
     uint32_t frozen_mask;                     /* by configured block index, last step */
     float offset_q_nm2;                       /* the offset's q per step (0: disabled) */
     float nyquist_limit_rad;                  /* nyquist_fraction * pi */

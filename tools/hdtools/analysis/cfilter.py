@@ -107,6 +107,7 @@ class KfState(ctypes.Structure):
                 ("motor_powers", c_uint32),
                 ("output_powers", c_uint32),
                 ("own_frames", c_uint32),
+                ("motor_slots", c_uint32),
                 ("frozen_mask", c_uint32),
                 ("offset_q_nm2", c_float),
                 ("nyquist_limit_rad", c_float),
