@@ -335,6 +335,8 @@ static void build_slot(hd_kf_t *kf, unsigned block)
     }
     if (b->lock == HD_KF_LOCK_MOTOR) {
         sl->full_rad = first_float(kf, sl, motion_full);
+    }
+    if (b->lock != HD_KF_LOCK_FIXED) {
         sl->frozen_rad = first_float(kf, sl, over_nyquist);
     }
     if (b->lock != HD_KF_LOCK_FIXED && b->order <= (float)MAX_POWER_ORDER &&
@@ -349,26 +351,38 @@ static void build_slot(hd_kf_t *kf, unsigned block)
     }
 }
 
-/* The motor increments for which every enabled motor block is at motion
- * fraction 1 and none is over Nyquist: |d| in [motor_full_rad,
- * motor_frozen_rad), the intersection of the blocks' own ranges (empty
- * when there is no enabled motor block).  O(n): run-time toggles. */
-static void motor_full_range(hd_kf_t *kf)
+/* The short plans' ranges and slots (intersections over the enabled
+ * blocks' own thresholds, O(n): run-time toggles): every enabled motor
+ * block is at motion fraction 1 and none is over Nyquist for |motor
+ * increment| in [motor_full_rad, motor_frozen_rad); no enabled output block
+ * is over Nyquist for |output increment| < output_frozen_rad.  Empty ranges
+ * when there is no such block. */
+static void short_plan_ranges(hd_kf_t *kf)
 {
-    bool any = false;
-    kf->motor_full_rad = kf->motor_frozen_rad = 0.0f;
-    kf->motor_slots = 0u;
+    kf->motor_full_rad = kf->motor_frozen_rad = kf->output_frozen_rad = 0.0f;
+    kf->motor_slots = kf->output_slots = kf->output_partial_slots = 0u;
     for (unsigned s = 0; s < kf->n_blocks; s++) {
         const hd_kf_slot_t *sl = &kf->slot[s];
-        if (sl->enabled && sl->lock == HD_KF_LOCK_MOTOR) {
-            kf->motor_slots |= 1u << s;
-            if (!any || sl->full_rad > kf->motor_full_rad) {
+        if (!sl->enabled) {
+            continue;
+        }
+        if (sl->lock == HD_KF_LOCK_MOTOR) {
+            const bool first = kf->motor_slots == 0u;
+            if (first || sl->full_rad > kf->motor_full_rad) {
                 kf->motor_full_rad = sl->full_rad;
             }
-            if (!any || sl->frozen_rad < kf->motor_frozen_rad) {
+            if (first || sl->frozen_rad < kf->motor_frozen_rad) {
                 kf->motor_frozen_rad = sl->frozen_rad;
             }
-            any = true;
+            kf->motor_slots |= 1u << s;
+        } else if (sl->lock == HD_KF_LOCK_OUTPUT) {
+            if (kf->output_slots == 0u || sl->frozen_rad < kf->output_frozen_rad) {
+                kf->output_frozen_rad = sl->frozen_rad;
+            }
+            kf->output_slots |= 1u << s;
+            if (sl->learn < 1.0f) {
+                kf->output_partial_slots |= 1u << s;
+            }
         }
     }
 }
@@ -398,7 +412,7 @@ static void build_layout(hd_kf_t *kf)
     kf->offset_q_nm2 = kf->cfg.offset_enabled ? kf->cfg.offset_q_nm2 : 0.0f;
     kf->q_motion_inv_rad = kf->cfg.q_motion_ref_rad > 0.0f ? 1.0f / kf->cfg.q_motion_ref_rad
                                                             : 0.0f;
-    motor_full_range(kf);
+    short_plan_ranges(kf);
 }
 
 /* Zeroes n tiles of 4 from p (written tile by tile: GCC turns a plain
@@ -495,7 +509,7 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
     kf->slot[block].enabled = enabled ? 1u : 0u;
     clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
-    motor_full_range(kf);
+    short_plan_ranges(kf);
     kf->n_states = (uint8_t)(enabled ? kf->n_states + 2u : kf->n_states - 2u);
     kf->frozen_mask &= ~(1u << block);
     return HD_KF_OK;
@@ -573,6 +587,7 @@ typedef struct {
     float rows[3];         /* measurement-row scale: 1 + k |T_ref|, 1, 1 */
     uint32_t short_slots;  /* the motor blocks' short plan (every enabled motor
                               block at motion 1, none frozen): their slots */
+    uint32_t free_slots;   /* the output blocks' (none frozen): their slots */
 } step_io_t;
 
 /* What the plan of the blocks adds up. */
@@ -598,6 +613,19 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
         h[1] = row * kf->phasor_sin[sl->frame];
         *f = 1.0f;
         *q = sl->q_nm2;
+        sum->ripple += h[0] * kf->x[2u * s];
+        sum->ripple += h[1] * kf->x[2u * s + 1u];
+        return;
+    }
+    if ((io->free_slots & (1u << s)) != 0u) {
+        /* an output block not frozen: its row entry is 1, its gain learn
+         * (partial slots: set by the caller) */
+        const float a = fabsf(sl->theta_per_unit * io->inc[HD_KF_LOCK_OUTPUT]);
+        const float motion = a * sl->motion_inv + sl->motion_bias;
+        h[0] = kf->phasor_cos[sl->frame];
+        h[1] = kf->phasor_sin[sl->frame];
+        *f = sl->learn;
+        *q = sl->q_nm2 * (motion < 1.0f ? motion : 1.0f);
         sum->ripple += h[0] * kf->x[2u * s];
         sum->ripple += h[1] * kf->x[2u * s + 1u];
         return;
@@ -968,6 +996,8 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     io.short_slots = motor_abs >= kf->motor_full_rad && motor_abs < kf->motor_frozen_rad
                          ? kf->motor_slots
                          : 0u;
+    io.free_slots = fabsf(io.inc[HD_KF_LOCK_OUTPUT]) < kf->output_frozen_rad ? kf->output_slots
+                                                                            : 0u;
     const float c_load = kf->cfg.ripple_load_coeff_per_nm > 0.0f
                              ? update_load_scale(kf, in->torque_expected_nm,
                                                  io.inc[HD_KF_LOCK_MOTOR])
@@ -978,7 +1008,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     /* ---- what this step does to each block */
     float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
     float g[HD_KF_MAX_STATES];
-    plan_sum_t sum = {0.0f, 0u, 0u, 0u};
+    plan_sum_t sum = {0.0f, io.free_slots & kf->output_partial_slots, 0u, 0u};
     KF_UNROLL
     for (unsigned s = 0; s < nb; s++) {
         plan_block(kf, s, &io, &h[2u * s], &f[s], &q[s], &sum);

@@ -198,7 +198,7 @@ typedef struct {
     float fixed_cos;     /* FIXED: its phase advance of every step, as a phasor */
     float fixed_sin;
     float full_rad;      /* MOTOR: |increment| from which its motion fraction is 1 */
-    float frozen_rad;    /* MOTOR: |increment| from which it is over Nyquist */
+    float frozen_rad;    /* MOTOR, OUTPUT: |increment| from which it is over Nyquist */
 } hd_kf_slot_t;
 
 /* Filter state.  Treat as opaque; it is public only so it can be allocated
@@ -224,11 +224,14 @@ typedef struct {
     uint32_t output_powers;                   /* the same for the output phasor */
     uint32_t own_frames;                      /* bit s: slot s turns its own phasor */
     uint32_t motor_slots;                     /* bit s: slot s is an enabled motor block */
+    uint32_t output_slots;                    /* ... an enabled output block */
+    uint32_t output_partial_slots;            /* ... of those, learning at a scale below 1 */
     uint32_t frozen_mask;                     /* by configured block index, last step */
     float offset_q_nm2;                       /* the offset's q per step (0: disabled) */
     float nyquist_limit_rad;                  /* nyquist_fraction * pi */
     float motor_full_rad;                     /* |motor increment| in [full, frozen): every */
     float motor_frozen_rad;                   /* motor block at motion 1, none frozen */
+    float output_frozen_rad;                  /* |output increment| below: none frozen */
     float q_motion_inv_rad;                   /* 1 / q_motion_ref_rad (0: off) */
     float load_ref_nm;                        /* T_ref of the load-dependent row [Nm] */
     float load_scale;                         /* 1 + k |T_ref| of the last step */

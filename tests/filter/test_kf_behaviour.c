@@ -1349,48 +1349,60 @@ static void test_covariance_bounds_counted(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-3 * 1e-5, 1e-3, lmax);
 }
 
-/* The short plan of motor blocks (every enabled motor block at motion 1 and
- * none over Nyquist, decided per step from thresholds found at init) must
- * give the same bits as the full rules.  Filter B is filter A plus a motor
- * block of order 200, placed last: it is over Nyquist at every increment
- * used here (|d| > 0.0142 rad), so it is held (zero row, gain 0: it adds
- * exact zeros to every other state's sums) and it keeps B on the full plan.
- * The increments straddle A's thresholds (one float below and above each)
- * and sweep the rest; every output (but the frozen mask) and every state
- * and covariance of A's blocks must match B's bit for bit. */
+/* The short plans (every enabled motor block at motion 1 and none over
+ * Nyquist; no output block over Nyquist), decided per step from thresholds
+ * found at init, must give the same bits as the full rules.  Filter B is
+ * filter A plus a motor block of order 200 and an output block of order 1000,
+ * placed last: over Nyquist at every increment used here, they are held
+ * (zero row, gain 0: they add exact zeros to every other state's sums) and
+ * keep B on the full rules.  The increments straddle A's thresholds (one
+ * float below and above each) and sweep the rest; every output (but the
+ * frozen mask) and every state and covariance of A's blocks must match B's
+ * bit for bit, at output_learn_scale 1 and 0.5 (a partial output block). */
 static int same_bits(float a, float b)
 {
     return memcmp(&a, &b, sizeof a) == 0;
 }
 
-static void test_motor_short_plan_is_bit_exact(void)
+static unsigned short_plans_against_full_rules(float learn_scale)
 {
     static hd_kf_t a, b;
     hd_kf_config_t cfg_a, cfg_b;
     hd_kf_config_recommended(&cfg_a, (float)TS_S, 0.02f, 0.05f, 0.02f);
+    cfg_a.output_learn_scale = learn_scale;
     cfg_b = cfg_a;
     TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(&cfg_b, HD_KF_LOCK_MOTOR, 200.0f,
                                                     cfg_b.blocks[0].q_nm2));
+    TEST_ASSERT_EQUAL_INT(4, hd_kf_config_add_block(&cfg_b, HD_KF_LOCK_OUTPUT, 1000.0f,
+                                                    cfg_b.blocks[2].q_nm2));
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&a, &cfg_a));
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&b, &cfg_b));
-    /* A's thresholds: the first |d| at motion 1 of order 2 (0.025 rad) and
-     * the first over Nyquist of order 4 (0.9 pi / 4) */
+    /* A's thresholds: the first |d| at motion 1 of motor order 2 (0.025
+     * rad), the first over Nyquist of order 4 (0.9 pi / 4) and of the
+     * output block (0.9 pi) */
     const float full = a.motor_full_rad, frozen = a.motor_frozen_rad;
+    const float out_frozen = a.output_frozen_rad;
     TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.025, full);
     TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.9 * TU_PI / 4.0, frozen);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6, 0.9 * TU_PI, out_frozen);
     const float probes[] = {nextafterf(full, 0.0f), full, nextafterf(full, 1.0f),
                             nextafterf(frozen, 0.0f), frozen, nextafterf(frozen, 1.0f)};
+    const float out_probes[] = {nextafterf(out_frozen, 0.0f), out_frozen,
+                                nextafterf(out_frozen, 4.0f)};
     tu_rng_t rng;
     tu_rng_seed(&rng, 77u);
     double am = 0.0;
     unsigned fast = 0;
     for (int k = 0; k < 20000; k++) {
         float d = k % 7 < 6 ? probes[k % 7] : (float)(0.015 + 0.9 * tu_uniform(&rng));
+        float d_out = k % 5 < 3 ? out_probes[k % 5] : (float)(0.003 + 3.0 * tu_uniform(&rng));
         if (k % 2)
             d = -d;
+        if (k % 3)
+            d_out = -d_out;
         am += (double)d;
         hd_kf_input_t in = {(float)(cos(2 * am) + 0.4 * cos(4 * am) + 0.05 * tu_gauss(&rng)),
-                            0.0f, d, d / (float)GEAR_RATIO};
+                            0.0f, d, d_out};
         const float m = fabsf(d);
         fast += m >= full && m < frozen;
         hd_kf_output_t oa, ob;
@@ -1406,16 +1418,24 @@ static void test_motor_short_plan_is_bit_exact(void)
                                  ob.status & ~HD_KF_STATUS_FROZEN);
         /* active states: A's 0..5 are B's 0..5; the offset is last in both */
         for (unsigned i = 0; i < 7u; i++) {
-            const unsigned ib = i < 6u ? i : 8u;
+            const unsigned ib = i < 6u ? i : 10u;
             TEST_ASSERT_TRUE(same_bits(hd_kf_state(&a, i), hd_kf_state(&b, ib)));
             for (unsigned j = 0; j < 7u; j++) {
-                const unsigned jb = j < 6u ? j : 8u;
+                const unsigned jb = j < 6u ? j : 10u;
                 TEST_ASSERT_TRUE(same_bits(hd_kf_cov(&a, i, j), hd_kf_cov(&b, ib, jb)));
             }
         }
     }
-    msg("short motor plan: %u of 20000 steps took it, bit-identical to the full rules", fast);
     TEST_ASSERT_TRUE(fast > 5000u && fast < 15000u); /* both plans were exercised */
+    return fast;
+}
+
+static void test_short_plans_are_bit_exact(void)
+{
+    const unsigned fast = short_plans_against_full_rules(1.0f);
+    short_plans_against_full_rules(0.5f);
+    msg("short plans: the motor one on %u of 20000 steps, bit-identical to the full rules "
+        "(output learn scale 1 and 0.5)", fast);
 }
 
 int main(void)
@@ -1446,6 +1466,6 @@ int main(void)
     RUN_TEST(test_load_coeff_standstill_does_not_drift);
     RUN_TEST(test_load_coeff_upper_bound);
     RUN_TEST(test_covariance_bounds_counted);
-    RUN_TEST(test_motor_short_plan_is_bit_exact);
+    RUN_TEST(test_short_plans_are_bit_exact);
     return UNITY_END();
 }
