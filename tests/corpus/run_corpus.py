@@ -54,6 +54,7 @@ libraries).  Usage:
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import resource
@@ -354,16 +355,33 @@ def write_doc(path: Path, cases: list[Case], check: bool) -> int:
     _, tail = rest.split(DOC_END, 1)
     new = (f"{head}{DOC_BEGIN}\n<!-- written by tests/corpus/run_corpus.py --doc; do not edit -->\n"
            f"{doc_table(cases)}\n{DOC_END}{tail}")
+    summary_path = path.resolve().parent / "results" / "corpus.json"
+    summary = json.dumps(corpus_summary(cases), indent=1) + "\n"
     if check:
-        if new != text:
-            print(f"{path}: the corpus table is out of date: run "
+        if new != text or not summary_path.is_file() or summary_path.read_text() != summary:
+            print(f"{path}: the corpus table or {summary_path.name} is out of date: run "
                   f"tests/corpus/run_corpus.py --doc {path}", file=sys.stderr)
             return 1
         print(f"{path}: corpus table up to date ({len(cases)} cases)")
         return 0
-    path.write_text(new)
-    print(f"{path}: corpus table written ({len(cases)} cases)")
+    summary_path.parent.mkdir(parents=True, exist_ok=True)
+    for target, content in ((path, new), (summary_path, summary)):
+        tmp = target.with_name(f".{target.name}.tmp")
+        tmp.write_text(content)
+        os.replace(tmp, target)
+    print(f"{path}: corpus table written ({len(cases)} cases), and {summary_path}")
     return 0
+
+
+def corpus_summary(cases: list[Case]) -> dict:
+    """docs/results/corpus.json, the README headline's source: how many
+    hostile inputs, in how many classes, and how many the tools failed
+    before issue 18 (each case's `before` line)."""
+    return {"tool": "tests/corpus/run_corpus.py --doc docs/reliability.md",
+            "cases": len(cases), "classes": len({c.klass for c in cases}),
+            "c_cases": sum(c.lang == "c" for c in cases),
+            "pending": sum(c.pending is not None for c in cases),
+            "failed_before": sum(c.before == "fail" for c in cases)}
 
 
 def mark_before(cases: list[Case], results: dict) -> None:
