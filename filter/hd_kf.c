@@ -884,7 +884,7 @@ KF_INLINE void turn_phasor(float *c, float *s, float wc, float ws)
  * for odd k.  Recomputed from the base every step, so their rounding (angle
  * within 2e-7 rad of k u, |z^k| within 1e-7 of 1 for k <= 8) does not
  * accumulate. */
-static void phasor_powers(uint32_t mask, float *restrict pc, float *restrict ps)
+KF_INLINE void phasor_powers(uint32_t mask, float *restrict pc, float *restrict ps)
 {
     KF_UNROLL
     for (unsigned k = 2u; k <= MAX_POWER_ORDER; k++) {
@@ -899,6 +899,13 @@ static void phasor_powers(uint32_t mask, float *restrict pc, float *restrict ps)
             }
         }
     }
+}
+
+/* The output phasor's powers (rare: output orders above 1), out of line. */
+static void output_phasor_powers(hd_kf_t *kf)
+{
+    phasor_powers(kf->output_powers, kf->phasor_cos + POWER_TABLE_OUTPUT,
+                  kf->phasor_sin + POWER_TABLE_OUTPUT);
 }
 
 /* The output phasor from the exactly accumulated output phase: a slow
@@ -950,8 +957,7 @@ KF_INLINE void advance_frames(hd_kf_t *kf, const float inc[3])
     if (kf->output_powers != 0u) {
         advance_output_frame(kf, inc[HD_KF_LOCK_OUTPUT]);
         if ((kf->output_powers & ~3u) != 0u) {
-            phasor_powers(kf->output_powers, kf->phasor_cos + POWER_TABLE_OUTPUT,
-                          kf->phasor_sin + POWER_TABLE_OUTPUT);
+            output_phasor_powers(kf);
         }
     }
     for (uint32_t left = kf->own_frames; left != 0u; left &= left - 1u) {
