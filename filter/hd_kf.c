@@ -39,6 +39,8 @@
  * "Instances per layout size"). */
 #define KF_INLINE static inline __attribute__((always_inline))
 #define KF_UNROLL _Pragma("GCC unroll 8")
+/* The slow paths out of the way of the straight one. */
+#define UNLIKELY(cond) __builtin_expect(!!(cond), 0)
 /* Layouts of MIN_LAYOUT_BLOCKS to UNROLLED_BLOCKS blocks have their own
  * instance; smaller models take the smallest, larger ones HD_KF_MAX_BLOCKS
  * slots, the unused slots held at zero like a disabled block. */
@@ -630,7 +632,7 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
         sum->ripple += h[1] * kf->x[2u * s + 1u];
         return;
     }
-    if (!sl->enabled) {
+    if (UNLIKELY(!sl->enabled)) {
         h[0] = h[1] = *q = 0.0f;
         *f = 1.0f;
         return;
@@ -643,7 +645,7 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
     float gain = lock == HD_KF_LOCK_MOTOR ? motion : sl->learn;
     float qs = sl->q_nm2 * motion;
     float row = io->rows[lock];
-    if (!(a <= kf->nyquist_limit_rad)) {
+    if (UNLIKELY(!(a <= kf->nyquist_limit_rad))) {
         /* Held: not observed, not corrected, no process noise, still
          * turned by the increment (exact at any speed), unless no motion
          * can explain it (an encoder fault). */
@@ -812,7 +814,7 @@ KF_INLINE void correct(float *restrict p, float *restrict x, const float *restri
     worst.traces += p[0];
     worst.signs |= bits_of(p[0]);
     x[0] += g_off * k_e;
-    if (partial != 0u) {
+    if (UNLIKELY(partial != 0u)) {
         /* copies, so that g, f, q and worst stay in registers elsewhere */
         float gc[HD_KF_MAX_STATES], fc[HD_KF_MAX_BLOCKS], qc[HD_KF_MAX_BLOCKS];
         KF_UNROLL
@@ -851,7 +853,7 @@ KF_INLINE void add_phase(float *hi, float *lo, float d)
     const float bp = s - h0;
     const float err = (h0 - (s - bp)) + (d - bp);
     float h = s, l = *lo + err;
-    if (!(fabsf(h) < HD_PI_F)) { /* rare: one comparison on the common path */
+    if (UNLIKELY(!(fabsf(h) < HD_PI_F))) { /* one comparison on the common path */
         if (h >= HD_PI_F) {
             h -= TWO_PI_HI;
             l -= TWO_PI_LO;
@@ -990,7 +992,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     const float y = in->torque_meas_nm - in->torque_expected_nm;
     const bool valid = fabsf(y) <= HD_KF_MAX_ABS_Y_NM;
     uint32_t status = valid ? 0u : HD_KF_STATUS_BAD_INPUT;
-    if (!is_finite(io.inc[0] + io.inc[1])) {
+    if (UNLIKELY(!is_finite(io.inc[0] + io.inc[1]))) {
         for (unsigned i = 0; i < 2u; i++) {
             if (!is_finite(io.inc[i])) {
                 io.inc[i] = 0.0f;
@@ -1019,7 +1021,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     for (unsigned s = 0; s < nb; s++) {
         plan_block(kf, s, &io, &h[2u * s], &f[s], &q[s], &sum);
     }
-    if (sum.lost != 0u) {
+    if (UNLIKELY(sum.lost != 0u)) {
         restart_lost_blocks(kf, sum.lost);
     }
     /* The step's rotation (the frames turn for the next sample) needs only
@@ -1030,14 +1032,14 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     /* ---- innovation and its variance (the prior's) */
     const float ripple = sum.ripple;
     const unsigned o = 2u * nb;
-    if (!kf->offset_primed && kf->cfg.offset_enabled && valid) {
+    if (UNLIKELY(!kf->offset_primed) && kf->cfg.offset_enabled && valid) {
         kf->x[o] = y - ripple;
         kf->offset_primed = 1u;
     }
     const float offset = kf->x[o]; /* 0 when the offset is disabled */
     float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb);
     const float innovation = y - ripple - offset;
-    if (valid && offset_jump(kf, innovation, s_var)) {
+    if (UNLIKELY(valid && offset_jump(kf, innovation, s_var))) {
         /* an offset jump widens the offset's variance first */
         const float e2 = innovation * innovation;
         status |= HD_KF_STATUS_OFFSET_JUMP;
@@ -1069,8 +1071,8 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     kf->load_scale = c_load;
     kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
     kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
-    if (!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
-        !is_finite(finite_probe)) {
+    if (UNLIKELY(!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
+                 !is_finite(finite_probe))) {
         const uint32_t bounded = bound_covariance(kf, finite_probe);
         if (bounded & HD_KF_STATUS_RESET) {
             hd_kf_reset(kf);
@@ -1086,7 +1088,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     }
     out->status = status;
     kf->status_sticky |= status;
-    if (!is_finite(filtered)) {
+    if (UNLIKELY(!is_finite(filtered))) {
         /* Never publish a non-finite estimate: fall back to the measurement
          * (or 0 if that is not finite either). */
         out->torque_filtered_nm = is_finite(in->torque_meas_nm) ? in->torque_meas_nm : 0.0f;
