@@ -184,3 +184,44 @@ def test_device_helper(joint, channel, capsys):
         assert set(summary(out)) == {p.key for p in protocol.params()}
         rc, out, err = run_cli(capsys, "device", "-i", "virtual", channel, "info")
         assert int(summary(out)["reset_cause"], 16) == 0x04     # HAL_RESET_SOFTWARE
+
+
+def test_device_profile_actions(joint, channel, capsys, tmp_path):
+    """`hdsense device IFACE profile ...`: an uploaded profile is stored
+    (its float32 values are in the NVM image), survives a reboot, is
+    cleared; refusals name the record status; a profile for another gear
+    ratio never reaches the joint."""
+    import json
+    lines = [{"lock": "motor", "order": 2, "a_nm": 0.8125, "b_nm": -0.3359375},
+             {"lock": "output", "order": 1, "a_nm": 0.4140625, "b_nm": 0.1796875}]
+    good = tmp_path / "profile.json"
+    good.write_text(json.dumps({"schema": "hdjoint-profile/1", "gear_ratio": 100,
+                                "lines": lines}))
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"schema": "hdjoint-profile/1", "gear_ratio": 50,
+                                 "lines": lines}))
+    j = joint()
+    dev = ("device", "-i", "virtual", channel, "profile")
+    with j.attach("virtual", channel):
+        rc, out, err = run_cli(capsys, *dev, "load")
+        assert rc == 1 and "PROFILE_LOAD refused" in err and "record" in err
+        rc, out, err = run_cli(capsys, *dev, "put", other, "--save")
+        assert rc == 2 and "gear ratio 50" in err
+        rc, out, err = run_cli(capsys, *dev, "put", good, "--save")
+        assert rc == 0, err
+        assert summary(out)["profile_save"].startswith("OK") and "2 lines" in out
+        rc, out, err = run_cli(capsys, "device", "-i", "virtual", channel, "reboot")
+        assert rc == 0
+        rc, out, err = run_cli(capsys, *dev, "load")
+        assert rc == 0 and "2 lines" in summary(out)["profile_load"]
+    image = bytes(j.nvm())
+    for ln in lines:
+        for key in ("a_nm", "b_nm"):
+            assert struct.pack("<f", ln[key]) in image, (ln, key)
+    with j.attach("virtual", channel):
+        rc, out, err = run_cli(capsys, *dev, "clear")
+        assert rc == 0 and "profile_clear = OK" in out
+        rc, out, err = run_cli(capsys, *dev, "load")
+        assert rc == 1 and "PROFILE_LOAD refused" in err
+        rc, out, err = run_cli(capsys, *dev, "save")       # the running filter's blocks
+        assert rc == 0 and summary(out)["profile_save"].startswith("OK"), err

@@ -5,6 +5,7 @@ and keep it there; ask and set single things.
   hdsense send can0 out/model.can --reboot     # ... then REBOOT, read back again
   hdsense device can0 version | info | params | get KEY | set KEY VALUE
   hdsense device can0 save | load | defaults | reboot
+  hdsense device can0 profile save | load | clear | put PROFILE.json [--save]
 
 send: FILE is a model.cfg (the configuration text `hdsense analyze`
 writes; docs/firmware.md) or a model.can (cansend lines ID#DATA, comments
@@ -137,10 +138,16 @@ def check_table(joint: Joint) -> None:
                       f"not this tool's (0x{mine:08X}): firmware and hdsense versions differ")
 
 
-def command_retry_busy(joint: Joint, opcode: str):
+def command_retry_busy(joint: Joint, opcode: str, **signals):
+    return send_retry_busy(joint, canproto.command(joint.db, opcode, 0, **signals)[1])
+
+
+def send_retry_busy(joint: Joint, data: bytes):
+    """One command, sent again while the joint answers BUSY (its background
+    is still writing NVM), for at most BUSY_RETRY_S."""
     deadline = time.monotonic() + BUSY_RETRY_S
     while True:
-        ack = joint.command(opcode)
+        ack = joint.send_raw(data)
         if ack.result != "BUSY" or time.monotonic() > deadline:
             return ack
         time.sleep(0.02)
@@ -298,10 +305,47 @@ def device(args) -> int:
                                                          if action != "defaults" else ""))
         elif action == "reboot":
             lines.append("boot = " + reboot(joint))
+        elif action == "profile":
+            lines += profile_action(joint, args)
         print("\n".join(lines))
     finally:
         bus.shutdown()
     return 0
+
+
+PROFILE_ACTIONS = {"save": ("PROFILE_SAVE", {"ProfileSaveSource": 0}),
+                   "load": ("PROFILE_LOAD", {"ProfileLoadSource": 0}),
+                   "clear": ("PROFILE_CLEAR", {})}
+
+
+def profile_action(joint: Joint, args) -> list[str]:
+    """save: the running filter's profile to NVM (at the next tick); load:
+    the stored one into the filter; clear: remove the stored one; put
+    FILE.json: upload a profile.json (gear ratio checked against the
+    joint's), load it into the filter and, with --save, store it."""
+    if args.profile_action == "put":
+        from . import profile_record as pr
+        from .cmd_profile import _load_json
+        lines, gear = pr.lines_from_json(_load_json(args.file), args.file)
+        ack = joint.get(protocol.param_by_key("gear_ratio"))
+        if not ack.ok:
+            raise Refused(f"node {joint.node}: GET_PARAM gear_ratio refused ({ack.result})")
+        pr.check_gear(gear, ack.value, args.file)
+        frames = [data for _, data in pr.commands(lines, joint.node, args.save)]
+    else:
+        op, signals = PROFILE_ACTIONS[args.profile_action]
+        frames = [canproto.command(joint.db, op, 0, **signals)[1]]
+    out = []
+    for data in frames:
+        op = _entry(protocol.opcodes(), data[0])
+        ack = send_retry_busy(joint, data)
+        if not ack.ok:
+            raise Refused(f"node {joint.node}: {op} refused ({ack.result}, record "
+                          f"{_entry(protocol.record_statuses(), ack.aux)})")
+        if op != "PROFILE_PUT":
+            out.append(f"{op.lower()} = OK (record "
+                       f"{_entry(protocol.record_statuses(), ack.aux)}, {int(ack.value)} lines)")
+    return out
 
 
 def _param(key: str) -> protocol.Param:
@@ -363,6 +407,15 @@ def register(subparsers) -> None:
                         ("defaults", "CONFIG_DEFAULTS: the defaults into RAM (not saved)"),
                         ("reboot", "REBOOT and show the BOOT frame")):
         acts.add_parser(name, help=help_)
+    pf = acts.add_parser("profile", help="the artifact profile: save, load, clear, put FILE")
+    pa = pf.add_subparsers(dest="profile_action", required=True, metavar="PROFILE_ACTION")
+    for name, help_ in (("save", "PROFILE_SAVE: the running filter's profile to NVM"),
+                        ("load", "PROFILE_LOAD: the stored profile into the filter"),
+                        ("clear", "PROFILE_CLEAR: remove the stored profile")):
+        pa.add_parser(name, help=help_)
+    pp = pa.add_parser("put", help="upload a profile.json (hdsense analyze) and load it")
+    pp.add_argument("file", metavar="PROFILE.json")
+    pp.add_argument("--save", action="store_true", help="also store it (PROFILE_SAVE)")
     g = acts.add_parser("get", help="one parameter")
     g.add_argument("key")
     st = acts.add_parser("set", help="one parameter (not saved: use save)")
