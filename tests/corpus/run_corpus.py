@@ -85,6 +85,7 @@ CLASS_TEXT = {
     "canlog": "hdsense canlog decode / commands",
     "calib": "hdsense calib: data it cannot judge, dates, serials, outputs",
     "hdsense": "hdsense command line in general",
+    "joint-tools": "hdsense profile, current, device, send, monitor; hdjoint-host --profile, --cmd-at",
 }
 SANITIZER = re.compile(r"ERROR: AddressSanitizer|runtime error:|LeakSanitizer")
 
@@ -379,6 +380,10 @@ def corpus_summary(cases: list[Case]) -> dict:
     before issue 18 (each case's `before` line)."""
     return {"tool": "tests/corpus/run_corpus.py --doc docs/reliability.md",
             "cases": len(cases), "classes": len({c.klass for c in cases}),
+            "per_class": {k: sum(c.klass == k for c in cases)
+                          for k in sorted({c.klass for c in cases},
+                                          key=lambda k: list(CLASS_TEXT).index(k)
+                                          if k in CLASS_TEXT else 99)},
             "c_cases": sum(c.lang == "c" for c in cases),
             "pending": sum(c.pending is not None for c in cases),
             "failed_before": sum(c.before == "fail" for c in cases)}

@@ -265,6 +265,10 @@ def _param_value(p: protocol.Param, text: str) -> float:
 
 
 def device(args) -> int:
+    if args.action == "profile" and args.profile_action == "put":
+        from . import profile_record as pr
+        from .cmd_profile import _load_json
+        args.profile_lines = pr.lines_from_json(_load_json(args.file), args.file)
     bus = open_bus(args.interface, args.channel, args.bitrate)
     try:
         joint = Joint(bus, args.node, timeout_s=args.timeout)
@@ -325,8 +329,7 @@ def profile_action(joint: Joint, args) -> list[str]:
     joint's), load it into the filter and, with --save, store it."""
     if args.profile_action == "put":
         from . import profile_record as pr
-        from .cmd_profile import _load_json
-        lines, gear = pr.lines_from_json(_load_json(args.file), args.file)
+        lines, gear = args.profile_lines      # read before the bus was opened
         ack = joint.get(protocol.param_by_key("gear_ratio"))
         if not ack.ok:
             raise Refused(f"node {joint.node}: GET_PARAM gear_ratio refused ({ack.result})")

@@ -80,7 +80,7 @@ def _joint(args) -> tuple[float, int, int]:
 
 
 def _load_json(path: str):
-    text = read_text(path, 1 << 20)
+    text = read_text(path, 1 << 20).removeprefix("\ufeff")     # a BOM is not content
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
