@@ -7,6 +7,7 @@
 
 #include "hd_config_text.h"
 #include "hd_sim_scenario.h"
+#include "rel_measured.h"
 #include "unity.h"
 
 /* The rig's joint and the expected-torque model the project's tool
@@ -310,12 +311,20 @@ void fi_push_cmd(fi_rig_t *r, const uint8_t data[8], uint8_t len, uint8_t flags,
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&r->mock, &f));
 }
 
-void fi_report(const char *fault, long recovery_ticks, double extra_value, const char *extra_name)
+void fi_report(const fi_rig_t *r, const char *name, long recovery_ticks, long limit_ticks,
+               double max_err_nm, uint64_t flag_from, uint64_t flag_to, const char *extra)
 {
-    printf("RECOVERY %-28s ticks=%ld", fault, recovery_ticks);
-    if (extra_name != NULL) {
-        printf(" %s=%.4g", extra_name, extra_value);
+    char err[32] = "";
+    if (isfinite(max_err_nm)) {
+        snprintf(err, sizeof err, " max_err_nm=%.6g", max_err_nm);
     }
-    printf("\n");
-    fflush(stdout);
+    rel_measured(name, "recovery_ticks=%ld limit_ticks=%ld faults=0x%x%s%s%s", recovery_ticks,
+                 limit_ticks, (unsigned)fi_faults_in(r, flag_from, flag_to), err,
+                 extra != NULL ? " " : "", extra != NULL ? extra : "");
+}
+
+void fi_report_setup(uint64_t fault_start_tick)
+{
+    rel_measured("rig", "band_nm=%g hold_ticks=%u fault_start_s=%g", FI_BAND_NM, FI_HOLD_TICKS,
+                 (double)fault_start_tick / 1000.0);
 }

@@ -106,11 +106,19 @@ uint32_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b);
 /* Queues a command frame for node 1 (opcode, token, args). */
 void fi_push_cmd(fi_rig_t *r, const uint8_t data[8], uint8_t len, uint8_t flags, uint32_t id);
 
-/* The recovery band and hold used throughout (documented in docs/reliability.md). */
+/* The recovery band and hold used throughout (docs/reliability.md prints
+ * them with the table, from fi_report_setup). */
 #define FI_BAND_NM 0.15
 #define FI_HOLD_TICKS 200u
 
-/* Prints one machine-readable line for the documentation table. */
-void fi_report(const char *fault, long recovery_ticks, double extra_value, const char *extra_name);
+/* The `measured:` lines (rel_measured.h) docs/reliability.md is written
+ * from.  fi_report: one fault case: its recovery, the recovery limit the
+ * test asserts, the worst |filtered - truth| over [err_from, err_to) (NaN:
+ * none printed), the fault bits raised in [flag_from, flag_to), and `extra`
+ * (more key=value pairs, may be NULL).  fi_report_setup: the rig's band,
+ * hold and fault start tick. */
+void fi_report(const fi_rig_t *r, const char *name, long recovery_ticks, long limit_ticks,
+               double max_err_nm, uint64_t flag_from, uint64_t flag_to, const char *extra);
+void fi_report_setup(uint64_t fault_start_tick);
 
 #endif /* FI_RIG_H */

@@ -49,6 +49,9 @@
 #define PSD_ROUNDING (8.0 / 16777216.0) /* 8 u, u = 2^-24 (see above) */
 #define WARMUP_STEPS 60000ull
 #define HOUR_STEPS 3600000ull
+#define RMS_REL_LIMIT 0.10       /* last vs first window */
+#define MEAN_DIFF_LIMIT_NM 0.01  /* last vs first window */
+#define FRESH_EXCESS_LIMIT 0.02  /* long-running vs fresh filter */
 
 static int usage(void)
 {
@@ -276,7 +279,8 @@ int main(int argc, char **argv)
     double rms_fresh = sqrt(fresh_sq / (double)win);
     double rms_long = sqrt(long_sq / (double)win);
     double rel_fresh = (rms_long - rms_fresh) / rms_fresh;
-    bool stats_ok = rel < 0.10 && fabs(mean_l - mean_f) < 0.01 && rel_fresh < 0.02;
+    bool stats_ok = rel < RMS_REL_LIMIT && fabs(mean_l - mean_f) < MEAN_DIFF_LIMIT_NM &&
+                    rel_fresh < FRESH_EXCESS_LIMIT;
     bool ok = non_finite == 0u && asym == 0u && not_psd == 0u && pipe.kf.reset_count == 0u &&
               pipe.kf.p_ceiling_count == 0u && pipe.kf.p_negative_count == 0u && stats_ok;
 
@@ -298,10 +302,12 @@ int main(int argc, char **argv)
     printf("window_s = %.0f\n", (double)win * REL_TS_S);
     printf("rms_err_first_nm = %.5f\nrms_err_last_nm = %.5f\n", sqrt(ms_f), sqrt(ms_l));
     printf("mean_err_first_nm = %.5f\nmean_err_last_nm = %.5f\n", mean_f, mean_l);
-    printf("rms_rel_diff_last_vs_first = %.4f\n", rel);
+    printf("rms_rel_diff_last_vs_first = %.4f\nrms_rel_diff_limit = %g\n", rel, RMS_REL_LIMIT);
+    printf("mean_diff_limit_nm = %g\n", MEAN_DIFF_LIMIT_NM);
     printf("mse_batch_z = %.2f\n", z);
     printf("rms_err_last_fresh_filter_nm = %.5f\nrms_excess_long_vs_fresh = %.4f\n", rms_fresh,
            rel_fresh);
+    printf("rms_excess_limit = %g\n", FRESH_EXCESS_LIMIT);
     printf("max_abs_err_after_warmup_nm = %.4f\n", max_abs_err);
     printf("wall_s = %.2f\nns_per_step = %.1f\n", wall_s, 1e9 * wall_s / (double)steps);
     printf("result = %s\n", ok ? "PASS" : "FAIL");

@@ -18,6 +18,7 @@
 #include "hd_calib_record.h"
 #include "hd_fw.h"
 #include "hd_fw_records.h"
+#include "rel_measured.h"
 #include "unity.h"
 
 static hal_mock_t mock;
@@ -103,7 +104,7 @@ static uint8_t last_heartbeat_calib_status(void)
 
 /* Init, run a few ticks, check flag, heartbeat status and the torque the
  * firmware computes (which tells the gain and offset in use). */
-static void check_boot(uint16_t flag, uint8_t status, double gain, double offset_v)
+static void check_boot(const char *name, uint16_t flag, uint8_t status, double gain, double offset_v)
 {
     TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
     tick(5);
@@ -117,6 +118,12 @@ static void check_boot(uint16_t flag, uint8_t status, double gain, double offset
     double expect = gain * (COUNTS * VPC - offset_v);
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, expect, (double)s->torque_raw_nm);
     TEST_ASSERT_TRUE(s->valid); /* defaults are usable: the joint keeps running */
+    rel_measured(name, "faults=0x%x calib_status=%u gain_nm_per_v=%.3g offset_v=%.3g",
+                 (unsigned)(s->faults & (HD_FAULT_CALIB_MISSING | HD_FAULT_CALIB_CORRUPT |
+                                         HD_FAULT_CALIB_ONE_COPY)),
+                 (unsigned)last_heartbeat_calib_status(),
+                 (double)hd_fw_config(&fw)->calib_gain_nm_per_v,
+                 (double)hd_fw_config(&fw)->calib_offset_v);
 }
 
 /* A CALIB_SAVE over CAN clears the flag on the next tick. */
@@ -142,7 +149,7 @@ static void check_recovery_by_save(void)
 
 static void test_missing_record(void)
 {
-    check_boot(HD_FAULT_CALIB_MISSING, 2, NOMINAL_GAIN, 0.0);
+    check_boot("calib_missing", HD_FAULT_CALIB_MISSING, 2, NOMINAL_GAIN, 0.0);
     check_recovery_by_save();
 }
 
@@ -152,7 +159,7 @@ static void test_crc_corrupt_both_copies(void)
     store(STORED_GAIN, STORED_OFFSET); /* both copies written */
     calib_payload(0)[14] ^= 0x01u;     /* a gain byte of copy A */
     calib_payload(1)[14] ^= 0x80u;     /* and of copy B */
-    check_boot(HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
+    check_boot("calib_crc_corrupt", HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
     check_recovery_by_save();
 }
 
@@ -161,7 +168,7 @@ static void test_one_copy_corrupt(void)
     store(STORED_GAIN, STORED_OFFSET);
     store(STORED_GAIN, STORED_OFFSET);
     calib_payload(1)[30] ^= 0x10u; /* copy B, a serial byte */
-    check_boot(HD_FAULT_CALIB_ONE_COPY, 1, STORED_GAIN, STORED_OFFSET);
+    check_boot("calib_one_copy", HD_FAULT_CALIB_ONE_COPY, 1, STORED_GAIN, STORED_OFFSET);
 }
 
 static void test_wrong_version(void)
@@ -183,7 +190,7 @@ static void test_wrong_version(void)
     hd_calib_storage_t st = storage(&hal);
     TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_store_save(&st, HD_RECORD_KIND_CALIB,
                                                       HD_CALIB_RECORD_VERSION, rec, sizeof rec));
-    check_boot(HD_FAULT_CALIB_CORRUPT, 4, NOMINAL_GAIN, 0.0);
+    check_boot("calib_wrong_version", HD_FAULT_CALIB_CORRUPT, 4, NOMINAL_GAIN, 0.0);
     check_recovery_by_save();
 }
 
@@ -191,7 +198,7 @@ static void test_nvm_io_error(void)
 {
     store(STORED_GAIN, STORED_OFFSET);
     mock.nvm_fail = true;
-    check_boot(HD_FAULT_CALIB_CORRUPT, 5, NOMINAL_GAIN, 0.0);
+    check_boot("calib_nvm_error", HD_FAULT_CALIB_CORRUPT, 5, NOMINAL_GAIN, 0.0);
     mock.nvm_fail = false;
     check_recovery_by_save();
 }
@@ -202,7 +209,7 @@ static void test_implausible_gain_record(void)
 {
     store(3.4e38f, STORED_OFFSET);
     store(3.4e38f, STORED_OFFSET);
-    check_boot(HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
+    check_boot("calib_implausible_gain", HD_FAULT_CALIB_CORRUPT, 3, NOMINAL_GAIN, 0.0);
     check_recovery_by_save();
 }
 
@@ -331,8 +338,7 @@ static void test_power_loss_at_every_byte_of_a_save(void)
     }
     TEST_ASSERT_EQUAL_FLOAT(NEW_GAIN, hd_fw_config(&fw)->calib_gain_nm_per_v); /* complete save */
     TEST_ASSERT_TRUE(old_seen > 0 && new_seen > 0);
-    printf("RECOVERY %-28s ticks=0 cut_points=%ld old=%u new=%u\n", "calib_power_loss", total + 1,
-           old_seen, new_seen);
+    rel_measured("calib_power_loss", "cut_points=%ld old=%u new=%u", total + 1, old_seen, new_seen);
 }
 
 /* ------------------------------------- power loss during a PROFILE_SAVE */
@@ -421,8 +427,8 @@ static void test_profile_power_loss_at_every_byte_of_a_save(void)
     }
     TEST_ASSERT_EQUAL_FLOAT(NEW_A_NM, fw.bg.profile.lines[0].a_nm); /* complete save */
     TEST_ASSERT_TRUE(old_seen > 0 && new_seen > 0);
-    printf("RECOVERY %-28s ticks=0 cut_points=%ld old=%u new=%u\n", "profile_power_loss",
-           total + 1, old_seen, new_seen);
+    rel_measured("profile_power_loss", "cut_points=%ld old=%u new=%u", total + 1, old_seen,
+                 new_seen);
 }
 
 int main(void)

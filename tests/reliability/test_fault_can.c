@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "fi_rig.h"
+#include "rel_measured.h"
 #include "unity.h"
 
 static fi_rig_t rig;
@@ -58,9 +59,14 @@ static void tx_outage(bool bus_off, uint16_t flag, const char *name)
     TEST_ASSERT_EQUAL_UINT16(flag, fi_faults_in(&rig, T0 + 1u, T0 + 500u) & flag);
     rig.mock.bus_off = false;
     rig.mock.tx_budget = -1;
-    fi_rig_run(&rig, 1);
+    long resume = 0; /* ticks until a telemetry frame gets through again */
+    while (rig.telem_a == a_before && resume < 100) {
+        fi_rig_run(&rig, 1);
+        resume++;
+    }
     /* telemetry resumes on the first tick, carrying the flag, and the
      * sequence number shows how many periods were lost (modulo 256) */
+    TEST_ASSERT_EQUAL_INT32(1, resume);
     TEST_ASSERT_EQUAL_UINT32(a_before + 1u, rig.telem_a);
     TEST_ASSERT_EQUAL_UINT16(flag, rig.telem_faults_or & flag);
     TEST_ASSERT_EQUAL_UINT32(500u % 256u, rig.seq_gaps); /* 8-bit sequence: modulo 256 */
@@ -72,7 +78,9 @@ static void tx_outage(bool bus_off, uint16_t flag, const char *name)
     TEST_ASSERT_EQUAL_UINT16(0, fi_faults_in(&rig, T0 + 502u, rig.tick) & flag);
     /* the torque path never noticed */
     double m = fi_max_abs_err(&rig, T0, rig.tick);
-    fi_report(name, 1, m, "max_err_nm");
+    char extra[48];
+    snprintf(extra, sizeof extra, "window_ms=500 seq_gap=%u", (unsigned)rig.seq_gaps);
+    fi_report(&rig, name, resume, 1, m, T0, T0 + 502u, extra);
     TEST_ASSERT_TRUE(m <= FI_BAND_NM);
 }
 
@@ -122,6 +130,22 @@ static bad_cmd_t add_block(const char *what, uint8_t op, uint16_t order_x100, fl
     return c;
 }
 
+/* Appends result code `code` to the comma-separated list if it is new. */
+static void note_code(char *list, size_t cap, uint8_t code)
+{
+    char item[8];
+    snprintf(item, sizeof item, "%u", (unsigned)code);
+    for (const char *p = list; *p != '\0';) {
+        size_t len = strcspn(p, ",");
+        if (len == strlen(item) && strncmp(p, item, len) == 0) {
+            return;
+        }
+        p += len + (p[len] == ',');
+    }
+    size_t used = strlen(list);
+    snprintf(list + used, cap - used, "%s%s", used > 0 ? "," : "", item);
+}
+
 static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name)
 {
     start_converged();
@@ -130,6 +154,7 @@ static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name
     memcpy(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before);
     uint32_t telem_before = rig.telem_a;
     uint64_t from = rig.tick;
+    char codes[64] = ""; /* the distinct ACK results, in order of first use */
     for (unsigned i = 0; i < n; i++) {
         const bad_cmd_t *c = &cmds[i];
         uint32_t acks = rig.acks;
@@ -149,6 +174,7 @@ static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name
             TEST_ASSERT_EQUAL_UINT16_MESSAGE(HD_FAULT_CMD_ERROR,
                                              rig.faults[rig.tick - 1u] & HD_FAULT_CMD_ERROR,
                                              c->what);
+            note_code(codes, sizeof codes, rig.last_ack[2]);
         }
         TEST_ASSERT_EQUAL_MEMORY_MESSAGE(&cfg_before, hd_fw_config(&rig.fw), sizeof cfg_before,
                                          c->what);
@@ -158,7 +184,11 @@ static void run_bad_commands(const bad_cmd_t *cmds, unsigned n, const char *name
     TEST_ASSERT_EQUAL_UINT32(telem_before + (uint32_t)(rig.tick - from), rig.telem_a);
     TEST_ASSERT_EQUAL_UINT32(0, rig.seq_gaps);
     double m = fi_max_abs_err(&rig, from, rig.tick);
-    fi_report(name, 0, m, "max_err_nm");
+    char extra[96];
+    snprintf(extra, sizeof extra, "frames=%u results=%s", n, codes[0] != '\0' ? codes : "none");
+    /* nothing to recover from: the filtered torque never left the band */
+    fi_report(&rig, name, fi_recovery_ticks(&rig, from, FI_BAND_NM, FI_HOLD_TICKS), 0, m, from,
+              rig.tick, extra);
     TEST_ASSERT_TRUE(m <= FI_BAND_NM);
 }
 
@@ -242,12 +272,20 @@ static void test_command_flood_is_bounded(void)
         fi_push_cmd(&rig, d, 8, 0, NODE_CMD_ID);
     }
     uint32_t acks = rig.acks;
+    uint64_t from = rig.tick;
     fi_rig_run(&rig, 1); /* queued; answered from the next tick on */
     TEST_ASSERT_EQUAL_UINT32(acks, rig.acks);
     fi_rig_run(&rig, 1);
     TEST_ASSERT_EQUAL_UINT32(acks + HD_FW_ACKS_PER_TICK, rig.acks);
-    fi_rig_run(&rig, HAL_MOCK_RX_CAP / HD_FW_ACKS_PER_TICK - 1u);
+    while (rig.acks < acks + HAL_MOCK_RX_CAP && rig.tick < from + 100u) {
+        fi_rig_run(&rig, 1);
+    }
+    /* every tick after the first answers HD_FW_ACKS_PER_TICK */
+    TEST_ASSERT_EQUAL_UINT64(from + 1u + HAL_MOCK_RX_CAP / HD_FW_ACKS_PER_TICK, rig.tick);
     TEST_ASSERT_EQUAL_UINT32(acks + HAL_MOCK_RX_CAP, rig.acks);
+    rel_measured("can_command_flood", "frames=%u acks_per_tick=%u drain_ticks=%u",
+                 (unsigned)HAL_MOCK_RX_CAP, (unsigned)HD_FW_ACKS_PER_TICK,
+                 (unsigned)(rig.tick - from - 1u));
     TEST_ASSERT_EQUAL_UINT8(HAL_MOCK_RX_CAP - 1u, rig.last_ack[1]); /* in order */
     fi_rig_run(&rig, 500);
     assert_core_invariants();
@@ -270,6 +308,7 @@ static void test_implausible_gain_rejected_large_gain_flagged(void)
     fi_push_cmd(&rig, huge.data, 8, 0, NODE_CMD_ID);
     fi_rig_run(&rig, 100u);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, rig.last_ack[2]);
+    const uint8_t huge_result = rig.last_ack[2];
     TEST_ASSERT_EQUAL_FLOAT(gain_before, hd_fw_config(&rig.fw)->calib_gain_nm_per_v);
     TEST_ASSERT_TRUE(fi_max_abs_err(&rig, T0, T0 + 100u) <= FI_BAND_NM);
 
@@ -284,7 +323,10 @@ static void test_implausible_gain_rejected_large_gain_flagged(void)
     fi_rig_run(&rig, UINT64_MAX);
     assert_core_invariants();
     long rec = fi_recovery_ticks(&rig, T0 + 401u, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("calibration_gain_out_of_torque_range", rec, 0.0, NULL);
+    char extra[96];
+    snprintf(extra, sizeof extra, "refused_gain=%.2g gain_limit=%g result=%u", 3.4e38,
+             (double)HD_FW_CALIB_GAIN_MAX_NM_PER_V, (unsigned)huge_result);
+    fi_report(&rig, "calibration_gain", rec, 20, (double)NAN, T0, T0 + 401u, extra);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= 20);
 }
 

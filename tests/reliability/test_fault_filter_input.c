@@ -7,12 +7,13 @@
  * every output finite, the expected status flag raised (BAD_INPUT or RESET
  * for a bad torque, FROZEN / BAD_INPUT / RESET for a bad angle), and the
  * recovery = ticks until the filtered torque is back within 0.15 N m of the
- * truth for 200 steps (reported for docs/reliability.md). */
+ * truth for 200 steps (a `measured:` line for docs/reliability.md). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "hd_pipeline.h"
+#include "rel_measured.h"
 #include "rel_signal.h"
 #include "unity.h"
 
@@ -91,8 +92,6 @@ static void run_case(const bad_input_t *c)
             break;
         }
     }
-    printf("RECOVERY %-28s ticks=%ld status=0x%x resets=%u\n", c->name, rec, (unsigned)status_or,
-           (unsigned)pipe.kf.reset_count);
     TEST_ASSERT_TRUE_MESSAGE(rec >= 0, c->name);
     /* State kept (prediction only): 20 ripple settle times.  State restarted
      * from zero (reset, or every block frozen by an impossible angle step):
@@ -101,6 +100,17 @@ static void run_case(const bad_input_t *c)
      * 5 revolutions at 250 rad/s = 12.6 s. */
     bool restarted = (status_or & (HD_KF_STATUS_RESET | HD_KF_STATUS_FROZEN)) != 0u;
     long limit = restarted ? 12600 : 1000;
+    char status[64] = "";
+    for (unsigned b = 0; hd_kf_status_name(b) != NULL; b++) {
+        if ((status_or >> b) & 1u) {
+            size_t used = strlen(status);
+            snprintf(status + used, sizeof status - used, "%s%s", used > 0 ? "|" : "",
+                     hd_kf_status_name(b));
+        }
+    }
+    rel_measured(c->name, "recovery_ticks=%ld limit_ticks=%ld status=%s resets=%u ticks=%u", rec,
+                 limit, status[0] != '\0' ? status : "none", (unsigned)pipe.kf.reset_count,
+                 c->ticks);
     TEST_ASSERT_TRUE_MESSAGE(rec <= limit, c->name);
 }
 

@@ -8,12 +8,14 @@
  * frames, and the filtered torque comes back within FI_BAND_NM of the
  * simulation's ground truth.  The recovery time (ticks from the end of the
  * fault until |filtered - truth| <= 0.15 N m for 200 consecutive ticks) is
- * printed as a RECOVERY line for docs/reliability.md and must stay under a
- * limit derived from the filter's settle times. */
+ * printed as a `measured:` line (rel_measured.h; tests/reliability/rel_doc.py
+ * writes docs/reliability.md from them) and must stay under a limit derived
+ * from the filter's settle times. */
 #include <math.h>
 #include <string.h>
 
 #include "fi_rig.h"
+#include "rel_measured.h"
 #include "unity.h"
 
 static fi_rig_t rig;
@@ -57,6 +59,32 @@ static void assert_converged_before(uint64_t start)
     TEST_ASSERT_EQUAL_HEX16(0, fi_faults_in(&rig, 0, start));
 }
 
+/* The torque the firmware computes from ADC counts with the rig's nominal
+ * calibration (what an injected sample means in N m). */
+static double sample_nm(int32_t counts)
+{
+    return rig.nom.gain_nm_per_v * ((double)counts * rig.nom.adc_v_per_count - rig.nom.offset_v);
+}
+
+static void test_no_fault_baseline(void)
+{
+    /* the error the fault cases are compared with: the converged rig over
+     * the same span, nothing injected */
+    fi_rig_init(&rig, "duration_s = 18\n");
+    fi_rig_run(&rig, UINT64_MAX);
+    assert_invariants();
+    assert_converged_before(T0);
+    TEST_ASSERT_EQUAL_HEX32(0, fi_faults_in(&rig, 0, rig.tick));
+    double rms = fi_rms_err(&rig, T0, rig.tick);
+    double peak = fi_max_abs_err(&rig, T0, rig.tick);
+    fi_report_setup(T0);
+    rel_measured("no_fault", "rms_err_nm=%.6g max_err_nm=%.6g from_s=%g to_s=%g", rms, peak,
+                 (double)T0 / 1000.0, (double)rig.tick / 1000.0);
+    /* 0.02 N m of sensor noise: a converged filter stays well inside the band */
+    TEST_ASSERT_TRUE(rms < FI_BAND_NM / 3.0);
+    TEST_ASSERT_TRUE(peak <= FI_BAND_NM);
+}
+
 /* A fault in [start, end) on the base scenario (156 rad/s held from 0.5 s). */
 static long window_fault(const char *name, int kind, uint64_t start, uint64_t end, int32_t counts,
                          uint16_t flag, long limit)
@@ -75,7 +103,9 @@ static long window_fault(const char *name, int kind, uint64_t start, uint64_t en
     /* the flag goes away with the fault */
     TEST_ASSERT_EQUAL_HEX16(0, fi_faults_in(&rig, end + 2u, rig.tick) & flag);
     long rec = fi_recovery_ticks(&rig, end, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report(name, rec, fi_max_abs_err(&rig, start, end + 1000u), "max_err_nm");
+    char extra[64];
+    snprintf(extra, sizeof extra, "window_ms=%u counts=%ld", (unsigned)(end - start), (long)counts);
+    fi_report(&rig, name, rec, limit, fi_max_abs_err(&rig, start, end + 1000u), start, end + 2u, extra);
     TEST_ASSERT_TRUE_MESSAGE(rec >= 0, "never recovered");
     TEST_ASSERT_TRUE_MESSAGE(rec <= limit, "recovery too slow");
     return rec;
@@ -113,7 +143,10 @@ static void test_out_of_range_sample_100ms(void)
     TEST_ASSERT_EQUAL_HEX16(HD_FAULT_TORQUE_RANGE, fi_faults_in(&rig, T0, T0 + 100u));
     TEST_ASSERT_EQUAL_HEX16(HD_FAULT_TORQUE_RANGE, rig.telem_faults_or);
     long rec = fi_recovery_ticks(&rig, T0 + 100u, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("out_of_range_sample", rec, 0.0, NULL);
+    char extra[96];
+    snprintf(extra, sizeof extra, "window_ms=100 sample_nm=%.3g torque_limit_nm=%g",
+             sample_nm(rig.fault.counts), (double)hd_fw_config(&rig.fw)->torque_limit_nm);
+    fi_report(&rig, "out_of_range_sample", rec, LIMIT_HELD_STATE, (double)NAN, T0, T0 + 100u, extra);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= LIMIT_HELD_STATE);
 }
 
@@ -130,7 +163,10 @@ static void test_single_wild_sample_inside_range(void)
     fi_rig_run(&rig, UINT64_MAX);
     assert_invariants();
     long rec = fi_recovery_ticks(&rig, T0 + 1u, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("wild_sample_in_range", rec, fi_max_abs_err(&rig, T0 + 1u, T0 + 1000u), "max_err_after_nm");
+    char extra[64];
+    snprintf(extra, sizeof extra, "sample_nm=%.3g", sample_nm(rig.fault.counts));
+    fi_report(&rig, "wild_sample_in_range", rec, LIMIT_RESETTLE,
+              fi_max_abs_err(&rig, T0 + 1u, T0 + 1000u), T0, T0 + 2u, extra);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= LIMIT_RESETTLE);
 }
 
@@ -146,10 +182,10 @@ static void test_encoder_fault_200ms(void)
 static void test_encoder_glitch_one_tick(void)
 {
     /* a one-tick spike of 100000 counts: two flagged ticks (out and back) */
-    long rec = window_fault("encoder_glitch", FI_ENC_SPIKE, T0, T0 + 1u, 100000,
-                            HD_FAULT_ENC_GLITCH, LIMIT_HELD_STATE);
+    window_fault("encoder_glitch", FI_ENC_SPIKE, T0, T0 + 1u, 100000, HD_FAULT_ENC_GLITCH,
+                 LIMIT_HELD_STATE);
     TEST_ASSERT_EQUAL_UINT32(2, rig.fw.counters.by_fault[4]);
-    (void)rec;
+    rel_measured("encoder_glitch", "flagged_ticks=%u", (unsigned)rig.fw.counters.by_fault[4]);
 }
 
 static void test_encoder_jump_detected(void)
@@ -157,9 +193,10 @@ static void test_encoder_jump_detected(void)
     /* the counter jumps by 5000 counts for good (far beyond one tick of
      * travel at the glitch limit): flagged, and because only deltas are
      * used, the angle the filter sees is unaffected */
-    window_fault("encoder_jump_5000", FI_ENC_JUMP, T0, T0 + 1u, 5000, HD_FAULT_ENC_GLITCH,
+    window_fault("encoder_jump", FI_ENC_JUMP, T0, T0 + 1u, 5000, HD_FAULT_ENC_GLITCH,
                  LIMIT_HELD_STATE);
     TEST_ASSERT_EQUAL_UINT32(1, rig.fw.counters.by_fault[4]);
+    rel_measured("encoder_jump", "flagged_ticks=%u", (unsigned)rig.fw.counters.by_fault[4]);
 }
 
 static void test_encoder_lost_counts_undetectable(void)
@@ -177,7 +214,11 @@ static void test_encoder_lost_counts_undetectable(void)
     assert_invariants();
     TEST_ASSERT_EQUAL_HEX16(0, fi_faults_in(&rig, 0, rig.tick));
     long rec = fi_recovery_ticks(&rig, T0 + 1u, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("encoder_lost_40_counts", rec, fi_max_abs_err(&rig, T0, T0 + 1000u), "max_err_nm");
+    char extra[64];
+    snprintf(extra, sizeof extra, "counts=%d motor_deg=%.2g", -rig.fault.counts,
+             -360.0 * rig.fault.counts / (double)rig.nom.motor_cpr);
+    fi_report(&rig, "encoder_lost_counts", rec, LIMIT_RESETTLE, fi_max_abs_err(&rig, T0, T0 + 1000u),
+              0, rig.tick, extra);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= LIMIT_RESETTLE);
 }
 
@@ -193,7 +234,7 @@ static long profile_case(const char *name, const char *extra, uint64_t from, uin
     TEST_ASSERT_EQUAL_UINT16_MESSAGE(flag_expected, f, name);
     TEST_ASSERT_EQUAL_HEX16(flag_expected, rig.telem_faults_or);
     long rec = fi_recovery_ticks(&rig, from, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report(name, rec, fi_max_abs_err(&rig, from, rig.tick), "max_err_after_nm");
+    fi_report(&rig, name, rec, limit, fi_max_abs_err(&rig, from, rig.tick), 0, rig.tick, NULL);
     TEST_ASSERT_TRUE_MESSAGE(rec >= 0, "never recovered");
     TEST_ASSERT_TRUE_MESSAGE(rec <= limit, "recovery too slow");
     return rec;
@@ -224,7 +265,7 @@ static void test_standstill_three_minutes(void)
     TEST_ASSERT_EQUAL_UINT32(0, kf->reset_count);
     double during = fi_max_abs_err(&rig, T0 + 200u, 192200);
     long rec = fi_recovery_ticks(&rig, 192400, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("standstill_180s", rec, during, "max_err_standstill_nm");
+    fi_report(&rig, "standstill", rec, LIMIT_RESETTLE, during, 0, rig.tick, "standstill_s=180");
     TEST_ASSERT_TRUE_MESSAGE(during <= FI_BAND_NM, "error grew at standstill");
     TEST_ASSERT_TRUE(rec >= 0 && rec <= LIMIT_RESETTLE);
 }
@@ -244,7 +285,8 @@ static void test_order_over_nyquist(void)
      * 0.4 N m amplitude plus noise and the other blocks' errors */
     double during = fi_max_abs_err(&rig, 13000, 14500);
     long rec = fi_recovery_ticks(&rig, 15000, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("order_over_nyquist", rec, during, "max_err_frozen_nm");
+    fi_report(&rig, "order_over_nyquist", rec, LIMIT_RESETTLE, during, 12500, 14500,
+              "speed_rad_s=900 window_ms=2000");
     TEST_ASSERT_TRUE(during < 1.0);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= LIMIT_RESETTLE);
 }
@@ -252,10 +294,10 @@ static void test_order_over_nyquist(void)
 static void test_load_step_up_and_down(void)
 {
     /* +10 N m in 5 ms at 12 s; and -10 N m from 13 N m at 12 s */
-    profile_case("load_step_10nm_up",
+    profile_case("load_step_up",
                  "duration_s = 20\nload_torque_profile = 0:3, 12:3, 12.005:13\n", T0 + 5u, 0,
                  LIMIT_RESETTLE);
-    profile_case("load_step_10nm_down",
+    profile_case("load_step_down",
                  "duration_s = 20\nload_torque_profile = 0:13, 12:13, 12.005:3\n", T0 + 5u, 0,
                  LIMIT_RESETTLE);
 }
@@ -273,13 +315,17 @@ static void test_ripple_amplitude_change(void)
     assert_invariants();
     TEST_ASSERT_EQUAL_HEX16(0, fi_faults_in(&rig, 0, rig.tick));
     long rec = fi_recovery_ticks(&rig, T0, FI_BAND_NM, FI_HOLD_TICKS);
-    fi_report("ripple_amplitude_step", rec, fi_max_abs_err(&rig, T0, T0 + 1000u), "max_err_nm");
+    char extra[48];
+    snprintf(extra, sizeof extra, "extra_line_nm=%g", rig.fault.amp_nm);
+    fi_report(&rig, "ripple_amplitude_step", rec, LIMIT_RESETTLE,
+              fi_max_abs_err(&rig, T0, T0 + 1000u), 0, rig.tick, extra);
     TEST_ASSERT_TRUE(rec >= 0 && rec <= LIMIT_RESETTLE);
 }
 
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_no_fault_baseline);
     RUN_TEST(test_adc_read_error_500ms);
     RUN_TEST(test_adc_stuck_at_rail_500ms);
     RUN_TEST(test_open_bridge_500ms);

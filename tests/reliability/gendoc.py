@@ -1,0 +1,120 @@
+"""Writing measured tables into the docs (tests/reliability/rel_doc.py,
+tests/vm/vm_doc.py).
+
+A generated block sits in a Markdown file between
+
+    <!-- BEGIN generated:NAME -->
+    <!-- END generated:NAME -->
+
+NAME has a hyphen (`reliability-faults`), so hdtools.protocol, which
+renders its own `\\w+` blocks in every docs/*.md, leaves these alone.
+The measuring programs are run with the command lines CTest has for them
+(`ctest --show-only=json-v1`), so a table is what the CTest test measures.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+import re
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+class GenDocError(Exception):
+    """One line for stderr: what failed and where."""
+
+
+def ctest_commands(build: Path) -> dict[str, list[str]]:
+    """{test name: command line} of every CTest test in `build`."""
+    try:
+        out = subprocess.run(["ctest", "--test-dir", str(build), "--show-only=json-v1"],
+                             capture_output=True, text=True, timeout=120, check=False)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise GenDocError(f"ctest --show-only in {build}: {exc}") from None
+    if out.returncode != 0:
+        raise GenDocError(f"ctest --show-only in {build} failed: {out.stderr.strip()[:200]}")
+    tests = json.loads(out.stdout).get("tests", [])
+    return {t["name"]: t["command"] for t in tests if t.get("command")}
+
+
+def command_of(commands: dict[str, list[str]], name: str, build: Path) -> list[str]:
+    if name not in commands:
+        raise GenDocError(f"{build} has no CTest test {name} (configured and built?)")
+    return commands[name]
+
+
+def run(cmd: list[str], timeout_s: float, cwd: Path | None = None) -> str:
+    """stdout of cmd, which must exit 0."""
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, cwd=cwd,
+                             check=False)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise GenDocError(f"{Path(cmd[0]).name}: {exc}") from None
+    if out.returncode != 0:
+        tail = (out.stdout + out.stderr).strip().splitlines()[-3:]
+        raise GenDocError(f"{Path(cmd[0]).name} exited with {out.returncode}: "
+                          + " / ".join(tail))
+    return out.stdout
+
+
+def _markers(name: str) -> tuple[str, str]:
+    return f"<!-- BEGIN generated:{name} -->", f"<!-- END generated:{name} -->"
+
+
+def replace_blocks(text: str, blocks: dict[str, str], where: str) -> str:
+    """text with each named block's body replaced."""
+    for name, body in blocks.items():
+        begin, end = _markers(name)
+        pat = re.compile(re.escape(begin) + r"\n.*?" + re.escape(end), re.S)
+        if len(pat.findall(text)) != 1:
+            raise GenDocError(f"{where}: needs exactly one {begin} ... {end} block")
+        text = pat.sub(lambda _m: f"{begin}\n{body.rstrip()}\n{end}", text)
+    return text
+
+
+def update_doc(path: Path, blocks: dict[str, str], check: bool, regenerate: str) -> str:
+    """Writes the blocks into path atomically (a temporary file in the same
+    folder, then a rename), or with check=True raises GenDocError naming
+    `regenerate` when the file differs.  Returns a one-line report."""
+    try:
+        old = path.read_text()
+    except OSError as exc:
+        raise GenDocError(f"{path}: {exc.strerror}") from None
+    new = replace_blocks(old, blocks, str(path))
+    names = ", ".join(blocks)
+    if check:
+        if new != old:
+            stale = [n for n in blocks if replace_blocks(old, {n: blocks[n]}, str(path)) != old]
+            raise GenDocError(f"{path}: generated block(s) {', '.join(stale)} out of date "
+                              f"with what the tests just measured: run {regenerate}")
+        return f"{path}: {names} up to date"
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        tmp.write_text(new)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise GenDocError(f"{path}: cannot write: {exc.strerror}") from None
+    return f"{path}: {names} written"
+
+
+def machine() -> str:
+    """Date, processor and core count, for tables of numbers that vary
+    from run to run (not checked)."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    load = ""
+    if hasattr(os, "getloadavg"):
+        load = f", load average {os.getloadavg()[0]:.1f} at the start"
+    day = datetime.date.today().isoformat()
+    return f"{day}, {cpu} ({os.cpu_count()} logical CPUs{load})"
