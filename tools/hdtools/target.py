@@ -7,9 +7,14 @@
                                   run the firmware image on a raw sample stream
   tools/target compare (IN.hdraw | --scenario INI [--duration S])
                                   host build vs QEMU image: bit-identical?
-  tools/target budget [--markdown]
+  tools/target budget [--markdown] [--json FILE]
                                   flash, RAM, worst-case stack, instruction
                                   counts per filter update / ISR, cycle estimate
+  tools/target budget --update-docs [--docs DIR]
+                                  both ports' budgets into docs/target.md,
+                                  docs/stm32f4.md (between <!-- target:budget:begin
+                                  --> and <!-- target:budget:end -->) and
+                                  docs/results/budget.json, all or none
   tools/target count ELF [ARG...] instruction counts between the markers of
                                   any image that uses them (hd_mark.h)
   tools/target flash --board odrive-v3|mini-cheetah [--tool openocd|dfu]
@@ -650,199 +655,423 @@ def md_table(header: list, rows: list) -> str:
     return "\n".join(lines)
 
 
+# The filter models of the bench image (main_bench.c): label key, what the
+# row adds to its state count.
+MODELS = [("4", ""), ("6", ""), ("8", ""), ("default", " (firmware default)"),
+          ("max", " (max)")]
 # hd_kf_step's slow paths in the bench image (main_bench.c), worst last.
 KF_PATHS = [("kfpartial", "partial gains"), ("kffrozen", "over Nyquist"),
             ("kflost", "phase lost"), ("kfclamp", "clamp"), ("kfreset", "reset"),
             ("kfworst", "all at once")]
+TICK_PERIOD_US = 1000
+ALLOCATORS = ("malloc", "_malloc_r", "calloc", "realloc", "free", "_free_r", "_sbrk",
+              "_sbrk_r", "sbrk")
 
 
-def budget_kf_paths(by: dict, models: list, overhead: int, p) -> dict:
-    """The filter step's typical and slow paths, per model: a table (through
-    p) and {model: {"typical", PATH..., "worst", "worst_path", "dense_ratio"}}
-    (max instructions per call; dense_ratio = dense mean / typical mean)."""
-    if not all(f"{kind}:{key}" in by for kind, _ in KF_PATHS for key, _ in models):
+def worst_us(c: dict, mhz: float) -> float:
+    """Worst-case time of a counted section: its max instructions x the
+    worst-case cycles per instruction of the section (cycles_worst / mean)."""
+    return c["max"] * (c["cycles_worst"] / c["mean"]) / mhz
+
+
+def section_counts(sections: list, insns: dict) -> tuple:
+    """Labelled sections -> ({label: {states, calls, mean, max, cycles_best,
+    cycles_worst}} per call, marker overhead subtracted; counter check:
+    hd_bench_loop(1010) - hd_bench_loop(10), None if not counted)."""
+    by = {s["label"]: s for s in sections}
+    overhead = min(by["empty:-"]["intervals"])
+    loop = by["loop:-"]["intervals"]
+    counts = {}
+    for s in sections:
+        if not s["intervals"]:
+            continue
+        iv = [n - overhead for n in s["intervals"]]
+        lo, hi, _ = cycle_estimate(s["hist"], insns, len(iv))
+        counts[s["label"]] = {"states": s["states"], "calls": len(iv),
+                              "mean": statistics.mean(iv), "max": max(iv),
+                              "cycles_best": lo - overhead * 2,  # the marker's bl (1 + P)
+                              "cycles_worst": hi - overhead * 4}
+    return counts, (loop[1] - loop[0] if len(loop) == 2 else None), overhead
+
+
+def kf_paths_of(counts: dict) -> dict:
+    """{model: {"typical", PATH..., "worst", "worst_path", "dense_ratio"}}:
+    max instructions per call of hd_kf_step's typical and slow paths;
+    dense_ratio = dense mean / typical mean.  Empty if the image lacks them."""
+    if not all(f"{kind}:{key}" in counts for kind, _ in KF_PATHS for key, _ in MODELS):
         return {}
-
-    def mx(label):
-        return max(by[label]["intervals"]) - overhead
-
-    def mean(label):
-        return statistics.mean(by[label]["intervals"]) - overhead
-
-    result, rows = {}, []
-    for key, states in models:
-        r = {"typical": mx(f"kf:{key}")}
+    result = {}
+    for key, _ in MODELS:
+        r = {"typical": counts[f"kf:{key}"]["max"]}
         for kind, _ in KF_PATHS:
-            r[kind] = mx(f"{kind}:{key}")
+            r[kind] = counts[f"{kind}:{key}"]["max"]
         worst = max(KF_PATHS, key=lambda k: r[k[0]])
         r["worst"], r["worst_path"] = max(r["typical"], r[worst[0]]), worst[1]
-        r["dense_ratio"] = round(mean(f"dense:{key}") / mean(f"kf:{key}"), 2)
+        r["dense_ratio"] = round(counts[f"dense:{key}"]["mean"] / counts[f"kf:{key}"]["mean"], 2)
         result[key] = r
-        rows.append([states, r["typical"]] + [r[k] for k, _ in KF_PATHS] +
-                    [f"{r['worst']} ({r['worst_path']})", f"{r['dense_ratio']:.1f}"])
-    p("\nhd_kf_step by path, max instructions per call (the bench image forces each path on "
-      "every call: every gain fraction below 1, no block frozen (motor blocks below "
-      "q_motion_ref_rad, output_learn_scale 0.5); motor blocks over Nyquist; a phase "
-      "advance beyond four turns; every covariance block above p_max; a non-finite state; "
-      "all of them (but partial gains) with an offset jump):\n")
-    p(md_table(["states", "typical"] + [name for _, name in KF_PATHS] +
-               ["worst case", "dense / typical (mean)"], rows))
     return result
+
+
+def stack_numbers(st: dict, isr_names: list) -> dict:
+    """worst_stack's result as the budget keeps it: [bytes, path] of main
+    (with Reset_Handler), each interrupt (named) and the fault handler."""
+    return {"main": [st["reset"] + st["main"][0], st["main"][1]], "frame": st["frame"],
+            "isrs": [[name, c[0], c[1]] for name, c in zip(isr_names, st["isrs"])],
+            "fault": [st["fault"][0], st["fault"][1]], "notes": st["notes"]}
+
+
+def check_failures(heap: list, stack_total: int, stack_reserved: int, check) -> list:
+    """The checks every budget makes: no allocator, the worst-case stack
+    within the reserve, the counter's closed form."""
+    failures = [f"allocator symbols linked: {', '.join(heap)}"] if heap else []
+    if stack_total > stack_reserved:
+        failures.append(f"worst-case stack {stack_total} B exceeds the reserved "
+                        f"{stack_reserved} B")
+    if check != 2000:
+        failures.append(f"the instruction counter check failed: {check} instead of 2000")
+    return failures
 
 
 def budget(p=None) -> dict:
     """Builds the mps2-an386 images, measures them and returns the budget's
     numbers: {flash_bytes, ram_bytes, stack_reserved_bytes, stack_worst_bytes,
     heap_symbols, counter_check, instructions: {LABEL: {states, calls, mean,
-    max}}, kf_paths, failures: [...]} (failures: what failed, empty when all
-    checks passed).  p, if given, receives the markdown tables line by line.
-    Raises TargetError on a setup problem."""
+    max, cycles_best, cycles_worst}}, kf_paths, memory, stack, tick_limits,
+    clock_mhz, failures: [...]} (failures: what failed, empty when all checks
+    passed).  p, if given, receives the markdown (render_budget).  Raises
+    TargetError on a setup problem."""
     build_images()
     run_elf, bench_elf = image("hd_image"), image("hd_bench")
-    if p is None:
-        p = lambda _line: None  # noqa: E731 (quiet)
-
-    # --- memory
     sizes = section_sizes(run_elf)
     flash = sizes.get(".text", 0) + sizes.get(".ARM.exidx", 0) + sizes.get(".data", 0)
     stack_reserved = sizes.get(".stack", 0)
     ram = sizes.get(".data", 0) + sizes.get(".bss", 0) + stack_reserved
-    p("### Memory (hd_image.elf, arm-none-eabi-size -A)\n")
-    p(md_table(["region", "used", "of", "contents"], [
-        ["flash", f"{flash} B", "512 KB", ".text (code, constants, vector table) + .data image"],
-        ["RAM", f"{ram} B", "128 KB",
-         f".data {sizes.get('.data', 0)} + .bss {sizes.get('.bss', 0)} + "
-         f"reserved stack {stack_reserved}"],
-    ]))
     fl, rm = map_by_component(run_elf.with_suffix(".map"))
-    p("\nBy component (linker map):\n")
     comps = sorted(set(fl) | set(rm), key=lambda c: -(fl.get(c, 0) + rm.get(c, 0)))
-    p(md_table(["component", "flash B", "RAM B (static)"],
-               [[c, fl.get(c, 0), rm.get(c, 0)] for c in comps]))
-    syms = ram_symbols(run_elf)
-    p("\nLargest RAM objects: " + ", ".join(f"`{n}` {s} B" for n, s in syms[:6]) +
-      ".  The firmware's own state is `g_fw` (hd_fw_t, two pipelines: the running "
-      "model and the one a command builds); `g_mock`, `g_stream`, `g_dump`, `g_canlog` "
-      "are the QEMU board's I/O (NVM in RAM, semihosting buffers) that a real board "
-      "replaces with peripherals.")
-
-    # --- heap
-    heap = [s for s in ("malloc", "_malloc_r", "calloc", "realloc", "free", "_free_r", "_sbrk",
-                        "_sbrk_r", "sbrk") if s in symbols(run_elf) or s in symbols(bench_elf)]
-    p("\n### Heap\n")
-    if heap:
-        p(f"FAIL: allocator symbols linked: {', '.join(heap)}")
-    else:
-        p("None.  Images link with `-nostdlib` (no libc; the board supplies memcpy/memset/"
-          "memcmp/strlen/strcmp), the linker script `ASSERT`s that malloc/free/_sbrk are "
-          "undefined, and a post-build step checks the symbol table (nm): no "
-          "malloc/calloc/realloc/free/_sbrk.")
-
-    # --- stack
+    heap = [s for s in ALLOCATORS if s in symbols(run_elf) or s in symbols(bench_elf)]
     st = worst_stack(run_elf)
-    p("\n### Worst-case stack (-fstack-usage + -fcallgraph-info call graph)\n")
-    p(md_table(["context", "bytes", "deepest path"], [
-        ["main loop (Reset_Handler + main)", st["reset"] + st["main"][0],
-         " > ".join(st["main"][1])],
-        ["exception entry, FP context (26 words + align)", st["frame"], "hardware"],
-        ["SysTick (the 1 kHz ISR)", st["tick"][0], " > ".join(st["tick"][1])],
-        ["exception entry (fault inside the ISR)", st["frame"], "hardware"],
-        ["HardFault handler", st["fault"][0], " > ".join(st["fault"][1])],
-        ["**total worst case**", f"**{st['total']}**", f"reserved: {stack_reserved} B"],
-    ]))
-    p("\nIndirect calls (HAL vtable, CAN transmit hook) are bounded by the deepest HAL "
-      "backend function linked into the image; no recursion" +
-      (("; notes: " + "; ".join(st["notes"])) if st["notes"] else "") + ".")
-    stack_ok = st["total"] <= stack_reserved
-
-    # --- instruction counts
-    sections = labelled_sections(bench_elf, [])
-    insns = disassembly(bench_elf)
-    by = {s["label"]: s for s in sections}
-    overhead = min(by["empty:-"]["intervals"])
-    loop = by["loop:-"]["intervals"]
-    loop_ok = len(loop) == 2 and loop[1] - loop[0] == 2 * 1000
-    p("\n### Instructions per call (QEMU TCG plugin, exact) and estimated cycles\n")
-    p(f"Counted by tools/qemu-plugin/hdcount.c between the image's markers, "
-      f"{len(by['kf:4']['intervals'])} calls each; marker overhead ({overhead} "
-      f"instruction) subtracted.  Counter check: hd_bench_loop(1010) - hd_bench_loop(10) = "
-      f"{loop[1] - loop[0] if len(loop) == 2 else '?'} instructions (expected 2000).  "
-      "These are **instructions, not cycles**: QEMU has no cycle model.  Cycles are "
-      "estimated from the per-instruction execution counts with the Cortex-M4 TRM timings "
-      "(ALU 1, LDR 1-2, STR 1-2, taken branch 2-4, VADD/VMUL 1, VMLA 3, VLDR/VSTR 2, "
-      "VDIV/VSQRT 14, push/pop 1+N), zero wait states; range = best..worst case.\n")
-    models = [("4", "4"), ("6", "6"), ("8", "8"), ("default", "7 (firmware default)"),
-              ("max", "17 (max)")]
+    counts, check, overhead = section_counts(labelled_sections(bench_elf, []),
+                                             disassembly(bench_elf))
     rx, acks = fw_tick_limits()
-    cmd_label = f"ISR + commands ({rx} in, {acks} ACK out)"
-    kinds = [("kf", "hd_kf_step"), ("isr", "ISR (hd_fw_isr)"),
-             ("isrcmd", cmd_label), ("dense", "dense textbook KF")]
-    mhz = MCU_CLOCKS_MHZ[0][1]
+    numbers = {
+        "flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
+        "stack_worst_bytes": st["total"], "heap_symbols": heap, "counter_check": check,
+        "instructions": counts, "kf_paths": kf_paths_of(counts),
+        "memory": {"data": sizes.get(".data", 0), "bss": sizes.get(".bss", 0),
+                   "components": [[c, fl.get(c, 0), rm.get(c, 0)] for c in comps],
+                   "ram_objects": [[n, s] for n, s in ram_symbols(run_elf)[:6]]},
+        "stack": stack_numbers(st, ["SysTick (the 1 kHz ISR)"]),
+        "marker_overhead": overhead, "tick_limits": {"rx": rx, "acks": acks},
+        "clock_mhz": MCU_CLOCKS_MHZ[0][1],
+        "failures": check_failures(heap, st["total"], stack_reserved, check)}
+    if p is not None:
+        p(render_budget(numbers))
+    return numbers
+
+
+# ------------------------------------------------ budget: the tables (pure)
+
+def stack_table(st: dict, total: int, reserved: int, fault_name: str,
+                fault_context: str) -> str:
+    rows = [["main loop (Reset_Handler + main)", st["main"][0], " > ".join(st["main"][1])]]
+    for name, nbytes, path in st["isrs"]:
+        rows.append(["exception entry, FP context (26 words + align)", st["frame"], "hardware"])
+        rows.append([name, nbytes, " > ".join(path)])
+    rows += [[f"exception entry ({fault_context})", st["frame"], "hardware"],
+             [fault_name, st["fault"][0], " > ".join(st["fault"][1])],
+             ["**total worst case**", f"**{total}**", f"reserved: {reserved} B"]]
+    return md_table(["context", "bytes", "deepest path"], rows)
+
+
+def command_label(n: dict) -> str:
+    return f"ISR + commands ({n['tick_limits']['rx']} in, {n['tick_limits']['acks']} ACK out)"
+
+
+def headline_table(n: dict) -> str:
+    """The firmware default's filter step, tick and tick with commands in one
+    table (what docs and the README quote), from budget_summary."""
+    s = budget_summary(n)
+    states = s["default_states"]
+    row = s["per_states"][str(states)]
+    step = row["kf_step"]
+    parts = [("hd_kf_step, typical path", step["typical"], "")]
+    if "worst" in step:
+        parts.append((f"hd_kf_step, worst path ({step['worst']['path']})", step["worst"], ""))
+    cmd = row["tick_with_commands"]
+    parts += [("the tick (hd_fw_isr)", row["tick"], ""),
+              (f"the tick with commands ({cmd['frames_in']} in, {cmd['acks_out']} ACK out)", cmd,
+               f" ({cmd['ratio_to_tick_max']:.2f}x the tick)")]
+    return md_table([f"{states} states (firmware default)", "instructions (max)",
+                     f"estimated worst-case us at {n['clock_mhz']} MHz",
+                     f"share of the {TICK_PERIOD_US} us tick"],
+                    [[what, f"{c['max_instructions']}{note}", f"{c['worst_us']:.1f}",
+                      f"{100 * c['budget_fraction']:.1f} %"] for what, c, note in parts])
+
+
+def render_budget(n: dict) -> str:
+    """The mps2-an386 budget tables (markdown) from budget()'s numbers."""
+    mem, ins, mhz = n["memory"], n["instructions"], n["clock_mhz"]
+    out = ["#### Summary\n", headline_table(n),
+           "\n#### Memory (hd_image.elf, arm-none-eabi-size -A)\n",
+           md_table(["region", "used", "of", "contents"], [
+               ["flash", f"{n['flash_bytes']} B", "512 KB",
+                ".text (code, constants, vector table) + .data image"],
+               ["RAM", f"{n['ram_bytes']} B", "128 KB",
+                f".data {mem['data']} + .bss {mem['bss']} + reserved stack "
+                f"{n['stack_reserved_bytes']}"]]),
+           "\nBy component (linker map):\n",
+           md_table(["component", "flash B", "RAM B (static)"], mem["components"]),
+           "\nLargest RAM objects: " +
+           ", ".join(f"`{name}` {size} B" for name, size in mem["ram_objects"]) +
+           ".  The firmware's own state is `g_fw` (hd_fw_t, two pipelines: the running "
+           "model and the one a command builds); `g_mock`, `g_stream`, `g_dump`, `g_canlog` "
+           "are the QEMU board's I/O (NVM in RAM, semihosting buffers) that a real board "
+           "replaces with peripherals.",
+           "\n#### Heap\n",
+           ("FAIL: allocator symbols linked: " + ", ".join(n["heap_symbols"])
+            if n["heap_symbols"] else
+            "None.  Images link with `-nostdlib` (no libc; the board supplies memcpy/memset/"
+            "memcmp/strlen/strcmp), the linker script `ASSERT`s that malloc/free/_sbrk are "
+            "undefined, and a post-build step checks the symbol table (nm): no "
+            "malloc/calloc/realloc/free/_sbrk."),
+           "\n#### Worst-case stack (-fstack-usage + -fcallgraph-info call graph)\n",
+           stack_table(n["stack"], n["stack_worst_bytes"], n["stack_reserved_bytes"],
+                       "HardFault handler", "fault inside the ISR"),
+           "\nIndirect calls (HAL vtable, CAN transmit hook) are bounded by the deepest HAL "
+           "backend function linked into the image; no recursion" +
+           ("; notes: " + "; ".join(n["stack"]["notes"]) if n["stack"]["notes"] else "") + "."]
+    cmd = command_label(n)
+    kinds = [("kf", "hd_kf_step"), ("isr", "ISR (hd_fw_isr)"), ("isrcmd", cmd),
+             ("dense", "dense textbook KF")]
     insn_rows, cycle_rows = [], []
-    for key, states in models:
-        irow, crow = [states], [states]
-        for kind, _ in kinds:
-            s = by[f"{kind}:{key}"]
-            iv = [n - overhead for n in s["intervals"]]
-            lo, hi, _ = cycle_estimate(s["hist"], insns, len(iv))
-            lo -= overhead * 2  # the marker's bl (1 + P)
-            hi -= overhead * 4
-            worst_us = max(iv) * (hi / statistics.mean(iv)) / mhz
-            irow.append(f"{statistics.mean(iv):.0f} / {max(iv)}")
-            crow.append(f"{lo:.0f}-{hi:.0f} ({worst_us:.1f} us)")
-        isr_max = max(by[f"isr:{key}"]["intervals"]) - overhead
-        cmd_max = max(by[f"isrcmd:{key}"]["intervals"]) - overhead
-        irow.append(f"{cmd_max / isr_max:.2f}")
-        insn_rows.append(irow)
-        cycle_rows.append(crow)
-    p("Instructions per call, mean / max:\n")
-    p(md_table(["states"] + [k[1] for k in kinds] + ["with commands / ISR (max)"],
-               insn_rows))
-    p("\nEstimated Cortex-M4 cycles per call, mean best-worst (worst-case time):\n")
-    p(md_table(["states"] + [k[1] for k in kinds], cycle_rows))
-    p(f"\nus = worst-case time at {mhz} MHz ({MCU_CLOCKS_MHZ[0][0]}; "
-      f"{MCU_CLOCKS_MHZ[1][0]} at {MCU_CLOCKS_MHZ[1][1]} MHz is within 2 %): max "
-      "instructions x worst-case cycles per instruction of that section.  The ISR budget "
-      "is 1000 us per tick.  ISR = the whole 1 kHz tick body: ADC and encoder reads "
-      "(hal_mock), calibration, encoder deltas, tracker, expected torque, filter, faults, "
-      f"telemetry (2 frames at 1 kHz) and the heartbeat (tick 0); '{cmd_label}' adds "
-      f"command frames on every tick: the tick takes at most HD_FW_RX_PER_TICK = {rx} "
-      "frames (a BLOCK_ENABLE toggle of block 0, applied by the tick to the running "
-      "filter, and a SET_PARAM r_nm2, whose model rebuild the background does between "
-      f"ticks, outside the count), applies the change the background prepared and sends "
-      f"at most HD_FW_ACKS_PER_TICK = {acks} ACK.  Other command mixes are not "
-      "enumerated: this is a measured load, not a proof of the worst case.")
-    kf_paths = budget_kf_paths(by, models, overhead, p)
-    counts = {s["label"]: {"states": s["states"], "calls": len(s["intervals"]),
-                           "mean": statistics.mean(s["intervals"]) - overhead,
-                           "max": max(s["intervals"]) - overhead}
-              for s in sections if s["intervals"]}
-    failures = [f"allocator symbols linked: {', '.join(heap)}"] if heap else []
-    if not stack_ok:
-        failures.append(f"worst-case stack {st['total']} B exceeds the reserved "
-                        f"{stack_reserved} B")
-    if not loop_ok:
-        failures.append(f"the instruction counter check failed: {loop}")
-    return {"flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
-            "stack_worst_bytes": st["total"], "heap_symbols": heap,
-            "counter_check": loop[1] - loop[0] if len(loop) == 2 else None,
-            "instructions": counts, "kf_paths": kf_paths, "failures": failures}
+    for key, note in MODELS:
+        states = f"{ins[f'kf:{key}']['states']}{note}"
+        cells = [ins[f"{kind}:{key}"] for kind, _ in kinds]
+        insn_rows.append([states] + [f"{c['mean']:.0f} / {c['max']}" for c in cells] +
+                         [f"{ins[f'isrcmd:{key}']['max'] / ins[f'isr:{key}']['max']:.2f}"])
+        cycle_rows.append([states] + [f"{c['cycles_best']:.0f}-{c['cycles_worst']:.0f} "
+                                      f"({worst_us(c, mhz):.1f} us)" for c in cells])
+    out += ["\n#### Instructions per call (QEMU TCG plugin, exact) and estimated cycles\n",
+            f"Counted by tools/qemu-plugin/hdcount.c between the image's markers, "
+            f"{ins['kf:4']['calls']} calls each; marker overhead ({n['marker_overhead']} "
+            f"instruction) subtracted.  Counter check: hd_bench_loop(1010) - hd_bench_loop(10) "
+            f"= {n['counter_check']} instructions (expected 2000).  These are **instructions, "
+            "not cycles**: QEMU has no cycle model.  Cycles are estimated from the "
+            "per-instruction execution counts with the Cortex-M4 TRM timings (ALU 1, LDR 1-2, "
+            "STR 1-2, taken branch 2-4, VADD/VMUL 1, VMLA 3, VLDR/VSTR 2, VDIV/VSQRT 14, "
+            "push/pop 1+N), zero wait states; range = best..worst case.\n",
+            "Instructions per call, mean / max:\n",
+            md_table(["states"] + [k[1] for k in kinds] + ["with commands / ISR (max)"],
+                     insn_rows),
+            "\nEstimated Cortex-M4 cycles per call, mean best-worst (worst-case time):\n",
+            md_table(["states"] + [k[1] for k in kinds], cycle_rows),
+            f"\nus = worst-case time at {mhz} MHz ({MCU_CLOCKS_MHZ[0][0]}; "
+            f"{MCU_CLOCKS_MHZ[1][0]} at {MCU_CLOCKS_MHZ[1][1]} MHz is within 2 %): max "
+            "instructions x worst-case cycles per instruction of that section.  The ISR budget "
+            f"is {TICK_PERIOD_US} us per tick.  ISR = the whole 1 kHz tick body: ADC and "
+            "encoder reads (hal_mock), calibration, encoder deltas, tracker, expected torque, "
+            "filter, faults, telemetry (2 frames at 1 kHz) and the heartbeat (tick 0); "
+            f"'{cmd}' adds command frames on every tick: the tick takes at most "
+            f"HD_FW_RX_PER_TICK = {n['tick_limits']['rx']} frames (a BLOCK_ENABLE toggle of "
+            "block 0, applied by the tick to the running filter, and a SET_PARAM r_nm2, whose "
+            "model rebuild the background does between ticks, outside the count), applies the "
+            "change the background prepared and sends at most HD_FW_ACKS_PER_TICK = "
+            f"{n['tick_limits']['acks']} ACK.  Other command mixes are not enumerated: this is "
+            "a measured load, not a proof of the worst case."]
+    if n["kf_paths"]:
+        rows = []
+        for key, note in MODELS:
+            r = n["kf_paths"][key]
+            rows.append([f"{ins[f'kf:{key}']['states']}{note}", r["typical"]] + [r[k] for k, _ in KF_PATHS] +
+                        [f"{r['worst']} ({r['worst_path']})", f"{r['dense_ratio']:.1f}"])
+        out += ["\nhd_kf_step by path, max instructions per call (the bench image forces each "
+                "path on every call: every gain fraction below 1, no block frozen (motor blocks "
+                "below q_motion_ref_rad, output_learn_scale 0.5); motor blocks over Nyquist; a "
+                "phase advance beyond four turns; every covariance block above p_max; a "
+                "non-finite state; all of them (but partial gains) with an offset jump):\n",
+                md_table(["states", "typical"] + [name for _, name in KF_PATHS] +
+                         ["worst case", "dense / typical (mean)"], rows)]
+    return "\n".join(out)
+
+
+def timing(c: dict, mhz: float) -> dict:
+    """One counted section for docs/results/budget.json."""
+    us = worst_us(c, mhz)
+    return {"mean_instructions": round(float(c["mean"]), 1), "max_instructions": c["max"],
+            "cycles_best": round(c["cycles_best"]), "cycles_worst": round(c["cycles_worst"]),
+            "worst_us": round(us, 2), "budget_fraction": round(us / TICK_PERIOD_US, 4)}
+
+
+def budget_summary(n: dict) -> dict:
+    """The mps2-an386 part of docs/results/budget.json: per filter size, the
+    filter step (typical and worst path), the tick and the tick with
+    commands, as instructions, estimated cycles, us and fraction of the
+    tick."""
+    ins, mhz = n["instructions"], n["clock_mhz"]
+    per_states = {}
+    for key, _ in MODELS:
+        kf, isr, cmd = (ins[f"{k}:{key}"] for k in ("kf", "isr", "isrcmd"))
+        step = {"typical": timing(kf, mhz)}
+        if n["kf_paths"]:
+            path = n["kf_paths"][key]
+            kind = max(KF_PATHS, key=lambda k: path[k[0]])[0]
+            step["worst"] = dict(timing(ins[f"{kind}:{key}"], mhz), path=path["worst_path"])
+        step["dense"] = timing(ins[f"dense:{key}"], mhz)
+        if n["kf_paths"]:
+            step["dense_over_typical_mean"] = n["kf_paths"][key]["dense_ratio"]
+        per_states[str(kf["states"])] = {
+            "kf_step": step, "tick": timing(isr, mhz),
+            "tick_with_commands": dict(timing(cmd, mhz),
+                                       ratio_to_tick_max=round(cmd["max"] / isr["max"], 2),
+                                       frames_in=n["tick_limits"]["rx"],
+                                       acks_out=n["tick_limits"]["acks"])}
+    return {"image": "hd_image.elf (instructions: hd_bench.elf)",
+            "flash_bytes": n["flash_bytes"], "ram_bytes": n["ram_bytes"],
+            "stack_worst_bytes": n["stack_worst_bytes"],
+            "stack_reserved_bytes": n["stack_reserved_bytes"],
+            "default_states": ins["kf:default"]["states"], "max_states": ins["kf:max"]["states"],
+            "per_states": per_states}
+
+
+# ------------------------------------------- budget: the documents it writes
+
+DOC_BEGIN, DOC_END = "<!-- target:budget:begin -->", "<!-- target:budget:end -->"
+DOC_NOTE = "<!-- written by tools/target budget --update-docs; do not edit -->"
+
+
+def replace_block(text: str, body: str, name: str) -> str:
+    """text with everything between its budget markers replaced by body;
+    TargetError (naming the document) unless each marker occurs once, in
+    order."""
+    if text.count(DOC_BEGIN) != 1 or text.count(DOC_END) != 1 or \
+            text.index(DOC_BEGIN) > text.index(DOC_END):
+        raise TargetError(f"{name}: needs one {DOC_BEGIN} line and one {DOC_END} line after it")
+    pre, rest = text.split(DOC_BEGIN, 1)
+    post = rest.split(DOC_END, 1)[1]
+    return f"{pre}{DOC_BEGIN}\n{DOC_NOTE}\n\n{body}\n\n{DOC_END}{post}"
+
+
+def doc_paths(docs: Path) -> dict:
+    return {"mps2-an386": docs / "target.md", "stm32f4": docs / "stm32f4.md",
+            "json": docs / "results" / "budget.json"}
+
+
+def read_docs(docs: Path) -> dict:
+    """The two budget documents' text, checked for markers (TargetError)."""
+    texts = {}
+    for board in ("mps2-an386", "stm32f4"):
+        path = doc_paths(docs)[board]
+        try:
+            texts[board] = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise TargetError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") \
+                from None
+        replace_block(texts[board], "", str(path))
+    return texts
+
+
+def umask() -> int:
+    mask = os.umask(0o22)
+    os.umask(mask)
+    return mask
+
+
+def write_files(outputs: list) -> None:
+    """Writes [(path, text)] all or none: every text to a temporary file
+    beside its target, then renames them over the targets.  A target that
+    exists and is not a regular file (/dev/null, a FIFO) is written
+    directly, never replaced."""
+    temps, path = [], None
+    try:
+        for path, text in outputs:
+            if path.exists() and not path.is_file():
+                path.write_text(text)
+                continue
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+            temps.append((Path(tmp), path))
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~umask())
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    except OSError as exc:
+        for tmp, _ in temps:
+            tmp.unlink(missing_ok=True)
+        raise TargetError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def source_state() -> dict:
+    """The commit the numbers were measured on, and whether the tree had
+    uncommitted changes then outside docs/ (git; 'unknown' outside a
+    checkout)."""
+    try:
+        head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short=12", "HEAD"],
+                              capture_output=True, text=True, timeout=30)
+        dirty = subprocess.run(["git", "-C", ROOT, "status", "--porcelain",
+                                "--untracked-files=no", "--", ".", ":(exclude)docs",
+                                ":(exclude)README.md"],
+                               capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return {"commit": "unknown", "uncommitted_changes": None}
+    if head.returncode != 0:
+        return {"commit": "unknown", "uncommitted_changes": None}
+    return {"commit": head.stdout.strip(), "uncommitted_changes": bool(dirty.stdout.strip())}
+
+
+def write_budget_docs(docs: Path, m4: dict, f4: dict, source: dict) -> list:
+    """Renders both boards' budgets into target.md, stm32f4.md (between the
+    markers) and results/budget.json under docs, all or none.  Returns the
+    paths written."""
+    from hdtools import target_stm32f4
+    paths, texts = doc_paths(docs), read_docs(docs)
+    where = (f"Measured at commit {source['commit']}"
+             + (" with uncommitted changes" if source["uncommitted_changes"] else "")
+             + "; the numbers: [results/budget.json](results/budget.json).")
+    summary = {"generated_by": "tools/target budget --update-docs", "source": source,
+               "tick_period_us": TICK_PERIOD_US, "clock_mhz": m4["clock_mhz"],
+               "mps2-an386": budget_summary(m4), "stm32f4": target_stm32f4.summary(f4)}
+    outputs = [(paths["mps2-an386"], replace_block(
+                    texts["mps2-an386"], f"{where}\n\n{render_budget(m4)}",
+                    str(paths["mps2-an386"]))),
+               (paths["stm32f4"], replace_block(
+                    texts["stm32f4"], f"{where}\n\n{target_stm32f4.render(f4)}",
+                    str(paths["stm32f4"]))),
+               (paths["json"], json.dumps(summary, indent=1) + "\n")]
+    write_files(outputs)
+    return [p for p, _ in outputs]
+
+
+def write_json(dest: Path, numbers: dict) -> None:
+    """--json: the measured numbers (not the failures), atomically."""
+    write_files([(dest, json.dumps({k: v for k, v in numbers.items() if k != "failures"},
+                                   indent=1))])
+
+
+def cmd_update_docs(a) -> int:
+    """Measures both ports and rewrites their budget documents and
+    docs/results/budget.json; nothing is written when a check fails."""
+    from hdtools import target_stm32f4
+    docs = Path(a.docs)
+    read_docs(docs)  # fail on a document without markers before measuring
+    select_board("mps2-an386")
+    m4 = budget()
+    select_board("stm32f4")
+    f4 = target_stm32f4.measure()
+    failures = m4["failures"] + f4["failures"]
+    if failures:
+        print(f"tools/target: budget checks failed, nothing written: {'; '.join(failures)}",
+              file=sys.stderr)
+        return 1
+    written = write_budget_docs(docs, m4, f4, source_state())
+    print("updated " + ", ".join(str(p) for p in written))
+    return 0
 
 
 def cmd_budget(a) -> int:
-    out = []
-    numbers = budget(out.append)
-    print("\n".join(out))
+    numbers = budget()
+    print(render_budget(numbers))
     if a.json:
-        dest = Path(a.json)
-        tmp = dest.with_name(dest.name + ".tmp")
-        try:
-            tmp.write_text(json.dumps({k: v for k, v in numbers.items() if k != "failures"},
-                                      indent=1))
-            os.replace(tmp, dest)
-        except OSError as exc:
-            tmp.unlink(missing_ok=True)
-            raise TargetError(f"cannot write {dest}: {exc.strerror or exc}") from exc
+        write_json(Path(a.json), numbers)
     for failure in numbers["failures"]:
         print(f"\nFAIL: {failure}")
     return 1 if numbers["failures"] else 0
@@ -855,7 +1084,7 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
     on = argparse.ArgumentParser(add_help=False)
-    on.add_argument("--board", choices=sorted(BOARDS), default="mps2-an386",
+    on.add_argument("--board", choices=sorted(BOARDS),
                     help="board port (default mps2-an386)")
     sub.add_parser("build", parents=[on], help="build the images and the plugin")
     r = sub.add_parser("run", parents=[on], help="run the firmware image on a raw stream")
@@ -872,6 +1101,11 @@ def main(argv=None) -> int:
     b = sub.add_parser("budget", parents=[on], help="print the budget tables (markdown)")
     b.add_argument("--markdown", action="store_true", help="(the default format)")
     b.add_argument("--json", help="also write the numbers to this JSON file")
+    b.add_argument("--update-docs", action="store_true",
+                   help="measure both ports (mps2-an386 and stm32f4) and rewrite their tables "
+                        "in docs/target.md and docs/stm32f4.md and docs/results/budget.json")
+    b.add_argument("--docs", default=str(ROOT / "docs"),
+                   help="the docs folder --update-docs writes (default: the tree's docs/)")
     k = sub.add_parser("count", parents=[on], help="instruction counts between markers of an image")
     k.add_argument("elf")
     k.add_argument("args", nargs="*")
@@ -888,6 +1122,12 @@ def main(argv=None) -> int:
         from hdtools import target_stm32f4
         if a.cmd == "flash":
             return target_stm32f4.cmd_flash(a)
+        if a.cmd == "budget" and a.update_docs:
+            if a.board or a.json:
+                raise TargetError("budget --update-docs measures both boards: drop --board "
+                                  "and --json")
+            return cmd_update_docs(a)
+        a.board = a.board or "mps2-an386"
         select_board(a.board)
         if a.cmd == "build":
             build_images()

@@ -5,11 +5,9 @@ build, QEMU and analysis helpers this uses.
 """
 from __future__ import annotations
 
-import json
 import re
 import shlex
 import shutil
-import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -64,27 +62,13 @@ def tick_rate(bench: Path) -> int:
     return int(m.group(1))
 
 
-def section_rows(bench: Path) -> tuple:
-    sections = t.labelled_sections(bench, [])
-    insns = t.disassembly(bench)
-    by = {s["label"]: s for s in sections}
-    overhead = min(by["empty:-"]["intervals"])
-    loop = by["loop:-"]["intervals"]
-    check = loop[1] - loop[0] if len(loop) == 2 else None
-    rows = {}
-    for s in sections:
-        if s["label"] in ("empty:-", "loop:-"):
-            continue
-        iv = [n - overhead for n in s["intervals"]]
-        lo, hi, _ = t.cycle_estimate(s["hist"], insns, len(iv))
-        lo -= overhead * 2  # the marker's bl (1 + P)
-        hi -= overhead * 4
-        mean = statistics.mean(iv)
-        rows[s["label"].split(":")[0]] = {
-            "states": s["states"], "calls": len(iv), "mean": mean, "max": max(iv),
-            "cycles_lo": lo, "cycles_hi": hi,
-            "worst_us": max(iv) * (hi / mean) / t.MCU_CLOCKS_MHZ[0][1]}
-    return rows, check
+def interrupt_counts(bench: Path) -> tuple:
+    """({label: {states, calls, mean, max, cycles_best, cycles_worst}} of the
+    bench image's interrupt bodies (label without ':states'), counter
+    check)."""
+    counts, check, _ = t.section_counts(t.labelled_sections(bench, []), t.disassembly(bench))
+    return {label.split(":")[0]: c for label, c in counts.items()
+            if label not in ("empty:-", "loop:-")}, check
 
 
 SECTION_TEXT = {
@@ -95,78 +79,105 @@ SECTION_TEXT = {
 }
 
 
-def cmd_budget(a) -> int:
+def measure() -> dict:
+    """Builds the STM32F4 images and measures them: {images: {NAME: memory},
+    heap_symbols, stack_worst_bytes, stack_reserved_bytes, counter_check,
+    tick_rate_per_20ms, interrupts: {LABEL: counts}, stack, clock_mhz,
+    failures}.  Raises TargetError on a setup problem."""
     t.build_images()
-    out = []
-    p = out.append
-    numbers = {"images": {}}
-    p("### Memory (arm-none-eabi-size -A of the board images)\n")
-    rows = []
-    for name, what in BOARD_IMAGES:
-        m = memory_rows(t.image(name))
-        numbers["images"][name] = m
-        rows.append([f"`{name}.elf` ({what})", f"{m['flash']} B", f"{m['boot']} B of 16384",
-                     f"{m['ram']} B", f".data {m['data']} + .bss {m['bss']} + .noinit "
-                     f"{m['noinit']} + stack {m['stack']}"])
-    p(t.md_table(["image", "flash (of 512 KB - 32 KB NVM)", "sector 0", "RAM (of 128 KB)",
-                  "RAM contents"], rows))
-    p(f"\nNVM: flash sectors 1 and 2 ({numbers['images']['hd_odrive_v3']['nvm']} B) reserved "
-      "by the linker script for the A/B record store; nothing is linked there.")
-
+    images = {name: memory_rows(t.image(name)) for name, _ in BOARD_IMAGES}
     elf = t.image("hd_odrive_v3")
-    heap = [s for s in ("malloc", "_malloc_r", "calloc", "realloc", "free", "_free_r", "_sbrk",
-                        "_sbrk_r", "sbrk") if s in t.symbols(elf)]
-    p("\n### Heap\n")
-    p("FAIL: allocator symbols linked: " + ", ".join(heap) if heap else
-      "None (no libc; the linker script ASSERTs it and the build checks the symbol table).")
-
+    heap = [s for s in t.ALLOCATORS if s in t.symbols(elf)]
     st = t.worst_stack(elf, isrs=ISRS, fault_entry=FAULT_ENTRY, hal_funcs=hal_functions())
-    stack_reserved = numbers["images"]["hd_odrive_v3"]["stack"]
-    p("\n### Worst-case stack, hd_odrive_v3.elf (-fstack-usage + -fcallgraph-info call graph)\n")
-    srows = [["main loop (Reset_Handler + main)", st["reset"] + st["main"][0],
-              " > ".join(st["main"][1])]]
-    for name, c in zip(ISRS, st["isrs"]):
-        srows.append(["exception entry, FP context (26 words + align)", st["frame"], "hardware"])
-        srows.append([name, c[0], " > ".join(c[1])])
-    srows += [["exception entry (fault inside the tick)", st["frame"], "hardware"],
-              ["fault handler", st["fault"][0], " > ".join(st["fault"][1])],
-              ["**total worst case**", f"**{st['total']}**", f"reserved: {stack_reserved} B"]]
-    p(t.md_table(["context", "bytes", "deepest path"], srows))
-    p("\nThe CAN transmit interrupt (priority 2) can be preempted by the tick (priority 1); "
-      "indirect calls are bounded by the deepest function the board puts in its hal_t" +
-      (("; notes: " + "; ".join(st["notes"])) if st["notes"] else "") + ".")
-    stack_ok = st["total"] <= stack_reserved
-
+    stack_reserved = images["hd_odrive_v3"]["stack"]
     bench = t.image(t.BENCH_IMAGE)
     rate = tick_rate(bench)
-    srows, check = section_rows(bench)
+    interrupts, check = interrupt_counts(bench)
     mhz = t.MCU_CLOCKS_MHZ[0][1]
-    p("\n### Instructions per interrupt (hd_stm32f4_bench.elf on QEMU netduinoplus2)\n")
-    p("The board code and drivers of the ODrive image, compiled the same way, with their "
-      "registers in RAM set to what the hardware shows (update flag, conversion done, "
-      "mailboxes empty); counted by tools/qemu-plugin between the markers, marker overhead "
-      f"subtracted; counter check: hd_bench_loop(1010) - hd_bench_loop(10) = {check} "
-      "instructions (expected 2000).  Cycles: the Cortex-M4 TRM timings per executed "
-      "instruction, zero wait states (best-worst); us = max instructions x worst cycles "
-      f"per instruction at {mhz} MHz.\n")
-    p(t.md_table(["interrupt body", "filter states", "instructions mean / max",
-                  "cycles mean (best-worst)", "worst-case us"],
-                 [[SECTION_TEXT[k], r["states"], f"{r['mean']:.0f} / {r['max']}",
-                   f"{r['cycles_lo']:.0f}-{r['cycles_hi']:.0f}", f"{r['worst_us']:.1f}"]
-                  for k, r in srows.items()]))
-    p(f"\nTick rate in the emulator: {rate} TIM2 update events in {TICK_RATE_WINDOW_MS} ms "
-      f"of SysTick time (stm32_tick_init for QEMU's 1 GHz timer clock; expected "
-      f"{TICK_RATE_WINDOW_MS}).  The budget per tick is 1000 us.")
-    print("\n".join(out))
-    numbers.update({"heap_symbols": heap, "stack_worst_bytes": st["total"],
-                    "stack_reserved_bytes": stack_reserved, "counter_check": check,
-                    "tick_rate_per_20ms": rate, "interrupts": srows})
+    for c in interrupts.values():
+        c["worst_us"] = t.worst_us(c, mhz)
+    failures = t.check_failures(heap, st["total"], stack_reserved, check)
+    if rate != TICK_RATE_WINDOW_MS:
+        failures.append(f"{rate} ticks in {TICK_RATE_WINDOW_MS} ms of emulator time")
+    return {"images": images, "heap_symbols": heap, "stack_worst_bytes": st["total"],
+            "stack_reserved_bytes": stack_reserved, "counter_check": check,
+            "tick_rate_per_20ms": rate, "interrupts": interrupts,
+            "stack": t.stack_numbers(st, list(ISRS)),
+            "clock_mhz": mhz, "failures": failures}
+
+
+def render(n: dict) -> str:
+    """The STM32F4 budget tables (markdown) from measure()'s numbers."""
+    rows = []
+    what = dict(BOARD_IMAGES)
+    for name, m in n["images"].items():
+        rows.append([f"`{name}.elf` ({what[name]})", f"{m['flash']} B",
+                     f"{m['boot']} B of {BOOT_SECTOR}", f"{m['ram']} B",
+                     f".data {m['data']} + .bss {m['bss']} + .noinit {m['noinit']} + stack "
+                     f"{m['stack']}"])
+    mhz = n["clock_mhz"]
+    nvm = next(iter(n["images"].values()))["nvm"]
+    out = ["#### Memory (arm-none-eabi-size -A of the board images)\n",
+           t.md_table(["image", f"flash (of {FLASH_PART_KB} KB - {nvm // 1024} KB NVM)",
+                       "sector 0", f"RAM (of {RAM_PART_KB} KB)", "RAM contents"], rows),
+           f"\nNVM: flash sectors 1 and 2 ({nvm} B) reserved by the linker script for the A/B "
+           "record store; nothing is linked there.",
+           "\n#### Heap\n",
+           ("FAIL: allocator symbols linked: " + ", ".join(n["heap_symbols"])
+            if n["heap_symbols"] else
+            "None (no libc; the linker script ASSERTs it and the build checks the symbol "
+            "table)."),
+           "\n#### Worst-case stack, hd_odrive_v3.elf (-fstack-usage + -fcallgraph-info call "
+           "graph)\n",
+           t.stack_table(n["stack"], n["stack_worst_bytes"], n["stack_reserved_bytes"],
+                         "fault handler", "fault inside the tick"),
+           "\nThe CAN transmit interrupt (priority 2) can be preempted by the tick (priority 1); "
+           "indirect calls are bounded by the deepest function the board puts in its hal_t" +
+           ("; notes: " + "; ".join(n["stack"]["notes"]) if n["stack"]["notes"] else "") + ".",
+           "\n#### Instructions per interrupt (hd_stm32f4_bench.elf on QEMU netduinoplus2)\n",
+           "The board code and drivers of the ODrive image, compiled the same way, with their "
+           "registers in RAM set to what the hardware shows (update flag, conversion done, "
+           "mailboxes empty); counted by tools/qemu-plugin between the markers, marker overhead "
+           f"subtracted; counter check: hd_bench_loop(1010) - hd_bench_loop(10) = "
+           f"{n['counter_check']} instructions (expected 2000).  Cycles: the Cortex-M4 TRM "
+           "timings per executed instruction, zero wait states (best-worst); us = max "
+           f"instructions x worst cycles per instruction at {mhz} MHz; share = us of the "
+           f"{t.TICK_PERIOD_US} us tick.\n",
+           t.md_table(["interrupt body", "filter states", "instructions mean / max",
+                       "cycles mean (best-worst)", "worst-case us", "share of the tick"],
+                      [[SECTION_TEXT.get(k, k), c["states"], f"{c['mean']:.0f} / {c['max']}",
+                        f"{c['cycles_best']:.0f}-{c['cycles_worst']:.0f}",
+                        f"{t.worst_us(c, mhz):.1f}",
+                        f"{100 * t.worst_us(c, mhz) / t.TICK_PERIOD_US:.1f} %"]
+                       for k, c in n["interrupts"].items()]),
+           f"\nTick rate in the emulator: {n['tick_rate_per_20ms']} TIM2 update events in "
+           f"{TICK_RATE_WINDOW_MS} ms of SysTick time (stm32_tick_init for QEMU's 1 GHz timer "
+           f"clock; expected {TICK_RATE_WINDOW_MS})."]
+    return "\n".join(out)
+
+
+def summary(n: dict) -> dict:
+    """The STM32F4 part of docs/results/budget.json."""
+    what = dict(BOARD_IMAGES)
+    return {"images": {name: {"board": what[name], "flash_bytes": m["flash"],
+                              "sector0_bytes": m["boot"], "ram_bytes": m["ram"]}
+                       for name, m in n["images"].items()},
+            "stack_worst_bytes": n["stack_worst_bytes"],
+            "stack_reserved_bytes": n["stack_reserved_bytes"],
+            "instructions_counted_on": "hd_stm32f4_bench.elf, QEMU netduinoplus2",
+            "interrupts": {k: dict(t.timing(c, n["clock_mhz"]), states=c["states"],
+                                   what=SECTION_TEXT.get(k, k))
+                           for k, c in n["interrupts"].items()}}
+
+
+def cmd_budget(a) -> int:
+    numbers = measure()
+    print(render(numbers))
     if a.json:
-        Path(a.json).write_text(json.dumps(numbers, indent=1))
-    ok = not heap and stack_ok and check == 2000 and rate == TICK_RATE_WINDOW_MS
-    if not ok:
-        print("\nFAIL: heap, stack, counter check or tick rate (see above)")
-    return 0 if ok else 1
+        t.write_json(Path(a.json), numbers)
+    for failure in numbers["failures"]:
+        print(f"\nFAIL: {failure}")
+    return 1 if numbers["failures"] else 0
 
 
 # ------------------------------------------------------------------ flash
