@@ -102,6 +102,25 @@ def update_doc(path: Path, blocks: dict[str, str], check: bool, regenerate: str)
     return f"{path}: {names} written"
 
 
+def build_info(build: Path) -> str:
+    """Build type and compiler of a CMake build folder."""
+    cache: dict[str, str] = {}
+    try:
+        for line in (build / "CMakeCache.txt").read_text().splitlines():
+            key, sep, value = line.partition("=")
+            if sep and ":" in key:
+                cache[key.split(":", 1)[0]] = value
+    except OSError:
+        return build.name
+    compiler = cache.get("CMAKE_C_COMPILER", "cc")
+    try:
+        version = subprocess.run([compiler, "--version"], capture_output=True, text=True,
+                                 timeout=30, check=False).stdout.splitlines()[0]
+    except (OSError, subprocess.TimeoutExpired, IndexError):
+        version = Path(compiler).name
+    return f"{cache.get('CMAKE_BUILD_TYPE') or 'no build type'} build, {version}"
+
+
 def machine() -> str:
     """Date, processor and core count, for tables of numbers that vary
     from run to run (not checked)."""

@@ -29,7 +29,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from gendoc import ROOT, GenDocError, command_of, ctest_commands, machine, run, update_doc  # noqa: E402
+from gendoc import (ROOT, GenDocError, build_info, command_of, ctest_commands, machine,  # noqa: E402
+                    run, update_doc)
 
 sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import protocol  # noqa: E402  (fault and result names from the .def files)
@@ -354,7 +355,7 @@ def soak_long(build: Path) -> dict[str, str]:
     soak = parse_soak(run(cmd, 3600))
     if soak.get("result") != "PASS":
         raise GenDocError("hd_soak 10^8: no PASS result")
-    head = (f"_`hd_soak {' '.join(SOAK_LONG_ARGS)}` of `{build.name}`, {where}; written by "
+    head = (f"_`hd_soak {' '.join(SOAK_LONG_ARGS)}`, {build_info(build)}, {where}; written by "
             "`tests/reliability/rel_doc.py --soak-long`, not checked_")
     return {"reliability-soak-long": head + "\n\n" + soak_block(soak, timing=True)}
 
