@@ -26,10 +26,13 @@ def test_bench_quick_output_is_well_formed(tmp_path):
     scen = res["accuracy"]["scenarios"]
     assert set(scen) >= {"const156", "torque_step", "standstill"}
     for sc in scen.values():
-        assert set(sc["methods"]) >= {"kf_recommended", "kf_paper4", "kf_paper6",
-                                      "butter_20db", "order_notch", "fourier_table", "ideal"}
+        assert set(sc["methods"]) >= {"kf_recommended", "fw_commissioned", "kf_paper4",
+                                      "kf_paper6", "butter_20db", "order_notch",
+                                      "fourier_table", "ideal"}
         for m in sc["methods"].values():
             assert math.isfinite(m["rms_nm"]) and m["rms_nm"] >= 0.0
+    assert res["goals"] and all(g["goal"] and g["rows"] for g in res["goals"])
+    assert "Goals of issue 12" in proc.stdout
     for f in res["real"]["files"].values():
         assert f["segments"] and "kf_recommended" in f["median"]
 

@@ -3,20 +3,27 @@
 Runs the accuracy benchmark on the simulated scenarios (tests/bench/
 scenarios) and the real iiwa logs, the host compute benchmark
 (tests/bench/bench_compute) and the Cortex-M4 counts if tools/target exists;
-prints the tables, writes OUT/results.json, OUT/results.md and
-OUT/bench_accuracy.png (OUT = out/bench).  --update-docs also writes the
-tables into docs/bench.md (between the generated-results markers) and the
-plot to docs/img/bench_accuracy.png.
+checks issue 12's goals against the numbers (bench/goals.py); prints the
+tables, writes OUT/results.json, OUT/results.md and OUT/bench_accuracy.png
+(OUT = out/bench).  --update-docs also writes the tables into docs/bench.md
+(between the generated-results markers), results.json to
+docs/results/bench.json (the README headline reads it) and the plot to
+docs/img/bench_accuracy.png.  Every file is written under a temporary name
+and all are renamed together once all are complete.
 """
 from __future__ import annotations
 
 import datetime
-import shutil
 import sys
 import tempfile
 from pathlib import Path
 
+from .safeio import OutputError, Outputs, UsageError
+
 ROOT = Path(__file__).resolve().parents[2]
+DOC = ROOT / "docs" / "bench.md"
+DOC_JSON = ROOT / "docs" / "results" / "bench.json"
+DOC_PLOT = ROOT / "docs" / "img" / "bench_accuracy.png"
 BEGIN = "<!-- bench:results:begin -->"
 END = "<!-- bench:results:end -->"
 
@@ -36,8 +43,14 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from .bench import accuracy, compute, real, report
-    args.out.mkdir(parents=True, exist_ok=True)
+    from .bench import accuracy, compute, goals, real, report
+    if args.update_docs and args.quick:
+        raise UsageError("--update-docs writes the documented numbers: run without --quick")
+    doc_text = read_doc() if args.update_docs else None
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{args.out}: cannot create: {exc.strerror}") from None
     results = {"date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
                "machine": compute.machine(), "quick": bool(args.quick)}
     residual, note = None, "skipped"
@@ -70,6 +83,7 @@ def run(args) -> int:
                                       else compute.host())
     if "target" not in args.skip:
         results["compute"]["target"] = compute.target()
+    results["goals"] = goals.evaluate(results)
     tabs = report.tables(results)
     m = results["machine"]
     header = (f"hdsense bench, {results['date']}, {m['cpu']} ({m['logical_cpus']} logical "
@@ -86,28 +100,46 @@ def run(args) -> int:
             print(f"{n:>6}  {kf or '-':>10}  {dense or '-':>10}  {ratio}  {r.get('isr', '-'):>9}")
     elif tgt:
         print(f"\nCortex-M4 target: {tgt.get('status')}: {tgt.get('note', '')}")
-    report.write_json(results, args.out / "results.json")
+    js = report.to_json(results)
     md = f"_{header}_\n" + report.markdown(tabs)
-    (args.out / "results.md").write_text(md)
     plot = args.out / "bench_accuracy.png"
-    if "accuracy" in results:
-        report.plot(results, plot)
-    print(f"\nwrote {args.out / 'results.json'}, {args.out / 'results.md'}"
-          + (f", {plot}" if plot.exists() else ""))
-    if args.update_docs:
-        update_docs(md, plot if plot.exists() else None)
+    written = [args.out / "results.json", args.out / "results.md"]
+    with Outputs() as out:
+        out.write_text(written[0], js)
+        out.write_text(written[1], md)
+        png = None
+        if "accuracy" in results:
+            with out.path(plot) as tmp:
+                report.plot(results, tmp)
+                png = Path(tmp).read_bytes()
+            written.append(plot)
+        if doc_text is not None:
+            out.write_text(DOC, splice(doc_text, md))
+            out.write_text(DOC_JSON, js)
+            written += [DOC, DOC_JSON]
+            if png is not None:
+                out.write_bytes(DOC_PLOT, png)
+                written.append(DOC_PLOT)
+        out.commit()
+    print("\nwrote " + ", ".join(str(p) for p in written))
     return 0
 
 
-def update_docs(md: str, plot: Path | None) -> None:
-    doc = ROOT / "docs" / "bench.md"
-    text = doc.read_text() if doc.exists() else f"# Benchmarks\n\n{BEGIN}\n{END}\n"
+def read_doc() -> str:
+    """docs/bench.md (checked before the benchmark runs: its markers)."""
+    try:
+        text = DOC.read_text()
+    except FileNotFoundError:
+        return f"# Benchmarks\n\n{BEGIN}\n{END}\n"
+    except OSError as exc:
+        raise UsageError(f"{DOC}: cannot read: {exc.strerror}") from None
     if BEGIN not in text or END not in text:
-        raise SystemExit(f"{doc}: results markers missing")
+        raise UsageError(f"{DOC}: the generated-results markers {BEGIN} / {END} are missing")
+    return text
+
+
+def splice(text: str, md: str) -> str:
+    """text with the part between the markers replaced by md."""
     pre, rest = text.split(BEGIN, 1)
     post = rest.split(END, 1)[1]
-    doc.write_text(f"{pre}{BEGIN}\n{md}\n{END}{post}")
-    if plot is not None:
-        (ROOT / "docs" / "img").mkdir(exist_ok=True)
-        shutil.copy(plot, ROOT / "docs" / "img" / "bench_accuracy.png")
-    print(f"updated {doc}")
+    return f"{pre}{BEGIN}\n{md}\n{END}{post}"

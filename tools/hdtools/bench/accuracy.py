@@ -6,7 +6,12 @@ through hdsim, then every method filters the same measured torque, and the
 metrics compare the result with the simulator's ripple-free truth.
 
 Our filter runs in C (libhdfilter.so through hdtools.analysis.cfilter); the
-peers are the independent numpy/scipy methods of peers.py.
+peers are the independent numpy/scipy methods of peers.py.  The product row
+(`fw_commissioned`) runs the firmware itself (hdjoint-host on the simulated
+joint) as a joint is used: commissioned once by its own learning_mode 2 and
+PROFILE_SAVE on a separate run of the same joint (the motion of
+tests/bench/scenarios/slow/commission.ini, no load, its own seed), then
+operated with its defaults from that stored profile.
 """
 from __future__ import annotations
 
@@ -20,12 +25,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import native
 from ..analysis import cfilter
 from . import metrics, peers
+from .joint import (encoder_angles, firmware_commissioning, ini_value, joint_key, nominal,
+                    run_firmware, simulate, with_motion, compose_config)
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO_DIR = ROOT / "tests" / "bench" / "scenarios"
+# The commissioning motion of every firmware row (docs/slow-torque.md,
+# "Commissioning motion"): no load, both directions, 30 s.
+COMMISSION_MOTION = SCENARIO_DIR / "slow" / "commission.ini"
+# What the product row is told: the firmware defaults in operating mode,
+# booted from the profile it saved itself on a commissioning run.
+OPERATING_CONFIG = {"learning_mode": "1"}
+COMMISSIONED_PROFILE = (f"the firmware's own PROFILE_SAVE at the end of a commissioning run "
+                        f"(learning_mode 2, defaults) of the scenario's joint with "
+                        f"{COMMISSION_MOTION.name}'s motion and seed, no load")
 
 PAPER_SPEED_RAD_S = 156.0
 NOISE_SPEC_NM = 0.02          # the sensor's noise spec, told to the recommended tuning
@@ -80,7 +95,7 @@ SCENARIOS = [
 class Method:
     key: str
     label: str
-    kind: str                 # kf | butter | notch | table | raw | ideal
+    kind: str                 # kf | fw | butter | notch | table | raw | ideal
     params: dict = field(default_factory=dict)
 
 
@@ -91,6 +106,8 @@ def methods(residual_model: dict | None) -> list[Method]:
     out = [
         Method("kf_recommended", "this filter, recommended tuning (7 states), T_exp = 0", "kf",
                {"config": "recommended"}),
+        Method("fw_commissioned", "the firmware, defaults in operating mode, booted from "
+               "its own commissioning profile (PROFILE_SAVE after a separate run)", "fw"),
         Method("kf_residual", "this filter, model from `hdsense analyze`", "kf",
                {"config": "residual", "model": residual_model}),
         Method("kf_paper4", "paper tuning Q=1e3 I, R=1, 4th order", "kf",
@@ -113,46 +130,6 @@ def methods(residual_model: dict | None) -> list[Method]:
         Method("ideal", "noise floor: measured minus the true ripple", "ideal", {}),
     ]
     return out
-
-
-# --------------------------------------------------------------------------
-# Simulation
-
-def hdsim() -> Path:
-    return native.find_file("hdsim", target="hdsim_cli")
-
-
-def nominal(ini: Path) -> dict:
-    out = subprocess.run([str(hdsim()), str(ini), "--nominal"], check=True,
-                         capture_output=True, text=True).stdout
-    return {k: float(v) for k, v in (ln.split("=", 1) for ln in out.split())}
-
-
-def simulate(ini: Path, csv: Path, extra=(), duration_s: float | None = None) -> dict:
-    cmd = [str(hdsim()), str(ini), "--csv", str(csv), *extra]
-    if duration_s is not None and "--duration" not in extra:
-        cmd += ["--duration", str(duration_s)]
-    subprocess.run(cmd, check=True, capture_output=True, text=True)
-    return load_csv(csv)
-
-
-def load_csv(path: Path) -> dict:
-    with open(path) as f:
-        names = f.readline().strip().split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    return {n: data[:, i] for i, n in enumerate(names)}
-
-
-def encoder_angles(d: dict, nom: dict):
-    """Motor angle from the encoder counts (what the firmware sees), its
-    increments, and the output angle = motor / N."""
-    c = d["motor_counts"].astype(np.int64)
-    dc = (np.diff(c) + 2 ** 31) % 2 ** 32 - 2 ** 31
-    lsb = 2.0 * math.pi / nom["motor_cpr"]
-    d_motor = np.concatenate([[0.0], dc * lsb])
-    motor = c[0] * lsb + np.cumsum(d_motor)
-    n = nom["gear_ratio"]
-    return motor, motor / n, d_motor, d_motor / n
 
 
 # --------------------------------------------------------------------------
@@ -241,6 +218,46 @@ def residual_config(model: dict, ts_s: float):
 
 
 # --------------------------------------------------------------------------
+# The firmware as a joint is used (commission once, then operate)
+
+def commissioning(joint_ini: Path, wd: Path, nom: dict, duration_scale: float,
+                  cache: dict) -> tuple[Path | None, str]:
+    """(NVM image with the firmware's own profile, the joint's scenario) or
+    (None, why not) of the joint of joint_ini, commissioned once per
+    distinct joint (cache)."""
+    key = joint_key(joint_ini)
+    if key not in cache:
+        ini = with_motion(joint_ini, COMMISSION_MOTION, wd / f"commission_{joint_ini.stem}.ini")
+        dur = None
+        if duration_scale != 1.0:
+            dur = round(float(ini_value(COMMISSION_MOTION, "duration_s")) * duration_scale, 3)
+        nvm, note = firmware_commissioning(ini, wd, nom, dur, "")
+        cache[key] = (nvm, joint_ini.stem if nvm is not None else note)
+    return cache[key]
+
+
+def run_fw(m: Method, ini: Path, wd: Path, duration_s: float | None,
+           commissioned: tuple[Path | None, str], told: dict):
+    """The filtered torque of the firmware in operating mode booted from the
+    commissioning NVM image (None if there is none), and what it was told
+    (told[m.key]: configuration, profiles, each run's summary, pending)."""
+    nvm, note = commissioned
+    t = told.setdefault(m.key, {"config": "firmware defaults, " + ", ".join(
+        f"{k} = {v}" for k, v in OPERATING_CONFIG.items()), "profile": COMMISSIONED_PROFILE,
+        "commissioned_joints": [], "summaries": {}})
+    if nvm is None:
+        t.setdefault("pending", {})[ini.stem] = note
+        return None
+    if note not in t["commissioned_joints"]:
+        t["commissioned_joints"].append(note)
+    y, summary = run_firmware(ini, compose_config("", OPERATING_CONFIG), wd,
+                              f"{ini.stem}_{m.key}", duration_s, nvm=nvm)
+    t["summaries"][ini.stem] = {k: summary.get(k) for k in (
+        "profile_status", "profile_imports", "expected_model", "fault_ticks")}
+    return y
+
+
+# --------------------------------------------------------------------------
 
 def apply_method(m: Method, d, nom, ang, table):
     motor, output, d_motor, d_output = ang
@@ -300,9 +317,11 @@ def run(residual_model: dict | None = None, duration_scale: float = 1.0,
     ms = methods(residual_model)
     if residual_model is None:
         ms = [m for m in ms if m.key != "kf_residual"]
-    results = {"methods": {m.key: m.label for m in ms}, "scenarios": {}, "traces": {}}
+    results = {"methods": {m.key: m.label for m in ms}, "scenarios": {}, "traces": {},
+               "told": {}, "pending": {}}
     if residual_model is None:
-        results["pending"] = {"kf_residual": "hdsense analyze not available in this tree"}
+        results["pending"]["kf_residual"] = "hdsense analyze not available in this tree"
+    coms: dict = {}
     for sc in SCENARIOS:
         if scenarios and sc.name not in scenarios:
             continue
@@ -325,12 +344,21 @@ def run(residual_model: dict | None = None, duration_scale: float = 1.0,
             sc = Scenario(sc.name, sc.what, (min(sc.eval_s[0], dur / 2), dur),
                           lines=sc.lines)
         for m in ms:
-            y = apply_method(m, d, nom, ang, table)
+            if m.kind == "fw":
+                y = run_fw(m, ini, wd, dur, commissioning(cal_ini, wd, nom, duration_scale, coms),
+                           results["told"])
+                if y is None:
+                    continue
+            else:
+                y = apply_method(m, d, nom, ang, table)
             sres["methods"][m.key] = scenario_metrics(sc, y, d, ang, nom["ts_s"])
             if sc.name in keep_traces:
                 results["traces"].setdefault(sc.name, {"t_s": d["t_s"],
                                                        "truth": d["torque_true_nm"]})
                 results["traces"][sc.name][m.key] = y
+        floor = sres["methods"]["ideal"]["rms_nm"]
+        for r in sres["methods"].values():
+            r["x_floor"] = r["rms_nm"] / floor
         if sc.lines:
             raw = sres["methods"]["raw"]["line_amplitude_nm"]
             for key, r in sres["methods"].items():

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 
@@ -26,15 +25,31 @@ def _get(res, sc, m, key):
         return None
 
 
+def _rms_cell(rms, x_floor) -> str:
+    return "-" if rms is None else f"{rms * 1e3:.0f} ({x_floor:.2f}x)"
+
+
+def goal_table(goals: list[dict] | None) -> list:
+    """Issue 12's goals against the measured worst cases (goals.evaluate)."""
+    if not goals:
+        return []
+    rows = [[g["goal"], g["rows"], g.get("text", "-"), g["where"] or "-",
+             {True: "met", False: "NOT met", None: "reported" if g["n"] else "not run"}[g["met"]]]
+            for g in goals]
+    return [("Goals of issue 12 against the measured worst case (tools/hdtools/bench/goals.py)",
+             ["goal", "rows", "worst case", "where", "status"], rows)]
+
+
 def tables(results: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     """[(title, header, rows)]"""
     acc = results.get("accuracy")
-    out = []
+    out = goal_table(results.get("goals"))
     if acc:
         scs = [s for s in SCENARIO_ORDER if s in acc["scenarios"]]
-        rows = [[m] + [_f(_get(acc, s, m, "rms_nm"), 1e3) for s in scs] for m in acc["methods"]]
-        out.append(("RMS error against the ripple-free truth [mN m] (simulated joint)",
-                    ["method"] + scs, rows))
+        rows = [[m] + [_rms_cell(_get(acc, s, m, "rms_nm"), _get(acc, s, m, "x_floor"))
+                       for s in scs] for m in acc["methods"]]
+        out.append(("RMS error against the ripple-free truth [mN m] (x the noise floor = the "
+                    "`ideal` row; simulated joint)", ["method"] + scs, rows))
         rows = []
         for m in acc["methods"]:
             r = [m]
@@ -63,6 +78,7 @@ def tables(results: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                      "slow-speed step settle", "speed change reconverge",
                      "through-zero RMS mNm", "stopped RMS mNm", "step while stopped settle",
                      "restart reconverge"], rows))
+        out += told_table(acc)
     out += slow_tables(results.get("slow"))
     real = results.get("real")
     if real:
@@ -103,6 +119,29 @@ def tables(results: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     return out
 
 
+def told_table(acc: dict) -> list:
+    """What each firmware row of the accuracy table was told, and whether
+    every run booted from its profile (profile_status 0, imports > 0)."""
+    rows = []
+    for key, t in acc.get("told", {}).items():
+        for sc, why in t.get("pending", {}).items():
+            rows.append([key, f"pending on {sc}: {why}", "-", "-", "-"])
+        runs = t["summaries"].values()
+        if not runs:
+            continue
+        booted = sum(1 for s in runs if s.get("profile_status") == "0"
+                     and int(s.get("profile_imports") or 0) > 0)
+        models = sorted({s.get("expected_model") or "-" for s in runs})
+        joints = ", ".join(t["commissioned_joints"])
+        rows.append([key, t["config"], f"{t['profile']} (joints of: {joints})", "; ".join(models),
+                     f"{booted} of {len(runs)}"])
+    if not rows:
+        return []
+    return [("What the firmware rows of the accuracy table were told (no oracle)",
+             ["row", "configuration", "profile", "T_exp model in the firmware",
+              "runs booted from the profile"], rows)]
+
+
 SLOW_ORDER = ["arm_gravity", "slow_loads", "misalign_orders", "dyn_off"]
 
 
@@ -122,8 +161,7 @@ def slow_tables(slow: dict | None) -> list:
     out = []
 
     def cell(r, s):
-        v, x = _slow_get(slow, s, r, "rms_nm"), _slow_get(slow, s, r, "x_floor")
-        return "-" if v is None else f"{v * 1e3:.0f} ({x:.2f}x)"
+        return _rms_cell(_slow_get(slow, s, r, "rms_nm"), _slow_get(slow, s, r, "x_floor"))
     out.append(("Slow torque: RMS error after the first second [mN m] (x the noise floor)",
                 ["row"] + scs, [[r] + [cell(r, s) for s in scs] for r in rows]))
     out.append(("Slow torque: slow load kept [%] (1 + slope of the error below 1 Hz on the "
@@ -185,7 +223,8 @@ def markdown(tabs) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_json(results: dict, path: Path) -> None:
+def to_json(results: dict) -> str:
+    """results.json's text (traces left out, inf/nan as strings/null)."""
     def clean(o):
         if isinstance(o, dict):
             return {k: clean(v) for k, v in o.items() if k != "traces"}
@@ -196,13 +235,14 @@ def write_json(results: dict, path: Path) -> None:
         if isinstance(o, np.generic):
             return o.item()
         return o
-    path.write_text(json.dumps(clean(results), indent=1))
+    return json.dumps(clean(results), indent=1) + "\n"
 
 
-PLOT_METHODS = ["kf_recommended", "kf_paper6", "butter_20db", "order_notch", "fourier_table"]
+PLOT_METHODS = ["kf_recommended", "fw_commissioned", "kf_paper6", "butter_20db", "order_notch",
+                "fourier_table"]
 
 
-def plot(results: dict, path: Path) -> None:
+def plot(results: dict, path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -232,5 +272,5 @@ def plot(results: dict, path: Path) -> None:
     ax[1].set(ylabel="RMS error [mN m]", title="RMS error vs truth (log)")
     ax[1].legend(fontsize=6, ncol=2)
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, format="png")
     plt.close(fig)

@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,12 +34,12 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from .. import native
 from . import accuracy, metrics, peers
+from .joint import (HDSENSE, ROOT, cfg_lines, compose_config, encoder_angles,
+                    firmware_commissioning, ini_value, nominal, output_angle,
+                    run_firmware, run_tool, simulate)
 
-ROOT = Path(__file__).resolve().parents[3]
 SCENARIO_DIR = ROOT / "tests" / "bench" / "scenarios" / "slow"
-HDSENSE = ROOT / "tools" / "hdsense"
 SLOW_HZ = 1.0          # "slow": below this
 FF_TIMEOUT_MS = 20     # feed-forward rows: 20 frames missed = stale
 CURRENT_SEED_OFFSET = 1000
@@ -71,7 +69,7 @@ SCENARIOS = [
 class Row:
     key: str
     label: str
-    kind: str                  # fw | butter | notch | table | paper | raw | ideal | projection
+    kind: str                  # fw | butter | notch | table | paper | raw | ideal
     params: dict = field(default_factory=dict)
 
 
@@ -100,49 +98,9 @@ def rows() -> list[Row]:
         Row("fw_selfprofile_ff", "firmware + its own commissioning profile (PROFILE_SAVE at the "
             "end of the commissioning run in learning_mode 2) + feed-forward", "fw",
             {"model": True, "profile": "firmware", "slow": "ff"}),
-        Row("fw_last_increment", "fw_profile_ff with the filter turned by the last increment "
-            "(predict_increment off: before this issue)", "fw",
-            {"model": True, "profile": True, "slow": "ff", "extra": {"predict_increment": "off"}}),
-        Row("kf_next_increment", "projection: the filter turning by each sample's own increment "
-            "before its innovation (profile + feed-forward; offline, non-causal emulation)",
-            "projection", {}),
         Row("raw", "unfiltered measurement", "raw", {}),
         Row("ideal", "noise floor: measured minus the true ripple", "ideal", {}),
     ]
-
-
-# ----------------------------------------------------------------- tools
-
-def _run(cmd, what: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    p = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, env=env)
-    if p.returncode != 0:
-        raise RuntimeError(f"{what}: exit {p.returncode}: {p.stderr.strip()[-400:]}")
-    return p
-
-
-def _host() -> Path:
-    return native.executable("hdjoint-host")
-
-
-def _summary(out: str) -> dict:
-    return dict(line.split(" = ", 1) for line in out.splitlines() if " = " in line)
-
-
-def _cfg_lines(text: str) -> list[tuple[str, str]]:
-    out = []
-    for raw in text.splitlines():
-        line = raw.split("#", 1)[0].strip()
-        if line:
-            key, _, value = line.partition("=")
-            out.append((key.strip(), value.strip()))
-    return out
-
-
-def compose_config(base: str, overrides: dict) -> str:
-    """base configuration text with keys replaced (block lines kept)."""
-    kept = [f"{k} = {v}" for k, v in _cfg_lines(base) if k not in overrides]
-    return "\n".join(kept + [f"{k} = {v}" for k, v in overrides.items()]) + "\n"
 
 
 @dataclass
@@ -159,71 +117,38 @@ class Commissioning:
     nvm_note: str = ""
 
 
-def commission(name: str, wd: Path, nominal: dict, quick: bool) -> Commissioning:
+def commission(name: str, wd: Path, nom: dict, quick: bool) -> Commissioning:
     """The commissioning run of a joint and what the tools make of it."""
     ini = SCENARIO_DIR / f"{name}.ini"
     csv = wd / f"{name}.csv"
     extra = ["--duration", "12"] if quick else []
-    d = accuracy.simulate(ini, csv, extra)
-    ang = accuracy.encoder_angles(d, nominal)
+    d = simulate(ini, csv, extra)
+    ang = encoder_angles(d, nom)
     out_orders = (1, 2, 3) if "orders" in name else (1,)
     table = peers.FourierTable(output_orders=out_orders).fit(
-        d["torque_nm"][d["t_s"] >= 1.0], ang[0][d["t_s"] >= 1.0], _out_angle(d, nominal)
+        d["torque_nm"][d["t_s"] >= 1.0], ang[0][d["t_s"] >= 1.0], output_angle(d, nom)
         [d["t_s"] >= 1.0])
     an = wd / f"{name}_analyze"
     dur = 12.0 if quick else None
     try:
-        _run([HDSENSE, "analyze", csv, "--out", an, "--json", an / "report.json", "--quiet"],
-             f"hdsense analyze {csv.name}")
+        run_tool([HDSENSE, "analyze", csv, "--out", an, "--json", an / "report.json",
+                  "--quiet"], f"hdsense analyze {csv.name}")
     except RuntimeError as exc:
-        nvm, nvm_note = firmware_commissioning(ini, wd, nominal, dur, "")
+        nvm, nvm_note = firmware_commissioning(ini, wd, nom, dur, "")
         return Commissioning(name, csv, None, None, None, None, str(exc), table, nvm, nvm_note)
-    nvm, nvm_note = firmware_commissioning(ini, wd, nominal, dur, (an / "model.cfg").read_text())
+    nvm, nvm_note = firmware_commissioning(ini, wd, nom, dur, (an / "model.cfg").read_text())
     rep = json.loads((an / "report.json").read_text())
     model = rep.get("model_after") or rep.get("model")
     rec = wd / f"{name}.hdprofile"
     note = f"hdsense analyze {csv.name} (commissioning run)"
     try:
-        _run([HDSENSE, "profile", "record", an / "profile.json", "-o", rec,
-              "--gear-ratio", nominal["gear_ratio"], "--motor-cpr", int(nominal["motor_cpr"]),
-              "--output-cpr", int(nominal["output_cpr"])], "hdsense profile record")
+        run_tool([HDSENSE, "profile", "record", an / "profile.json", "-o", rec,
+                  "--gear-ratio", nom["gear_ratio"], "--motor-cpr", int(nom["motor_cpr"]),
+                  "--output-cpr", int(nom["output_cpr"])], "hdsense profile record")
     except RuntimeError as exc:
         rec, note = None, f"{note}; no profile record: {exc}"
     return Commissioning(name, csv, (an / "model.cfg").read_text(), model,
                          an / "profile.json", rec, note, table, nvm, nvm_note)
-
-
-def firmware_commissioning(ini: Path, wd: Path, nominal: dict, duration: float | None,
-                           model_cfg: str) -> tuple[Path | None, str]:
-    """The firmware learns on the commissioning run itself (learning_mode
-    2, the blocks of the analyze model) and saves its profile with
-    PROFILE_SAVE at the end: the NVM image."""
-    nvm = wd / f"{ini.stem}.nvm"
-    nvm.unlink(missing_ok=True)
-    cfg = wd / f"{ini.stem}_commissioning.cfg"
-    cfg.write_text(compose_config(model_cfg, {"learning_mode": "2", "inertia_kgm2": "0",
-                                              "viscous_nm_s_rad": "0", "coulomb_nm": "0"}))
-    end = duration if duration is not None else float(_ini_value(ini, "duration_s"))
-    save = "01D01001#7000000000000000"    # PROFILE_SAVE of the running filter, node 1
-    try:
-        out = _run([_host(), "--sensors", f"sim:{ini}", "--config", cfg, "--nvm", nvm,
-                    "--calib", f"{nominal['gain_nm_per_v']:.9g},{nominal['offset_v']:.9g}",
-                    "--cmd-at", f"{end - 0.01:.3f}:{save}"] +
-                   (["--duration", duration] if duration is not None else []),
-                   f"hdjoint-host commissioning {ini.name}").stdout
-    except RuntimeError as exc:
-        return None, str(exc)
-    if _summary(out).get("profile_status") != "0":
-        return None, f"PROFILE_SAVE on {ini.name} did not store a profile"
-    return nvm, f"the firmware's own PROFILE_SAVE after {ini.name} in commissioning mode"
-
-
-def _out_angle(d: dict, nominal: dict):
-    """Output angle from the output encoder's counts (what the firmware sees)."""
-    c = d["output_counts"].astype(np.int64)
-    dc = (np.diff(c) + 2 ** 31) % 2 ** 32 - 2 ** 31
-    lsb = 2.0 * math.pi / nominal["output_cpr"]
-    return c[0] * lsb + np.concatenate([[0.0], np.cumsum(dc * lsb)])
 
 
 def current_model(sc: Scenario, wd: Path, quick: bool,
@@ -232,27 +157,19 @@ def current_model(sc: Scenario, wd: Path, quick: bool,
     with the commissioning profile subtracted."""
     ini = SCENARIO_DIR / f"{sc.name}.ini"
     csv = wd / f"{sc.name}_ident.csv"
-    seed = int(_ini_value(ini, "seed")) + CURRENT_SEED_OFFSET
+    seed = int(ini_value(ini, "seed")) + CURRENT_SEED_OFFSET
     extra = ["--seed", str(seed)] + (["--duration", "25"] if quick else [])
-    accuracy.simulate(ini, csv, extra)
+    simulate(ini, csv, extra)
     cfg = wd / f"{sc.name}_current.cfg"
     cmd = [HDSENSE, "current", csv, "--config", cfg, "--quiet"]
     if com.profile_json is not None:
         cmd += ["--profile", com.profile_json]
     try:
-        _run(cmd, "hdsense current")
+        run_tool(cmd, "hdsense current")
     except RuntimeError as exc:
         return None, str(exc)
     return cfg.read_text(), (f"hdsense current on {csv.name} (seed {seed})" +
                              (" with the commissioning profile" if com.profile_json else ""))
-
-
-def _ini_value(ini: Path, key: str) -> str:
-    for raw in ini.read_text().splitlines():
-        k, _, v = raw.split("#", 1)[0].partition("=")
-        if k.strip() == key:
-            return v.strip()
-    raise KeyError(key)
 
 
 def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: Path,
@@ -260,7 +177,6 @@ def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: 
     """Runs the firmware for one row; (filtered torque, what it was told)."""
     p = row.params
     over = {"learning_mode": str(p.get("mode", 1))}
-    over.update(p.get("extra", {}))
     told = {"config": "firmware defaults", "profile": "none", "slow_torque": "none"}
     base = ""
     if p["model"]:
@@ -280,65 +196,36 @@ def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: 
     if p["slow"] == "current":
         if cur_cfg is None:
             return None, {"pending": "no current model"}
-        over.update(dict(_cfg_lines(cur_cfg)))
+        over.update(dict(cfg_lines(cur_cfg)))
         told["slow_torque"] = "motor current, model from hdsense current (another run)"
-    cfg = wd / f"{sc.name}_{row.key}.cfg"
-    cfg.write_text(compose_config(base, over))
-    csv = wd / f"{sc.name}_{row.key}_fw.csv"
-    cmd = [_host(), "--sensors", f"sim:{SCENARIO_DIR / (sc.name + '.ini')}", "--config", cfg,
-           "--csv", csv]
-    if duration is not None:
-        cmd += ["--duration", duration]
+    profile = nvm = None
     if p["profile"] == "firmware":
         if com.nvm is None:
             return None, {"pending": com.nvm_note}
-        nvm = wd / f"{sc.name}_{row.key}.nvm"
-        nvm.write_bytes(com.nvm.read_bytes())
-        cmd += ["--nvm", nvm]
+        nvm = com.nvm
         told["profile"] = com.nvm_note
     elif p["profile"]:
         if com.record is None:
             return None, {"pending": com.note}
-        cmd += ["--profile", com.record]
+        profile = com.record
         told["profile"] = f"record from {com.profile_json.name} of {com.note}"
-    s = _summary(_run(cmd, f"hdjoint-host {sc.name} {row.key}").stdout)
+    config = compose_config(base, over)
+    y, s = run_firmware(SCENARIO_DIR / f"{sc.name}.ini", config, wd, f"{sc.name}_{row.key}",
+                        duration, profile=profile, nvm=nvm)
     told["summary"] = {k: s.get(k) for k in ("profile_status", "profile_imports",
                                              "expected_model", "feedforward_frames_taken",
                                              "fault_ticks")}
-    told["config_text"] = cfg.read_text()
-    d = accuracy.load_csv(csv)
-    return d["torque_filtered_nm"], told
+    told["config_text"] = config
+    return y, told
 
 
 # ----------------------------------------------------------------- peers
 
-def _paper(d, nominal, ang):
+def _paper(d, nom, ang):
     buf = accuracy.ctypes.create_string_buffer(accuracy._OPAQUE_BYTES)
-    accuracy._lib().hd_kf_config_paper(buf, nominal["ts_s"], True)
+    accuracy._lib().hd_kf_config_paper(buf, nom["ts_s"], True)
     return accuracy._run_opaque(buf, accuracy.cfilter.ExpectedConfig(), d["torque_nm"], ang[2],
                                 ang[3], d.get("torque_feedforward_nm"))
-
-
-def _projection(d, nominal, ang, out_angle, com: Commissioning):
-    """The C pipeline with the commissioning model and profile, output
-    blocks frozen, the feed-forward column, each sample turned by its own
-    increment: what hd_kf_step would do if it turned before the innovation
-    (emulated by handing step k the increment k -> k+1)."""
-    from ..analysis import cfilter
-    if com.model is None or com.profile_json is None:
-        return None
-    cfg, _, bw = accuracy.residual_config(com.model, nominal["ts_s"])
-    cfg.output_learn_scale = 0.0
-    doc = json.loads(com.profile_json.read_text())
-    lines = [(0 if ln["lock"] == "motor" else 1, int(ln["order"]), ln["a_nm"], ln["b_nm"])
-             for ln in doc["lines"]]
-    dm = np.concatenate([ang[2][1:], ang[2][-1:]])
-    do = np.diff(out_angle, append=out_angle[-1] + (out_angle[-1] - out_angle[-2]))
-    ff = d.get("torque_feedforward_nm")
-    out = cfilter.run(cfg, cfilter.ExpectedConfig(), d["torque_nm"], dm, do, ff,
-                      track_bandwidth_hz=bw,
-                      profile=(lines, ang[0][0], out_angle[0], cfg.r_nm2))
-    return out["torque_filtered_nm"].astype(float)
 
 
 # ----------------------------------------------------------------- metrics
@@ -388,18 +275,18 @@ def run(quick: bool = False, workdir: Path | None = None, scenarios=None) -> dic
         if scenarios and sc.name not in scenarios:
             continue
         ini = SCENARIO_DIR / f"{sc.name}.ini"
-        nominal = accuracy.nominal(ini)
+        nom = nominal(ini)
         if sc.commission not in coms:
-            coms[sc.commission] = commission(sc.commission, wd, nominal, quick)
+            coms[sc.commission] = commission(sc.commission, wd, nom, quick)
             c = coms[sc.commission]
             res["commissioning"][sc.commission] = {
                 "note": c.note, "profile": json.loads(c.profile_json.read_text())
                 if c.profile_json else None}
         com = coms[sc.commission]
         dur = 12.0 if quick else None
-        d = accuracy.simulate(ini, wd / f"{sc.name}.csv", duration_s=dur)
-        ang = accuracy.encoder_angles(d, nominal)
-        out_angle = _out_angle(d, nominal)
+        d = simulate(ini, wd / f"{sc.name}.csv", duration_s=dur)
+        ang = encoder_angles(d, nom)
+        out_angle = output_angle(d, nom)
         cur_cfg, cur_note = current_model(sc, wd, quick, com)
         sres = {"what": sc.what, "rows": {}, "told": {}, "current_model": cur_note}
         ys = {}
@@ -408,16 +295,14 @@ def run(quick: bool = False, workdir: Path | None = None, scenarios=None) -> dic
                 y, told = fw_row(r, sc, com, cur_cfg, wd, dur)
                 sres["told"][r.key] = told
             elif r.kind == "butter":
-                y = peers.butterworth(d["torque_nm"], nominal["ts_s"], r.params["fc"])
+                y = peers.butterworth(d["torque_nm"], nom["ts_s"], r.params["fc"])
             elif r.kind == "notch":
                 y = peers.order_notch(d["torque_nm"], ang[0], (2, 4), q=2.0)
                 y = peers.order_notch(y, out_angle, sc.output_orders, q=3.0)
             elif r.kind == "table":
                 y = com.table.apply(d["torque_nm"], ang[0], out_angle)
             elif r.kind == "paper":
-                y = _paper(d, nominal, ang)
-            elif r.kind == "projection":
-                y = _projection(d, nominal, ang, out_angle, com)
+                y = _paper(d, nom, ang)
             elif r.kind == "raw":
                 y = d["torque_nm"].copy()
             else:
