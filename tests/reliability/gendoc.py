@@ -30,6 +30,8 @@ class GenDocError(Exception):
 
 def ctest_commands(build: Path) -> dict[str, list[str]]:
     """{test name: command line} of every CTest test in `build`."""
+    if not (build / "CTestTestfile.cmake").is_file():
+        raise GenDocError(f"{build}: not a configured CMake build folder (no CTestTestfile.cmake)")
     try:
         out = subprocess.run(["ctest", "--test-dir", str(build), "--show-only=json-v1"],
                              capture_output=True, text=True, timeout=120, check=False)

@@ -164,3 +164,24 @@ def test_cantools_cli_decodes_the_capture(vm):
     lines = out.stdout.splitlines()
     assert sum("TELEM_A(" in line for line in lines) == int(DURATION_S * 1000)
     assert sum("ACK(" in line for line in lines) == 7
+
+
+def test_vm_doc_reads_the_run_as_the_dbc_decoder_does(vm):
+    """tests/vm/vm_doc.py (which writes the measured table of
+    docs/socketcan.md) counts the captured frames as python-can + cantools
+    decode them, the runner's own transmit count, and every in-guest check."""
+    sys.path.insert(0, str(ROOT / "tests" / "vm"))
+    import vm_doc
+    text = serial_log().read_text(errors="replace")
+    r = vm_doc.parse_log(text)
+    dec, frames = vm["decoded"], r["frames"]
+    assert frames["TELEM_A"] == frames["TELEM_B"] == len(dec["telemetry"])
+    assert frames["HEARTBEAT"] == len(dec["heartbeats"])
+    assert frames["ACK"] == len(dec["acks"])
+    assert frames["BOOT"] == len(dec["boots"])
+    sent = sum(frames.get(n, 0) for n in ("TELEM_A", "TELEM_B", "TELEM_C", "HEARTBEAT", "BOOT",
+                                           "ACK"))
+    assert sent == int(vm["summary"]["can_tx_ok"])
+    assert r["checks_self"] > 0 and r["checks_e2e"] > 0
+    assert r["checks_self"] + r["checks_e2e"] == text.count("HDVM: ok  ")
+    assert 0 < r["boot_s"] and 0 < r["runner_s"] and 0 <= r["dump_s"]

@@ -1,0 +1,178 @@
+#!/usr/bin/env python3
+"""The "Measured" table of docs/socketcan.md, written by running the VM test.
+
+  tests/vm/vm_doc.py --build BUILD [--runs 3]
+
+Boots the VM `--runs` times with the command line CTest has for
+vm_socketcan (into scratch folders, not the fixture's), runs
+vm_socketcan_failure_modes once, reads each run's serial log, wall time and
+image, and writes the block `socketcan-vm` of docs/socketcan.md with the
+date and the machine.  The numbers are wall times under QEMU's TCG on a
+shared host: they vary from run to run, so the block is never checked.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "reliability"))
+from gendoc import ROOT, GenDocError, command_of, ctest_commands, machine, run, update_doc  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "tools"))
+from hdtools import protocol  # noqa: E402
+
+DOC = ROOT / "docs" / "socketcan.md"
+CAPTURE_LINE = re.compile(r"^\(\d+\.\d+\) \w+ ([0-9A-F]{3,8})#")
+
+
+def sections(text: str) -> dict[str, list[str]]:
+    """The HDVM-BEGIN NAME / HDVM-END NAME blocks of a serial log."""
+    out: dict[str, list[str]] = {}
+    name = None
+    for line in text.replace("\r", "").splitlines():
+        if line.startswith("HDVM-BEGIN "):
+            name = line.split(" ", 1)[1]
+            out[name] = []
+        elif line.startswith("HDVM-END "):
+            name = None
+        elif name is not None:
+            out[name].append(line)
+    return out
+
+
+def _match(text: str, pattern: str) -> str:
+    m = re.search(pattern, text)
+    if not m:
+        raise GenDocError(f"serial log has no line matching {pattern!r}")
+    return m.group(1)
+
+
+def _number(text: str, pattern: str) -> float:
+    return float(_match(text, pattern))
+
+
+def frame_counts(capture: list[str], node: int = 1) -> dict[str, int]:
+    """Captured frames by name (hdtools.protocol's frame table)."""
+    by_id = {f.can_id(node): f.name for f in protocol.frames()}
+    counts: dict[str, int] = {}
+    for line in capture:
+        m = CAPTURE_LINE.match(line)
+        if m:
+            name = by_id.get(int(m.group(1), 16), "other ids")
+            counts[name] = counts.get(name, 0) + 1
+    return counts
+
+
+def parse_log(text: str) -> dict:
+    """The numbers of one VM run from its serial log."""
+    if "HDVM: VERDICT PASS" not in text:
+        raise GenDocError("the VM run has no PASS verdict")
+    sec = sections(text)
+    summary = dict(l.split(" = ", 1) for l in sec.get("host-summary", []) if " = " in l)
+    lines = text.replace("\r", "").splitlines()
+    e2e_start = next((i for i, l in enumerate(lines) if l.startswith("HDVM: --- end to end")),
+                     len(lines))
+    ok = [i for i, l in enumerate(lines) if l.startswith("HDVM: ok  ")]
+    test_s = _number(text, r"HDVM: test time in the VM ([\d.]+) s")
+    return {
+        "kernel": _match(text, r"HDVM: booted kernel ([^\s,]+)"),
+        "boot_s": _number(text, r"guest uptime ([\d.]+) s"),
+        "runner_s": _number(text, r"HDVM: runner wall time ([\d.]+) s"),
+        "dump_s": _number(text, r"HDVM: test \+ console dump time in the VM ([\d.]+) s") - test_s,
+        "checks_self": sum(i < e2e_start for i in ok),
+        "checks_e2e": sum(i >= e2e_start for i in ok),
+        "frames": frame_counts(sec.get("capture", [])),
+        "summary": summary,
+        "log_bytes": len(text.encode()),
+    }
+
+
+def measure_run(cmd: list[str], outdir: Path) -> dict:
+    """One boot with CTest's vm_socketcan command, its OUTDIR replaced."""
+    t0 = time.monotonic()
+    run([cmd[0], str(outdir)] + cmd[2:], 600)
+    ctest_s = time.monotonic() - t0
+    r = parse_log((outdir / "serial.log").read_text(errors="replace"))
+    r["wall_s"] = float((outdir / "wall_time_s").read_text())
+    r["ctest_s"] = ctest_s
+    r["initrd_bytes"] = (outdir / "initrd.cpio.gz").stat().st_size
+    return r
+
+
+def span(values: list[float], fmt: str = ".1f") -> str:
+    lo, hi = min(values), max(values)
+    return f"{lo:{fmt}}" if f"{lo:{fmt}}" == f"{hi:{fmt}}" else f"{lo:{fmt}}-{hi:{fmt}}"
+
+
+def render(runs: list[dict], failure_modes_s: float, where: str) -> str:
+    n = len(runs)
+    s = [r["summary"] for r in runs]
+    first = runs[0]
+    frames = ", ".join(f"{name} {span([r['frames'].get(name, 0) for r in runs], 'd')}"
+                       for name in sorted({k for r in runs for k in r["frames"]}))
+    samples = s[0]["samples"]
+    rows = [
+        ["QEMU wall time, boot + test + console dump (`OUTDIR/wall_time_s`)",
+         ", ".join(f"{r['wall_s']:.1f}" for r in runs) + " s"],
+        ["`vm_socketcan` as CTest runs it (image build with the kernel cached + boot)",
+         span([r["ctest_s"] for r in runs]) + " s"],
+        ["guest uptime when `/init` starts (kernel boot)", span([r["boot_s"] for r in runs]) + " s"],
+        [f"runner wall time in the guest ({samples} samples, `--realtime`)",
+         span([r["runner_s"] for r in runs]) + " s"],
+        ["console dump (capture + CSV)",
+         f"{span([r['dump_s'] for r in runs])} s, serial log {first['log_bytes'] // 1024} KiB"],
+        ["`vm_socketcan_failure_modes` (one short boot)", f"{failure_modes_s:.1f} s"],
+        ["initramfs (gzip -1)", f"{first['initrd_bytes'] / 2**20:.1f} MiB"],
+        ["in-guest checks",
+         f"{first['checks_self'] + first['checks_e2e']} (self-test {first['checks_self']}, "
+         f"end to end {first['checks_e2e']})"],
+        ["frames captured per run", frames],
+        ["runner's own count", f"`can_tx_ok` {span([int(x['can_tx_ok']) for x in s], 'd')}, "
+                               f"`can_tx_dropped` {span([int(x['can_tx_dropped']) for x in s], 'd')}"],
+        ["runner under TCG",
+         f"ISR mean {span([float(x['isr_mean_us']) / 1000 for x in s], '.2f')} ms, max "
+         f"{span([float(x['isr_max_us']) / 1000 for x in s], '.0f')} ms; "
+         f"{span([int(x['overruns']) for x in s], 'd')} overruns per {samples} ticks "
+         "(flagged DEADLINE_MISS in the telemetry, equal to the CSV)"],
+    ]
+    head = (f"_{n} runs of `tests/vm/vm_doc.py`, {where}; kernel {first['kernel']}, TCG; "
+            "wall times vary with the host's load: not checked_")
+    body = ["| Quantity | Value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
+    return head + "\n\n" + "\n".join(body)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--build", type=Path, required=True)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--doc", type=Path, default=DOC)
+    a = ap.parse_args(argv)
+    if a.runs < 1:
+        ap.error("--runs must be at least 1")
+    try:
+        where = machine()
+        cmds = ctest_commands(a.build.resolve())
+        vm = command_of(cmds, "vm_socketcan", a.build)
+        fm = command_of(cmds, "vm_socketcan_failure_modes", a.build)
+        with tempfile.TemporaryDirectory(prefix="vm_doc.") as tmp:
+            runs = []
+            for i in range(a.runs):
+                runs.append(measure_run(vm, Path(tmp) / f"run{i}"))
+                print(f"vm_doc: run {i + 1}: {runs[-1]['wall_s']:.1f} s", flush=True)
+            t0 = time.monotonic()
+            run([fm[0], str(Path(tmp) / "failure-modes")] + fm[2:], 600)
+            failure_modes_s = time.monotonic() - t0
+        print(update_doc(a.doc, {"socketcan-vm": render(runs, failure_modes_s, where)}, False, ""))
+    except (GenDocError, OSError, ValueError) as exc:
+        print(f"vm_doc: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
