@@ -8,6 +8,7 @@
 #include "hal_sim.h"
 #include "hd_sim_plant.h"
 #include "hd_sim_scenario.h"
+#include "sim_run.h"
 #include "unity.h"
 
 #define PI_D 3.14159265358979323846
@@ -23,19 +24,7 @@ void tearDown(void) {}
 /* Parses text on top of the defaults, runs the plant, returns the count. */
 static size_t simulate(const char *text)
 {
-    hd_sim_scenario_t sc;
-    hd_sim_scenario_default(&sc);
-    if (hd_sim_scenario_parse(&sc, text, "test", err, sizeof(err)) != 0) {
-        TEST_FAIL_MESSAGE(err);
-    }
-    if (hd_sim_plant_init(&plant, &sc, err, sizeof(err)) != 0) {
-        TEST_FAIL_MESSAGE(err);
-    }
-    size_t n = 0;
-    while (n < MAXN && hd_sim_plant_next(&plant, &run[n]) == 0) {
-        n++;
-    }
-    return n;
+    return sim_run(&plant, text, run, MAXN);
 }
 
 /* Least squares of x = a sin(arg) + b cos(arg) + c over samples [i0, i1). */

@@ -10,6 +10,7 @@
 #include "hal_sim.h"
 #include "hd_sim_plant.h"
 #include "hd_sim_scenario.h"
+#include "sim_run.h"
 #include "unity.h"
 
 #define MAXN 6000
@@ -23,22 +24,13 @@ static char err[512];
 void setUp(void) {}
 void tearDown(void) {}
 
+/* Runs the plant; acc_m[i] = the motor's acceleration at sample i. */
 static size_t simulate(const char *text)
 {
-    hd_sim_scenario_t sc;
-    hd_sim_scenario_default(&sc);
-    if (hd_sim_scenario_parse(&sc, text, "test", err, sizeof(err)) != 0) {
-        TEST_FAIL_MESSAGE(err);
-    }
-    if (hd_sim_plant_init(&plant, &sc, err, sizeof(err)) != 0) {
-        TEST_FAIL_MESSAGE(err);
-    }
-    size_t n = 0;
-    while (n < MAXN && hd_sim_plant_next(&plant, &run[n]) == 0) {
-        double a, v, w;
-        hd_sim_motor_kinematics(&plant, run[n].t_s, &a, &v, &w);
-        acc_m[n] = w;
-        n++;
+    size_t n = sim_run(&plant, text, run, MAXN);
+    for (size_t i = 0; i < n; i++) {
+        double a, v;
+        hd_sim_motor_kinematics(&plant, run[i].t_s, &a, &v, &acc_m[i]);
     }
     return n;
 }
