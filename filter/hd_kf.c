@@ -460,8 +460,6 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
     kf->load_scale = 1.0f;
-    kf->last_d_motor_rad = 0.0f;
-    kf->last_d_output_rad = 0.0f;
 }
 
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
@@ -666,22 +664,26 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
     sum->ripple += h[1] * kf->x[2u * s + 1u];
 }
 
-/* g = P C' over the packed tiles; returns C P C'.  Each off-diagonal tile
- * adds to both its rows' and its columns' entries of g; sums accumulate
- * term by term (one multiply-accumulate each), rows above first.  The
- * offset's row entry is 1. */
+/* g = (P + Q) C' over the packed tiles, P + Q being the prior's
+ * covariance (Q is diagonal: it is added to the diagonal tiles as they are
+ * read, and stored by correct); returns C (P + Q) C'.  Each off-diagonal
+ * tile adds to both its rows' and its columns' entries of g; sums
+ * accumulate term by term (one multiply-accumulate each), rows above
+ * first.  The offset's row entry is 1. */
 KF_INLINE float cross_covariance(const float *restrict p, const float *restrict h,
-                                 float *restrict g, unsigned nb)
+                                 const float *restrict q, float q_off, float *restrict g,
+                                 unsigned nb)
 {
     float acc[2u * HD_KF_MAX_BLOCKS + 1u]; /* column sums of the rows above */
     float g_off = 0.0f, cpc = 0.0f;
     KF_UNROLL
     for (unsigned s = 0; s < nb; s++) {
         const float h0 = h[2u * s], h1 = h[2u * s + 1u];
-        float ga = s == 0u ? p[0] * h0 : acc[2u * s] + p[0] * h0;
+        const float pa = p[0] + q[s], pd = p[2] + q[s];
+        float ga = s == 0u ? pa * h0 : acc[2u * s] + pa * h0;
         float gb = s == 0u ? p[1] * h0 : acc[2u * s + 1u] + p[1] * h0;
         ga += p[1] * h1;
-        gb += p[2] * h1;
+        gb += pd * h1;
         p += 3;
         KF_UNROLL
         for (unsigned t = s + 1u; t < nb; t++, p += 4) {
@@ -707,19 +709,19 @@ KF_INLINE float cross_covariance(const float *restrict p, const float *restrict 
         cpc += h0 * ga;
         cpc += h1 * gb;
     }
-    g_off += p[0];
+    g_off += p[0] + q_off;
     cpc += g_off;
     g[2u * nb] = g_off;
     return cpc;
 }
 
-/* A block's diagonal tile [a b; b d]: downdate with weights (wa, wb), Q
- * added, into the probe. */
+/* A block's diagonal tile [a b; b d]: Q added (the prior), downdate with
+ * weights (wa, wb), into the probe. */
 KF_INLINE void correct_diag_tile(float *p, float wa, float wb, float ga, float gb, float q,
                                  bound_probe_t *probe)
 {
-    const float a = (p[0] - wa * ga) + q, b = p[1] - wa * gb;
-    const float d = (p[2] - wb * gb) + q;
+    const float a = (p[0] + q) - wa * ga, b = p[1] - wa * gb;
+    const float d = (p[2] + q) - wb * gb;
     p[0] = a;
     p[1] = b;
     p[2] = d;
@@ -771,9 +773,10 @@ static void correct_partial(float *p, const float *g, const float *f, const floa
     }
 }
 
-/* x <- x + F g k_e and P <- P - W .* g g' / S + Q in the frames, where the
- * step's rotation is only a turn of the frames (advance_frames): each tile
- * loaded once, downdated, Q added, stored once.  W_st = f_s + f_t - f_s f_t
+/* x <- x + F g k_e and P <- (P + Q) - W .* g g' / S in the frames, where
+ * the step's rotation is only a turn of the frames (advance_frames), so P + Q
+ * is the prior's covariance: each tile loaded once, Q added, downdated,
+ * stored once.  W_st = f_s + f_t - f_s f_t
  * (the Joseph form for the gain F g / S) is 1 unless both fractions are
  * below 1 (the offset's fraction is 1): those tiles, in partial, are left to
  * correct_partial.  inv_s = k_e = 0: prediction only. */
@@ -810,7 +813,7 @@ KF_INLINE void correct(float *restrict p, float *restrict x, const float *restri
         p[1] -= ub * g_off;
         p += 2;
     }
-    p[0] = (p[0] - g_off * inv_s * g_off) + q_off;
+    p[0] = (p[0] + q_off) - g_off * inv_s * g_off;
     worst.traces += p[0];
     worst.signs |= bits_of(p[0]);
     x[0] += g_off * k_e;
@@ -975,10 +978,11 @@ KF_INLINE void advance_frames(hd_kf_t *kf, const float inc[3])
 static uint32_t bound_covariance(hd_kf_t *kf, float finite_probe);
 
 /* The step for a layout of nb blocks (a constant in each instance, so
- * every loop unrolls and h, g, f, q live in registers): inputs, the plan of
- * every block, restarts, offset priming, the innovation and its variance,
- * the offset gate, the outputs, the correction, the turn of the frames and
- * the bounds. */
+ * every loop unrolls and h, g, f, q live in registers): inputs, the time
+ * update by this sample's increments (the turn of the frames; its Q is
+ * added in the passes over P), the plan of every block, restarts, offset
+ * priming, the innovation and its variance against the prior, the offset
+ * gate, the outputs, the measurement update and the bounds. */
 KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out,
                            unsigned nb)
 {
@@ -1013,6 +1017,11 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     io.rows[HD_KF_LOCK_MOTOR] = c_load;
     io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
 
+    /* ---- time update: the posterior of the last sample turns by this
+     * sample's increments (Phi is a turn of the frames; the plan below
+     * reads the turned ones) */
+    advance_frames(kf, io.inc);
+
     /* ---- what this step does to each block */
     float h[2u * HD_KF_MAX_BLOCKS], f[HD_KF_MAX_BLOCKS], q[HD_KF_MAX_BLOCKS];
     float g[HD_KF_MAX_STATES];
@@ -1024,10 +1033,6 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     if (UNLIKELY(sum.lost != 0u)) {
         restart_lost_blocks(kf, sum.lost);
     }
-    /* The step's rotation (the frames turn for the next sample) needs only
-     * the increments, and nothing below reads the frames: here its long
-     * dependency chains overlap the passes on a superscalar host. */
-    advance_frames(kf, io.inc);
 
     /* ---- innovation and its variance (the prior's) */
     const float ripple = sum.ripple;
@@ -1037,7 +1042,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
         kf->offset_primed = 1u;
     }
     const float offset = kf->x[o]; /* 0 when the offset is disabled */
-    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, g, nb);
+    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, q, kf->offset_q_nm2, g, nb);
     const float innovation = y - ripple - offset;
     if (UNLIKELY(valid && offset_jump(kf, innovation, s_var))) {
         /* an offset jump widens the offset's variance first */
@@ -1069,8 +1074,6 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
             &probe);
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
-    kf->last_d_motor_rad = io.inc[HD_KF_LOCK_MOTOR];
-    kf->last_d_output_rad = io.inc[HD_KF_LOCK_OUTPUT];
     if (UNLIKELY(!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
                  !is_finite(finite_probe))) {
         const uint32_t bounded = bound_covariance(kf, finite_probe);
@@ -1373,14 +1376,12 @@ static unsigned profile_order(const hd_kf_slot_t *sl)
     return (unsigned)k;
 }
 
-/* cos and sin of k alpha, alpha = the lock angle of the sample the
- * prediction is for: the caller's angle plus the last step's increment. */
-static void profile_rotation(const hd_kf_t *kf, const hd_kf_slot_t *sl, unsigned k,
-                             float motor_angle_rad, float output_angle_rad, float *c, float *s)
+/* cos and sin of k alpha, alpha = the lock angle of the sample the state
+ * is at (the caller's: the sample of the most recent step). */
+static void profile_rotation(const hd_kf_slot_t *sl, unsigned k, float motor_angle_rad,
+                             float output_angle_rad, float *c, float *s)
 {
-    const bool motor = sl->lock == HD_KF_LOCK_MOTOR;
-    const float alpha = motor ? motor_angle_rad + kf->last_d_motor_rad
-                              : output_angle_rad + kf->last_d_output_rad;
+    const float alpha = sl->lock == HD_KF_LOCK_MOTOR ? motor_angle_rad : output_angle_rad;
     hd_sincosf((float)k * alpha, s, c);
 }
 
@@ -1401,7 +1402,7 @@ int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_
             continue;
         }
         float c, sn;
-        profile_rotation(kf, sl, k, motor_angle_rad, output_angle_rad, &c, &sn);
+        profile_rotation(sl, k, motor_angle_rad, output_angle_rad, &c, &sn);
         /* (a, b) = R(k alpha)' x, x in the model's coordinates */
         const float x1 = model_state(kf, 2u * s), x2 = model_state(kf, 2u * s + 1u);
         hd_kf_profile_line_t *line = &profile->lines[n++];
@@ -1469,7 +1470,7 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
                 continue;
             }
             float c, sn;
-            profile_rotation(kf, sl, line->order, motor_angle_rad, output_angle_rad, &c, &sn);
+            profile_rotation(sl, line->order, motor_angle_rad, output_angle_rad, &c, &sn);
             /* x = R(k alpha) (a, b)' in the model's coordinates */
             set_block(kf, s, c * line->a_nm + sn * line->b_nm, c * line->b_nm - sn * line->a_nm,
                       prior_var_nm2);

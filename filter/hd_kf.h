@@ -12,20 +12,27 @@
  *   Phi = blockdiag(R(theta_1), ..., R(theta_B), 1),
  *   R(t) = [cos t  sin t; -sin t  cos t],   C = [c_1 0 c_2 0 ... c_B 0 (1)].
  *
- * Each block is locked to one reference; its phase advance theta over the
- * step comes from the encoder increments passed with the sample:
+ * Each block is locked to one reference; its phase advance theta from the
+ * previous sample to this one comes from the encoder increments passed
+ * with this sample:
  *   HD_KF_LOCK_MOTOR   theta = order * d_motor_angle_rad   [order: cycles per motor rev]
  *   HD_KF_LOCK_OUTPUT  theta = order * d_output_angle_rad  [order: cycles per output rev]
  *   HD_KF_LOCK_FIXED   theta = 2 pi f ts_s                 [order field holds f in Hz]
  *
- * Update (prediction type, scalar innovation, no inverse):
- *   e = y - C x,  S = R + C P C',  g = P C',  F = diag(gain fractions)
- *   x <- Phi (x + F g e / S)
- *   P <- Phi (P - (F g g' + g g' F - F g g' F) / S) Phi' + Q
+ * Step k, given sample k: y_k and the increments d_k = angle_k -
+ * angle_k-1 (scalar innovation, no inverse):
+ *   time update   x <- Phi(d_k) x,   P <- Phi P Phi' + Q(d_k)
+ *   innovation    e = y_k - C x,  S = R + C P C',  g = P C',
+ *                 F = diag(gain fractions)
+ *   measurement   x <- x + F g e / S
+ *                 P <- P - (F g g' + g g' F - F g g' F) / S
  * which is the Joseph form for the gain F g / S (the optimal update when
  * every fraction is 1), so P stays the exact covariance of the estimate.
- * x after a step is the prediction for the NEXT sample; the outputs of a
- * step come from the prediction made before its sample arrived.
+ * Every rule below (freezes, motion fractions, q, rows) is decided from
+ * d_k.  x after step k is the estimate AT sample k (the posterior, at the
+ * angles of sample k); the outputs of step k come from the prior x(k|k-1):
+ * the estimate of sample k-1 turned by sample k's own increments, a
+ * prediction that never uses y_k.
  *
  * Per-block rules (docs/filter.md explains each):
  *   - measurement row: c = 1 + ripple_load_coeff_per_nm |T_ref| for
@@ -43,14 +50,15 @@
  *   - Nyquist: a block with |theta| > nyquist_fraction * pi is frozen for the
  *     step (c = 0, gain 0, no process noise, still turned by theta); beyond
  *     HD_KF_PHASE_LOST_RAD its phase is lost and it restarts from zero with
- *     its p0, decorrelated (before the step's update);
+ *     its p0, decorrelated (before the step's measurement update);
  *   - offset: primed with the first valid sample's y - ripple; with
  *     offset_jump_nm > 0 an innovation with |e| > offset_jump_nm and
  *     e^2 > 16 S adds e^2 to the offset's variance before the update
  *     (HD_KF_STATUS_OFFSET_JUMP).
  *
  * Invariants kept every step:
- *   - P is stored once (packed upper triangle), so it is exactly symmetric;
+ *   - P (the posterior's) is stored once (packed upper triangle), so it is
+ *     exactly symmetric;
  *   - each block's 2x2 covariance is positive semi-definite with its
  *     largest eigenvalue at most p_max_nm2 (so every diagonal entry is in
  *     [0, p_max], whatever the block's phase), and the offset's variance is
@@ -62,7 +70,7 @@
  *     sets HD_KF_STATUS_P_CLAMPED;
  *   - a non-finite increment is taken as 0, and a non-finite or absurd
  *     sample (|T_meas - T_exp| > HD_KF_MAX_ABS_Y_NM) is not corrected
- *     (prediction only); both set HD_KF_STATUS_BAD_INPUT, counted once per
+ *     (time update only); both set HD_KF_STATUS_BAD_INPUT, counted once per
  *     step in bad_input_count;
  *   - a non-finite state or covariance resets the filter (hd_kf_reset),
  *     HD_KF_STATUS_RESET, reset_count: in the step that uses it (a state
@@ -235,8 +243,6 @@ typedef struct {
     float q_motion_inv_rad;                   /* 1 / q_motion_ref_rad (0: off) */
     float load_ref_nm;                        /* T_ref of the load-dependent row [Nm] */
     float load_scale;                         /* 1 + k |T_ref| of the last step */
-    float last_d_motor_rad;                   /* increments applied by the last step */
-    float last_d_output_rad;
     float output_phase_hi_rad;                /* the sum of all output increments since */
     float output_phase_lo_rad;                /* init, in [-pi, pi), as hi + lo */
     uint32_t output_turns;                    /* steps since the output phasor was last
@@ -312,8 +318,9 @@ void hd_kf_step(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t *out);
 
 /* ---- read-out, outside the 1 kHz path ---------------------------------- */
 
-/* Amplitude [Nm] of configured block i's prediction, sqrt(x1^2 + x2^2), at
- * zero load; 0 if the block is disabled. */
+/* Amplitude [Nm] of configured block i's estimate, sqrt(x1^2 + x2^2), at
+ * zero load (the same for the next step's prior: a turn keeps it); 0 if
+ * the block is disabled. */
 float hd_kf_block_amplitude_nm(const hd_kf_t *kf, unsigned block);
 
 /* Measurement-row entry c of configured block i in the last step (its
@@ -322,7 +329,8 @@ float hd_kf_block_amplitude_nm(const hd_kf_t *kf, unsigned block);
 float hd_kf_block_row(const hd_kf_t *kf, unsigned block);
 
 /* Amplitude [Nm] and phase [rad] of configured block i from the current
- * state (ripple_i = A cos(phase)), at zero load; both 0 if the block is
+ * state (ripple_i = A cos(phase) at the sample of the last step), at zero
+ * load; both 0 if the block is
  * disabled or was frozen in the last step.  Uses libm atan2f. */
 void hd_kf_block_amplitude_phase(const hd_kf_t *kf, unsigned block,
                                  float *amplitude_nm, float *phase_rad);
@@ -348,14 +356,14 @@ float hd_kf_cov(const hd_kf_t *kf, unsigned i, unsigned j);
  * transition above, so x1 = ripple(alpha).  Fixed-frequency blocks and
  * blocks of non-integral order are not part of a profile.
  *
- * Which angle.  x is the prediction for the next sample, turned by the last
- * step's increments.  The caller passes motor_angle_rad and
- * output_angle_rad = the absolute angles, reduced to [0, 2 pi), OF THE
- * SAMPLE GIVEN TO THE MOST RECENT hd_kf_step (the angles whose increments
- * from the sample before that step received).  The filter adds those
- * increments itself, exactly as its prediction did.  A filter not stepped
- * since hd_kf_init / hd_kf_reset has no such increments: pass the angles of
- * the first sample it will be given. */
+ * Which angle.  x is the estimate at the sample given to the most recent
+ * hd_kf_step.  The caller passes motor_angle_rad and output_angle_rad = the
+ * absolute angles, reduced to [0, 2 pi), OF THAT SAMPLE.  A filter not
+ * stepped since hd_kf_init / hd_kf_reset is at the sample before the first
+ * one it will be given: pass the first sample's angles minus its
+ * increments (its own angles when its increments are 0, as a first
+ * reading's are).  The next step turns the state by that sample's
+ * increments before it predicts the sample. */
 typedef struct {
     uint8_t lock;   /* HD_KF_LOCK_MOTOR or HD_KF_LOCK_OUTPUT */
     uint8_t order;  /* k: cycles per revolution of the lock angle, >= 1 */

@@ -71,80 +71,82 @@ void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg)
         r->P[r->offset_slot][r->offset_slot] = (double)cfg->p0_nm2;
 }
 
-void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
+/* What sample k's increments decide for its step (hd_kf.h, "Per-block
+ * rules"): Phi(k), Q(k), the row C(k), the gain fractions and the freezes.
+ * Restarts a block whose phase is lost. */
+typedef struct {
+    mat_t phi;
+    double q[N];    /* diagonal of Q */
+    double c[N];    /* measurement row */
+    double gain[N]; /* gain fraction per state: 1 (optimal) or below */
+} plan_t;
+
+/* Load-dependent ripple: the C entry of motor-locked blocks is
+ * 1 + k |T_ref|.  T_ref starts at T_exp (+ the offset when it is real
+ * torque and has been primed) and then moves towards that value by the
+ * motor's motion fraction min(1, |d motor| / q_motion_ref): held at
+ * standstill.  A non-finite T_exp makes y non-finite (no correction); it
+ * then adds nothing to T_ref. */
+static double load_row(ref_kf_t *r, const hd_kf_input_t *in)
 {
-    const int n = r->n;
-    mat_t phi, phit, q, tmp, a;
-    double c[N] = {0}, k_e[N], px[N];
-    double gain[N]; /* gain fraction per state: 1 (optimal) or a motor block's motion */
-    for (int i = 0; i < N; i++)
-        gain[i] = 1.0;
-    int frozen[HD_KF_MAX_BLOCKS] = {0};
-
-    memset(out, 0, sizeof(*out));
-    memset(phi, 0, sizeof(phi));
-    memset(q, 0, sizeof(q));
-
-    /* Load-dependent ripple: the C entry of motor-locked blocks is
-     * 1 + k |T_ref|.  T_ref starts at T_exp (+ the prior offset when it is
-     * real torque and has been primed) and then moves towards that value by
-     * the motor's motion fraction min(1, |d motor| / q_motion_ref): held at
-     * standstill.  A non-finite T_exp makes y non-finite (prediction only);
-     * it then adds nothing to T_ref. */
-    double c_load = 1.0;
-    if (r->cfg.ripple_load_coeff_per_nm > 0.0f) {
-        double t_now = isfinite(in->torque_expected_nm) ? (double)in->torque_expected_nm : 0.0;
-        if (r->offset_slot >= 0 && !r->cfg.offset_is_sensor_error && r->offset_primed)
-            t_now += r->x[r->offset_slot];
-        if (!r->load_ref_primed) {
-            r->load_ref = t_now;
-            r->load_ref_primed = 1;
-        } else {
-            double dm = isfinite(in->d_motor_angle_rad) ? fabs((double)in->d_motor_angle_rad) : 0.0;
-            double ref = (double)r->cfg.q_motion_ref_rad;
-            double f = ref > 0.0 ? fmin(1.0, dm / ref) : 1.0;
-            r->load_ref += f * (t_now - r->load_ref);
-        }
-        c_load = 1.0 + (double)r->cfg.ripple_load_coeff_per_nm * fabs(r->load_ref);
+    if (!(r->cfg.ripple_load_coeff_per_nm > 0.0f))
+        return 1.0;
+    double t_now = isfinite(in->torque_expected_nm) ? (double)in->torque_expected_nm : 0.0;
+    if (r->offset_slot >= 0 && !r->cfg.offset_is_sensor_error && r->offset_primed)
+        t_now += r->x[r->offset_slot];
+    if (!r->load_ref_primed) {
+        r->load_ref = t_now;
+        r->load_ref_primed = 1;
+    } else {
+        double dm = isfinite(in->d_motor_angle_rad) ? fabs((double)in->d_motor_angle_rad) : 0.0;
+        double ref = (double)r->cfg.q_motion_ref_rad;
+        double f = ref > 0.0 ? fmin(1.0, dm / ref) : 1.0;
+        r->load_ref += f * (t_now - r->load_ref);
     }
-    out->load_scale = c_load;
+    return 1.0 + (double)r->cfg.ripple_load_coeff_per_nm * fabs(r->load_ref);
+}
 
-    /* Phi(k), Q, C(k) and the Nyquist freeze for this step. */
+static void make_plan(ref_kf_t *r, const hd_kf_input_t *in, plan_t *m, ref_kf_output_t *out)
+{
+    memset(m, 0, sizeof(*m));
+    for (int i = 0; i < N; i++)
+        m->gain[i] = 1.0;
+    const double c_load = load_row(r, in);
+    out->load_scale = c_load;
     for (int s = 0; s < r->nb; s++) {
         int b = r->block_of_slot[s];
         double th = block_theta(&r->cfg, b, in);
         int i = 2 * s;
-        phi[i][i] = cos(th);
-        phi[i][i + 1] = sin(th);
-        phi[i + 1][i] = -sin(th);
-        phi[i + 1][i + 1] = cos(th);
+        m->phi[i][i] = cos(th);
+        m->phi[i][i + 1] = sin(th);
+        m->phi[i + 1][i] = -sin(th);
+        m->phi[i + 1][i + 1] = cos(th);
         /* Angle-locked process noise scales with the angle travelled. */
         double q_scale = 1.0, ref = (double)r->cfg.q_motion_ref_rad;
         if (ref > 0.0 && r->cfg.blocks[b].lock != HD_KF_LOCK_FIXED)
             q_scale = fmin(1.0, fabs(th) / ref);
-        q[i][i] = q[i + 1][i + 1] = (double)r->cfg.blocks[b].q_nm2 * q_scale;
+        m->q[i] = m->q[i + 1] = (double)r->cfg.blocks[b].q_nm2 * q_scale;
         /* A motor-locked block learns as it turns: its gain is scaled by
          * the same motion fraction; an output-locked block learns at
          * output_learn_scale, which scales its q too (hd_kf.h). */
         if (r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR)
-            gain[i] = gain[i + 1] = q_scale;
+            m->gain[i] = m->gain[i + 1] = q_scale;
         if (r->cfg.blocks[b].lock == HD_KF_LOCK_OUTPUT) {
-            gain[i] = gain[i + 1] = (double)r->cfg.output_learn_scale;
-            q[i][i] = q[i + 1][i + 1] = q[i][i] * (double)r->cfg.output_learn_scale;
+            m->gain[i] = m->gain[i + 1] = (double)r->cfg.output_learn_scale;
+            m->q[i] = m->q[i + 1] = m->q[i] * (double)r->cfg.output_learn_scale;
         }
         if (r->held[s]) {
             /* disabled at run time: held like a frozen block, not reported */
-            q[i][i] = q[i + 1][i + 1] = 0.0;
-            gain[i] = gain[i + 1] = 0.0;
+            m->q[i] = m->q[i + 1] = 0.0;
+            m->gain[i] = m->gain[i + 1] = 0.0;
             continue;
         }
-        frozen[s] = fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI;
-        if (frozen[s]) {
+        if (fabs(th) > (double)r->cfg.nyquist_fraction * REF_PI) {
             /* Held: unobserved (C = 0), uncorrected (gain 0), no process
              * noise, still turned by Phi (hd_kf.h, "Nyquist"). */
             out->frozen_mask |= 1u << b;
-            q[i][i] = q[i + 1][i + 1] = 0.0;
-            gain[i] = gain[i + 1] = 0.0;
+            m->q[i] = m->q[i + 1] = 0.0;
+            m->gain[i] = m->gain[i + 1] = 0.0;
             if (fabs(th) > (double)HD_KF_PHASE_LOST_RAD) {
                 /* phase lost (an encoder fault): restart from 0 with p0 */
                 for (int k = i; k < i + 2; k++) {
@@ -155,25 +157,53 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
                 }
             }
         } else {
-            c[i] = r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? c_load : 1.0;
+            m->c[i] = r->cfg.blocks[b].lock == HD_KF_LOCK_MOTOR ? c_load : 1.0;
         }
     }
     if (r->offset_slot >= 0) {
         int o = r->offset_slot;
-        phi[o][o] = 1.0;
-        q[o][o] = (double)r->cfg.offset_q_nm2;
-        c[o] = 1.0;
+        m->phi[o][o] = 1.0;
+        m->q[o] = (double)r->cfg.offset_q_nm2;
+        m->c[o] = 1.0;
     }
     if (out->frozen_mask)
         out->status |= HD_KF_STATUS_FROZEN;
+}
 
-    /* Outputs from the prior x(k|k-1). */
+/* Time update: x <- Phi x, P <- Phi P Phi' + Q. */
+static void time_update(ref_kf_t *r, const plan_t *m)
+{
+    const int n = r->n;
+    mat_t phi, phit, tmp;
+    double px[N];
+    memcpy(phi, m->phi, sizeof(phi));
+    mat_transpose(n, phi, phit);
+    for (int i = 0; i < n; i++) {
+        px[i] = 0.0;
+        for (int j = 0; j < n; j++)
+            px[i] += phi[i][j] * r->x[j];
+    }
+    memcpy(r->x, px, sizeof(px));
+    mat_mul(n, phi, r->P, tmp);
+    mat_mul(n, tmp, phit, r->P);
+    for (int i = 0; i < n; i++)
+        r->P[i][i] += m->q[i];
+}
+
+/* Outputs from the prior (x, P as they are), then the measurement update
+ * with the gain K = F P C' / S and the Joseph covariance
+ * P <- (I - K C) P (I - K C)' + K R K' (valid for any gain; the optimal
+ * update when F = I).  A non-finite sample is not used. */
+static void measurement_update(ref_kf_t *r, const hd_kf_input_t *in, const plan_t *m,
+                               ref_kf_output_t *out)
+{
+    const int n = r->n;
     double ripple = 0.0;
     for (int s = 0; s < r->nb; s++) {
         int i = 2 * s;
-        ripple += c[i] * r->x[i]; /* c = 0 for a frozen block */
+        ripple += m->c[i] * r->x[i]; /* c = 0 for a frozen block */
         out->amplitude_nm[r->block_of_slot[s]] =
-            c[i] * sqrt(r->x[i] * r->x[i] + r->x[i + 1] * r->x[i + 1]);
+            m->c[i] * sqrt(r->x[i] * r->x[i] + r->x[i + 1] * r->x[i + 1]);
     }
     double y = (double)in->torque_meas_nm - (double)in->torque_expected_nm;
     if (r->offset_slot >= 0 && !r->offset_primed && isfinite(y)) {
@@ -183,11 +213,11 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     double offset = r->offset_slot >= 0 ? r->x[r->offset_slot] : 0.0;
     double cx = 0.0; /* C x, straight from the row */
     for (int i = 0; i < n; i++)
-        cx += c[i] * r->x[i];
+        cx += m->c[i] * r->x[i];
     double cpc = 0.0;
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++)
-            cpc += c[i] * r->P[i][j] * c[j];
+            cpc += m->c[i] * r->P[i][j] * m->c[j];
     double s_var = (double)r->cfg.r_nm2 + cpc;
     /* Offset jump: an innovation beyond both the absolute threshold and
      * 4 sigma inflates the offset variance by e^2 before the update. */
@@ -204,74 +234,45 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
             out->status |= HD_KF_STATUS_OFFSET_JUMP;
         }
     }
-
     out->ripple_nm = ripple;
     out->offset_nm = offset;
     out->innovation_var_nm2 = s_var;
     out->torque_filtered_nm = (double)in->torque_meas_nm - ripple -
                               (r->cfg.offset_is_sensor_error ? offset : 0.0);
-    mat_transpose(n, phi, phit);
-
     if (!isfinite(y)) {
-        /* Prediction only: x = Phi x, P = Phi P Phi' + Q. */
         out->status |= HD_KF_STATUS_BAD_INPUT;
-        for (int i = 0; i < n; i++) {
-            px[i] = 0.0;
-            for (int j = 0; j < n; j++)
-                px[i] += phi[i][j] * r->x[j];
-        }
-        memcpy(r->x, px, sizeof(px));
-        mat_mul(n, phi, r->P, tmp);
-        mat_mul(n, tmp, phit, r->P);
-        for (int i = 0; i < n; i++)
-            r->P[i][i] += q[i][i];
-    } else {
-        double e = y - cx;
-        out->innovation_nm = e;
-        /* (9) K_e = Phi P C' (R + C P C')^-1 */
-        double pc[N];
-        for (int i = 0; i < n; i++) {
-            pc[i] = 0.0;
-            for (int j = 0; j < n; j++)
-                pc[i] += r->P[i][j] * c[j];
-        }
-        for (int i = 0; i < n; i++) {
-            k_e[i] = 0.0;
-            for (int j = 0; j < n; j++)
-                k_e[i] += phi[i][j] * gain[j] * pc[j];
-            k_e[i] /= s_var;
-        }
-        /* (8) x(k+1) = Phi x + K_e (y - C x) */
-        for (int i = 0; i < n; i++) {
-            px[i] = 0.0;
-            for (int j = 0; j < n; j++)
-                px[i] += phi[i][j] * r->x[j];
-            px[i] += k_e[i] * e;
-        }
-        memcpy(r->x, px, sizeof(px));
-        /* (10) P(k+1) = Q + (Phi - K_e C) P Phi' */
-        for (int i = 0; i < n; i++)
-            for (int j = 0; j < n; j++)
-                a[i][j] = phi[i][j] - k_e[i] * c[j];
-        /* Joseph form, valid for any gain (the motion-scaled one is not
-         * optimal): P = (Phi - K_e C) P (Phi - K_e C)' + K_e R K_e' + Q.
-         * With the optimal gain it equals (10), Q + (Phi - K_e C) P Phi'. */
-        mat_t at;
-        mat_transpose(n, a, at);
-        mat_mul(n, a, r->P, tmp);
-        mat_mul(n, tmp, at, r->P);
-        for (int i = 0; i < n; i++)
-            for (int j = 0; j < n; j++)
-                r->P[i][j] += q[i][j] + k_e[i] * (double)r->cfg.r_nm2 * k_e[j];
+        return;
     }
+    double e = y - cx;
+    out->innovation_nm = e;
+    double k_e[N];
+    for (int i = 0; i < n; i++) {
+        double pc = 0.0;
+        for (int j = 0; j < n; j++)
+            pc += r->P[i][j] * m->c[j];
+        k_e[i] = m->gain[i] * pc / s_var;
+    }
+    for (int i = 0; i < n; i++)
+        r->x[i] += k_e[i] * e;
+    mat_t a, at, tmp;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            a[i][j] = (i == j ? 1.0 : 0.0) - k_e[i] * m->c[j];
+    mat_transpose(n, a, at);
+    mat_mul(n, a, r->P, tmp);
+    mat_mul(n, tmp, at, r->P);
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            r->P[i][j] += k_e[i] * (double)r->cfg.r_nm2 * k_e[j];
+}
 
-    r->last_inc[0] = isfinite(in->d_motor_angle_rad) ? (double)in->d_motor_angle_rad : 0.0;
-    r->last_inc[1] = isfinite(in->d_output_angle_rad) ? (double)in->d_output_angle_rad : 0.0;
-
-    /* Ceiling: P <- D P D.  A block's two states share D = sqrt(p_max /
-     * lambda_max) when the largest eigenvalue of its 2x2 covariance block
-     * exceeds p_max (a bound on the block's variance in every direction,
-     * whatever the phase); the offset's D = sqrt(p_max / P_oo). */
+/* Ceiling on the stored P: P <- D P D.  A block's two states share D =
+ * sqrt(p_max / lambda_max) when the largest eigenvalue of its 2x2
+ * covariance block exceeds p_max (a bound on the block's variance in every
+ * direction, whatever the phase); the offset's D = sqrt(p_max / P_oo). */
+static void apply_ceiling(ref_kf_t *r, ref_kf_output_t *out)
+{
+    const int n = r->n;
     double d[N];
     int clamped = 0;
     const double p_max = (double)r->cfg.p_max_nm2;
@@ -279,9 +280,9 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
         d[i] = 1.0;
     for (int s = 0; s < r->nb; s++) {
         int i = 2 * s;
-        double m = 0.5 * (r->P[i][i] + r->P[i + 1][i + 1]);
+        double mid = 0.5 * (r->P[i][i] + r->P[i + 1][i + 1]);
         double h = 0.5 * (r->P[i][i] - r->P[i + 1][i + 1]);
-        double lmax = m + sqrt(h * h + r->P[i][i + 1] * r->P[i][i + 1]);
+        double lmax = mid + sqrt(h * h + r->P[i][i + 1] * r->P[i][i + 1]);
         if (lmax > p_max) {
             d[i] = d[i + 1] = sqrt(p_max / lmax);
             clamped = 1;
@@ -299,6 +300,26 @@ void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
     }
 }
 
+void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
+{
+    static plan_t m; /* static: a few KB */
+    memset(out, 0, sizeof(*out));
+    make_plan(r, in, &m, out);
+    time_update(r, &m);
+    measurement_update(r, in, &m, out);
+    apply_ceiling(r, out);
+}
+
+void ref_kf_step_update_first(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out)
+{
+    static plan_t m;
+    memset(out, 0, sizeof(*out));
+    make_plan(r, in, &m, out);
+    measurement_update(r, in, &m, out);
+    time_update(r, &m);
+    apply_ceiling(r, out);
+}
+
 /* Integral order 1..255 of an enabled motor/output block, else 0. */
 static int ref_profile_order(const hd_kf_block_config_t *bc)
 {
@@ -308,11 +329,10 @@ static int ref_profile_order(const hd_kf_block_config_t *bc)
     return (int)bc->order;
 }
 
-/* alpha: the lock angle of the sample the prediction is for. */
-static double ref_alpha(const ref_kf_t *r, int lock, double motor_angle, double output_angle)
+/* alpha: the lock angle of the sample the state is at (the caller's). */
+static double ref_alpha(int lock, double motor_angle, double output_angle)
 {
-    return lock == HD_KF_LOCK_MOTOR ? motor_angle + r->last_inc[0]
-                                    : output_angle + r->last_inc[1];
+    return lock == HD_KF_LOCK_MOTOR ? motor_angle : output_angle;
 }
 
 void ref_kf_set_block_enabled(ref_kf_t *r, int b, int enabled)
@@ -389,7 +409,7 @@ int ref_kf_profile_export(const ref_kf_t *r, double motor_angle_rad, double outp
         int k = r->held[s] ? 0 : ref_profile_order(bc);
         if (k == 0)
             continue;
-        double t = k * ref_alpha(r, bc->lock, motor_angle_rad, output_angle_rad);
+        double t = k * ref_alpha(bc->lock, motor_angle_rad, output_angle_rad);
         double x1 = r->x[2 * s], x2 = r->x[2 * s + 1];
         /* x = R(t) (a, b)'  =>  (a, b)' = R(t)' x */
         lock[n] = bc->lock;
@@ -411,7 +431,7 @@ int ref_kf_profile_import(ref_kf_t *r, int lines, const int lock[], const int or
             const hd_kf_block_config_t *bc = &r->cfg.blocks[r->block_of_slot[s]];
             if (used[s] || r->held[s] || bc->lock != lock[i] || ref_profile_order(bc) != order[i])
                 continue;
-            double t = order[i] * ref_alpha(r, bc->lock, motor_angle_rad, output_angle_rad);
+            double t = order[i] * ref_alpha(bc->lock, motor_angle_rad, output_angle_rad);
             for (int k = 2 * s; k < 2 * s + 2; k++)
                 for (int j = 0; j < r->n; j++)
                     r->P[k][j] = r->P[j][k] = 0.0;

@@ -1,15 +1,19 @@
 /*
  * ref_kf_dense: an independent double-precision DENSE reference of the
- * paper's prediction-type Kalman filter (Taghirad, Helmy & Belanger 1997,
- * equations 8-10), written for clarity rather than speed.  Test-only code:
- * uses double and libm, never the code under test (only its public types).
+ * ripple Kalman filter of Taghirad, Helmy & Belanger (1997), written for
+ * clarity rather than speed from the contract in filter/hd_kf.h.  Test-only
+ * code: uses double and libm, never the code under test (only its public
+ * types).
  *
  * It implements the behaviour documented in filter/hd_kf.h:
  *   - blocks locked to the motor angle, the output angle or a fixed frequency,
  *     theta = order * increment (or 2 pi f ts), rotation R(theta) per block;
  *   - optional random-walk offset state (Phi = 1, C = 1);
- *   - the prediction x is the one made before the sample arrived; outputs
- *     (ripple, filtered torque, innovation, S) come from that prior;
+ *   - step k: the time update by sample k's own increments (x = Phi x,
+ *     P = Phi P Phi' + Q), the outputs (ripple, filtered torque, innovation,
+ *     S) from that prior, then the measurement update with y_k (gain
+ *     K = F P C' / S, Joseph covariance); x after the step is the estimate
+ *     at sample k;
  *   - Nyquist freeze: a block with |theta| > nyquist_fraction * pi is dropped
  *     from C and from the ripple, gets gain 0 and no process noise, and is
  *     still turned by Phi (its estimate is held, not reset); beyond
@@ -25,8 +29,8 @@
  *     sqrt(p_max / P_oo);
  *   - angle-referenced profiles: ref_kf_profile_export / _import, written
  *     from the definition in hd_kf.h (ripple(alpha) = a cos k alpha +
- *     b sin k alpha, alpha = the lock angle of the sample the prediction is
- *     for = the caller's angle plus the last step's increment);
+ *     b sin k alpha, alpha = the lock angle of the sample the state is at:
+ *     the sample of the last step, the caller's angle);
  *   - a non-finite measurement skips the correction (prediction only);
  *   - run-time block toggles: ref_kf_set_block_enabled below;
  *   - load-dependent ripple (cfg.ripple_load_coeff_per_nm = k, 0 by default,
@@ -65,7 +69,6 @@ typedef struct {
     int offset_primed; /* the offset starts at the first valid y - ripple */
     int load_ref_primed; /* T_ref of the load-dependent ripple has its first value */
     double load_ref;     /* T_ref [Nm], held at standstill (hd_kf.h) */
-    double last_inc[2];  /* motor, output increments of the last step (0 before one) */
 } ref_kf_t;
 
 typedef struct {
@@ -86,8 +89,18 @@ typedef struct {
 /* Copies cfg (assumed valid), x = 0, P = p0 I. */
 void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg);
 
-/* One step of equations 8-10 with a full dense Phi. */
+/* One step with a full dense Phi: time update by in's increments, then the
+ * measurement update with in's sample (hd_kf.h). */
 void ref_kf_step(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out);
+
+/* The filter as it was before it turned by the sample's own increments
+ * (the paper's prediction form, equations 8-10): the measurement update of
+ * in's sample first, then the time update by the increments passed with
+ * it (every rule decided from them), the ceiling on the prior.  x after the
+ * step is the prediction for the next sample.  Fed the NEXT sample's
+ * increments, it is ref_kf_step at the same sample wherever no rule's
+ * decision changes between the two increments. */
+void ref_kf_step_update_first(ref_kf_t *r, const hd_kf_input_t *in, ref_kf_output_t *out);
 
 /* Run-time enable/disable of configured block b (hd_kf.h): disabled, a
  * block keeps its place and is held like a block over Nyquist (no row in C,

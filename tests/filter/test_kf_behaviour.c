@@ -406,7 +406,11 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
         double th4 = 4.0 * (double)in.d_motor_angle_rad;
         int expect_frozen = fabs(th4) > 0.9 * TU_PI;
         int near_limit = fabs(fabs(th4) - 0.9 * TU_PI) < 1e-5;
-        float x0_prior = hd_kf_state(&kf, 0);
+        /* block 0's prior: its last estimate turned by this sample's
+         * phase advance, R(t) = [cos t  sin t; -sin t  cos t] (hd_kf.h) */
+        const double t0 = 2.0 * (double)in.d_motor_angle_rad;
+        const double x0_prior = cos(t0) * (double)hd_kf_state(&kf, 0) +
+                                sin(t0) * (double)hd_kf_state(&kf, 1);
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
         TEST_ASSERT_FLOAT_IS_DETERMINATE(o.torque_filtered_nm);
@@ -420,7 +424,7 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
             TEST_ASSERT_TRUE(o.status & HD_KF_STATUS_FROZEN);
             TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_block_row(&kf, 1));
             /* its ripple is excluded: the estimate is block 0's prior alone */
-            TEST_ASSERT_FLOAT_WITHIN(1e-6, (double)x0_prior, (double)o.ripple_nm);
+            TEST_ASSERT_FLOAT_WITHIN(1e-6, x0_prior, (double)o.ripple_nm);
             /* held: only turned (a rotation keeps the state's norm and the
              * trace of its covariance), never corrected, no process noise */
             double a1 = hypot((double)hd_kf_state(&kf, 2), (double)hd_kf_state(&kf, 3));
@@ -996,14 +1000,14 @@ static void test_amplitude_and_phase_match_truth(void)
     }
     TEST_ASSERT_FLOAT_WITHIN(0.02, 1.0, (double)amp_out[0]);
     TEST_ASSERT_FLOAT_WITHIN(0.02, 0.4, (double)amp_out[1]);
-    /* The state now predicts the next sample: ripple_i(k+1) = A cos(phase). */
-    double next = am + dm;
+    /* The state is the estimate at the last sample (hd_kf.h):
+     * ripple_i(k) = A cos(phase). */
     static const double order[2] = {2.0, 4.0}, amp[2] = {1.0, 0.4}, ph0[2] = {0.3, 1.1};
     for (unsigned b = 0; b < 2; b++) {
         float a, ph;
         hd_kf_block_amplitude_phase(&kf, b, &a, &ph);
         TEST_ASSERT_FLOAT_WITHIN(0.02, amp[b], (double)a);
-        double want = order[b] * next + ph0[b];
+        double want = order[b] * am + ph0[b];
         double dphi = remainder((double)ph - want, 2.0 * TU_PI);
         TEST_ASSERT_FLOAT_WITHIN(0.05, 0.0, dphi);
         TEST_ASSERT_FLOAT_WITHIN(1e-4, (double)a * cos((double)ph), (double)hd_kf_state(&kf, 2 * b));

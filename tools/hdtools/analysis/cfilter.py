@@ -119,8 +119,6 @@ class KfState(ctypes.Structure):
                 ("q_motion_inv_rad", c_float),
                 ("load_ref_nm", c_float),
                 ("load_scale", c_float),
-                ("last_d_motor_rad", c_float),
-                ("last_d_output_rad", c_float),
                 ("output_phase_hi_rad", c_float),
                 ("output_phase_lo_rad", c_float),
                 ("output_turns", c_uint32),
@@ -283,7 +281,8 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
     (n x MAX_BLOCKS).  profile: (lines, motor_angle_rad, output_angle_rad,
     prior_var_nm2) imported with hd_kf_profile_import before the first
     sample (lines: (lock, order, a_nm, b_nm); the angles of the first
-    sample, absolute)."""
+    sample, absolute: the filter is given the angles of the sample before
+    it, these minus the first increments, hd_kf.h "Which angle")."""
     L = lib()
     n = len(torque_nm)
     p = Pipeline()
@@ -300,9 +299,11 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
             pr.lines[i].lock, pr.lines[i].order = lock, int(order)
             pr.lines[i].a_nm, pr.lines[i].b_nm = a, b
         two_pi = 2.0 * np.pi
+        before_m = th_m0 - float(d_motor_rad[0]) if n else th_m0
+        before_o = th_o0 - float(d_output_rad[0]) if n else th_o0
         err = L.hd_kf_profile_import(ctypes.byref(p.kf), ctypes.byref(pr),
-                                     float(np.mod(th_m0, two_pi)), float(np.mod(th_o0, two_pi)),
-                                     float(prior))
+                                     float(np.mod(before_m, two_pi)),
+                                     float(np.mod(before_o, two_pi)), float(prior))
         if err < 0:
             raise FilterError(f"hd_kf_profile_import failed ({err}): "
                               f"{L.hd_kf_err_str(err).decode()}")
