@@ -137,7 +137,6 @@ int hd_fw_init(hd_fw_t *fw, const hal_t *hal, const hd_fw_config_t *defaults)
     fw->tick.state = HD_STATE_INIT;
     /* The stored profile (if any) is taken by the first tick, at the
      * absolute angle of its sample. */
-    fw->tick.kf_fresh = true;
     fw->tick.import_pending = fw->bg.profile.line_count > 0u;
     hd_fw_set_rx_filter(fw, c->node_id);
     return HD_FW_OK;

@@ -85,8 +85,6 @@ typedef struct {
     float motor_velocity_rad_s;
     float d_motor_angle_rad;       /* increment used (after glitch rejection) */
     float d_output_angle_rad;
-    float step_motor_rad;          /* increments the filter turned by (predict_increment) */
-    float step_output_rad;
     uint32_t motor_counts;         /* as read (TELEM_C) */
     uint32_t output_counts;
     bool has_output;
@@ -192,12 +190,7 @@ typedef struct {
     uint32_t pos_output_cpr;
     uint32_t motor_pos;             /* [0, motor cpr) */
     uint32_t output_pos;            /* [0, output cpr) */
-    bool first_reading;             /* this tick's counts are the first (no increment) */
-    bool prev_inc_valid;            /* prev_d* are real increments */
-    float prev_dm_rad;
-    float prev_dout_rad;
     /* profiles */
-    bool kf_fresh;                  /* the live filter has not been stepped yet */
     bool import_pending;            /* take bg.profile before this tick's step */
     bool snapshot_pending;          /* export after this tick's step */
     hd_kf_profile_t snapshot;       /* PROFILE_SAVE: the filter at a tick boundary */

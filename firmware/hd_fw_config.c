@@ -28,7 +28,6 @@ void hd_fw_config_default(hd_fw_config_t *cfg)
     cfg->filter_enabled = 1u;
     cfg->feedforward_timeout_ms = 0u;
     cfg->current_filter_hz = HD_FW_DEFAULT_CURRENT_FILTER_HZ;
-    cfg->predict_increment = 1u;
     cfg->feedforward_ramp_ms = HD_FW_DEFAULT_FF_RAMP_MS;
     cfg->learning_mode = HD_FW_LEARN_OPERATING;
     cfg->operating_output_learn_scale = HD_FW_DEFAULT_OPERATING_LEARN_SCALE;

@@ -50,7 +50,6 @@ typedef struct {
     uint16_t feedforward_ramp_ms;   /* stale: the last value ramps to 0 over this */
     float operating_output_learn_scale; /* kf.output_learn_scale in operating mode */
     uint8_t learning_mode;          /* HD_FW_LEARN_* */
-    uint8_t predict_increment;      /* turn the filter by the predicted next increment */
     uint8_t node_id;                /* 1..127 */
     uint8_t filter_enabled;         /* 0: filtered torque = raw torque */
 } hd_fw_config_t;

@@ -83,7 +83,6 @@ static uint32_t read_encoders(hd_fw_t *fw, hd_fw_sample_t *s)
     uint32_t faults = 0u;
     int32_t dm = 0;
     int32_t dout = 0;
-    k->first_reading = false;
     if (rc != HAL_OK || enc.fault) {
         /* No usable counts: assume the previous motion continues. */
         faults |= HD_FAULT_ENC_FAULT;
@@ -96,7 +95,6 @@ static uint32_t read_encoders(hd_fw_t *fw, hd_fw_sample_t *s)
         enc.output_counts = k->prev_output_counts;
     } else if (!k->have_prev) {
         k->have_prev = true;
-        k->first_reading = true;
         k->prev_motor_counts = enc.motor_counts;
         k->prev_output_counts = enc.output_counts;
         k->output_present = enc.has_output;

@@ -50,8 +50,7 @@ static void apply_request(hd_fw_t *fw)
     hd_fw_tick_state_t *k = &fw->tick;
     if (r->flags & HD_FW_REQ_PIPE) {
         fw->live_pipe ^= 1u;
-        k->kf_fresh = true; /* a new filter starts from the profile */
-        k->import_pending = fw->bg.profile.line_count > 0u;
+        k->import_pending = fw->bg.profile.line_count > 0u; /* a new filter starts from it */
     }
     if (r->flags & HD_FW_REQ_SETTINGS) {
         fw->live_settings ^= 1u;
@@ -61,7 +60,6 @@ static void apply_request(hd_fw_t *fw)
     }
     if (r->flags & HD_FW_REQ_KF_RESET) {
         hd_kf_reset(&hd_fw_live_pipe(fw)->kf);
-        k->kf_fresh = true;
         k->import_pending = fw->bg.profile.line_count > 0u;
     }
     if (r->flags & HD_FW_REQ_BLOCK) {
@@ -174,32 +172,30 @@ static float wrap_angle(float a)
     return (a >= 0.0f && a < HD_TWO_PI_F) ? a : 0.0f;
 }
 
-/* Before this tick's step: the live filter takes bg.profile so that its
- * prediction for this sample is the profile at this sample's angles, and
- * after the step it leads by this tick's increment, as a filter that has
- * learned at this speed does (hd_kf.h, "Which angle": the filter adds its
- * last increment, 0 when fresh, to the angle passed).  The very first
- * sample has no increment (no previous reading): the import is repeated
- * at the second, so the lead is the joint's real one. */
-static void import_profile(hd_fw_t *fw)
+/* Before this tick's step: the live filter takes bg.profile at the angles
+ * of the sample before this one (this sample's less its increments, which
+ * the step turns it by), so that its prediction for this sample is the
+ * profile at this sample's angles (hd_kf.h, "Which angle"; a first reading
+ * has no increment). */
+static void import_profile(hd_fw_t *fw, const hd_fw_sample_t *s)
 {
     hd_fw_tick_state_t *k = &fw->tick;
     if (!k->pos_valid) {
         return; /* no absolute angle yet: the next good encoder reading */
     }
-    k->import_pending = k->first_reading;
+    k->import_pending = false;
     const hd_fw_settings_t *set = hd_fw_live(fw);
     hd_kf_profile_t p;
     known_lines(k, &fw->bg.profile, &p);
     if (p.line_count == 0u) {
         return;
     }
-    const float lead_m = k->kf_fresh ? 0.0f : fw->last.step_motor_rad;
-    const float lead_o = k->kf_fresh ? 0.0f : fw->last.step_output_rad;
     hd_kf_t *kf = &hd_fw_live_pipe(fw)->kf;
     const int rc = hd_kf_profile_import(
-        kf, &p, wrap_angle(angle_of(k->motor_pos, set->motor_rad_per_count) - lead_m),
-        wrap_angle(angle_of(k->output_pos, set->output_rad_per_count) - lead_o), kf->cfg.r_nm2);
+        kf, &p,
+        wrap_angle(angle_of(k->motor_pos, set->motor_rad_per_count) - s->d_motor_angle_rad),
+        wrap_angle(angle_of(k->output_pos, set->output_rad_per_count) - s->d_output_angle_rad),
+        kf->cfg.r_nm2);
     if (rc >= 0) {
         fw->counters.profile_imports++;
     }
@@ -224,27 +220,6 @@ static void export_profile(hd_fw_t *fw)
 
 /* ------------------------------------------------------------- pipeline */
 
-/* The filter turns its prediction for the next sample by the increment it
- * is given with this one (hd_kf.h); the increment to the next sample is
- * not known yet, so it is predicted from the last two (constant
- * acceleration): 2 d_k - d_k-1.  With d_k itself the prediction keeps the
- * speed of the moment it learned and every speed change leaves motor-locked
- * blocks a phase error of order x the change (docs/slow-torque.md,
- * "Increment prediction").  The first reading's zero increment is not
- * real: no prediction from it. */
-static void step_increments(hd_fw_t *fw, hd_fw_sample_t *s)
-{
-    hd_fw_tick_state_t *k = &fw->tick;
-    const bool predict = hd_fw_live(fw)->cfg.predict_increment != 0u && k->prev_inc_valid;
-    s->step_motor_rad = predict ? 2.0f * s->d_motor_angle_rad - k->prev_dm_rad
-                                : s->d_motor_angle_rad;
-    s->step_output_rad = predict ? 2.0f * s->d_output_angle_rad - k->prev_dout_rad
-                                 : s->d_output_angle_rad;
-    k->prev_dm_rad = s->d_motor_angle_rad;
-    k->prev_dout_rad = s->d_output_angle_rad;
-    k->prev_inc_valid = !k->first_reading;
-}
-
 static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
 {
     const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
@@ -252,15 +227,13 @@ static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
     hd_fw_tick_state_t *k = &fw->tick;
     uint32_t faults = 0u;
     if (k->import_pending) {
-        import_profile(fw);
+        import_profile(fw, s);
     }
     s->feedforward_nm = hd_fw_feedforward_nm(fw, &faults);
     const float slow_nm = s->feedforward_nm + hd_fw_current_torque_nm(fw, p, s);
     hd_kf_output_t out;
-    step_increments(fw, s);
-    hd_pipeline_step(p, s->torque_raw_nm, s->step_motor_rad, s->step_output_rad, slow_nm,
+    hd_pipeline_step(p, s->torque_raw_nm, s->d_motor_angle_rad, s->d_output_angle_rad, slow_nm,
                      &out);
-    k->kf_fresh = false;
     if (k->snapshot_pending) {
         export_profile(fw);
     }
