@@ -884,6 +884,24 @@ KF_INLINE void turn_phasor(float *c, float *s, float wc, float ws)
     *s = ns * scale;
 }
 
+/* The motor phasor's turn without its Newton step, which normalize_motor
+ * does once the step no longer needs the phasor (off the path from the
+ * increment to the innovation; |z w| is within 2e-7 of 1 meanwhile). */
+KF_INLINE void turn_phasor_raw(float *c, float *s, float wc, float ws)
+{
+    const float nc = *c * wc - *s * ws;
+    const float ns = *s * wc + *c * ws;
+    *c = nc;
+    *s = ns;
+}
+
+KF_INLINE void normalize_phasor(float *c, float *s)
+{
+    const float scale = (3.0f - (*c * *c + *s * *s)) * 0.5f;
+    *c *= scale;
+    *s *= scale;
+}
+
 /* z^k for every k of mask (2..HD_KF_MAX_POWER) into pc/ps[k], from the
  * unit-length base z = pc/ps[1]: doubling for even k, one product with z
  * for odd k.  Recomputed from the base every step, so their rounding (angle
@@ -954,7 +972,7 @@ KF_INLINE void advance_frames(hd_kf_t *kf, const float inc[3])
     if (kf->motor_powers != 0u) {
         float s, c;
         sincos_step(inc[HD_KF_LOCK_MOTOR], &s, &c);
-        turn_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1], c, s);
+        turn_phasor_raw(&kf->phasor_cos[1], &kf->phasor_sin[1], c, s);
         if ((kf->motor_powers & ~3u) != 0u) {
             phasor_powers(kf->motor_powers, kf->phasor_cos, kf->phasor_sin);
         }
@@ -1074,6 +1092,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
             &probe);
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
+    normalize_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1]); /* (1, 0) if unused: kept */
     if (UNLIKELY(!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
                  !is_finite(finite_probe))) {
         const uint32_t bounded = bound_covariance(kf, finite_probe);

@@ -4,7 +4,11 @@
  * float32 textbook filter (dense_kf_f32.c, Joseph form, agreeing with the
  * reference) and the step before issue 16 (kf_step_v0.c, the baseline of the
  * speed-up), all measured in one run on the same input.  Also prints the
- * state sizes per model capacity.
+ * state sizes per model capacity.  The step before issue 16 turned by the
+ * increment passed with a sample after correcting with it (the filter now
+ * turns first): on this constant-speed input its max|diff| is the two
+ * orders' different first steps (the time update by the first increment,
+ * Q added once more), fading as both converge, not an error.
  *
  *   bench_compute [--steps N] [--reps R] [--warmup W] [--json]
  *

@@ -135,14 +135,36 @@ static void build_model(dense_kf_f32_t *kf, const hd_kf_input_t *in, model_t *m)
     }
 }
 
+/* P <- a P b' (n x n), through the scratch t. */
+static void congruence(int n, const mat_t a, mat_t p, const mat_t b, mat_t t)
+{
+    mul(n, a, (const float(*)[N])p, t);
+    mul_transposed(n, (const float(*)[N])t, b, p);
+}
+
 void dense_kf_f32_step(dense_kf_f32_t *kf, const hd_kf_input_t *in,
                        dense_kf_f32_output_t *out)
 {
     const int n = kf->n;
     static model_t m; /* static: the benchmark runs one filter at a time */
-    mat_t a, ap;
+    mat_t t;
     float pc[N], k[N], px[N];
     build_model(kf, in, &m);
+
+    /* Time update by this sample's increments: x <- Phi x, P <- Phi P Phi' + Q */
+    for (int i = 0; i < n; i++) {
+        px[i] = 0.0f;
+        for (int j = 0; j < n; j++) {
+            px[i] += m.phi[i][j] * kf->x[j];
+        }
+    }
+    for (int i = 0; i < n; i++) {
+        kf->x[i] = px[i];
+    }
+    congruence(n, (const float(*)[N])m.phi, kf->p, (const float(*)[N])m.phi, t);
+    for (int i = 0; i < n; i++) {
+        kf->p[i][i] += m.q[i];
+    }
 
     /* Outputs from the prior. */
     const float y = in->torque_meas_nm - in->torque_expected_nm;
@@ -178,39 +200,21 @@ void dense_kf_f32_step(dense_kf_f32_t *kf, const hd_kf_input_t *in,
         pc[o] += e * e;
         s_var += e * e;
     }
-
-    /* K = Phi F P C' / S (0 when the sample is not used) */
-    for (int i = 0; i < n; i++) {
-        k[i] = 0.0f;
-        for (int j = 0; j < n; j++) {
-            k[i] += m.phi[i][j] * m.gain[j] * pc[j];
+    if (valid) {
+        /* K = F P C' / S;  x <- x + K e */
+        for (int i = 0; i < n; i++) {
+            k[i] = m.gain[i] * pc[i] / s_var;
+            kf->x[i] += k[i] * e;
         }
-        k[i] = valid ? k[i] / s_var : 0.0f;
-    }
-    /* x <- Phi x + K e */
-    for (int i = 0; i < n; i++) {
-        px[i] = k[i] * e;
-        for (int j = 0; j < n; j++) {
-            px[i] += m.phi[i][j] * kf->x[j];
+        /* P <- (I - K C) P (I - K C)' + K R K' (Joseph form), expanded with
+         * g = P C' and S = C P C' + R: P - K g' - g K' + K S K' */
+        for (int i = 0; i < n; i++) {
+            for (int j = 0; j < n; j++) {
+                kf->p[i][j] += -k[i] * pc[j] - pc[i] * k[j] + k[i] * s_var * k[j];
+            }
         }
     }
-    for (int i = 0; i < n; i++) {
-        kf->x[i] = px[i];
-    }
-    /* P <- A P A' + K R K' + Q, A = Phi - K C; then symmetrise */
-    for (int i = 0; i < n; i++) {
-        for (int j = 0; j < n; j++) {
-            a[i][j] = m.phi[i][j] - k[i] * m.c[j];
-        }
-    }
-    mul(n, (const float(*)[N])a, (const float(*)[N])kf->p, ap);
-    mul_transposed(n, (const float(*)[N])ap, (const float(*)[N])a, kf->p);
-    for (int i = 0; i < n; i++) {
-        for (int j = 0; j < n; j++) {
-            kf->p[i][j] += k[i] * kf->cfg.r_nm2 * k[j];
-        }
-        kf->p[i][i] += m.q[i];
-    }
+    /* then symmetrise */
     for (int i = 0; i < n; i++) {
         for (int j = 0; j < i; j++) {
             kf->p[i][j] = kf->p[j][i] = 0.5f * (kf->p[i][j] + kf->p[j][i]);

@@ -3,15 +3,17 @@
  * filter/hd_kf.h, the peer of the compute benchmark: a correct filter
  * written the direct way, so the speed ratio compares two right answers.
  *
- * Every step it builds the full n x n transition Phi, the gain-fraction
- * diagonal F, the measurement row C and Q, and evaluates with dense matrix
- * products (O(n^3)):
+ * Every step it builds the full n x n transition Phi (this sample's
+ * increments), the gain-fraction diagonal F, the measurement row C and Q,
+ * and evaluates with dense matrix products (O(n^3)):
  *
- *   S = C P C' + R,   K = Phi F P C' / S            (prediction gain)
- *   x <- Phi x + K (y - C x)
- *   A = Phi - K C,    P <- A P A' + K R K' + Q       (Joseph form: P stays
+ *   x <- Phi x,       P <- Phi P Phi' + Q            (time update)
+ *   S = C P C' + R,   K = F P C' / S
+ *   x <- x + K (y - C x)
+ *   P <- (I - K C) P (I - K C)' + K R K'             (Joseph form: P stays
  *                                                      the covariance of the
- *                                                      estimate for any F)
+ *                                                      estimate for any F;
+ *                                                      expanded, O(n^2))
  *   P <- (P + P') / 2                                (symmetrisation)
  *
  * Same model features as hd_kf, from its header: lock kinds, motion-scaled
