@@ -1250,8 +1250,14 @@ static void test_load_coeff_config_check(void)
  * order-2 line at A0 (1 + k 10) and an unmodelled 0.3 N m 50 Hz line.  The
  * offset settles in 5 ms (the agile end of the tuning range: the feedback
  * needs an offset that moves; measured without the hold: 5.6 N m with 5 ms,
- * none with 20 ms; with the hold: 0.003 N m). */
-static double standstill_ripple_error(float k)
+ * none with 20 ms, before motor blocks stopped learning at standstill;
+ * with the hold: 0.003 N m).  What the estimate holds at
+ * the stop is not the point: the 50 Hz line is the order-2 line's
+ * frequency at 156 rad/s, so the blocks end the ramp with a share of it
+ * that differs from run to run (0.015 and 0.12 N m with k for the two
+ * orders of the updates); the drift is the estimate's change over the 60 s
+ * still, against its value when the motor stopped. */
+static double standstill_ripple_error(float k, double *drift_nm)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
@@ -1263,7 +1269,7 @@ static double standstill_ripple_error(float k)
     tu_rng_seed(&rng, 777u);
     const double w = 156.0, load = 10.0;
     const long n = (long)(64.2 / TS_S + 0.5);
-    double am = 0.0, s_end = 0.0;
+    double am = 0.0, s_end = 0.0, s_drift = 0.0, at_stop = 0.0;
     long n_end = 0;
     for (long i = 1; i <= n; i++) {
         double t = (double)i * TS_S;
@@ -1280,23 +1286,33 @@ static double standstill_ripple_error(float k)
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
         TEST_ASSERT_EQUAL_UINT32(0u, o.status & (HD_KF_STATUS_RESET | HD_KF_STATUS_BAD_INPUT));
+        if (i == (long)(4.2 / TS_S + 0.5))
+            at_stop = (double)o.ripple_nm;
         if (i > n - (long)(5.0 / TS_S)) {
-            double e = ripple - (double)o.ripple_nm;
+            double e = ripple - (double)o.ripple_nm, dr = (double)o.ripple_nm - at_stop;
             s_end += e * e;
+            s_drift += dr * dr;
             n_end++;
         }
     }
+    *drift_nm = sqrt(s_drift / (double)n_end);
     return sqrt(s_end / (double)n_end);
 }
 
 static void test_load_coeff_standstill_does_not_drift(void)
 {
-    const double with_k = standstill_ripple_error((float)LOAD_K_TRUE);
-    const double without_k = standstill_ripple_error(0.0f);
+    double drift_k, drift_0;
+    const double with_k = standstill_ripple_error((float)LOAD_K_TRUE, &drift_k);
+    const double without_k = standstill_ripple_error(0.0f, &drift_0);
     msg("60 s standstill at 10 Nm with an unmodelled 0.3 Nm 50 Hz line: ripple error RMS over "
-        "the last 5 s %.4f Nm with k = %.2f, %.4f Nm with k = 0 (without the hold: 5.6)",
-        with_k, LOAD_K_TRUE, without_k);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1.5 * without_k + 0.05, with_k);
+        "the last 5 s %.4f Nm with k = %.2f, %.4f Nm with k = 0 (without the hold: 5.6); the "
+        "estimate's drift since the stop %.2e / %.2e Nm", with_k, LOAD_K_TRUE, without_k,
+        drift_k, drift_0);
+    /* held: the estimate 60 s later is the one at the stop (motor blocks
+     * get no gain at standstill; without the hold of T_ref their row
+     * follows the offset and the estimate moved 0.014 N m) */
+    TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, drift_k);
+    TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, drift_0);
 }
 
 /* Coefficients above HD_KF_MAX_LOAD_COEFF_PER_NM are refused: 1e20 made
