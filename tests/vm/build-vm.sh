@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the SocketCAN test VM from Debian packages (idempotent, cached).
 #
-#   tests/vm/build-vm.sh OUTDIR [EXECUTABLE | SRC=DEST ...]
+#   tests/vm/build-vm.sh [--share-host] OUTDIR [EXECUTABLE | SRC=DEST ...]
 #
 # Produces OUTDIR/kernel (link into the cache) and OUTDIR/initrd.cpio.gz: a Debian bookworm
 # kernel (downloaded with apt-get download, unpacked with dpkg-deb -x, never
@@ -9,13 +9,18 @@
 # tests/vm/init.sh as /init, the given executables in /bin, and data files
 # given as SRC=DEST (absolute DEST inside the image).  Dynamic executables get
 # their loader and shared libraries copied too (static ones need none).
+# --share-host adds the virtio and 9p modules, so /init can mount the host's
+# root and an output folder that run-vm.sh --share-host exports.
+# /etc/hdvm-modules lists the modules in load order for /init.
 #
 # Downloads are cached in $HD_VM_CACHE (default: <repo>/build/vm/cache), so
 # only the first run needs the network (deb.debian.org).
 set -euo pipefail
 
 die() { echo "build-vm: ERROR: $*" >&2; exit 1; }
-[ $# -ge 1 ] || die "usage: $0 OUTDIR [EXECUTABLE...]"
+share=0
+if [ "${1:-}" = --share-host ]; then share=1; shift; fi
+[ $# -ge 1 ] || die "usage: $0 [--share-host] OUTDIR [EXECUTABLE...]"
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 out=$1; shift
@@ -108,15 +113,25 @@ mkdir -p "$stage"/{bin,lib/modules,proc,sys,dev,tmp,etc}
 cp "$busybox" "$stage/bin/busybox"
 ln -s busybox "$stage/bin/sh"
 
-# Load order matters: can-dev, vcan (needs can-dev on 6.1), can, can-raw.
-for m in drivers/net/can/dev/can-dev drivers/net/can/vcan net/can/can net/can/can-raw; do
+# Load order matters: can-dev, vcan (needs can-dev on 6.1), can, can-raw;
+# then (--share-host) each module after those it depends on (their
+# modinfo "depends=": the package ships no modules.dep).
+modules="drivers/net/can/dev/can-dev drivers/net/can/vcan net/can/can net/can/can-raw"
+if [ $share = 1 ]; then
+  modules="$modules drivers/virtio/virtio_ring drivers/virtio/virtio
+    drivers/virtio/virtio_pci_legacy_dev drivers/virtio/virtio_pci_modern_dev
+    drivers/virtio/virtio_pci fs/netfs/netfs fs/fscache/fscache net/9p/9pnet
+    net/9p/9pnet_virtio fs/9p/9p"
+fi
+for m in $modules; do
   name=${m##*/}
+  echo "$name" >>"$stage/etc/hdvm-modules"
   if [ -f "$moddir/$m.ko" ]; then
     cp "$moddir/$m.ko" "$stage/lib/modules/$name.ko"
   elif [ -f "$moddir/$m.ko.xz" ]; then
     xz -dc "$moddir/$m.ko.xz" >"$stage/lib/modules/$name.ko"
   else
-    die "module $m.ko not in $kpkg (this flavour has no CAN support?)"
+    die "module $m.ko not in $kpkg (this flavour has no CAN or 9p support?)"
   fi
 done
 

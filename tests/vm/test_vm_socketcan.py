@@ -23,6 +23,9 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import canproto  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import vm_checks  # noqa: E402
+
 DURATION_S = 2.0  # hd_vm_can_test runs the runner for 2 s at 1 kHz
 
 
@@ -72,24 +75,7 @@ def test_every_telemetry_frame_decodes_to_the_runner_values(vm):
     assert len(csv) == n and int(vm["summary"]["samples"]) == n
     assert len(telem) == n, "telemetry pairs captured over vcan0"
     assert vm["decoded"]["lost_telemetry"] == 0
-    assert [int(r["SeqA"]) for r in telem] == [i % 256 for i in range(n)]
-    # DBC scaling only: within half an LSB of the runner's values (the CSV
-    # prints 6 significant digits, hence the relative term), int16 fields
-    # saturating at their DBC range (hd_can_proto.h).
-    for signal, column, lsb in (("TorqueFiltered", "torque_filtered_nm", 0.01),
-                                ("TorqueRaw", "torque_raw_nm", 0.01),
-                                ("Ripple", "ripple_nm", 0.001),
-                                ("MotorVelocity", "motor_velocity_rad_s", 0.001)):
-        got = np.array([float(r[signal]) for r in telem])
-        want = csv[column]
-        if signal != "MotorVelocity":
-            want = np.clip(want, -32767 * lsb, 32767 * lsb)
-        err = np.abs(got - want) - (lsb / 2 + 1e-5 * np.abs(want))
-        assert np.max(err) <= 1e-9, (signal, int(np.argmax(err)), got[np.argmax(err)],
-                                     want[np.argmax(err)])
-    col = lambda key: np.array([int(r[key]) for r in telem])  # noqa: E731
-    assert np.array_equal(col("Faults"), csv["faults"].astype(int))
-    assert np.array_equal(col("KfStatus"), csv["kf_status"].astype(int))
+    vm_checks.assert_telemetry_matches_csv(telem, csv)
 
 
 def test_telemetry_matches_the_simulated_joint(vm):
