@@ -22,6 +22,12 @@ monitor asks the joint (GET_PARAM) for telemetry_rate_hz, motor_cpr,
 output_cpr, gear_ratio and angle_telemetry_every at the start, so the log
 carries what its decoding needs.
 
+On SocketCAN the monitor asks the kernel for an 8 MiB receive buffer
+(root: always; others: up to net.core.rmem_max, which may be raised with
+`sysctl -w net.core.rmem_max=8388608`); the summary shows what it got
+(rx_buffer_bytes).  Frames the kernel drops from a full buffer never reach
+the monitor: they show as lost telemetry (sequence gaps) only.
+
 --plot opens a live plot of raw / filtered / ripple torque over the last
 --window seconds (needs a display); --plot-png FILE writes the same plot
 at the end (works headless).
@@ -37,6 +43,7 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import socket
 import sys
 import tempfile
 import time
@@ -51,6 +58,12 @@ from .joint import BusError, Joint, NoAnswer, open_bus
 from .safeio import OutputError, UsageError
 
 FLUSH_S = 0.5
+# python-can leaves its SocketCAN socket at net.core.rmem_default (~200 KiB:
+# about 280 frames, under 0.1 s of 1 kHz telemetry), so a monitor held up
+# longer (a plot redraw, a busy machine) lost frames; measured in the VM
+# test (tests/vm, docs/socketcan.md).  8 MiB holds seconds of telemetry.
+RX_BUFFER_BYTES = 8 << 20
+SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)     # Linux; not in Python 3.11
 QUERY_PARAMS = ("telemetry_rate_hz", "angle_telemetry_every", "motor_cpr", "output_cpr",
                 "gear_ratio")
 TELEM_TYPES = {f.name: f.type for f in protocol.frames()}
@@ -111,6 +124,22 @@ def malformed_reason(msg: can.Message, name: str) -> str | None:
     if len(msg.data) != want:
         return f"{len(msg.data)} data bytes, {name} has {want}"
     return None
+
+
+def grow_rx_buffer(bus) -> int | None:
+    """Enlarges the receive buffer of a SocketCAN bus (SO_RCVBUFFORCE as
+    root, else SO_RCVBUF, which the kernel caps at net.core.rmem_max);
+    returns the size granted, or None for other interfaces."""
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket) or sock.family != getattr(socket, "AF_CAN", -1):
+        return None
+    for option in (SO_RCVBUFFORCE, socket.SO_RCVBUF):
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, option, RX_BUFFER_BYTES)
+            break
+        except OSError:
+            continue
+    return sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
 
 
 # ---------------------------------------------------------------- recorder
@@ -524,6 +553,7 @@ def run(args) -> int:
     if args.plot or args.plot_png:
         plot = Plot(interactive=args.plot, title=f"hdsense monitor {channel}")
     bus = open_bus(args.interface, channel, args.bitrate)
+    rx_buffer = grow_rx_buffer(bus)
     recorder = None
     old_term = signal.getsignal(signal.SIGTERM)
     start = time.monotonic()
@@ -590,6 +620,8 @@ def run(args) -> int:
             recorder.abort()
         bus.shutdown()
     lines = state.summary(time.monotonic() - start)
+    if rx_buffer is not None:
+        lines.append(f"rx_buffer_bytes = {rx_buffer}")
     if args.log:
         lines.append(f"log = {args.log}")
     if args.plot_png:
