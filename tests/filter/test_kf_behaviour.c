@@ -18,6 +18,7 @@
 #include "ref_kf_dense.h"
 #include "test_util.h"
 #include "unity.h"
+#include "../reliability/rel_measured.h"
 
 #define TS_S 1e-3
 #define GEAR_RATIO 100.0
@@ -191,8 +192,12 @@ static void test_cancel_constant_speed_to_noise_floor(void)
         raw, err, sigma);
     msg("constant 156 rad/s: error/noise = %.3f, ripple residual/noise = %.3f", err / sigma,
         res / sigma);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1.25 * sigma, err);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res);
+    const double err_bound = 1.25, res_bound = 0.5; /* x sigma */
+    rel_measured("constant_speed", "noise=%.2g raw=%.3f err=%.4f err_x=%.3f err_bound=%g "
+                 "res_x=%.2f res_bound=%g", sigma, raw, err, err / sigma, err_bound, res / sigma,
+                 res_bound);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(err_bound * sigma, err);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(res_bound * sigma, res);
     TEST_ASSERT_EQUAL_UINT32(0u, g_run.status_or & (HD_KF_STATUS_RESET | HD_KF_STATUS_BAD_INPUT));
 }
 
@@ -214,8 +219,11 @@ static void test_cancel_through_speed_ramps(void)
     double err = rms_error_vs_truth(&g_run, from), res = rms_ripple_residual(&g_run, from, 0);
     msg("speed ramps 20..300 rad/s: error/noise = %.3f, ripple residual/noise = %.3f",
         err / sigma, res / sigma);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1.25 * sigma, err);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res);
+    const double err_bound = 1.25, res_bound = 0.5; /* x sigma */
+    rel_measured("ramps", "err_x=%.3f err_bound=%g res_x=%.2f res_bound=%g", err / sigma,
+                 err_bound, res / sigma, res_bound);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(err_bound * sigma, err);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(res_bound * sigma, res);
 }
 
 /* ---- the paper's operating point: 156 rad/s, lines at 312 and 624 rad/s -- */
@@ -236,6 +244,8 @@ static void test_paper_lines_312_624_attenuated_30db(void)
         tu_db(b2 / a2));
     msg("paper tuning, 156 rad/s: 624 rad/s line %.4f -> %.2e Nm, attenuation %.1f dB", b4, a4,
         tu_db(b4 / a4));
+    rel_measured("paper_lines", "in2=%.4f out2=%.2g db2=%.1f in4=%.4f out4=%.2g db4=%.1f bound_db=30",
+                 b2, a2, tu_db(b2 / a2), b4, a4, tu_db(b4 / a4));
     TEST_ASSERT_FLOAT_WITHIN(0.02, 1.0, b2); /* the fit itself sees the injected line */
     TEST_ASSERT_FLOAT_WITHIN(0.02, 0.5, b4);
     TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b2 / a2));
@@ -258,6 +268,7 @@ static void test_narrowband_lines_312_624_attenuated_30db(void)
     double a4 = line_amp(&g_run, g_run.filtered, g_run.ph_m4, from);
     msg("narrow-band, 156 rad/s: 312 rad/s line attenuation %.1f dB, 624 rad/s %.1f dB",
         tu_db(b2 / a2), tu_db(b4 / a4));
+    rel_measured("narrow_lines", "db2=%.1f db4=%.1f bound_db=30", tu_db(b2 / a2), tu_db(b4 / a4));
     TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b2 / a2));
     TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b4 / a4));
 }
@@ -287,6 +298,8 @@ static void test_misalignment_removed_by_6th_not_4th_order(void)
     misalign_run(1, &b6, &a6);
     msg("misalignment line (1.56 rad/s): 4th order %.1f dB, 6th order %.1f dB (amp %.3f Nm)",
         tu_db(b4 / a4), tu_db(b6 / a6), b6);
+    rel_measured("misalignment", "db6=%.1f db4=%.1f bound6_db=30 bound4_db=3", tu_db(b6 / a6),
+                 tu_db(b4 / a4));
     TEST_ASSERT_FLOAT_WITHIN(0.05, 1.0, b6);
     TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b6 / a6));
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(3.0, tu_db(b4 / a4));
@@ -345,6 +358,7 @@ static void test_standstill_then_motion_cancels(void)
     size_t from = 22000; /* 1 s after reaching 156 rad/s */
     double res = rms_ripple_residual(&g_run, from, 0);
     msg("standstill 20 s then 156 rad/s: ripple residual/noise %.3f", res / sigma);
+    rel_measured("standstill_then_motion", "res_x=%.2f res_bound=0.5", res / sigma);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res);
 }
 
@@ -370,6 +384,7 @@ static void test_direction_reversal(void)
     }
     msg("reversal +-156 rad/s: ripple residual/noise %.3f (whole), %.3f (after), max %.4f Nm",
         res / sigma, res_after / sigma, worst);
+    rel_measured("reversal", "res_x=%.2f res_bound=0.5 max=%.3f max_bound_x=4", res / sigma, worst);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res_after);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(4.0 * sigma, worst);
@@ -458,6 +473,9 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
     msg("over-Nyquist: %.0f frozen steps at 900 rad/s, block held at %.3f Nm (truth 0.4); "
         "ripple residual/noise in the first 0.1 s after resuming %.3f, after 1 s %.3f",
         (double)frozen_steps, held_amp, res_resume / sigma, res_end / sigma);
+    rel_measured("over_nyquist", "frozen_steps=%lu held=%.3f resume_x=%.2f end_x=%.2f "
+                 "held_rel_bound=1e-3 resume_bound=1 end_bound=0.5",
+                 (unsigned long)frozen_steps, held_amp, res_resume / sigma, res_end / sigma);
     /* the held block resumes at once: its phase followed the encoder */
     TEST_ASSERT_EQUAL_UINT(100u, n_resume);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(sigma, res_resume);
@@ -635,6 +653,7 @@ static void test_paper_preset_pulls_output_towards_expected_torque(void)
     msg("paper tuning, T_exp = 0.5 T_true: RMS(filtered - T_exp) / RMS(T_true - T_exp) = %.3f "
         "(closed-form DC gain g0 = %.3f): %.0f %% of the missed torque absorbed",
         d_exp / miss, g0, 100.0 * (1.0 - d_exp / miss));
+    rel_measured("paper_texp", "ratio=%.3f g0=%.4f bound=0.03", d_exp / miss, g0);
     /* the 0.5 Hz variation sits at the DC gain (|E| varies < 1 % up to 5 Hz) */
     TEST_ASSERT_FLOAT_WITHIN(0.03, g0, d_exp / miss);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.75, d_exp / miss); /* Q >> R: substantial pull */
@@ -664,6 +683,7 @@ static void test_narrowband_keeps_torque_missed_by_expected(void)
     msg("narrow-band (q 1e-5, R 4e-4), T_exp = 0.5 T_true: ratio %.3f (closed-form g0 %.3f): "
         "the output carries %.0f %% of the missed torque",
         ratio, g0, 100.0 * ratio);
+    rel_measured("narrow_texp", "ratio=%.3f g0=%.4f bound=0.03", ratio, g0);
     TEST_ASSERT_FLOAT_WITHIN(0.03, g0, ratio);
     TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(0.85, ratio);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1.15, ratio);
@@ -876,6 +896,7 @@ static void test_block_disable_enable_keeps_others(void)
             worst = e;
     }
     msg("block 1 disabled: max |filtered - 4-state reference| %.2e Nm", worst);
+    rel_measured("block_disabled", "dev=%.2g bound=1e-4", worst);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-4, worst); /* float32 rounding on ~2 Nm signals */
 
     for (unsigned i = 0; i < 4; i++)
@@ -927,6 +948,7 @@ static void test_recommended_load_step_goes_to_offset(void)
     double e_off = load_step_error(0.0f, &st_off);
     msg("10 Nm load step, recommended tuning: error RMS after step %.4f Nm with jump gate, "
         "%.4f Nm without (noise 0.02)", e_on, e_off);
+    rel_measured("load_step_gate", "on=%.4f off=%.4f on_bound=0.1 off_bound_x=2", e_on, e_off);
     TEST_ASSERT_TRUE(st_on & HD_KF_STATUS_OFFSET_JUMP);
     TEST_ASSERT_FALSE(st_off & HD_KF_STATUS_OFFSET_JUMP);
     TEST_ASSERT_LESS_THAN_FLOAT(5.0 * 0.02, e_on);
@@ -1052,6 +1074,7 @@ static void test_phase_lost_restarts_block(void)
     TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_cov(&kf, 0, 2));
     msg("phase lost: order-4 block %.3f Nm before, %.3f Nm held over Nyquist, restarted at "
         "a %.0f rad advance", a_before, a_held, 4.0 * 7.0);
+    rel_measured("phase_lost", "held=%.3f", a_held);
 }
 
 /* ---- load-dependent ripple (ripple_load_coeff_per_nm) ----------------------
@@ -1163,10 +1186,14 @@ static void test_load_coeff_step_predicts_ripple(void)
         "0.5 s before it %.4f / %.4f Nm", LOAD_A0_NM, LOAD_A0_NM * (1.0 + LOAD_K_TRUE * LOAD_STEP_NM),
         with_k.rms_after, LOAD_K_TRUE, without_k.rms_after, with_k.rms_after / without_k.rms_after,
         with_k.rms_before, without_k.rms_before);
+    rel_measured("load_coeff_step", "with_k=%.4f without_k=%.3f bound_x=0.3", with_k.rms_after,
+                 without_k.rms_after);
     msg("with k: amplitude_nm[order 2] %.4f Nm at 10 Nm, zero-load state %.4f Nm (truth %.2f / "
         "%.2f); 50 Hz block %.4f Nm (truth %.2f, unscaled)", (double)with_k.amp0_out,
         (double)with_k.amp0_zero_load, LOAD_A0_NM * (1.0 + LOAD_K_TRUE * LOAD_STEP_NM),
         LOAD_A0_NM, (double)with_k.amp_fix_zero_load, LOAD_A_FIX_NM);
+    rel_measured("load_coeff_amplitude", "zero_load=%.3f fixed=%.3f",
+                 (double)with_k.amp0_zero_load, (double)with_k.amp_fix_zero_load);
     /* before the step T_ref = 0, so c = 1 + k 0 = 1 exactly: the two filters
      * are the same filter until the step */
     TEST_ASSERT_EQUAL_DOUBLE(without_k.rms_before, with_k.rms_before);
@@ -1198,6 +1225,8 @@ static void test_load_coeff_scales_motor_blocks_only(void)
             "%.2e; max |amplitude_nm - state amp| (output, fixed) %.2e Nm",
             rec ? "with offset state" : "no offset state", LOAD_K_TRUE, r.max_c_dev_rel,
             r.max_unscaled_dev);
+        rel_measured(rec ? "load_coeff_rows_offset" : "load_coeff_rows", "motor_rel=%.1e "
+                     "unscaled=%.1e motor_bound=1e-5 unscaled_bound=1e-6", r.max_c_dev_rel, r.max_unscaled_dev);
         TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-5, r.max_c_dev_rel);
         TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-6, r.max_unscaled_dev);
     }
@@ -1209,6 +1238,8 @@ static void test_load_coeff_scales_motor_blocks_only(void)
     msg("load step, with offset state: ripple error RMS 20-200 ms after %.4f Nm with k, "
         "%.4f Nm with k = 0 (ratio %.3f)", rec_k.rms_after, rec_0.rms_after,
         rec_k.rms_after / rec_0.rms_after);
+    rel_measured("load_coeff_step_offset", "with_k=%.3f without_k=%.3f bound_x=0.3", rec_k.rms_after,
+                 rec_0.rms_after);
     TEST_ASSERT_LESS_THAN_DOUBLE(0.3 * rec_0.rms_after, rec_k.rms_after);
 }
 
@@ -1308,6 +1339,9 @@ static void test_load_coeff_standstill_does_not_drift(void)
         "the last 5 s %.4f Nm with k = %.2f, %.4f Nm with k = 0 (without the hold: 5.6); the "
         "estimate's drift since the stop %.2e / %.2e Nm", with_k, LOAD_K_TRUE, without_k,
         drift_k, drift_0);
+    rel_measured("load_coeff_standstill", "drift_k=%.1e drift_0=%.1e end_k=%.3f end_0=%.3f "
+                 "bound=1e-3",
+                 drift_k, drift_0, with_k, without_k);
     /* held: the estimate 60 s later is the one at the stop (motor blocks
      * get no gain at standstill; without the hold of T_ref their row
      * follows the offset and the estimate moved 0.014 N m) */
@@ -1366,6 +1400,7 @@ static void test_covariance_bounds_counted(void)
     const double lmax = 0.5 * (a + d) + sqrt(0.25 * (a - d) * (a - d) + b * b);
     msg("forced bounds: negative count %u, ceiling count %u, block 1's largest eigenvalue "
         "%.6g (p_max 1e-3)", (unsigned)kf.p_negative_count, (unsigned)kf.p_ceiling_count, lmax);
+    rel_measured("forced_bounds", "negative=%u lmax=%.4g p_max=1e-3 rel_bound=1e-5", (unsigned)kf.p_negative_count, lmax);
     TEST_ASSERT_FLOAT_WITHIN(1e-3 * 1e-5, 1e-3, lmax);
 }
 
@@ -1456,6 +1491,7 @@ static void test_short_plans_are_bit_exact(void)
     short_plans_against_full_rules(0.5f);
     msg("short plans: the motor one on %u of 20000 steps, bit-identical to the full rules "
         "(output learn scale 1 and 0.5)", fast);
+    rel_measured("short_plans", "motor_steps=%u of=20000", fast);
 }
 
 int main(void)

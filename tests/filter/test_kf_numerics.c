@@ -19,6 +19,7 @@
 #include "hd_kf.h"
 #include "test_util.h"
 #include "unity.h"
+#include "../reliability/rel_measured.h"
 
 #define TS_S 1e-3
 #define GEAR_RATIO 100.0
@@ -77,7 +78,8 @@ static double cholesky_min_pivot(double a[HD_KF_MAX_STATES][HD_KF_MAX_STATES], u
     return min_piv;
 }
 
-static void long_run(const char *name, const hd_kf_config_t *cfg, long steps, uint64_t seed)
+static void long_run(const char *key, const char *name, const hd_kf_config_t *cfg, long steps,
+                     uint64_t seed)
 {
     static hd_kf_t kf;
     static double p[HD_KF_MAX_STATES][HD_KF_MAX_STATES];
@@ -156,6 +158,9 @@ static void long_run(const char *name, const hd_kf_config_t *cfg, long steps, ui
              name, steps, still, clamped, (unsigned)kf.p_ceiling_count, frozen, max_diag_seen,
              worst_rel_pivot);
     TEST_MESSAGE(m);
+    rel_measured(key, "steps=%ld still=%lu clamped=%lu blocks_counted=%u frozen=%lu max_diag=%.3g "
+                 "pivot=%.2g", steps, still, clamped, (unsigned)kf.p_ceiling_count, frozen,
+                 max_diag_seen, worst_rel_pivot);
     TEST_ASSERT_TRUE(still > 1000);  /* the profile did include standstill */
     TEST_ASSERT_TRUE(frozen > 1000); /* and over-Nyquist spans */
 }
@@ -164,7 +169,7 @@ static void test_numerics_paper_6th_order_1e6_steps(void)
 {
     hd_kf_config_t cfg;
     hd_kf_config_paper(&cfg, (float)TS_S, true);
-    long_run("paper 6th order", &cfg, 1000000L, 42u);
+    long_run("numerics_paper6", "paper 6th order", &cfg, 1000000L, 42u);
 }
 
 static void test_numerics_narrowband_offset_5e5_steps(void)
@@ -178,7 +183,7 @@ static void test_numerics_narrowband_offset_5e5_steps(void)
     hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 4.0f, 1e-5f);
     hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, 1.0f, 1e-5f);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    long_run("narrow-band 6th order + offset", &cfg, 500000L, 7u);
+    long_run("numerics_narrow", "narrow-band 6th order + offset", &cfg, 500000L, 7u);
 }
 
 static void test_numerics_max_states(void)
@@ -198,7 +203,7 @@ static void test_numerics_max_states(void)
     }
     TEST_ASSERT_EQUAL_INT(HD_KF_MAX_BLOCKS, cfg.block_count);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    long_run("max blocks + offset", &cfg, 200000L, 99u);
+    long_run("numerics_max", "max blocks + offset", &cfg, 200000L, 99u);
 }
 
 int main(void)

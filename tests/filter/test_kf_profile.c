@@ -28,6 +28,7 @@
 #include "ref_kf_dense.h"
 #include "test_util.h"
 #include "unity.h"
+#include "../reliability/rel_measured.h"
 
 #define TS_S 1e-3
 #define GEAR_RATIO 100.0
@@ -149,8 +150,11 @@ static void test_export_recovers_truth_coefficients(void)
     msg("export after 20-30 s at 156 rad/s: |(a, b) - truth| motor order 2 %.4f N m (line 1 N m, "
         "one sample of phase = 0.31 N m), output order 1 %.4f N m (line %.2f N m)",
         worst2, worst1, hypot(A1_NM, B1_NM));
-    TEST_ASSERT_LESS_THAN_DOUBLE(0.03, worst2);
-    TEST_ASSERT_LESS_THAN_DOUBLE(0.05, worst1);
+    const double bound2 = 0.03, bound1 = 0.05;
+    rel_measured("profile_export", "motor2=%.4f output1=%.4f bound2=%g bound1=%g", worst2, worst1,
+                 bound2, bound1);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound2, worst2);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound1, worst1);
 }
 
 /* ---- round trip ---------------------------------------------------------- */
@@ -208,8 +212,10 @@ static void test_profile_round_trip_next_prediction(void)
         worst, worst_wrong);
     /* float rounding of ~1 N m values through two rotations and the
      * k alpha products (k alpha <= 13 rad: ulp 1e-6) */
-    TEST_ASSERT_LESS_THAN_DOUBLE(2e-5, worst);
-    TEST_ASSERT_GREATER_THAN_DOUBLE(1000.0 * 2e-5, worst_wrong);
+    const double bound = 2e-5;
+    rel_measured("profile_round_trip", "dev=%.1e wrong=%.3f bound=%g", worst, worst_wrong, bound);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, worst);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(1000.0 * bound, worst_wrong);
 }
 
 /* Import into a filter that has run (at another speed): its state is at
@@ -250,6 +256,8 @@ static void test_import_into_running_filter_predicts_through_a_speed_step(void)
     msg("import into a running filter, then a speed step 230 -> 70 rad/s: prediction %.5f N m, "
         "truth at the sample's angles %.5f N m, at the angles the last speed would give "
         "%.5f N m", (double)o.ripple_nm, want, old_speed);
+    rel_measured("profile_import_running", "dev=%.1e lagged=%.3f bound=2e-05",
+                 fabs((double)o.ripple_nm - want), fabs(want - old_speed));
     TEST_ASSERT_FLOAT_WITHIN(2e-5, want, (double)o.ripple_nm);
     TEST_ASSERT_GREATER_THAN_DOUBLE(0.05, fabs(want - old_speed));
 }
@@ -329,6 +337,9 @@ static void test_speed_step_with_exact_profile_leaves_only_noise(void)
         "in the 200 ms after it %.4f N m, filtered RMS error 200 ms before / after %.4f / %.4f "
         "N m; the old algorithm (turned by the last increment): %.4f N m, %.4f / %.4f N m",
         NOISE_NM, worst, before, after, worst_old, before_old, after_old);
+    rel_measured("speed_step_profile", "noise=%.2g worst=%.4f before=%.4f after=%.4f "
+                 "worst_old=%.4f after_old=%.4f worst_bound_x=1 after_bound_x=1.1 old_bound_x=4", NOISE_NM, worst, before, after, worst_old,
+                 after_old);
     /* the ripple estimate's error stays at the noise's level; the filtered
      * torque's error is the noise (1.035 x at constant speed, docs) */
     TEST_ASSERT_LESS_THAN_DOUBLE(NOISE_NM, worst);
@@ -390,6 +401,7 @@ static void test_profile_matches_reference(void)
     }
     msg("learn scale 0.01, varying speed: exported (a, b) vs reference max %.2e N m; filtered "
         "torque after both imported a profile mid-run: max |dev| %.2e N m", worst, worst_after);
+    rel_measured("profile_reference", "export=%.1e after_import=%.1e bound=5e-4", worst, worst_after);
     /* the tolerance of test_kf_reference: 1e-4 of the signal scale (~5 N m) */
     TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst);
     TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst_after);
@@ -575,6 +587,9 @@ static void test_learn_scale_zero_keeps_gravity_in_the_torque(void)
             "error %.3f N m, output-line profile moved %.4f N m", (double)scales[i], rms[i],
             drift[i]);
     }
+    rel_measured("learn_scale_gravity", "rms=%.3f/%.3f/%.3f/%.3f moved=%.3g/%.2g/%.2g/%.1g "
+                 "moved0_bound=1e-4",
+                 rms[0], rms[1], rms[2], rms[3], drift[0], drift[1], drift[2], drift[3]);
     /* scale 0: the block never learns; its profile moves only by the frame
      * phasors' rounding over 30 s */
     TEST_ASSERT_LESS_THAN_DOUBLE(1e-4, drift[3]);
@@ -676,6 +691,7 @@ static void test_learn_scale_zero_profile_holds_for_long_runs(void)
     const double drift = hypot((double)o1->a_nm - A1_NM, (double)o1->b_nm - B1_NM);
     msg("output_learn_scale 0, 2e6 steps at 1.56 rad/s: the output line's profile moved "
         "%.2e N m (line %.2f N m)", drift, hypot(A1_NM, B1_NM));
+    rel_measured("learn_scale_long", "moved=%.1e bound=1e-6", drift);
     /* rounding of the angles passed (float, 2.4e-7 rad) and of the conversions */
     TEST_ASSERT_LESS_THAN_DOUBLE(1e-6, drift);
 }
@@ -712,6 +728,8 @@ static void test_learn_scale_matches_reference(void)
         }
         msg("output_learn_scale %g vs reference: max |dev| filtered %.2e N m, output-block "
             "variance rel %.2e", (double)scales[si], worst, worst_p);
+        static const char *const keys[] = {"learn_ref_0", "learn_ref_1e-3", "learn_ref_0.3"};
+        rel_measured(keys[si], "filtered=%.1e var_rel=%.1e bound=5e-4 var_bound=1e-3", worst, worst_p);
         TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst);
         TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, worst_p);
     }

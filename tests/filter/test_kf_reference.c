@@ -44,6 +44,7 @@
 #include "ref_kf_dense.h"
 #include "test_util.h"
 #include "unity.h"
+#include "../reliability/rel_measured.h"
 
 #define TS_S 1e-3
 #define GEAR_RATIO 100.0
@@ -123,8 +124,8 @@ typedef struct {
     unsigned long frozen_steps, clamped_steps, jumps, jump_disagreements;
 } dev_t_;
 
-static void compare_run_toggles(const char *name, const hd_kf_config_t *cfg, signal_t sig,
-                                const toggle_t *toggles, size_t n_toggles)
+static void compare_run_toggles(const char *key, const char *name, const hd_kf_config_t *cfg,
+                                signal_t sig, const toggle_t *toggles, size_t n_toggles)
 {
     size_t next_toggle = 0;
     static hd_kf_t kf;
@@ -265,6 +266,14 @@ static void compare_run_toggles(const char *name, const hd_kf_config_t *cfg, sig
              d.jump_disagreements);
     TEST_MESSAGE(msg);
     double tol = TOL_REL_SCALE * d.scale;
+    rel_measured(key, "states=%d filtered=%.2g innovation=%.2g state=%.2g s_rel=%.2g p_rel=%.2g "
+                 "tol=%.2g tol_rel=%g sp_bound=%g frozen=%lu clamped=%lu jumps=%lu", ref.n,
+                 d.max_filtered, d.max_innov,
+                 d.max_state, d.max_s_rel, d.max_cov_rel, tol, TOL_REL_SCALE, TOL_REL_S,
+                 d.frozen_steps, d.clamped_steps,
+                 d.jumps);
+    if (with_k)
+        rel_measured(key, "k0_dev=%.3g k0_x_tol=%.0f", d.max_filtered_k0, d.max_filtered_k0 / tol);
     if (with_k) {
         snprintf(msg, sizeof(msg),
                  "%s: the same run against a k = 0 reference: max |dev| filtered %.3g Nm "
@@ -283,9 +292,10 @@ static void compare_run_toggles(const char *name, const hd_kf_config_t *cfg, sig
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT_MESSAGE(TOL_REL_S, d.max_cov_rel, "covariance vs reference");
 }
 
-static void compare_run(const char *name, const hd_kf_config_t *cfg, signal_t sig)
+static void compare_run(const char *key, const char *name, const hd_kf_config_t *cfg,
+                        signal_t sig)
 {
-    compare_run_toggles(name, cfg, sig, NULL, 0u);
+    compare_run_toggles(key, name, cfg, sig, NULL, 0u);
 }
 
 /* 4 states: the paper's fourth-order model (Q = 1e3 I, R = 1). */
@@ -293,7 +303,7 @@ static void test_reference_4_states_paper(void)
 {
     hd_kf_config_t cfg;
     hd_kf_config_paper(&cfg, (float)TS_S, false);
-    compare_run("paper 4th order", &cfg, SIG_BASE);
+    compare_run("ref_paper4", "paper 4th order", &cfg, SIG_BASE);
 }
 
 /* 6 states: the paper's sixth-order model with the misalignment block. */
@@ -301,7 +311,7 @@ static void test_reference_6_states_paper(void)
 {
     hd_kf_config_t cfg;
     hd_kf_config_paper(&cfg, (float)TS_S, true);
-    compare_run("paper 6th order", &cfg, SIG_BASE);
+    compare_run("ref_paper6", "paper 6th order", &cfg, SIG_BASE);
 }
 
 /* 8 states: narrow-band tuning, motor orders 2, 4, 6 and output order 1. */
@@ -314,7 +324,7 @@ static void test_reference_8_states_narrowband(void)
     TEST_ASSERT_EQUAL_INT(1, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 4.0f, 1e-4f));
     TEST_ASSERT_EQUAL_INT(2, hd_kf_config_add_block(&cfg, HD_KF_LOCK_MOTOR, 6.0f, 1e-4f));
     TEST_ASSERT_EQUAL_INT(3, hd_kf_config_add_block(&cfg, HD_KF_LOCK_OUTPUT, 1.0f, 1e-4f));
-    compare_run("narrow-band 8 states", &cfg, SIG_BASE);
+    compare_run("ref_narrow8", "narrow-band 8 states", &cfg, SIG_BASE);
 }
 
 /* 7 states: the recommended tuning (offset with jump gate, motion-scaled
@@ -326,7 +336,7 @@ static void test_reference_7_states_recommended(void)
     hd_kf_config_t cfg;
     hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    compare_run("recommended (7 states)", &cfg, SIG_BASE);
+    compare_run("ref_recommended", "recommended (7 states)", &cfg, SIG_BASE);
 }
 
 /* Maximum: HD_KF_MAX_BLOCKS blocks of every lock kind + offset (sensor error).
@@ -359,7 +369,7 @@ static void test_reference_max_states(void)
 {
     hd_kf_config_t cfg;
     max_states_cfg(&cfg);
-    compare_run("max blocks + offset", &cfg, SIG_BASE);
+    compare_run("ref_max", "max blocks + offset", &cfg, SIG_BASE);
 }
 
 /* ---- load-dependent ripple (ripple_load_coeff_per_nm) --------------------- */
@@ -383,7 +393,7 @@ static void test_reference_load_coeff_recommended(void)
 {
     hd_kf_config_t cfg;
     recommended_8_cfg(&cfg, K_FILTER_PER_NM);
-    compare_run("load k, recommended + motor 8 (T_ref = T_exp + offset)", &cfg, SIG_LOAD);
+    compare_run("ref_load_recommended", "load k, recommended + motor 8 (T_ref = T_exp + offset)", &cfg, SIG_LOAD);
 }
 
 /* T_ref = T_exp alone (the offset is a sensor error); every lock kind, so
@@ -394,7 +404,7 @@ static void test_reference_load_coeff_max_states(void)
     max_states_cfg(&cfg);
     cfg.ripple_load_coeff_per_nm = K_FILTER_PER_NM;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    compare_run("load k, max blocks + sensor-error offset (T_ref = T_exp)", &cfg, SIG_LOAD);
+    compare_run("ref_load_max", "load k, max blocks + sensor-error offset (T_ref = T_exp)", &cfg, SIG_LOAD);
 }
 
 /* T_ref = T_exp, no offset state; Q >> R (wide band), P clamped at rest. */
@@ -404,7 +414,7 @@ static void test_reference_load_coeff_paper(void)
     hd_kf_config_paper(&cfg, (float)TS_S, true);
     cfg.ripple_load_coeff_per_nm = K_FILTER_PER_NM;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    compare_run("load k, paper 6th order (no offset)", &cfg, SIG_LOAD);
+    compare_run("ref_load_paper", "load k, paper 6th order (no offset)", &cfg, SIG_LOAD);
 }
 
 /* k = 0 on the same load run (the truth still has load-dependent lines):
@@ -414,7 +424,7 @@ static void test_reference_load_coeff_zero(void)
 {
     hd_kf_config_t cfg;
     recommended_8_cfg(&cfg, 0.0f);
-    compare_run("load run, k = 0, recommended + motor 8", &cfg, SIG_LOAD);
+    compare_run("ref_load_k0", "load run, k = 0, recommended + motor 8", &cfg, SIG_LOAD);
 }
 
 /* ---- run-time block toggles (hd_kf_set_block_enabled) ---------------------
@@ -439,7 +449,7 @@ static void test_reference_block_toggles(void)
     recommended_8_cfg(&cfg, 0.0f);
     cfg.blocks[3].enabled = 0;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    compare_run_toggles("block toggles, recommended + motor 8 (configured off)", &cfg, SIG_BASE,
+    compare_run_toggles("ref_toggles", "block toggles, recommended + motor 8 (configured off)", &cfg, SIG_BASE,
                         toggles, sizeof toggles / sizeof toggles[0]);
 }
 
@@ -468,7 +478,7 @@ static void test_reference_block_toggles(void)
 static const double k_jerk_w[] = {156.0, 60.0, -100.0, 300.0, 30.0, 220.0, -180.0, 40.0,
                                   -60.0, -250.0, 150.0, 80.0};
 
-static void shift_run(const char *name, const hd_kf_config_t *cfg)
+static void shift_run(const char *key, const char *name, const hd_kf_config_t *cfg)
 {
     static hd_kf_input_t in[SHIFT_RUN_STEPS + 1];
     static hd_kf_t kf;
@@ -539,6 +549,8 @@ static void shift_run(const char *name, const hd_kf_config_t *cfg)
              "by rounding)",
              name, dev, tol, dev_ref, dev_own, dev_own / tol, jumps, disagreements);
     TEST_MESSAGE(msg);
+    rel_measured(key, "dev=%.2g tol=%.2g dev_ref=%.2g old_own=%.2g old_own_x_tol=%.0f jumps=%lu",
+                 dev, tol, dev_ref, dev_own, dev_own / tol, jumps);
     TEST_ASSERT_EQUAL_UINT32(0u, clamped);
     TEST_ASSERT_LESS_THAN_DOUBLE(tol, dev);
     TEST_ASSERT_LESS_THAN_DOUBLE(1e-9, dev_ref);
@@ -551,11 +563,11 @@ static void test_step_is_the_old_one_fed_the_next_increment(void)
     recommended_8_cfg(&cfg, K_FILTER_PER_NM);
     cfg.q_motion_ref_rad = 0.0f;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    shift_run("recommended + motor 8, k 0.3, motion scaling off", &cfg);
+    shift_run("shift_recommended", "recommended + motor 8, k 0.3, motion scaling off", &cfg);
     max_states_cfg(&cfg);
     cfg.ripple_load_coeff_per_nm = K_FILTER_PER_NM;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
-    shift_run("max blocks + sensor-error offset, k 0.3", &cfg);
+    shift_run("shift_max", "max blocks + sensor-error offset, k 0.3", &cfg);
 }
 
 int main(void)

@@ -21,6 +21,7 @@
 #include "hd_expected.h"
 #include "hd_track.h"
 #include "unity.h"
+#include "../reliability/rel_measured.h"
 
 #define TS_S 1e-3
 #define PI_D 3.14159265358979323846
@@ -62,7 +63,10 @@ static void test_track_constant_velocity_exact(void)
     snprintf(m, sizeof(m), "constant velocity %.4f rad/s: estimate error %.3g rad/s, acc %.3g",
              v, (double)t.vel_rad_s - v, (double)t.acc_rad_s2);
     TEST_MESSAGE(m);
-    TEST_ASSERT_FLOAT_WITHIN(1e-5 * v, v, (double)t.vel_rad_s);
+    const double rel_bound = 1e-5;
+    rel_measured("track_constant_velocity", "v=%.1f err=%.2g rel_bound=%g", v,
+                 fabs((double)t.vel_rad_s - v), rel_bound);
+    TEST_ASSERT_FLOAT_WITHIN(rel_bound * v, v, (double)t.vel_rad_s);
     TEST_ASSERT_FLOAT_WITHIN(1e-2, 0.0, (double)t.acc_rad_s2);
     /* negative direction, same accuracy */
     TEST_ASSERT_EQUAL_INT(0, hd_track_init(&t, (float)TS_S, 20.0f));
@@ -90,6 +94,8 @@ static void test_track_constant_acceleration_converges(void)
     snprintf(m, sizeof(m), "constant acceleration 50 rad/s^2: max vel error %.3g rad/s, max acc error %.3g rad/s^2",
              worst_v, worst_a);
     TEST_MESSAGE(m);
+    rel_measured("track_constant_acceleration", "vel=%.2g acc=%.2g vel_bound=1e-3 acc_bound=0.05",
+                 worst_v, worst_a);
     /* float32 increments carry ~6e-8 relative rounding each; the loop
      * filters it: 1e-3 rad/s on up to 150 rad/s, 0.05 rad/s^2 */
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-3, worst_v);
@@ -117,6 +123,10 @@ static void velocity_step(float bw_hz)
              "overshoot %.1f %% (closed form 24.9 %%), 2 %% settling at %.2f/w (closed form 7.9)",
              (double)bw_hz, worst_dev, w * TS_S, 100.0 * (peak - 1.0), settle_u);
     TEST_MESSAGE(m);
+    char key[40];
+    snprintf(key, sizeof key, "track_step_%.0f_hz", (double)bw_hz);
+    rel_measured(key, "dev=%.3f dev_bound=%.3f overshoot=%.1f settle=%.1f settle_bound=10",
+                 worst_dev, 2.0 * w * TS_S, 100.0 * (peak - 1.0), settle_u);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(2.0 * w * TS_S, worst_dev);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(10.0, settle_u); /* a few 1/bandwidth time constants */
     TEST_ASSERT_FLOAT_WITHIN(1e-4 * v, v, (double)t.vel_rad_s);

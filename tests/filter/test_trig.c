@@ -10,6 +10,7 @@
 
 #include "hd_trig.h"
 #include "unity.h"
+#include "../reliability/rel_measured.h"
 
 #define TU_PI_D 3.14159265358979323846
 
@@ -41,8 +42,9 @@ static void sweep(double lo, double hi, long n, err_t_ *e)
     }
 }
 
-static void report(const char *range, const err_t_ *e)
+static void report(const char *key, const char *range, const err_t_ *e, double bound)
 {
+    rel_measured(key, "sin=%.2g cos=%.2g bound=%g", e->max_sin, e->max_cos, bound);
     char m[200];
     snprintf(m, sizeof(m), "%s: max |sin err| %.3g (at %.6g), max |cos err| %.3g (at %.6g)", range,
              e->max_sin, e->at_sin, e->max_cos, e->at_cos);
@@ -53,9 +55,10 @@ static void test_sincos_within_2e7_on_minus_pi_pi(void)
 {
     err_t_ e;
     sweep(-TU_PI_D, TU_PI_D, 2000000L, &e);
-    report("[-pi, pi], 2e6 points", &e);
-    TEST_ASSERT_LESS_THAN_DOUBLE(2e-7, e.max_sin);
-    TEST_ASSERT_LESS_THAN_DOUBLE(2e-7, e.max_cos);
+    const double bound = 2e-7;
+    report("trig_pi", "[-pi, pi], 2e6 points", &e, bound);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, e.max_sin);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, e.max_cos);
 }
 
 /* Every float in a neighbourhood of the quadrant boundaries (where range
@@ -83,16 +86,19 @@ static void test_sincos_quadrant_boundaries_exhaustive(void)
     char m[100];
     snprintf(m, sizeof(m), "quadrant boundaries, 40000 consecutive floats each: max err %.3g", worst);
     TEST_MESSAGE(m);
-    TEST_ASSERT_LESS_THAN_DOUBLE(2e-7, worst);
+    const double bound = 2e-7;
+    rel_measured("trig_boundaries", "err=%.2g bound=%g", worst, bound);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, worst);
 }
 
 static void test_sincos_within_1e6_up_to_1e4_rad(void)
 {
     err_t_ e;
     sweep(-1e4, 1e4, 4000000L, &e);
-    report("[-1e4, 1e4] rad, 4e6 points", &e);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-6, e.max_sin);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-6, e.max_cos);
+    const double bound = 1e-6;
+    report("trig_1e4", "[-1e4, 1e4] rad, 4e6 points", &e, bound);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, e.max_sin);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, e.max_cos);
     /* the largest floats in range, where reduction error is worst */
     double worst = 0.0;
     float a = 1e4f;
@@ -108,7 +114,8 @@ static void test_sincos_within_1e6_up_to_1e4_rad(void)
     char m[100];
     snprintf(m, sizeof(m), "100000 floats just below 1e4 rad: max err %.3g", worst);
     TEST_MESSAGE(m);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-6, worst);
+    rel_measured("trig_near_1e4", "err=%.2g bound=%g", worst, bound);
+    TEST_ASSERT_LESS_THAN_DOUBLE(bound, worst);
 }
 
 static void test_sincos_exact_points_and_identity(void)
