@@ -72,7 +72,7 @@ echo "vm: $(grep -c '^HDVM: ok  ' "$log" 2>/dev/null || true) checks passed in t
 case $rc in
   33) grep -q '^HDVM: VERDICT PASS' "$log" || fail "exit code says pass but the serial log has no PASS verdict"
       echo "vm: PASS"; exit 0 ;;
-  35) fail "the guest test reported failures (HDVM: FAIL lines above)" ;;
+  35) fail "the guest test reported failures ($(grep -m1 -o 'VERDICT FAIL.*' "$log" | tr -d '\r'); HDVM: FAIL lines above)" ;;
   124|137) fail "VM timed out after ${timeout_s} s (did the kernel boot? is the host very slow?)" ;;
   0)  fail "the guest powered off without a verdict (test program missing or crashed?)" ;;
   *)  fail "QEMU exited with $rc (could not start the VM?)" ;;
