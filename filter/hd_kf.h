@@ -8,7 +8,7 @@
  * states of a bank of 2-state oscillators, plus, if enabled, one
  * random-walk offset state:
  *
- *   x(k+1) = Phi(k) x(k) + w(k),   y(k) = C(k) x(k) + v(k),
+ *   x(k) = Phi(k) x(k-1) + w(k),   y(k) = C(k) x(k) + v(k),
  *   Phi = blockdiag(R(theta_1), ..., R(theta_B), 1),
  *   R(t) = [cos t  sin t; -sin t  cos t],   C = [c_1 0 c_2 0 ... c_B 0 (1)].
  *

@@ -44,7 +44,8 @@ void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
  * sample.  amplitude_nm, if given, is n x HD_KF_MAX_BLOCKS, row-major: row i,
  * column b is the amplitude of configured block b's prediction used at
  * sample i times its measurement-row entry in that step
- * (hd_kf_block_amplitude_nm before the step x hd_kf_block_row after it:
+ * (hd_kf_block_amplitude_nm before the step, which the step's turn keeps,
+ * x hd_kf_block_row after it:
  * at the load of the step, 0 if the block was frozen or is disabled).  The
  * 1 kHz path never computes it. */
 typedef struct {
