@@ -56,6 +56,10 @@ hd_record_status_t hd_config_record_decode(const uint8_t *buf, size_t len,
             return HD_RECORD_CORRUPT;
         }
         const hd_param_info_t *p = hd_param_by_id(buf[at]);
+        if (p == NULL && hd_param_is_retired(buf[at])) {
+            at += 5u; /* saved by an older firmware: the rest still holds */
+            continue;
+        }
         if (p == NULL) {
             return HD_RECORD_BAD_VERSION; /* written by a newer firmware */
         }

@@ -51,6 +51,22 @@ static const hd_param_info_t TABLE[] = {
 
 #define TABLE_ROWS (sizeof TABLE / sizeof TABLE[0])
 
+static const uint8_t RETIRED[] = {
+#define HD_PARAM(...)
+#define HD_PARAM_RETIRED(id, key, why) id,
+#include "hd_params.def"
+};
+
+bool hd_param_is_retired(unsigned id)
+{
+    for (size_t i = 0; i < sizeof RETIRED; i++) {
+        if (RETIRED[i] == id) {
+            return true;
+        }
+    }
+    return false;
+}
+
 size_t hd_param_count(void)
 {
     return TABLE_ROWS;

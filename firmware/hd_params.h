@@ -49,6 +49,8 @@ size_t hd_param_count(void);
 /* Row i of the table (0 <= i < count), or NULL. */
 const hd_param_info_t *hd_param_at(size_t i);
 const hd_param_info_t *hd_param_by_id(unsigned id);
+/* Is id retired (hd_params.def's HD_PARAM_RETIRED rows)? */
+bool hd_param_is_retired(unsigned id);
 /* Key of n bytes (need not be NUL-terminated). */
 const hd_param_info_t *hd_param_by_key(const char *key, size_t n);
 

@@ -516,6 +516,33 @@ static void test_unusable_saved_configuration_boots_defaults_with_a_flag(void)
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_NO_DATA, simple_cmd(HD_CMD_CONFIG_LOAD, 0).result);
 }
 
+/* A record from an older firmware holds an id since retired (hd_params.def,
+ * HD_PARAM_RETIRED): skipped, the rest used; an id this firmware never had
+ * is a newer firmware's record: refused. */
+static void test_saved_configuration_with_a_retired_id_still_loads(void)
+{
+    init_fw();
+    hd_fw_config_t mine = *live_cfg();
+    mine.kf.r_nm2 = 0.125f;
+    uint8_t rec[HD_CONFIG_RECORD_MAX];
+    size_t len = hd_config_record_encode(&mine, rec, sizeof rec);
+    TEST_ASSERT_TRUE(len > 0u && len + 5u <= sizeof rec);
+    uint8_t old[HD_CONFIG_RECORD_MAX];
+    old[0] = (uint8_t)(rec[0] + 1u);
+    old[1] = 39u; /* predict_increment, retired */
+    const uint8_t one_f32[4] = {0x00, 0x00, 0x80, 0x3F};
+    memcpy(old + 2, one_f32, sizeof one_f32);
+    memcpy(old + 6, rec + 1, len - 1u);
+    hd_fw_config_t back;
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_config_record_decode(old, len + 5u, &cfg, &back));
+    TEST_ASSERT_EQUAL_FLOAT(0.125f, back.kf.r_nm2);
+    TEST_ASSERT_EQUAL_UINT8(mine.kf.block_count, back.kf.block_count);
+    old[1] = 200u; /* no firmware of this table had it */
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_BAD_VERSION, hd_config_record_decode(old, len + 5u, &cfg, &back));
+    TEST_ASSERT_TRUE(hd_param_is_retired(39u));
+    TEST_ASSERT_NULL(hd_param_by_id(39u));
+}
+
 static void test_block_toggle_keeps_the_other_estimates(void)
 {
     cfg.filter_enabled = 1;
@@ -566,6 +593,7 @@ int main(void)
     RUN_TEST(test_configuration_survives_a_reboot);
     RUN_TEST(test_save_right_after_a_change_saves_the_change);
     RUN_TEST(test_unusable_saved_configuration_boots_defaults_with_a_flag);
+    RUN_TEST(test_saved_configuration_with_a_retired_id_still_loads);
     RUN_TEST(test_block_toggle_keeps_the_other_estimates);
     return UNITY_END();
 }

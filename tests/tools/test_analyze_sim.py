@@ -7,6 +7,7 @@ must not grow the held-out (fold B) innovation."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -91,14 +92,21 @@ def test_friction_is_found_with_its_coefficients(analyzed):
 def test_friction_lowers_the_error(analyzed):
     # T_exp enters the filter only through y = T_meas - T_exp; with the
     # offset kept as real torque, a correct friction and inertia model lowers
-    # the error against truth by what the offset no longer has to follow.
-    # Measured 0.038 -> 0.030 N m (the paper model, with an adaptive output
-    # block: 0.090).
+    # the error against truth by what the offset no longer has to follow:
+    # the slow band (below 2 Hz), where friction and inertia torque live.
+    # Measured: slow band 0.016 -> 0.006 N m, whole error 0.026 -> 0.022 N m
+    # = 1.1x the scenario's 0.02 N m noise (the paper model, with an adaptive
+    # output block: 0.087).  Before the filter turned by each sample's own
+    # increment the start was worse (0.038 -> 0.030: the lag at reversals).
     r = analyzed("friction")
-    assert r["error_rms_after_nm"] < 0.85 * r["error_rms_before_nm"]
+    from hdtools.analysis import results
+    noise_nm = float(re.search(r"^noise_nm\s*=\s*(\S+)", (results.SCENARIOS / "friction.ini")
+                               .read_text(), re.M).group(1))
+    assert r["error_rms_after_nm"] < r["error_rms_before_nm"]
+    assert r["error_rms_after_nm"] < 1.25 * noise_nm
     assert r["error_rms_after_nm"] < 0.5 * r["metrics_reference"]["error_rms_nm"]
     assert r["error_split_hz"] == 2.0
-    assert r["error_slow_rms_after_nm"] < r["error_slow_rms_before_nm"]
+    assert r["error_slow_rms_after_nm"] < 0.5 * r["error_slow_rms_before_nm"]
     # The ripple band must not rise by much: at each reversal the Coulomb
     # term switches on the tracked velocity's zero crossing, not the true
     # one.
@@ -188,3 +196,6 @@ def test_results_doc_suite_tables_are_current(analyzed):
     reports = {c.name: analyzed(c.name) for c in results.SUITE}
     assert_doc_current([("suite", results.suite_table(reports, results.SUITE)),
                         ("bands", results.bands_table(reports, results.SUITE))])
+    from conftest import assert_summary_current
+    assert_summary_current("cases", {c.name: results.case_summary(reports[c.name], c.what)
+                                     for c in results.SUITE})

@@ -156,6 +156,14 @@ def info_items() -> tuple[Entry, ...]:
 
 
 @lru_cache(maxsize=None)
+def retired_params() -> tuple[Entry, ...]:
+    """HD_PARAM_RETIRED rows: ids no firmware sets any more (a saved record
+    may hold them; the loader skips them)."""
+    return tuple(Entry(_int(pid), key.strip('"'), why)
+                 for pid, key, why in _rows(PARAMS_DEF, "HD_PARAM_RETIRED"))
+
+
+@lru_cache(maxsize=None)
 def params() -> tuple[Param, ...]:
     out = []
     for row in _rows(PARAMS_DEF, "HD_PARAM"):
@@ -164,6 +172,9 @@ def params() -> tuple[Param, ...]:
         pid, name, key, typ, _field, lo, hi, flags, unit, doc = row
         out.append(Param(_int(pid), name, key.strip('"'), typ, float(lo), float(hi),
                          frozenset(f.strip() for f in flags.split("|")), unit.strip('"'), doc))
+    reused = {p.id for p in out} & {r.code for r in retired_params()}
+    if reused:
+        raise DefError(f"hd_params.def: retired id(s) {sorted(reused)} reused")
     return tuple(out)
 
 
@@ -416,6 +427,8 @@ def doc_tables() -> dict[str, str]:
                        "takes effect; record", "meaning"],
                       [[p.id, f"`{p.key}`", p.name, p.type, _range(p), p.unit, _effect(p), p.doc]
                        for p in params()]),
+        "retired": _md(["id", "key", "why"],
+                       [[r.code, f"`{r.name}`", r.doc] for r in retired_params()]),
         "faults": _md(["bit", "name", "meaning"], [[f.code, f.name, f.doc] for f in faults()]),
         "opcodes": _md(["opcode", "name", "arguments / answer"],
                        [[f"0x{e.code:02X}", e.name, e.doc] for e in opcodes()]),
