@@ -222,3 +222,16 @@ def test_set_and_save_over_the_kernel_then_boot_from_the_saved_record(run, tmp_p
     assert len(dec["boots"]) == 1 and dec["boots"][0]["ConfigFromRecord"] == 1
     assert str(dec["boots"][0]["BootConfigStatus"]) == "OK"
     assert dec["params"] == {"r_nm2": 0.5, "telemetry_rate_hz": 0.0}
+
+
+def test_vm_doc_reads_the_run(run):
+    """tests/vm/vm_doc.py (the vm_monitor table of docs/socketcan.md) reads
+    the monitor's summary and the guest's steps of this run."""
+    import vm_doc
+    r = vm_doc.parse_monitor_run(run["share"].parent)
+    assert r["summary"] == run["summary"]
+    assert sorted(r["device_s"]) == ["save", "set"]
+    t = run["result"]["times_s"]
+    assert r["runner_s"] == t["runner_end_s"] - t["runner_start_s"] > 0
+    assert 0 < r["boot_s"] and 0 < r["python_start_s"] and 0 < r["imports_s"]
+    assert 0 <= r["drain_s"] and 0 < r["monitor_start_s"]

@@ -1,18 +1,20 @@
 #!/usr/bin/env python3
-"""The "Measured" table of docs/socketcan.md, written by running the VM test.
+"""The "Measured" tables of docs/socketcan.md, written by running the VM tests.
 
   tests/vm/vm_doc.py --build BUILD [--runs 3]
 
-Boots the VM `--runs` times with the command line CTest has for
-vm_socketcan (into scratch folders, not the fixture's), runs
-vm_socketcan_failure_modes once, reads each run's serial log, wall time and
-image, and writes the block `socketcan-vm` of docs/socketcan.md with the
-date and the machine.  The numbers are wall times under QEMU's TCG on a
-shared host: they vary from run to run, so the block is never checked.
+Boots the VM `--runs` times with each of the command lines CTest has for
+vm_socketcan and vm_monitor (into scratch folders, not the fixtures'),
+runs vm_socketcan_failure_modes once, reads each run's serial log, wall
+time, image and (vm_monitor) the files the guest wrote, and writes the
+blocks `socketcan-vm` and `socketcan-vm-monitor` of docs/socketcan.md with
+the date and the machine.  The numbers are wall times under QEMU's TCG on
+a shared host: they vary from run to run, so the blocks are never checked.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import sys
 import tempfile
@@ -92,11 +94,47 @@ def parse_log(text: str) -> dict:
     }
 
 
+def parse_monitor_run(outdir: Path) -> dict:
+    """The numbers of one vm_monitor run: its serial log and what the guest
+    wrote to OUTDIR/share (tests/vm/guest_monitor.py)."""
+    text = (outdir / "serial.log").read_text(errors="replace")
+    if "HDVM: VERDICT PASS" not in text:
+        raise GenDocError(f"{outdir}: the VM run has no PASS verdict")
+    share = outdir / "share"
+    try:
+        result = json.loads((share / "result.json").read_text())
+        summary = dict(l.split(" = ", 1) for l in (share / "monitor.out").read_text()
+                       .splitlines() if " = " in l)
+    except (OSError, ValueError) as exc:
+        raise GenDocError(f"{share}: {exc}") from None
+    t = result["times_s"]
+    return {
+        "kernel": _match(text, r"HDVM: booted kernel ([^\s,]+)"),
+        "boot_s": _number(text, r"guest uptime ([\d.]+) s"),
+        "python_start_s": _number(text, r"guest_monitor.py starts at guest uptime ([\d.]+) s")
+        - _number(text, r"HDVM: host root on /host, guest uptime ([\d.]+) s"),
+        "imports_s": t["imports_s"],
+        "monitor_start_s": t["monitor_ready_s"] - t["imports_s"],
+        "device_s": {name: float(s) for name, s in
+                     re.findall(r"HDVM: ok   hdsense device vcan0 (\w+).* in ([\d.]+) s", text)},
+        "runner_s": t["runner_end_s"] - t["runner_start_s"],
+        "drain_s": t["monitor_drained_s"] - t["runner_end_s"],
+        "summary": summary,
+    }
+
+
 def measure_run(cmd: list[str], outdir: Path) -> dict:
-    """One boot with CTest's vm_socketcan command, its OUTDIR replaced."""
+    """One boot with CTest's vm_socketcan or vm_monitor command, its OUTDIR
+    replaced."""
+    at = 2 if cmd[1] == "--share-host" else 1
     t0 = time.monotonic()
-    run([cmd[0], str(outdir)] + cmd[2:], 600)
+    run(cmd[:at] + [str(outdir)] + cmd[at + 1:], 600)
     ctest_s = time.monotonic() - t0
+    if at == 2:
+        r = parse_monitor_run(outdir)
+        r["wall_s"] = float((outdir / "wall_time_s").read_text())
+        r["ctest_s"] = ctest_s
+        return r
     r = parse_log((outdir / "serial.log").read_text(errors="replace"))
     r["wall_s"] = float((outdir / "wall_time_s").read_text())
     r["ctest_s"] = ctest_s
@@ -126,7 +164,8 @@ def render(runs: list[dict], failure_modes_s: float, where: str) -> str:
          span([r["runner_s"] for r in runs]) + " s"],
         ["console dump (capture + CSV)",
          f"{span([r['dump_s'] for r in runs])} s, serial log {first['log_bytes'] // 1024} KiB"],
-        ["`vm_socketcan_failure_modes` (one short boot)", f"{failure_modes_s:.1f} s"],
+        ["`vm_socketcan_failure_modes` (8 cases: 4 short boots, one of 1 s)",
+         f"{failure_modes_s:.1f} s"],
         ["initramfs (gzip -1)", f"{first['initrd_bytes'] / 2**20:.1f} MiB"],
         ["in-guest checks",
          f"{first['checks_self'] + first['checks_e2e']} (self-test {first['checks_self']}, "
@@ -146,6 +185,42 @@ def render(runs: list[dict], failure_modes_s: float, where: str) -> str:
     return head + "\n\n" + "\n".join(body)
 
 
+def render_monitor(runs: list[dict], where: str) -> str:
+    s = [r["summary"] for r in runs]
+    steps = sorted({k for r in runs for k in r["device_s"]})
+    rows = [
+        ["QEMU wall time, boot + test (`OUTDIR/wall_time_s`)",
+         ", ".join(f"{r['wall_s']:.1f}" for r in runs) + " s"],
+        ["`vm_monitor` as CTest runs it (image build with the kernel cached + boot)",
+         span([r["ctest_s"] for r in runs]) + " s"],
+        ["kernel boot; Python interpreter start in the chroot (9p)",
+         f"{span([r['boot_s'] for r in runs])} s; {span([r['python_start_s'] for r in runs])} s"],
+        ["imports of hdtools and every hdsense subcommand (once, before forking)",
+         span([r["imports_s"] for r in runs]) + " s"],
+        ["`hdsense monitor` forked to its first line (socket bound)",
+         span([r["monitor_start_s"] for r in runs]) + " s"],
+        ["`hdsense device` each (fork, parser, DBC, answers)",
+         ", ".join(f"{k} {span([r['device_s'][k] for r in runs])} s" for k in steps)],
+        ["telemetry run (2000 samples, `--realtime`); the monitor done reading",
+         f"{span([r['runner_s'] for r in runs])} s; "
+         f"{span([r['drain_s'] for r in runs])} s after the runner's end"],
+        ["monitor summary: frames, telemetry pairs, lost",
+         f"{span([int(x['frames']) for x in s], 'd')}, "
+         f"{span([int(x['telemetry_pairs']) for x in s], 'd')}, "
+         f"{span([int(x['lost_telemetry']) for x in s], 'd')}"],
+        ["monitor summary: foreign, malformed, error frames (injected)",
+         f"{span([int(x['foreign_frames']) for x in s], 'd')}, "
+         f"{span([int(x['malformed_frames']) for x in s], 'd')}, "
+         f"{span([int(x['error_frames']) for x in s], 'd')}"],
+        ["monitor's kernel receive buffer (`rx_buffer_bytes`)",
+         f"{span([int(x['rx_buffer_bytes']) / 2**20 for x in s], '.0f')} MiB"],
+    ]
+    head = (f"_{len(runs)} runs of `tests/vm/vm_doc.py`, {where}; kernel {runs[0]['kernel']}, "
+            "TCG; wall times vary with the host's load: not checked_")
+    body = ["| Quantity | Value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
+    return head + "\n\n" + "\n".join(body)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--build", type=Path, required=True)
@@ -158,17 +233,25 @@ def main(argv: list[str] | None = None) -> int:
         where = machine()
         cmds = ctest_commands(a.build.resolve())
         vm = command_of(cmds, "vm_socketcan", a.build)
+        mon = command_of(cmds, "vm_monitor", a.build)
         fm = command_of(cmds, "vm_socketcan_failure_modes", a.build)
         with tempfile.TemporaryDirectory(prefix="vm_doc.") as tmp:
             runs = []
             for i in range(a.runs):
                 runs.append(measure_run(vm, Path(tmp) / f"run{i}"))
-                print(f"vm_doc: run {i + 1}: {runs[-1]['wall_s']:.1f} s", flush=True)
+                print(f"vm_doc: vm_socketcan run {i + 1}: {runs[-1]['wall_s']:.1f} s", flush=True)
+            monitor_runs = []
+            for i in range(a.runs):
+                monitor_runs.append(measure_run(mon, Path(tmp) / f"monitor{i}"))
+                print(f"vm_doc: vm_monitor run {i + 1}: {monitor_runs[-1]['wall_s']:.1f} s",
+                      flush=True)
             t0 = time.monotonic()
             run([fm[0], str(Path(tmp) / "failure-modes")] + fm[2:], 600)
             failure_modes_s = time.monotonic() - t0
-        print(update_doc(a.doc, {"socketcan-vm": render(runs, failure_modes_s, where)}, False, ""))
-    except (GenDocError, OSError, ValueError) as exc:
+        print(update_doc(a.doc, {"socketcan-vm": render(runs, failure_modes_s, where),
+                                 "socketcan-vm-monitor": render_monitor(monitor_runs, where)},
+                         False, ""))
+    except (GenDocError, OSError, ValueError, KeyError) as exc:
         print(f"vm_doc: {exc}", file=sys.stderr)
         return 1
     return 0
