@@ -88,6 +88,26 @@ def doc_section(name, lines):
     return results.extract(text, name), results.section(name, lines)
 
 
+def assert_summary_current(part, entries):
+    """docs/results/analyze.json (the README's headline source, written in
+    the same run as docs/analyze-results.md) holds these entries of `part`
+    ("cases" or "iiwa"): numbers to 1e-9 relative."""
+    import json
+    from hdtools.analysis import results
+    stale = ("docs/results/analyze.json is stale: run "
+             "tools/hdsense analyze --results-doc docs/analyze-results.md")
+    assert results.SUMMARY.is_file(), stale
+    stored = json.loads(results.SUMMARY.read_text())[part]
+    for name, now in entries.items():
+        now = results._finite(now)
+        assert set(stored.get(name, {})) == set(now), f"{stale} ({name})"
+        for key, value in now.items():
+            if isinstance(value, float):
+                assert stored[name][key] == pytest.approx(value, rel=1e-9), f"{stale} ({name} {key})"
+            else:
+                assert stored[name][key] == value, f"{stale} ({name} {key})"
+
+
 def assert_doc_current(sections):
     """Each (name, lines) section of docs/analyze-results.md is what these
     reports give."""

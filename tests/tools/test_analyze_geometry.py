@@ -154,3 +154,6 @@ def test_results_doc_slow_tables_are_current(case_report):
     reports = {c.name: case_report(c.name) for c in results.SLOW}
     assert_doc_current([("slow", results.suite_table(reports, results.SLOW)),
                         ("slow-bands", results.bands_table(reports, results.SLOW))])
+    from conftest import assert_summary_current
+    assert_summary_current("cases", {c.name: results.case_summary(reports[c.name], c.what)
+                                     for c in results.SLOW})

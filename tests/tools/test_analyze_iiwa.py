@@ -91,3 +91,5 @@ def test_never_worse_out_of_sample_and_gravity_kept(reports, joint):
 def test_results_doc_iiwa_table_is_current(reports):
     from hdtools.analysis import results
     assert_doc_current([("iiwa", results.iiwa_table(reports))])
+    from conftest import assert_summary_current
+    assert_summary_current("iiwa", {str(j): results.joint_summary(r) for j, r in reports.items()})

@@ -15,6 +15,7 @@ position-dependent gravity torque, the controller's feed-forward, time
 stamps that jitter, logger pauses)."""
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -29,6 +30,7 @@ SCENARIOS = ROOT / "tests" / "tools" / "scenarios"
 REAL = (ROOT / ".." / "shared" / "data" / "real").resolve()
 IIWA_JOINTS = (2, 4, 5)
 DOC = ROOT / "docs" / "analyze-results.md"
+SUMMARY = ROOT / "docs" / "results" / "analyze.json"
 # Cases whose plots go to docs/img/analyze_<prefix>_<plot>.png.
 PLOTTED = {"mains": "sim_mains", "slowload-out2": "sim_slowload_out2",
            "swing-gravity": "sim_swing_gravity"}
@@ -335,6 +337,61 @@ def render(suite: dict, slow: dict, iiwa: dict, bench: str | None = None,
     return "\n".join(parts) + "\n"
 
 
+def case_summary(r, what: str) -> dict:
+    """The numbers of one case the README's headline reads (the same
+    report fields as the tables)."""
+    return {"what": what, "kept": kept(r),
+            "innovation_out_of_sample_before_nm": r["out_of_sample_residual_rms_before_nm"],
+            "innovation_out_of_sample_after_nm": r["out_of_sample_residual_rms_after_nm"],
+            "error_out_of_sample_before_nm": r.get("out_of_sample_error_rms_before_nm"),
+            "error_out_of_sample_after_nm": r.get("out_of_sample_error_rms_after_nm"),
+            "error_after_nm": r.get("error_rms_after_nm"),
+            "noise_estimate_nm": r["data"]["noise_estimate_nm"]}
+
+
+def joint_summary(r) -> dict:
+    """An iiwa joint: the inferred gear ratio and the motor lines removed."""
+    g = r["gear_ratio"]
+    return {"gear_ratio": g["value"], "gear_ratio_uncertainty": g.get("uncertainty"),
+            "confidence": g.get("confidence"), "kept": kept(r),
+            "motor_order_2_removed_pct": line_removal(r, "motor", 2)[2],
+            "motor_order_4_removed_pct": line_removal(r, "motor", 4)[2]}
+
+
+def hour_summary(bench: str | None) -> dict | None:
+    """Seconds and peak memory of the one-hour benchmark, read from its
+    printed block (the block is the record; it is rerun only with
+    --bench-hour)."""
+    if not bench:
+        return None
+    import re
+    m = re.search(r"load \+ full analysis\s*:\s*([\d.]+) s .*?peak (\d+) MB", bench)
+    h = re.search(r"\(([\d.]+) h at (\d+) Hz\)", bench)
+    if not m or not h:
+        return None
+    return {"hours": float(h.group(1)), "rate_hz": int(h.group(2)),
+            "analysis_s": float(m.group(1)), "peak_mb": int(m.group(2))}
+
+
+def summary(suite: dict, slow: dict, iiwa: dict, bench: str | None) -> dict:
+    """docs/results/analyze.json: per case, fold B (out-of-sample) numbers;
+    per iiwa joint, the inferred gear ratio and the lines removed."""
+    cases = {c.name: case_summary(suite[c.name], c.what) for c in SUITE}
+    cases.update({c.name: case_summary(slow[c.name], c.what) for c in SLOW})
+    return {"tool": "tools/hdsense analyze --results-doc docs/analyze-results.md",
+            "cases": cases, "iiwa": {str(j): joint_summary(r) for j, r in iiwa.items()},
+            "hour": hour_summary(bench)}
+
+
+def _finite(o):
+    """JSON has no NaN: a number that is not finite becomes null."""
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, float):
+        return o if math.isfinite(o) else None
+    return o
+
+
 def extract(text: str, name: str) -> str | None:
     a, b = f"<!-- generated: {name} -->", f"<!-- end: {name} -->"
     if a not in text or b not in text:
@@ -392,6 +449,11 @@ def main(path, with_bench: bool = False) -> int:
     slow = {c.name: reports[c.name] for c in SLOW}
     with Outputs() as out:
         out.write_text(path, render(suite, slow, iiwa, bench, sorted(images)))
+        results_dir = Path(path).resolve().parent / "results"
+        results_dir.mkdir(parents=True, exist_ok=True)
+        out.write_text(results_dir / "analyze.json",
+                       json.dumps(_finite(summary(suite, slow, iiwa, bench)), indent=1,
+                                  allow_nan=False) + "\n")
         img_dir.mkdir(parents=True, exist_ok=True)
         for name, data in images.items():
             out.write_bytes(img_dir / name, data)

@@ -1,0 +1,52 @@
+"""The README's headline table is what hdtools.headline renders from
+docs/results/*.json (the files the measuring tools write), and each
+rendered number is the one in those files."""
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+
+from hdtools import headline  # noqa: E402
+
+
+def test_readme_headline_is_current():
+    text = headline.README.read_text()
+    assert headline.BEGIN in text and headline.END in text
+    now = headline.splice(text, headline.render(headline.load()))
+    assert now == text, ("README.md headline is stale: run `cd tools && ../.venv/bin/python "
+                         "-m hdtools.headline --write`")
+
+
+def test_two_commands_in_the_first_twenty_lines():
+    head = headline.README.read_text().splitlines()[:20]
+    assert any(line.startswith("tools/demo") for line in head)
+    assert any(line.startswith("tools/test") for line in head)
+    assert "exec tools/test" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_readme_is_a_front_door():
+    assert len(headline.README.read_text().splitlines()) <= 300
+
+
+def test_numbers_come_from_the_result_files():
+    """The demo row quotes the demo's own numbers (read here from the JSON
+    independently of the renderer) and the corpus row its counts."""
+    results = headline.load()
+    block = headline.render(results)
+    demo = json.loads((headline.RESULTS / "demo.json").read_text())
+    assert f"**{demo['operate_with_profile']['rms_error_filtered_nm']} N m**" in block
+    corpus = json.loads((headline.RESULTS / "corpus.json").read_text())
+    assert re.search(rf"\| {corpus['cases']} cases", block)
+    assert sum(corpus["per_class"].values()) == corpus["cases"]
+
+
+def test_missing_result_file_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(headline, "RESULTS", tmp_path)
+    rc = headline.main(["--check"])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "demo.json" in err
