@@ -258,8 +258,9 @@ def main() -> int:
                                      "--duration", "150", "--interval", "0.5"])
     procs: list[subprocess.Popen] = []
     try:
-        ready = wait_for(lambda: (RUN / "monitor.out").exists()
-                         and (RUN / "monitor.out").stat().st_size > 0, 60)
+        said = lambda name: (RUN / name).exists() and (RUN / name).stat().st_size > 0  # noqa: E731
+        wait_for(lambda: said("monitor.out") or said("monitor.err"), 60)
+        ready = said("monitor.out") and not said("monitor.err")
         if not check(ready, f"hdsense monitor started ({mark('monitor_ready_s'):.2f} s)"):
             return 1
         # -- commands: a joint with telemetry off, hdsense device
