@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import math
 
-from . import current_fit
 from .safeio import Outputs, UsageError
 
 
@@ -37,6 +36,7 @@ def register(sub) -> None:
 
 
 def main(args) -> int:
+    from . import current_fit      # scipy: loaded only when this subcommand runs
     from .analysis import loading
     if args.gear_ratio is not None and not (math.isfinite(args.gear_ratio) and
                                             args.gear_ratio >= 1):
