@@ -12,15 +12,6 @@
 #include "hd_fw_records.h"
 #include "hd_params.h"
 
-#ifndef HD_FW_VERSION_MAJOR
-#define HD_FW_VERSION_MAJOR 0
-#define HD_FW_VERSION_MINOR 0
-#define HD_FW_VERSION_PATCH 0
-#endif
-#ifndef HD_FW_GIT_HASH
-#define HD_FW_GIT_HASH 0u
-#endif
-
 typedef struct {
     int result;       /* hd_can_result_t */
     uint8_t aux;
@@ -264,53 +255,13 @@ static void config_job(hd_fw_t *fw, uint8_t opcode, reply_t *r)
 
 /* ---------------------------------------------------------- information */
 
-static uint32_t version_word(void)
-{
-    return (uint32_t)HD_FW_VERSION_MAJOR * 65536u + (uint32_t)HD_FW_VERSION_MINOR * 256u +
-           (uint32_t)HD_FW_VERSION_PATCH;
-}
-
-static bool info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
-{
-    const hd_fw_counters_t *c = &fw->counters;
-    const hal_boot_info_t *b = &fw->bg.boot;
-    switch (item) {
-    case HD_INFO_PROTOCOL_VERSION: *v = HD_CAN_PROTOCOL_VERSION; return true;
-    case HD_INFO_FIRMWARE_VERSION: *v = version_word(); return true;
-    case HD_INFO_GIT_HASH: *v = (uint32_t)HD_FW_GIT_HASH; return true;
-    case HD_INFO_BOARD_ID: *v = fw->hal->system.board_id; return true;
-    case HD_INFO_CALIB_RECORD_VERSION: *v = HD_CALIB_RECORD_VERSION; return true;
-    case HD_INFO_CONFIG_RECORD_VERSION: *v = HD_CONFIG_RECORD_VERSION; return true;
-    case HD_INFO_PROFILE_RECORD_VERSION: *v = HD_PROFILE_RECORD_VERSION; return true;
-    case HD_INFO_PARAM_TABLE_CRC: *v = hd_param_table_crc(); return true;
-    case HD_INFO_RESET_CAUSE: *v = b->reset_cause; return true;
-    case HD_INFO_FAULT_PC: *v = b->fault_valid ? b->fault_pc : 0u; return true;
-    case HD_INFO_FAULT_LR: *v = b->fault_valid ? b->fault_lr : 0u; return true;
-    case HD_INFO_FAULT_CFSR: *v = b->fault_valid ? b->fault_cfsr : 0u; return true;
-    case HD_INFO_FAULT_HFSR: *v = b->fault_valid ? b->fault_hfsr : 0u; return true;
-    case HD_INFO_FAULT_ADDR: *v = b->fault_valid ? b->fault_addr : 0u; return true;
-    case HD_INFO_TICKS: *v = c->ticks; return true;
-    case HD_INFO_VALID_SAMPLES: *v = c->valid_samples; return true;
-    case HD_INFO_FAULT_TICKS: *v = c->fault_ticks; return true;
-    case HD_INFO_DEADLINE_MISSES: *v = c->deadline_misses; return true;
-    case HD_INFO_TELEMETRY_FRAMES: *v = c->telemetry_frames; return true;
-    case HD_INFO_COMMANDS: *v = c->commands; return true;
-    case HD_INFO_COMMAND_ERRORS: *v = c->command_errors; return true;
-    case HD_INFO_COMMANDS_DROPPED: *v = c->commands_dropped; return true;
-    case HD_INFO_FRAMES_DROPPED: *v = c->frames_dropped; return true;
-    case HD_INFO_FOREIGN_FRAMES: *v = c->foreign_frames; return true;
-    case HD_INFO_FEEDFORWARD_FRAMES: *v = c->feedforward_frames; return true;
-    default: return false;
-    }
-}
-
 static void info(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
     uint8_t item = cmd->arg_u8[0];
     r->aux = item;
     /* VERSION answers the items below 16, INFO the rest. */
     bool mine = (cmd->opcode == HD_CMD_VERSION) ? item < 16u : item >= 16u;
-    if (!mine || !info_item(fw, item, &r->value_u32)) {
+    if (!mine || !hd_fw_info_item(fw, item, &r->value_u32)) {
         r->result = HD_CAN_RES_BAD_INDEX;
     }
 }

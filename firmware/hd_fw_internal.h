@@ -61,6 +61,10 @@ int hd_fw_profile_clear(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux);
 /* hd_pipeline_init with the firmware's filter configuration (hd_fw_kf_config). */
 int hd_fw_pipeline_init(hd_pipeline_t *p, const hd_fw_config_t *c);
 
+/* The value of VERSION / INFO item `item` (HD_INFO_*) into *v; false for an
+ * item this firmware does not have (hd_fw_info.c). */
+bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v);
+
 /* The configuration hd_fw_init was given: CONFIG_DEFAULTS returns to it. */
 const hd_fw_config_t *hd_fw_boot_defaults(const hd_fw_t *fw);
 

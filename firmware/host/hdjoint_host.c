@@ -1,10 +1,10 @@
 /*
  * hdjoint-host: runs the firmware ISR on a PC.
  *
- *   hdjoint-host --sensors sim:SCENARIO.ini | replay:FILE.hdraw | mock
- *                [--can log:FILE.log | socketcan:IFNAME | none]
- *                [--config FILE] [--realtime] [--duration S] [--csv OUT.csv]
- *                [--calib GAIN_NM_PER_V,OFFSET_V] [--nvm FILE] [--cmd ID#HEX]...
+ *   hdjoint-host --sensors sim:SCENARIO.ini | replay:FILE.hdraw | mock [options]
+ *
+ * (the options: host_options.c, `--help`; the NVM image and what is stored
+ * before boot: host_nvm.c; the summary: host_report.c)
  *
  * Fast mode (default) runs ticks back to back; --realtime runs them at 1 kHz
  * on CLOCK_MONOTONIC with clock_nanosleep(TIMER_ABSTIME) and reports wake-up
@@ -33,9 +33,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 
-#include <ctype.h>
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -49,6 +47,9 @@
 #include "hd_fw.h"
 #include "hd_fw_records.h"
 #include "hd_hostio.h"
+#include "host_nvm.h"
+#include "host_options.h"
+#include "host_report.h"
 #ifdef HD_HAVE_SIM
 #include "hal_sim.h"
 #endif
@@ -56,234 +57,12 @@
 #include "hal_socketcan.h"
 #endif
 
-#define EXIT_RUN 1
-#define EXIT_USAGE 2
-#define EXIT_WRITE 3
-
 #define HOST_PI 3.14159265358979323846
 
-/* --cmd-at times, held by a global like the other heap blocks of the
- * options (an early exit is not a leak). */
-static uint64_t *g_heap_cmd_due;
-
-/* "GAIN,OFFSET_V" -> two finite floats; strtof reports overflow (ERANGE),
- * which sscanf does not. */
-static bool parse_calib_pair(const char *text, float *gain, float *offset_v)
-{
-    char *end;
-    errno = 0;
-    *gain = strtof(text, &end);
-    if (end == text || *end != ',' || errno == ERANGE) {
-        return false;
-    }
-    const char *second = end + 1;
-    *offset_v = strtof(second, &end);
-    return end != second && *end == '\0' && errno != ERANGE;
-}
-
-/* Heap blocks that live until exit, held by globals so that an early
+/* A heap block that lives until exit, held by a global so that an early
  * return (an error message and exit) is not reported as a leak. */
-static const char **g_heap_cmd_args;
 static void *g_heap_cmd_frames;
 static hal_replay_t *g_replay;
-
-typedef struct {
-    const char *sensors;
-    const char *can;
-    const char *config;
-    const char *csv;
-    const char *nvm_file;
-    bool realtime;
-    double duration_s;
-    bool have_calib;
-    float calib_gain;
-    float calib_offset;
-    const char **cmds;   /* argc entries at most */
-    uint64_t *cmd_due;   /* tick from which each may be delivered (--cmd-at) */
-    int n_cmds;
-    bool quiet;
-    const char *profile; /* profile record file to store in NVM before start */
-} options_t;
-
-static void usage(FILE *f)
-{
-    fputs("usage: hdjoint-host --sensors sim:SCENARIO | replay:FILE.hdraw | mock\n"
-          "                    [--can log:FILE | socketcan:IFNAME | none] [--config FILE]\n"
-          "                    [--realtime] [--duration S] [--csv OUT.csv]\n"
-          "                    [--calib GAIN_NM_PER_V,OFFSET_V] [--nvm FILE] [--cmd ID#HEX]...\n"
-          "                    [--profile FILE.hdprofile] [--quiet]\n"
-          "       hdjoint-host --version | --help\n"
-          "  -s, --sensors  sample source: the simulated joint, a recorded raw stream, or a\n"
-          "                 built-in synthetic joint (mock)\n"
-          "  --can          log: write every frame as a candump -l log; socketcan: use IFNAME\n"
-          "  --config       firmware configuration text file (docs/firmware.md)\n"
-          "  --realtime     run at a real 1 kHz (default: as fast as possible)\n"
-          "  --duration     stop after S seconds of samples (default: end of the source; mock 10 s)\n"
-          "  --csv          per-sample output\n"
-          "  --calib        store this calibration record in NVM before start\n"
-          "                 (sim: the scenario's nominal calibration is stored by default)\n"
-          "  --nvm          NVM image file: loaded at start (if it exists), written after\n"
-          "                 every change (temporary file, fsync, rename)\n"
-          "  --cmd          command frame for the firmware, e.g. 01D01001#2100020000000000;\n"
-          "                 repeatable, delivered in order from the first tick (log/none CAN)\n"
-          "  --cmd-at       SECONDS:ID#HEX: the same, not before that sample time (in order\n"
-          "                 with the --cmd frames)\n"
-          "  --profile      store this profile record (hdsense profile) in NVM before start\n"
-          "  -q, --quiet    no summary on stdout\n"
-          "exit status: 0 ok, 1 run failed, 2 bad command line or input, 3 write failed,\n"
-          "             130/143 interrupted by SIGINT/SIGTERM (outputs whole)\n",
-          f);
-}
-
-static int bad_arg(const char *msg, const char *arg)
-{
-    fprintf(stderr, "hdjoint-host: %s%s%s (see --help)\n", msg, arg != NULL ? ": " : "",
-            arg != NULL ? arg : "");
-    return -1;
-}
-
-/* Returns 0 to run, 1 after --help/--version, -1 on a bad command line. */
-static int parse_args(int argc, char **argv, options_t *o)
-{
-    static const struct option longopts[] = {
-        {"sensors", required_argument, NULL, 's'},
-        {"can", required_argument, NULL, 'c'},
-        {"config", required_argument, NULL, 'f'},
-        {"csv", required_argument, NULL, 'o'},
-        {"nvm", required_argument, NULL, 'n'},
-        {"duration", required_argument, NULL, 'd'},
-        {"calib", required_argument, NULL, 'k'},
-        {"cmd", required_argument, NULL, 'm'},
-        {"cmd-at", required_argument, NULL, 'T'},
-        {"realtime", no_argument, NULL, 'r'},
-        {"quiet", no_argument, NULL, 'q'},
-        {"profile", required_argument, NULL, 'P'},
-        {"help", no_argument, NULL, 'h'},
-        {"version", no_argument, NULL, 'V'},
-        {NULL, 0, NULL, 0},
-    };
-    memset(o, 0, sizeof *o);
-    o->can = "none";
-    o->duration_s = -1.0;
-    o->cmds = calloc((size_t)argc + 1u, sizeof *o->cmds);
-    g_heap_cmd_args = o->cmds;
-    if (o->cmds == NULL) {
-        return bad_arg("out of memory", NULL);
-    }
-    o->cmd_due = calloc((size_t)argc + 1u, sizeof *o->cmd_due);
-    g_heap_cmd_due = o->cmd_due;
-    if (o->cmd_due == NULL) {
-        return bad_arg("out of memory", NULL);
-    }
-    opterr = 0; /* our own one-line messages */
-    int c;
-    while ((c = getopt_long(argc, argv, ":s:qhV", longopts, NULL)) != -1) {
-        char *end;
-        switch (c) {
-        case 's': o->sensors = optarg; break;
-        case 'c': o->can = optarg; break;
-        case 'f': o->config = optarg; break;
-        case 'o': o->csv = optarg; break;
-        case 'n': o->nvm_file = optarg; break;
-        case 'r': o->realtime = true; break;
-        case 'q': o->quiet = true; break;
-        case 'P': o->profile = optarg; break;
-        case 'm': o->cmds[o->n_cmds++] = optarg; break;
-        case 'T': {
-            errno = 0;
-            double at = strtod(optarg, &end);
-            if (end == optarg || *end != ':' || errno == ERANGE || !(at >= 0.0) || at > 1e7) {
-                return bad_arg("--cmd-at wants SECONDS:ID#HEX with 0 <= SECONDS <= 1e7", optarg);
-            }
-            o->cmd_due[o->n_cmds] = (uint64_t)llround(at * 1000.0);
-            o->cmds[o->n_cmds++] = end + 1;
-            break;
-        }
-        case 'h':
-            usage(stdout);
-            return 1;
-        case 'V':
-            printf("hdjoint-host %s\n", hd_hostio_version());
-            return 1;
-        case 'd':
-            errno = 0;
-            o->duration_s = strtod(optarg, &end);
-            if (end == optarg || *end != '\0' || errno == ERANGE || !(o->duration_s > 0.0) ||
-                !isfinite(o->duration_s) || o->duration_s > 1e7) {
-                return bad_arg("--duration must be a positive number of seconds (<= 1e7)",
-                               optarg);
-            }
-            break;
-        case 'k':
-            if (!parse_calib_pair(optarg, &o->calib_gain, &o->calib_offset) ||
-                !(o->calib_gain > 0.0f) || !isfinite(o->calib_gain) ||
-                !isfinite(o->calib_offset)) {
-                return bad_arg("--calib wants GAIN,OFFSET with GAIN > 0", optarg);
-            }
-            o->have_calib = true;
-            break;
-        case ':':
-            return bad_arg("option needs a value", argv[optind - 1]);
-        default:
-            return bad_arg("unknown option", argv[optind - 1]);
-        }
-    }
-    if (optind < argc) {
-        return bad_arg("unexpected argument", argv[optind]);
-    }
-    if (o->sensors == NULL) {
-        return bad_arg("--sensors is required", NULL);
-    }
-    if (o->n_cmds > 0 && strncmp(o->can, "socketcan:", 10) == 0) {
-        return bad_arg("--cmd needs --can log:FILE or none (on SocketCAN, send commands on "
-                       "the bus, e.g. with cansend)", NULL);
-    }
-    return 0;
-}
-
-/* "123#0011AA" -> frame (classic CAN, up to 8 bytes). */
-static int hex_digit(char c)
-{
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-static int parse_frame(const char *s, hal_can_frame_t *f)
-{
-    memset(f, 0, sizeof *f);
-    if (hex_digit(s[0]) < 0) {
-        return -1; /* strtoul would skip spaces and take a sign */
-    }
-    char *end;
-    errno = 0;
-    unsigned long id = strtoul(s, &end, 16);
-    /* cansend notation: 3 hex digits for 11 bits, 8 for 29 bits */
-    const size_t digits = (size_t)(end - s);
-    if (end == s || *end != '#' || errno == ERANGE || (digits != 3u && digits != 8u) ||
-        (digits == 3u && id > 0x7FFu) || (digits == 8u && id > 0x1FFFFFFFu)) {
-        return -1;
-    }
-    if (digits == 8u) {
-        f->flags = HAL_CAN_FLAG_EXT;
-    }
-    const char *p = end + 1;
-    size_t n = strlen(p);
-    if (n % 2u != 0u || n / 2u > 8u) {
-        return -1;
-    }
-    for (size_t i = 0; i < n / 2u; i++) {
-        const int hi = hex_digit(p[2u * i]), lo = hex_digit(p[2u * i + 1u]);
-        if (hi < 0 || lo < 0) {
-            return -1;
-        }
-        f->data[i] = (uint8_t)(hi * 16 + lo);
-    }
-    f->id = (uint32_t)id;
-    f->len = (uint8_t)(n / 2u);
-    return 0;
-}
 
 /* ------------------------------------------------------------ CAN logging */
 
@@ -349,174 +128,15 @@ static uint64_t now_ns(void)
     return (uint64_t)ts.tv_sec * 1000000000ull + (uint64_t)ts.tv_nsec;
 }
 
-typedef struct {
-    uint64_t ticks;
-    double jitter_max_us;
-    double jitter_sum_us;
-    uint64_t overruns;     /* ticks whose deadline had already passed */
-    uint64_t missed_ticks; /* whole periods skipped to catch up */
-    double isr_max_us;
-    double isr_sum_us;
-} timing_t;
-
-/* ---------------------------------------------------------------- errors */
-
-typedef struct {
-    uint64_t n;
-    double sum_raw2;
-    double sum_filt2;
-    uint64_t n_first;        /* the first second (boot) */
-    double sum_filt2_first;
-    uint64_t n_settled;      /* after the first second */
-    double sum_raw2_settled;
-    double sum_filt2_settled;
-} err_t;
-
-static void err_add(err_t *e, double t_s, double raw, double filt, double truth)
-{
-    if (!isfinite(raw) || !isfinite(filt) || !isfinite(truth)) {
-        return;
-    }
-    double dr = raw - truth, df = filt - truth;
-    e->n++;
-    e->sum_raw2 += dr * dr;
-    e->sum_filt2 += df * df;
-    if (t_s < 1.0) {
-        e->n_first++;
-        e->sum_filt2_first += df * df;
-    }
-    if (t_s >= 1.0) {
-        e->n_settled++;
-        e->sum_raw2_settled += dr * dr;
-        e->sum_filt2_settled += df * df;
-    }
-}
-
-/* ------------------------------------------------------------------ NVM */
-
-static int provision_calibration(hal_t *hal, float gain, float offset)
-{
-    hd_calib_record_t rec;
-    hd_calib_record_default(&rec);
-    rec.gain_nm_per_v = gain;
-    rec.offset_v = offset;
-    static uint8_t work[HD_STORE_IMAGE_MAX];
-    const hd_calib_storage_t s = hd_fw_store_io(hal, work, sizeof work);
-    return hd_calib_store_save(&s, &rec) == HD_RECORD_OK ? 0 : -1;
-}
-
-/* A profile record file (docs/slow-torque.md, "Record file"): "HDPF", u16
- * format version, u16 payload length, the payload of hd_fw_records.h, u32
- * CRC-32 of everything before it.  Stored as is: the firmware checks that
- * it is for this joint at boot (REFUSED otherwise, as on the MCU). */
-static int provision_profile(hal_t *hal, const char *path, char *err, size_t err_len)
-{
-    size_t len = 0;
-    char *buf = hd_hostio_read_file(path, 4096u, &len, err, err_len);
-    if (buf == NULL) {
-        return -1;
-    }
-    const uint8_t *b = (const uint8_t *)buf;
-    int rc = -1;
-    if (len < 12u || memcmp(b, "HDPF", 4) != 0) {
-        snprintf(err, err_len, "%s: not a profile record file (no HDPF header)", path);
-    } else if (hd_le_get_u16(b + 4) != HD_PROFILE_RECORD_VERSION) {
-        snprintf(err, err_len, "%s: profile record format %u, this firmware reads %u", path,
-                 (unsigned)hd_le_get_u16(b + 4), (unsigned)HD_PROFILE_RECORD_VERSION);
-    } else if ((size_t)hd_le_get_u16(b + 6) + 12u != len ||
-               hd_crc32(b, len - 4u) != hd_le_get_u32(b + len - 4u)) {
-        snprintf(err, err_len, "%s: profile record file damaged (length or CRC)", path);
-    } else {
-        static uint8_t work[HD_STORE_IMAGE_MAX];
-        const hd_store_io_t s = hd_fw_store_io(hal, work, sizeof work);
-        rc = hd_store_save(&s, HD_RECORD_KIND_PROFILE, HD_PROFILE_RECORD_VERSION, b + 8,
-                           len - 12u) == HD_RECORD_OK ? 0 : -1;
-        if (rc != 0) {
-            snprintf(err, err_len, "could not store the profile record in NVM");
-        }
-    }
-    free(buf);
-    return rc;
-}
-
-/* "fault_<name> = count" in the summary: the protocol's fault name, lower case. */
-static void print_fault_count(unsigned bit, uint32_t count)
-{
-    const char *name = hd_can_fault_str(bit);
-    printf("fault_");
-    for (const char *c = name; *c != '\0'; c++) {
-        putchar(tolower((unsigned char)*c));
-    }
-    printf(" = %u\n", (unsigned)count);
-}
-
-/* ------------------------------------------------------------------ NVM image */
-
-typedef struct {
-    const char *path;      /* NULL: no image file */
-    uint8_t saved[HAL_MOCK_NVM_BYTES];
-    bool missing;          /* no file yet: written at the start */
-    uint32_t writes;
-} nvm_file_t;
-
-/* A missing file is an erased device; anything else must be a whole image. */
-static int nvm_load(nvm_file_t *n, uint8_t *nvm, char *err, size_t err_len)
-{
-    memcpy(n->saved, nvm, sizeof n->saved);
-    if (n->path == NULL) {
-        return 0;
-    }
-    size_t len = 0;
-    char *buf = hd_hostio_read_file(n->path, HAL_MOCK_NVM_BYTES, &len, err, err_len);
-    if (buf == NULL) {
-        if (errno == ENOENT && hd_hostio_check_regular(n->path, NULL, 0) != 0 &&
-            strstr(err, "cannot open") != NULL) {
-            n->missing = true; /* starts erased; written at once (an unwritable path fails now) */
-            return 0;
-        }
-        return -1;
-    }
-    if (len != HAL_MOCK_NVM_BYTES) {
-        snprintf(err, err_len, "%s: NVM image of %zu bytes, expected %u (not written by "
-                 "hdjoint-host?)", n->path, len, (unsigned)HAL_MOCK_NVM_BYTES);
-        free(buf);
-        return -1;
-    }
-    memcpy(nvm, buf, HAL_MOCK_NVM_BYTES);
-    memcpy(n->saved, buf, HAL_MOCK_NVM_BYTES);
-    free(buf);
-    return 0;
-}
-
-/* Writes the image if it changed since the last write (or load). */
-static int nvm_sync(nvm_file_t *n, const uint8_t *nvm, char *err, size_t err_len)
-{
-    if (n->path == NULL || (!n->missing && memcmp(n->saved, nvm, sizeof n->saved) == 0)) {
-        return 0;
-    }
-    if (hd_hostio_write_atomic(n->path, nvm, HAL_MOCK_NVM_BYTES, err, err_len) != 0) {
-        return -1;
-    }
-    memcpy(n->saved, nvm, sizeof n->saved);
-    n->missing = false;
-    n->writes++;
-    return 0;
-}
-
 /* ------------------------------------------------------------------ main */
 
 static hal_mock_t g_mock;  /* large: static storage, as on the MCU */
 static hd_fw_t g_fw;
 
-static const char *signal_name(int sig)
-{
-    return sig == SIGINT ? "SIGINT" : (sig == SIGTERM ? "SIGTERM" : "a signal");
-}
-
 int main(int argc, char **argv)
 {
-    options_t o;
-    int prc = parse_args(argc, argv, &o);
+    host_options_t o;
+    int prc = host_parse_args(argc, argv, &o);
     if (prc != 0) {
         free(o.cmds);
         free(o.cmd_due);
@@ -642,7 +262,7 @@ int main(int argc, char **argv)
         return EXIT_RUN;
     }
     for (int i = 0; i < o.n_cmds; i++) {
-        if (parse_frame(o.cmds[i], &cmds[i]) != 0) {
+        if (host_parse_frame(o.cmds[i], &cmds[i]) != 0) {
             fprintf(stderr, "hdjoint-host: bad --cmd %s (want ID#HEX as cansend: 3 or 8 id digits, up to 8 bytes)\n",
                     o.cmds[i]);
             return EXIT_USAGE;
@@ -652,17 +272,17 @@ int main(int argc, char **argv)
     /* NVM: file image, then the requested or nominal calibration */
     nvm_file_t nvm = {0};
     nvm.path = o.nvm_file;
-    if (nvm_load(&nvm, g_mock.nvm, err, sizeof err) != 0) {
+    if (host_nvm_load(&nvm, g_mock.nvm, err, sizeof err) != 0) {
         fprintf(stderr, "hdjoint-host: %s\n", err);
         return EXIT_USAGE;
     }
     if ((o.have_calib || (o.nvm_file == NULL && isfinite(default_gain))) &&
-        provision_calibration(&hal, o.have_calib ? o.calib_gain : default_gain,
+        host_provision_calibration(&hal, o.have_calib ? o.calib_gain : default_gain,
                               o.have_calib ? o.calib_offset : default_offset) != 0) {
         fprintf(stderr, "hdjoint-host: could not store the calibration record in NVM\n");
         return EXIT_RUN;
     }
-    if (o.profile != NULL && provision_profile(&hal, o.profile, err, sizeof err) != 0) {
+    if (o.profile != NULL && host_provision_profile(&hal, o.profile, err, sizeof err) != 0) {
         fprintf(stderr, "hdjoint-host: %s\n", err);
         return EXIT_USAGE;
     }
@@ -672,7 +292,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "hdjoint-host: firmware init failed: %s\n", hd_fw_err_str(rc));
         return EXIT_USAGE;
     }
-    if (nvm_sync(&nvm, g_mock.nvm, err, sizeof err) != 0) {
+    if (host_nvm_sync(&nvm, g_mock.nvm, err, sizeof err) != 0) {
         fprintf(stderr, "hdjoint-host: %s\n", err);
         return EXIT_WRITE;
     }
@@ -726,8 +346,8 @@ int main(int argc, char **argv)
     }
 
     uint64_t max_ticks = (o.duration_s > 0.0) ? (uint64_t)llround(o.duration_s * 1000.0) : UINT64_MAX;
-    timing_t tm = {0};
-    err_t er = {0};
+    host_timing_t tm = {0};
+    host_errors_t er = {0};
     double motor_angle = 0.0;
     uint64_t period_ns = (uint64_t)HD_FW_TS_US * 1000u;
     uint64_t next_ns = now_ns() + period_ns;
@@ -796,7 +416,7 @@ int main(int argc, char **argv)
             tm.isr_max_us = isr_us;
         }
         tm.ticks++;
-        if (hd_fw_background(&g_fw) && nvm_sync(&nvm, g_mock.nvm, err, sizeof err) != 0) {
+        if (hd_fw_background(&g_fw) && host_nvm_sync(&nvm, g_mock.nvm, err, sizeof err) != 0) {
             nvm_failed = true;
             break;
         }
@@ -814,7 +434,7 @@ int main(int argc, char **argv)
 #endif
         motor_angle += (double)s->d_motor_angle_rad;
         double t_s = (double)k * 1e-3;
-        err_add(&er, t_s, (double)s->torque_raw_nm, (double)s->torque_filtered_nm, truth);
+        host_errors_add(&er, t_s, (double)s->torque_raw_nm, (double)s->torque_filtered_nm, truth);
         if (csv_open) {
             hd_out_printf(&csv, "%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%u,%u,%.6g", t_s,
                           (int)s->bridge_counts, (double)s->torque_raw_nm,
@@ -877,81 +497,18 @@ int main(int argc, char **argv)
     }
     if (sig != 0) {
         fprintf(stderr, "hdjoint-host: interrupted by %s after %llu samples; outputs complete "
-                "up to there\n", signal_name(sig), (unsigned long long)tm.ticks);
+                "up to there\n", host_signal_name(sig), (unsigned long long)tm.ticks);
         exit_code = 128 + sig;
     }
 
     /* summary */
-    const hd_fw_counters_t *c = hd_fw_counters(&g_fw);
-    hal_counters_t hc = {0};
-    if (hal.can.counters != NULL) {
-        hal.can.counters(hal.can.ctx, &hc);
-    }
     if (!o.quiet) {
-        printf("samples = %llu\n", (unsigned long long)c->ticks);
-        printf("valid_samples = %llu\n", (unsigned long long)c->valid_samples);
-        printf("mode = %s\n", o.realtime ? "realtime" : "fast");
-        if (sig != 0) {
-            printf("interrupted = %s\n", signal_name(sig));
-        }
-        printf("wall_time_s = %.3f\n", wall_s);
-        printf("isr_mean_us = %.3f\n", tm.ticks ? tm.isr_sum_us / (double)tm.ticks : 0.0);
-        printf("isr_max_us = %.3f\n", tm.isr_max_us);
-        if (o.realtime) {
-            printf("jitter_mean_us = %.3f\n", tm.ticks ? tm.jitter_sum_us / (double)tm.ticks : 0.0);
-            printf("jitter_max_us = %.3f\n", tm.jitter_max_us);
-            printf("overruns = %llu\n", (unsigned long long)tm.overruns);
-            printf("missed_ticks = %llu\n", (unsigned long long)tm.missed_ticks);
-        }
-        printf("deadline_misses = %u\n", (unsigned)c->deadline_misses);
-        printf("fault_ticks = %u\n", (unsigned)c->fault_ticks);
-        for (unsigned b = 0; b < HD_FAULT_COUNT; b++) {
-            if (c->by_fault[b] != 0u) {
-                print_fault_count(b, c->by_fault[b]);
-            }
-        }
-        printf("calib_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CALIB));
-        printf("profile_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_PROFILE));
-        printf("profile_imports = %u\n", (unsigned)c->profile_imports);
-        const hd_fw_config_t *fc = hd_fw_config(&g_fw);
-        printf("expected_model = J %g kg m^2, b %g N m s/rad, Fc %g N m (%s)\n",
-               (double)fc->expected.inertia_kgm2, (double)fc->expected.viscous_nm_s_rad,
-               (double)fc->expected.coulomb_nm, o.config != NULL ? "defaults + --config" :
-               "defaults");
-        printf("feedforward_frames_given = %llu\n", (unsigned long long)ff_frames);
-        printf("feedforward_frames_taken = %u\n", (unsigned)c->feedforward_frames);
-        printf("config_status = %d\n", hd_fw_record_status(&g_fw, HD_RECORD_KIND_CONFIG));
-        printf("truth = %s\n", have_truth ? "yes" : "no");
-        printf("telemetry_periods = %u\n", (unsigned)c->telemetry_frames);
-        printf("commands = %u\n", (unsigned)c->commands);
-        printf("command_errors = %u\n", (unsigned)c->command_errors);
-        printf("cmd_frames_given = %d\n", o.n_cmds);
-        printf("can_tx_ok = %u\n", (unsigned)hc.can_tx_ok);
-        printf("can_tx_dropped = %u\n", (unsigned)hc.can_tx_dropped);
-        if (canlog.open) {
-            printf("can_log = %s\n", o.can + 4);
-            printf("can_log_frames = %llu\n", (unsigned long long)canlog.frames);
-        }
-        if (o.nvm_file != NULL) {
-            printf("nvm_file = %s\n", o.nvm_file);
-            printf("nvm_writes = %u\n", (unsigned)nvm.writes);
-        }
-        if (er.n > 0u) {
-            printf("rms_error_raw_nm = %.4f\n", sqrt(er.sum_raw2 / (double)er.n));
-            printf("rms_error_filtered_nm = %.4f\n", sqrt(er.sum_filt2 / (double)er.n));
-        }
-        if (er.n_first > 0u) {
-            printf("rms_error_filtered_first_1s_nm = %.4f\n",
-                   sqrt(er.sum_filt2_first / (double)er.n_first));
-        }
-        if (er.n_settled > 0u) {
-            printf("rms_error_raw_after_1s_nm = %.4f\n", sqrt(er.sum_raw2_settled / (double)er.n_settled));
-            printf("rms_error_filtered_after_1s_nm = %.4f\n",
-                   sqrt(er.sum_filt2_settled / (double)er.n_settled));
-        }
-        if (replay != NULL && hal_replay_trailing_bytes(replay) != 0u) {
-            printf("replay_trailing_bytes = %u\n", hal_replay_trailing_bytes(replay));
-        }
+        const host_summary_t sum = {
+            .o = &o, .fw = &g_fw, .hal = &hal, .tm = &tm, .er = &er, .wall_s = wall_s,
+            .sig = sig, .have_truth = have_truth, .ff_frames = ff_frames,
+            .canlog_open = canlog.open, .canlog_frames = canlog.frames, .nvm_writes = nvm.writes,
+            .replay_trailing_bytes = replay != NULL ? hal_replay_trailing_bytes(replay) : 0u};
+        host_print_summary(&sum);
     }
     if (replay != NULL) {
         hal_replay_close(replay);
