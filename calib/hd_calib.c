@@ -1,237 +1,13 @@
 /* Static calibration analysis (Taghirad 1997, section III).  See hd_calib.h. */
 #include "hd_calib.h"
+#include "hd_calib_lsq.h"
 #include "hd_calib_record.h"
 
 #include <math.h>
 #include <string.h>
 
-#define LSQ_MAX_COLS 5u
-
 /* The position fit reuses the point-sized design matrix. */
 _Static_assert(HD_CALIB_MAX_EXPERIMENTS <= HD_CALIB_MAX_POINTS, "experiments must fit a design column");
-#define PI_F 3.14159265f
-
-/* ---------------------------------------------------------------- helpers */
-
-static int finite_f(float f)
-{
-    return f == f && f <= 3.4028235e38f && f >= -3.4028235e38f;
-}
-
-static float abs_f(float f)
-{
-    return f < 0.0f ? -f : f;
-}
-
-/* Column-major design matrix for a small least-squares problem. */
-typedef struct {
-    uint32_t n, p;
-    float x[LSQ_MAX_COLS][HD_CALIB_MAX_POINTS];
-} design_t;
-
-typedef struct {
-    float beta[LSQ_MAX_COLS];
-    float se[LSQ_MAX_COLS];   /* NaN if dropped or no residual degrees of freedom */
-    uint8_t used[LSQ_MAX_COLS];
-    uint32_t rank;
-    float rss;
-} lsq_t;
-
-static float dot(const float *a, const float *b, uint32_t n)
-{
-    float s = 0.0f;
-    for (uint32_t i = 0; i < n; ++i) {
-        s += a[i] * b[i];
-    }
-    return s;
-}
-
-/* Modified Gram-Schmidt QR.  A column that is (numerically) a combination of
- * earlier ones is dropped instead of producing a meaningless coefficient:
- * e.g. the hysteresis column when only one branch was measured. */
-static void lsq_solve(const design_t *d, const float *y, lsq_t *out)
-{
-    static const float drop_ratio = 1e-4f;
-    float q[LSQ_MAX_COLS][HD_CALIB_MAX_POINTS];
-    float r[LSQ_MAX_COLS][LSQ_MAX_COLS];
-    float z[HD_CALIB_MAX_POINTS];
-    float c[LSQ_MAX_COLS] = {0.0f};
-    uint32_t idx[LSQ_MAX_COLS] = {0u};
-    uint32_t k = 0;
-    const uint32_t n = d->n;
-
-    memset(out, 0, sizeof *out);
-    memset(r, 0, sizeof r);
-    for (uint32_t j = 0; j < d->p; ++j) {
-        float *v = q[k];
-        memcpy(v, d->x[j], n * sizeof(float));
-        float norm0 = sqrtf(dot(v, v, n));
-        for (uint32_t m = 0; m < k; ++m) {
-            float rm = dot(q[m], v, n);
-            r[m][k] = rm;
-            for (uint32_t i = 0; i < n; ++i) {
-                v[i] -= rm * q[m][i];
-            }
-        }
-        float norm = sqrtf(dot(v, v, n));
-        out->se[j] = NAN;
-        if (norm0 <= 0.0f || norm <= drop_ratio * norm0) {
-            continue;
-        }
-        r[k][k] = norm;
-        for (uint32_t i = 0; i < n; ++i) {
-            v[i] /= norm;
-        }
-        idx[k] = j;
-        out->used[j] = 1u;
-        ++k;
-    }
-    out->rank = k;
-    memcpy(z, y, n * sizeof(float));
-    for (uint32_t m = 0; m < k; ++m) {
-        c[m] = dot(q[m], z, n);
-        for (uint32_t i = 0; i < n; ++i) {
-            z[i] -= c[m] * q[m][i];
-        }
-    }
-    out->rss = dot(z, z, n);
-    /* Back substitution R b = c. */
-    float b[LSQ_MAX_COLS] = {0.0f};
-    for (uint32_t mm = k; mm-- > 0;) {
-        float s = c[mm];
-        for (uint32_t l = mm + 1u; l < k; ++l) {
-            s -= r[mm][l] * b[l];
-        }
-        b[mm] = s / r[mm][mm];
-    }
-    /* Rinv (upper triangular); cov = sigma^2 Rinv Rinv^T. */
-    float ri[LSQ_MAX_COLS][LSQ_MAX_COLS];
-    memset(ri, 0, sizeof ri);
-    for (uint32_t col = 0; col < k; ++col) {
-        for (uint32_t mm = col + 1u; mm-- > 0;) {
-            float s = (mm == col) ? 1.0f : 0.0f;
-            for (uint32_t l = mm + 1u; l <= col; ++l) {
-                s -= r[mm][l] * ri[l][col];
-            }
-            ri[mm][col] = s / r[mm][mm];
-        }
-    }
-    float sigma2 = (n > k) ? out->rss / (float)(n - k) : NAN;
-    for (uint32_t m = 0; m < k; ++m) {
-        float var = 0.0f;
-        for (uint32_t l = m; l < k; ++l) {
-            var += ri[m][l] * ri[m][l];
-        }
-        out->beta[idx[m]] = b[m];
-        out->se[idx[m]] = sqrtf(var * sigma2);
-    }
-}
-
-/* ln Gamma(x), x > 0: Lanczos (g = 7, n = 9), plenty for float p-values. */
-static float lgamma_pos(float x)
-{
-    static const float coef[9] = {
-        0.99999999999980993f, 676.5203681218851f, -1259.1392167224028f,
-        771.32342877765313f, -176.61502916214059f, 12.507343278686905f,
-        -0.13857109526572012f, 9.9843695780195716e-6f, 1.5056327351493116e-7f};
-    if (x < 0.5f) {
-        /* Reflection: Gamma(x) Gamma(1-x) = pi / sin(pi x). */
-        return logf(PI_F / sinf(PI_F * x)) - lgamma_pos(1.0f - x);
-    }
-    x -= 1.0f;
-    float a = coef[0];
-    float t = x + 7.5f;
-    for (unsigned i = 1; i < 9u; ++i) {
-        a += coef[i] / (x + (float)i);
-    }
-    return 0.91893853f + (x + 0.5f) * logf(t) - t + logf(a);
-}
-
-/* Continued fraction for the incomplete beta (modified Lentz). */
-static float beta_cf(float a, float b, float x)
-{
-    const float tiny = 1e-30f;
-    float qab = a + b, qap = a + 1.0f, qam = a - 1.0f;
-    float c = 1.0f, d = 1.0f - qab * x / qap;
-    if (abs_f(d) < tiny) {
-        d = tiny;
-    }
-    d = 1.0f / d;
-    float h = d;
-    for (unsigned m = 1; m <= 200u; ++m) {
-        float fm = (float)m, m2 = 2.0f * fm;
-        float aa = fm * (b - fm) * x / ((qam + m2) * (a + m2));
-        d = 1.0f + aa * d;
-        d = abs_f(d) < tiny ? tiny : d;
-        c = 1.0f + aa / c;
-        c = abs_f(c) < tiny ? tiny : c;
-        d = 1.0f / d;
-        h *= d * c;
-        aa = -(a + fm) * (qab + fm) * x / ((a + m2) * (qap + m2));
-        d = 1.0f + aa * d;
-        d = abs_f(d) < tiny ? tiny : d;
-        c = 1.0f + aa / c;
-        c = abs_f(c) < tiny ? tiny : c;
-        d = 1.0f / d;
-        float del = d * c;
-        h *= del;
-        if (abs_f(del - 1.0f) < 1e-7f) {
-            break;
-        }
-    }
-    return h;
-}
-
-/* Regularized incomplete beta I_x(a, b). */
-static float beta_inc(float a, float b, float x)
-{
-    if (x <= 0.0f) {
-        return 0.0f;
-    }
-    if (x >= 1.0f) {
-        return 1.0f;
-    }
-    float lbt = lgamma_pos(a + b) - lgamma_pos(a) - lgamma_pos(b) + a * logf(x) +
-                b * logf(1.0f - x);
-    float bt = expf(lbt);
-    if (x < (a + 1.0f) / (a + b + 2.0f)) {
-        return bt * beta_cf(a, b, x) / a;
-    }
-    return 1.0f - bt * beta_cf(b, a, 1.0f - x) / b;
-}
-
-float hd_calib_f_pvalue(float f, float q, float df)
-{
-    if (!(q > 0.0f) || !(df > 0.0f) || f != f) {
-        return NAN;
-    }
-    if (f <= 0.0f) {
-        return 1.0f;
-    }
-    if (!finite_f(f)) {
-        return 0.0f;
-    }
-    return beta_inc(0.5f * df, 0.5f * q, df / (df + q * f));
-}
-
-/* p-value of adding the columns in `extra` to the model without them. */
-static float nested_pvalue(const lsq_t *reduced, const lsq_t *full, uint32_t n)
-{
-    uint32_t q = full->rank - reduced->rank;
-    if (q == 0u || n <= full->rank) {
-        return NAN;
-    }
-    float df = (float)(n - full->rank);
-    float num = (reduced->rss - full->rss) / (float)q;
-    if (num < 0.0f) {
-        num = 0.0f; /* rounding */
-    }
-    float den = full->rss / df;
-    if (den <= 0.0f) {
-        return num > 0.0f ? 0.0f : 1.0f;
-    }
-    return hd_calib_f_pvalue(num / den, (float)q, df);
-}
 
 /* ---------------------------------------------------------------- input checks */
 
@@ -353,7 +129,7 @@ static void fit_cols(const design_t *all, const uint32_t *cols, uint32_t p,
     for (uint32_t j = 0; j < p; ++j) {
         memcpy(d.x[j], all->x[cols[j]], all->n * sizeof(float));
     }
-    lsq_solve(&d, y, out);
+    hd_calib_lsq_solve(&d, y, out);
 }
 
 int hd_calib_fit_experiment(const hd_calib_experiment_t *e, float alpha,
@@ -407,8 +183,8 @@ int hd_calib_fit_experiment(const hd_calib_experiment_t *e, float alpha,
     fit_cols(&all, no_curve, 3u, e->bridge_v, &m_nc);
     fit_cols(&all, no_branch, 4u, e->bridge_v, &m_nb);
     fit_cols(&all, full_cols, 5u, e->bridge_v, &m_full);
-    out->nonlinearity_p = nested_pvalue(&m_nc, &m_full, n);
-    out->hysteresis_p = nested_pvalue(&m_nb, &m_full, n);
+    out->nonlinearity_p = hd_calib_nested_pvalue(&m_nc, &m_full, n);
+    out->hysteresis_p = hd_calib_nested_pvalue(&m_nb, &m_full, n);
     /* What the data cannot measure is NaN, never a reassuring 0.  Fewer
      * than 3 load levels leave x^2, x^3 dependent on 1, x (any function is
      * affine on two points): the F-test has no column to test, p is NaN. */
@@ -461,9 +237,9 @@ static void position_test(const hd_calib_experiment_t *exps, uint32_t n,
         g[i] = out->fit[i].gain_nm_per_v;
     }
     lsq_t full, reduced;
-    lsq_solve(&d, g, &full);
+    hd_calib_lsq_solve(&d, g, &full);
     d.p = 1u;
-    lsq_solve(&d, g, &reduced);
+    hd_calib_lsq_solve(&d, g, &reduced);
     out->position_amplitude_pct = NAN;
     out->position_phase_deg = NAN;
     out->position_p = NAN;
@@ -474,7 +250,7 @@ static void position_test(const hd_calib_experiment_t *exps, uint32_t n,
     float c = full.beta[1], s = full.beta[2], g0 = full.beta[0];
     out->position_amplitude_pct = 100.0f * sqrtf(c * c + s * s) / g0;
     out->position_phase_deg = 0.5f * atan2f(s, c) * (180.0f / PI_F);
-    out->position_p = nested_pvalue(&reduced, &full, n);
+    out->position_p = hd_calib_nested_pvalue(&reduced, &full, n);
     out->position_detected = (uint8_t)(out->position_p < t->alpha &&
                                        out->position_amplitude_pct >= t->min_detect_pct_fs);
 }

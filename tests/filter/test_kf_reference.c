@@ -1,5 +1,5 @@
 /*
- * The float32 filter (filter/hd_kf.c) against the independent dense
+ * The float32 filter (filter/hd_kf*.c) against the independent dense
  * double-precision reference of equations 8-10 (ref_kf_dense.c), over a
  * 60 s, 1 kHz varying-speed run: ramps, hold, direction reversal, standstill
  * (covariance ceiling active), over-Nyquist speed for the highest order

@@ -1,0 +1,117 @@
+/* hd_kf_internal: what the filter's source files share (hd_kf.c:
+ * configuration, layout, init; hd_kf_step.c: the step; hd_kf_bounds.c: its
+ * slow paths; hd_kf_readout.c: read-out and profiles).  Private to filter/. */
+#ifndef HD_KF_INTERNAL_H
+#define HD_KF_INTERNAL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "hd_kf.h"
+
+/* Integral orders up to this take powers of the lock's phasor (doubling
+ * depth <= 3: angle within 2e-7 rad, docs/filter.md). */
+#define MAX_POWER_ORDER ((unsigned)HD_KF_MAX_POWER)
+/* Phasor table: motor powers at [1, 8], output powers at [10, 17], then one
+ * per configured block that turns its own frame. */
+#define POWER_TABLE_OUTPUT (MAX_POWER_ORDER + 1u)
+#define OWN_PHASORS (2u * POWER_TABLE_OUTPUT)
+
+/* The step's kernels are written once with loops over the blocks and
+ * instantiated per layout size, where every loop unrolls (docs/filter.md,
+ * "Instances per layout size"). */
+#define KF_INLINE static inline __attribute__((always_inline))
+#define KF_UNROLL _Pragma("GCC unroll 8")
+/* The slow paths out of the way of the straight one. */
+#define UNLIKELY(cond) __builtin_expect(!!(cond), 0)
+
+typedef union {
+    float f;
+    uint32_t u;
+} float_bits_t;
+
+#define FLOAT_SIGN_BIT 0x80000000u
+#define FLOAT_INF_BITS 0x7f800000u
+
+/* isfinite without libm calls; x - x is 0 only for finite x. */
+static inline bool is_finite(float x)
+{
+    return (x - x) == 0.0f;
+}
+
+static inline uint32_t bits_of(float x)
+{
+    const float_bits_t b = {.f = x};
+    return b.u;
+}
+
+static inline bool is_nonneg(float x)
+{
+    return is_finite(x) && x >= 0.0f;
+}
+
+/* P is stored once, by 2x2 tiles of the upper triangle, tile row by tile
+ * row.  Tile row s (block slot s, states 2s and 2s+1) holds
+ *   its diagonal tile      P(2s,2s) P(2s,2s+1) P(2s+1,2s+1)
+ *   tiles (s, t), t > s    P(2s,2t) P(2s,2t+1) P(2s+1,2t) P(2s+1,2t+1)
+ *   the offset column      P(2s,o)  P(2s+1,o)
+ * and P(o,o) comes last.  Each pass of the step walks it front to back.
+ * Every configured block has its slot (slot s = configured block s), and
+ * the offset its column even when it is disabled: then its state, q and
+ * covariances are zero and stay zero. */
+KF_INLINE unsigned tile_row_start(unsigned nb, unsigned s)
+{
+    return s * (3u + 4u * nb - 2u * s);
+}
+
+static inline unsigned packed_entries(unsigned nb)
+{
+    return tile_row_start(nb, nb) + 1u;
+}
+
+/* Packed position of P(i, j), i and j layout states (block slots, offset
+ * at 2 nb). */
+static inline unsigned packed_index(unsigned nb, unsigned i, unsigned j)
+{
+    if (i > j) {
+        const unsigned t = i;
+        i = j;
+        j = t;
+    }
+    const unsigned si = i >> 1u;
+    if (i == 2u * nb) {
+        return tile_row_start(nb, nb);
+    }
+    const unsigned row = tile_row_start(nb, si);
+    if (j == 2u * nb) {
+        return row + 3u + 4u * (nb - 1u - si) + (i & 1u);
+    }
+    const unsigned sj = j >> 1u;
+    if (si == sj) {
+        return row + (i & 1u) + (j & 1u);
+    }
+    return row + 3u + 4u * (sj - si - 1u) + 2u * (i & 1u) + (j & 1u);
+}
+
+/* Zeroes n tiles of 4 from p (written tile by tile: GCC turns a plain
+ * zeroing loop into a memset call, which the bare-metal boards provide
+ * byte by byte). */
+KF_INLINE void zero_tiles(float *p, unsigned n)
+{
+    for (; n > 0u; n--, p += 4) {
+        p[0] = p[1] = p[2] = p[3] = 0.0f;
+    }
+}
+
+/* Block s starts again: state zero, its tile v I, zero covariance with
+ * every other state (hd_kf.c). */
+void hd_kf_clear_block(hd_kf_t *kf, unsigned s, float v);
+
+/* Phase lost: the blocks of `lost` restart from zero with their priors,
+ * decorrelated, in one pass over P (hd_kf_bounds.c). */
+void hd_kf_restart_lost_blocks(hd_kf_t *kf, uint32_t lost);
+
+/* The bounds' slow path (hd_kf_bounds.c): the status bits raised. */
+uint32_t hd_kf_bound_covariance(hd_kf_t *kf, float finite_probe);
+
+#endif
