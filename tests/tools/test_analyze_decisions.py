@@ -36,7 +36,7 @@ def _runs(line_nm, innov_a, innov_b, n=40000, ts=1e-3):
 def _judge(before, after):
     c = detect.Candidate("motor_order", 3.0, 0.3, action="add_block")
     m = Model.starting(100.0, 1e-3, 0.02, [2, 4], [])
-    return augment.judge(c, before, rp.metrics(before), after, rp.metrics(after), m, 1e-3)
+    return augment.judge(c, before, rp.metrics(before), after, rp.metrics(after), m)
 
 
 def test_a_line_that_drops_is_kept_when_fold_b_agrees():

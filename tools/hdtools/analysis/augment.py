@@ -247,7 +247,7 @@ def _fold_metrics(met):
     return out
 
 
-def judge(c, runs0, m0, runs1, m1, model0, ts_s):
+def judge(c, runs0, m0, runs1, m1, model0):
     """Returns (keep, evidence); every number that decides is from fold B."""
     B = "out_of_sample_"
     ev = {"before": _fold_metrics(m0), "after": _fold_metrics(m1)}
@@ -377,7 +377,7 @@ class Session:
         _, trial, runs1 = best
         best = None
         met1 = rp.metrics(runs1)
-        keep, ev = judge(c, self.runs, self.met, runs1, met1, self.model, self.data.ts_s)
+        keep, ev = judge(c, self.runs, self.met, runs1, met1, self.model)
         c.evidence.update(ev)
         (self.tuning if c.action == "set_tuning" else self.effects).append(
             _finding(c, keep, self.met, met1, self.model.gear_ratio))
