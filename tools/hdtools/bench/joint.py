@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import native
+from .. import canproto, native
 
 ROOT = Path(__file__).resolve().parents[3]
 HDSENSE = ROOT / "tools" / "hdsense"
@@ -25,7 +25,6 @@ HDSENSE = ROOT / "tools" / "hdsense"
 # other key describes the joint itself.
 MOTION_KEYS = ("duration_s", "seed", "motor_speed_profile", "load_torque_profile",
                "load_sine", "gravity_profile", "gravity_phase_rad")
-PROFILE_SAVE_FRAME = "01D01001#7000000000000000"   # PROFILE_SAVE of the running filter, node 1
 
 
 # ----------------------------------------------------------------- hdsim
@@ -164,6 +163,13 @@ def run_firmware(ini: Path, config: str, wd: Path, tag: str, duration: float | N
     return load_csv(csv)["torque_filtered_nm"], s
 
 
+def profile_save_frame() -> str:
+    """PROFILE_SAVE of the running filter to node 1, in `cansend` notation
+    (the frame from the protocol definition, firmware/hd_protocol.def)."""
+    return canproto.cansend_str(canproto.command(canproto.load_db(1), "PROFILE_SAVE",
+                                                 ProfileSaveSource=0))
+
+
 def firmware_commissioning(ini: Path, wd: Path, nominal: dict, duration: float | None,
                            model_cfg: str) -> tuple[Path | None, str]:
     """The firmware learns on the commissioning run itself (learning_mode
@@ -178,7 +184,7 @@ def firmware_commissioning(ini: Path, wd: Path, nominal: dict, duration: float |
     try:
         out = run_tool([host(), "--sensors", f"sim:{ini}", "--config", cfg, "--nvm", nvm,
                         "--calib", f"{nominal['gain_nm_per_v']:.9g},{nominal['offset_v']:.9g}",
-                        "--cmd-at", f"{end - 0.01:.3f}:{PROFILE_SAVE_FRAME}"] +
+                        "--cmd-at", f"{end - 0.01:.3f}:{profile_save_frame()}"] +
                        (["--duration", duration] if duration is not None else []),
                        f"hdjoint-host commissioning {ini.name}").stdout
     except RuntimeError as exc:
