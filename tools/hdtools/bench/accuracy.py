@@ -190,19 +190,25 @@ def run_kf(params, d, nom, d_motor, d_output):
     ff = None
     if params.get("oracle"):
         # The paper assumes a good expected torque; give it the exact one.
-        ex, ff = cfilter.ExpectedConfig(), d["torque_true_nm"]
+        ff = d["torque_true_nm"]
     if params["config"] == "residual":
         # The whole model the tool ends up with, its expected torque included.
         cfg, ex, bw = residual_config(params["model"], ts)
         out = cfilter.run(cfg, ex, d["torque_nm"], d_motor, d_output, track_bandwidth_hz=bw)
         return out["torque_filtered_nm"].astype(float)
+    if params["config"] == "paper":
+        return paper_filtered(ts, params["misalignment"], d["torque_nm"], d_motor, d_output, ff)
     buf = ctypes.create_string_buffer(_OPAQUE_BYTES)
-    if params["config"] == "recommended":
-        _lib().hd_kf_config_recommended(buf, ts, NOISE_SPEC_NM, RIPPLE_SETTLE_S,
-                                        OFFSET_SETTLE_S)
-    else:
-        _lib().hd_kf_config_paper(buf, ts, params["misalignment"])
+    _lib().hd_kf_config_recommended(buf, ts, NOISE_SPEC_NM, RIPPLE_SETTLE_S, OFFSET_SETTLE_S)
     return _run_opaque(buf, ex, d["torque_nm"], d_motor, d_output, ff)
+
+
+def paper_filtered(ts_s, misalignment, torque, d_motor, d_output, feedforward=None):
+    """The filtered torque of the paper's tuning (hd_kf_config_paper), T_exp
+    = the feed-forward given (0 without one)."""
+    buf = ctypes.create_string_buffer(_OPAQUE_BYTES)
+    _lib().hd_kf_config_paper(buf, ts_s, misalignment)
+    return _run_opaque(buf, cfilter.ExpectedConfig(), torque, d_motor, d_output, feedforward)
 
 
 def residual_config(model: dict, ts_s: float):

@@ -222,10 +222,8 @@ def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: 
 # ----------------------------------------------------------------- peers
 
 def _paper(d, nom, ang):
-    buf = accuracy.ctypes.create_string_buffer(accuracy._OPAQUE_BYTES)
-    accuracy._lib().hd_kf_config_paper(buf, nom["ts_s"], True)
-    return accuracy._run_opaque(buf, accuracy.cfilter.ExpectedConfig(), d["torque_nm"], ang[2],
-                                ang[3], d.get("torque_feedforward_nm"))
+    return accuracy.paper_filtered(nom["ts_s"], True, d["torque_nm"], ang[2], ang[3],
+                                   d.get("torque_feedforward_nm"))
 
 
 # ----------------------------------------------------------------- metrics
