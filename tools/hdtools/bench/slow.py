@@ -184,7 +184,6 @@ def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: 
             return None, {"pending": com.note}
         base = com.model_cfg
         told["config"] = f"model.cfg of {com.note}"
-    if p["model"]:
         # T_exp from the slow-torque source only: the friction and inertia
         # analyze identifies on the commissioning run make every row worse
         # (docs/slow-torque.md, "Measurements": the Coulomb step of a lagging
