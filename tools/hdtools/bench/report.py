@@ -142,9 +142,6 @@ def told_table(acc: dict) -> list:
               "runs booted from the profile"], rows)]
 
 
-SLOW_ORDER = ["arm_gravity", "slow_loads", "misalign_orders", "dyn_off"]
-
-
 def _slow_get(slow, sc, row, key):
     try:
         return slow["scenarios"][sc]["rows"][row][key]
@@ -156,7 +153,7 @@ def slow_tables(slow: dict | None) -> list:
     """The slow-torque benchmark (tools/hdtools/bench/slow.py)."""
     if not slow:
         return []
-    scs = [s for s in SLOW_ORDER if s in slow["scenarios"]]
+    scs = list(slow["scenarios"])  # in the order of slow.SCENARIOS
     rows = list(slow["rows"])
     out = []
 
