@@ -748,7 +748,8 @@ def budget(p=None) -> dict:
     ram = sizes.get(".data", 0) + sizes.get(".bss", 0) + stack_reserved
     fl, rm = map_by_component(run_elf.with_suffix(".map"))
     comps = sorted(set(fl) | set(rm), key=lambda c: -(fl.get(c, 0) + rm.get(c, 0)))
-    heap = [s for s in ALLOCATORS if s in symbols(run_elf) or s in symbols(bench_elf)]
+    linked = set(symbols(run_elf)) | set(symbols(bench_elf))
+    heap = [s for s in ALLOCATORS if s in linked]
     st = worst_stack(run_elf)
     counts, check, overhead = section_counts(labelled_sections(bench_elf, []),
                                              disassembly(bench_elf))

@@ -87,7 +87,8 @@ def measure() -> dict:
     t.build_images()
     images = {name: memory_rows(t.image(name)) for name, _ in BOARD_IMAGES}
     elf = t.image("hd_odrive_v3")
-    heap = [s for s in t.ALLOCATORS if s in t.symbols(elf)]
+    linked = t.symbols(elf)
+    heap = [s for s in t.ALLOCATORS if s in linked]
     st = t.worst_stack(elf, isrs=ISRS, fault_entry=FAULT_ENTRY, hal_funcs=hal_functions())
     stack_reserved = images["hd_odrive_v3"]["stack"]
     bench = t.image(t.BENCH_IMAGE)
