@@ -431,18 +431,14 @@ def m4_cycles(mnem: str, ops: str) -> tuple:
 
 
 def cycle_estimate(hist: dict, insns: dict, calls: int) -> tuple:
+    """(best, worst) cycles per call; an address objdump did not list
+    counts one cycle."""
     lo = hi = 0
-    unknown = 0
     for pc, n in hist.items():
-        if pc not in insns:
-            unknown += n
-            lo += n
-            hi += n
-            continue
-        c_lo, c_hi = m4_cycles(*insns[pc])
+        c_lo, c_hi = m4_cycles(*insns[pc]) if pc in insns else (1, 1)
         lo += n * c_lo
         hi += n * c_hi
-    return lo / calls, hi / calls, unknown
+    return lo / calls, hi / calls
 
 
 # ------------------------------------------------------------------- budget
@@ -686,7 +682,7 @@ def section_counts(sections: list, insns: dict) -> tuple:
         if not s["intervals"]:
             continue
         iv = [n - overhead for n in s["intervals"]]
-        lo, hi, _ = cycle_estimate(s["hist"], insns, len(iv))
+        lo, hi = cycle_estimate(s["hist"], insns, len(iv))
         counts[s["label"]] = {"states": s["states"], "calls": len(iv),
                               "mean": statistics.mean(iv), "max": max(iv),
                               "cycles_best": lo - overhead * 2,  # the marker's bl (1 + P)
@@ -732,14 +728,13 @@ def check_failures(heap: list, stack_total: int, stack_reserved: int, check) -> 
     return failures
 
 
-def budget(p=None) -> dict:
+def budget() -> dict:
     """Builds the mps2-an386 images, measures them and returns the budget's
     numbers: {flash_bytes, ram_bytes, stack_reserved_bytes, stack_worst_bytes,
     heap_symbols, counter_check, instructions: {LABEL: {states, calls, mean,
     max, cycles_best, cycles_worst}}, kf_paths, memory, stack, tick_limits,
     clock_mhz, failures: [...]} (failures: what failed, empty when all checks
-    passed).  p, if given, receives the markdown (render_budget).  Raises
-    TargetError on a setup problem."""
+    passed).  Raises TargetError on a setup problem."""
     build_images()
     run_elf, bench_elf = image("hd_image"), image("hd_bench")
     sizes = section_sizes(run_elf)
@@ -754,7 +749,7 @@ def budget(p=None) -> dict:
     counts, check, overhead = section_counts(labelled_sections(bench_elf, []),
                                              disassembly(bench_elf))
     rx, acks = fw_tick_limits()
-    numbers = {
+    return {
         "flash_bytes": flash, "ram_bytes": ram, "stack_reserved_bytes": stack_reserved,
         "stack_worst_bytes": st["total"], "heap_symbols": heap, "counter_check": check,
         "instructions": counts, "kf_paths": kf_paths_of(counts),
@@ -765,9 +760,6 @@ def budget(p=None) -> dict:
         "marker_overhead": overhead, "tick_limits": {"rx": rx, "acks": acks},
         "clock_mhz": MCU_CLOCKS_MHZ[0][1],
         "failures": check_failures(heap, st["total"], stack_reserved, check)}
-    if p is not None:
-        p(render_budget(numbers))
-    return numbers
 
 
 # ------------------------------------------------ budget: the tables (pure)
