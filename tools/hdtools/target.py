@@ -514,9 +514,10 @@ EDGE_RE = re.compile(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"')
 
 def load_callgraph(build: Path, image_dirs: list) -> tuple:
     frames, qualifiers, edges, origin = {}, {}, {}, {}
+    images = current_board()["targets"]
     ci_files = [p for p in build.rglob("*.ci")
                 if "CMakeFiles" in p.parts and
-                (not any(".dir" in part and part.split(".dir")[0] in current_board()["targets"]
+                (not any(".dir" in part and part.split(".dir")[0] in images
                          for part in p.parts) or any(d in str(p) for d in image_dirs))]
     for ci in ci_files:
         text = ci.read_text()
@@ -570,11 +571,12 @@ def worst_stack(elf: Path, isrs: tuple = ("SysTick_Handler",), fault_entry: str 
     # every function of the HAL backends linked into this image is a candidate.
     # Vtable entries are the backends' file-local functions (titled
     # "file:name"); the transmit hook is the one public one.
-    hal_candidates = [t for t, ci in origin.items()
-                      if ("hal_mock.dir" in str(ci) or "hal_semihost.dir" in str(ci))
-                      and t.split(":")[-1] in defined
-                      and (":" in t or t == "hal_sh_canlog_hook")]
-    if hal_funcs is not None:
+    if hal_funcs is None:
+        hal_candidates = [t for t, ci in origin.items()
+                          if ("hal_mock.dir" in str(ci) or "hal_semihost.dir" in str(ci))
+                          and t.split(":")[-1] in defined
+                          and (":" in t or t == "hal_sh_canlog_hook")]
+    else:
         hal_candidates = [t for t in origin if t.split(":")[-1] in hal_funcs
                           and t.split(":")[-1] in defined]
     memo, on_path = {}, set()
