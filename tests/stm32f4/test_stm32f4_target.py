@@ -143,6 +143,25 @@ def test_flash_commands_leave_the_record_sectors_alone(built, board, image):
     assert main.stat().st_size == sum(n for a, n in segs if a >= NVM[1])
 
 
+def test_dfu_binaries_follow_a_rebuilt_image(built, tmp_path):
+    """--image ELF: the two binaries beside it are made, and made again once
+    the ELF is newer than them (never the parts of an older build)."""
+    elf = tmp_path / "board.elf"
+    shutil.copyfile(IMAGES / "hd_odrive_v3.elf", elf)
+    boot, main = elf.with_suffix(".boot.bin"), elf.with_suffix(".main.bin")
+    want = (section(elf, ".boot")[1], (IMAGES / "hd_odrive_v3.main.bin").stat().st_size)
+    for stale in (False, True):
+        if stale:  # binaries of an earlier build, older than the ELF
+            for p in (boot, main):
+                p.write_bytes(b"old build")
+                os.utime(p, (elf.stat().st_mtime - 60,) * 2)
+        r = run_target("flash", "--board", "odrive-v3", "--tool", "dfu", "--image", elf,
+                       "--dry-run")
+        assert r.returncode == 0, r.stderr
+        assert (boot.stat().st_size, main.stat().st_size) == want
+    assert main.read_bytes() == (IMAGES / "hd_odrive_v3.main.bin").read_bytes()
+
+
 def test_flash_errors_are_one_line(built, tmp_path):
     r = run_target("flash", "--board", "odrive-v3", "--image", tmp_path / "none.elf")
     assert r.returncode == 2 and r.stdout == "" and r.stderr.count("\n") == 1, r.stderr

@@ -186,9 +186,12 @@ def cmd_budget(a) -> int:
 def split_binaries(elf: Path) -> tuple:
     """The two loadable parts of a board image as raw binaries next to it:
     sector 0 (.boot) and sector 3 on (.text, .ARM.exidx, .data), so the
-    record sectors in between are never written."""
+    record sectors in between are never written.  The build writes them
+    for its images; they are made again when missing or older than the
+    ELF (an --image rebuilt since its last flash)."""
     boot, main = elf.with_suffix(".boot.bin"), elf.with_suffix(".main.bin")
-    if not boot.exists() or not main.exists():
+    built = elf.stat().st_mtime
+    if any(not p.exists() or p.stat().st_mtime < built for p in (boot, main)):
         objcopy = t.need("arm-none-eabi-objcopy")
         t.sh([objcopy, "-O", "binary", "-j", ".boot", elf, boot])
         t.sh([objcopy, "-O", "binary", "-j", ".text", "-j", ".ARM.exidx", "-j", ".data",
