@@ -272,7 +272,7 @@ static void selftest(void)
 
 typedef struct {
     hd_can_cmd_t cmd;
-    uint32_t can_id;   /* CMD_ID(node): this node's command id, or another node's */
+    uint8_t node;      /* NODE, or another node (its command id, which ours filters out) */
     uint8_t dlc;       /* 8, or shorter for a malformed frame */
     int expect_ack;    /* 0: no ACK may come (other node) */
     uint8_t expect_result;
@@ -284,26 +284,24 @@ typedef struct {
     hd_can_ack_t ack;
 } command_t;
 
-#define CMD_ID(node) (HD_CAN_ID_PREFIX | ((uint32_t)HD_CAN_FRAME_CMD << 8) | (node))
-
 static command_t g_cmds[] = {
     /* gear_ratio = 100 in the scenario file: read back over CAN */
     {{.opcode = HD_CMD_GET_PARAM, .token = 1, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
-     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 100.0f, "GET_PARAM gear_ratio", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 8, 1, HD_CAN_RES_OK, 1, 100.0f, "GET_PARAM gear_ratio", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_SET_PARAM, .token = 2, .arg_u8 = {HD_PARAM_R_NM2, 0}, .value = 0.5f},
-     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 0.5f, "SET_PARAM r_nm2 = 0.5", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 8, 1, HD_CAN_RES_OK, 1, 0.5f, "SET_PARAM r_nm2 = 0.5", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 3, .arg_u8 = {HD_PARAM_R_NM2, 0}},
-     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 0.5f, "GET_PARAM r_nm2", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 8, 1, HD_CAN_RES_OK, 1, 0.5f, "GET_PARAM r_nm2", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_SET_PARAM, .token = 4, .arg_u8 = {HD_PARAM_R_NM2, 0}, .value = -1.0f},
-     CMD_ID(NODE), 8, 1, HD_CAN_RES_OUT_OF_RANGE, 0, 0.0f, "SET_PARAM r_nm2 = -1", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 8, 1, HD_CAN_RES_OUT_OF_RANGE, 0, 0.0f, "SET_PARAM r_nm2 = -1", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 5, .arg_u8 = {99, 0}},
-     CMD_ID(NODE), 8, 1, HD_CAN_RES_UNKNOWN_PARAM, 0, 0.0f, "GET_PARAM id 99", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 8, 1, HD_CAN_RES_UNKNOWN_PARAM, 0, 0.0f, "GET_PARAM id 99", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 6, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
-     CMD_ID(NODE + 1u), 8, 0, 0, 0, 0.0f, "GET_PARAM to node 2 (filtered)", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE + 1u, 8, 0, 0, 0, 0.0f, "GET_PARAM to node 2 (filtered)", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 7, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
-     CMD_ID(NODE), 2, 1, HD_CAN_RES_BAD_LENGTH, 0, 0.0f, "2-byte command", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 2, 1, HD_CAN_RES_BAD_LENGTH, 0, 0.0f, "2-byte command", 0, {0, 0, 0, 0, 0.0f, 0u}},
     {{.opcode = HD_CMD_GET_PARAM, .token = 8, .arg_u8 = {HD_PARAM_TELEMETRY_RATE_HZ, 0}},
-     CMD_ID(NODE), 8, 1, HD_CAN_RES_OK, 1, 1000.0f, "GET_PARAM telemetry_rate_hz", 0, {0, 0, 0, 0, 0.0f, 0u}},
+     NODE, 8, 1, HD_CAN_RES_OK, 1, 1000.0f, "GET_PARAM telemetry_rate_hz", 0, {0, 0, 0, 0, 0.0f, 0u}},
 };
 #define N_CMDS ((int)(sizeof g_cmds / sizeof g_cmds[0]))
 
@@ -392,8 +390,7 @@ static pid_t start_host(void)
 static void send_command(hal_socketcan_t *cmd_sock, command_t *c)
 {
     hal_can_frame_t f;
-    hd_can_encode_cmd(NODE, &c->cmd, &f);
-    f.id = c->can_id;
+    hd_can_encode_cmd(c->node, &c->cmd, &f);
     f.len = c->dlc;
     int r = hal_socketcan_send(cmd_sock, &f);
     CHECK(r == HAL_OK, "sent command token %u: %s (id 0x%08X dlc %u)", c->cmd.token, c->what,
