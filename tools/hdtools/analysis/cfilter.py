@@ -305,8 +305,8 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
                                      float(np.mod(before_m, two_pi)),
                                      float(np.mod(before_o, two_pi)), float(prior))
         if err < 0:
-            raise FilterError(f"hd_kf_profile_import failed ({err}): "
-                              f"{L.hd_kf_err_str(err).decode()}")
+            raise FilterError(f"hd_kf_profile_import failed ({error_name(err)}): "
+                              f"{error_text(err)}", error_name(err))
     ins = [np.ascontiguousarray(a, dtype=np.float32)
            for a in (torque_nm, d_motor_rad, d_output_rad)]
     for a in ins:
