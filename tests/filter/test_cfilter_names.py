@@ -4,7 +4,6 @@ hd_kf_err_name / hd_kf_err_str), and the Python constants are checked
 against it, and against the C header's #defines and enum."""
 from __future__ import annotations
 
-import ctypes
 import re
 import sys
 from pathlib import Path
@@ -66,4 +65,22 @@ def test_status_reaches_python_with_the_c_bits():
     st = [int(s) for s in out["status"]]
     assert st[1] & cfilter.STATUS_BAD_INPUT and not st[0] & cfilter.STATUS_BAD_INPUT
     assert st[2] & cfilter.STATUS_FROZEN and not st[3] & cfilter.STATUS_FROZEN
-    assert ctypes.sizeof(cfilter.KfConfig) > 0
+    # and nothing else: each of those steps raises its one bit
+    assert st == [0, cfilter.STATUS_BAD_INPUT, cfilter.STATUS_FROZEN, 0]
+
+
+def test_profile_import_errors_reach_python_by_name():
+    """cfilter.run's profile import: a line of order 0 is refused by the C
+    library (HD_KF_ERR_PROFILE), an angle outside [0, 2 pi) too
+    (HD_KF_ERR_ANGLE); both by name."""
+    cfg = cfilter.recommended_config(1e-3, 0.02, 0.05, 0.02)
+    n = 4
+    motor = cfilter.LOCK_BY_NAME["motor"]
+    with pytest.raises(cfilter.FilterError, match="HD_KF_ERR_PROFILE") as exc:
+        cfilter.run(cfg, cfilter.ExpectedConfig(), [0.0] * n, [0.0] * n, [0.0] * n,
+                    profile=([(motor, 0, 0.5, 0.1)], 1.0, 1.0, 0.0))
+    assert exc.value.code == "HD_KF_ERR_PROFILE"
+    with pytest.raises(cfilter.FilterError, match="HD_KF_ERR_ANGLE") as exc:
+        cfilter.run(cfg, cfilter.ExpectedConfig(), [0.0] * n, [0.0] * n, [0.0] * n,
+                    profile=([(motor, 2, 0.5, 0.1)], float("nan"), 1.0, 0.0))
+    assert exc.value.code == "HD_KF_ERR_ANGLE"
