@@ -40,8 +40,7 @@ def load_db(node_id: int = 1, strict: bool = True) -> cantools.database.can.Data
 
 
 def faults_str(bits: int) -> str:
-    names = [name for i, name in enumerate(FAULT_BITS) if bits & (1 << i)]
-    return "|".join(names) if names else "-"
+    return "|".join(protocol.fault_names(bits)) or "-"
 
 
 def command(db, opcode: str, token: int = 0, **signals) -> tuple[int, bytes]:

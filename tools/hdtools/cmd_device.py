@@ -34,7 +34,8 @@ import cantools
 
 from . import canproto, protocol, safeio
 from .cmd_monitor import add_bus_arguments, boot_report, _node
-from .joint import Joint, NoAnswer, f32, open_bus
+from .joint import Joint, NoAnswer, open_bus
+from .protocol import f32, name_of
 from .safeio import HdError, UsageError
 
 MODEL_OPCODES = ("FILTER_ENABLE", "ADD_MOTOR", "ADD_OUTPUT", "ADD_FIXED", "BLOCK_ENABLE",
@@ -301,7 +302,7 @@ def device(args) -> int:
         elif action in ("save", "load", "defaults"):
             op = {"save": "CONFIG_SAVE", "load": "CONFIG_LOAD", "defaults": "CONFIG_DEFAULTS"}
             ack = command_retry_busy(joint, op[action])
-            status = _entry(protocol.record_statuses(), ack.aux)
+            status = name_of(protocol.record_statuses(), ack.aux)
             if not ack.ok:
                 raise Refused(f"node {args.node}: {op[action]} refused ({ack.result}, record "
                               f"{status})")
@@ -340,14 +341,14 @@ def profile_action(joint: Joint, args) -> list[str]:
         frames = [canproto.command(joint.db, op, 0, **signals)[1]]
     out = []
     for data in frames:
-        op = _entry(protocol.opcodes(), data[0])
+        op = name_of(protocol.opcodes(), data[0])
         ack = send_retry_busy(joint, data)
         if not ack.ok:
             raise Refused(f"node {joint.node}: {op} refused ({ack.result}, record "
-                          f"{_entry(protocol.record_statuses(), ack.aux)})")
+                          f"{name_of(protocol.record_statuses(), ack.aux)})")
         if op != "PROFILE_PUT":
             out.append(f"{op.lower()} = OK (record "
-                       f"{_entry(protocol.record_statuses(), ack.aux)}, {int(ack.value)} lines)")
+                       f"{name_of(protocol.record_statuses(), ack.aux)}, {int(ack.value)} lines)")
     return out
 
 
@@ -357,13 +358,6 @@ def _param(key: str) -> protocol.Param:
     except KeyError:
         raise UsageError(f"unknown parameter {key!r} (hdsense device IFACE params lists them)") \
             from None
-
-
-def _entry(entries, code) -> str:
-    for e in entries:
-        if e.code == code:
-            return e.name
-    return str(code)
 
 
 def _timeout(text: str) -> float:

@@ -340,10 +340,11 @@ class MonitorState:
 
     def _on_heartbeat(self, t, d):
         rec = protocol.record_statuses()
-        hb = {"state": _name(protocol.states(), d["State"]),
+        hb = {"state": protocol.name_of(protocol.states(), d["State"]),
               "faults": int(d["HbFaults"]), "deadline_misses": int(d["DeadlineMisses"]),
-              "calib": _name(rec, d["CalibStatus"]), "config": _name(rec, d["ConfigStatus"]),
-              "profile": _name(rec, d["ProfileStatus"])}
+              "calib": protocol.name_of(rec, d["CalibStatus"]),
+              "config": protocol.name_of(rec, d["ConfigStatus"]),
+              "profile": protocol.name_of(rec, d["ProfileStatus"])}
         if self.heartbeat is None or hb["state"] != self.heartbeat["state"]:
             self.events(f"state {hb['state']} (calibration {hb['calib']}, configuration "
                         f"{hb['config']})")
@@ -357,8 +358,8 @@ class MonitorState:
 
     def _on_ack(self, t, d):
         self.acks += 1
-        op = _name(protocol.opcodes(), d["AckOpcode"])
-        res = _name(protocol.results(), d["AckResult"])
+        op = protocol.name_of(protocol.opcodes(), d["AckOpcode"])
+        res = protocol.name_of(protocol.results(), d["AckResult"])
         if op in ("GET_PARAM", "SET_PARAM") and res == "OK":
             try:
                 p = protocol.param_by_id(d["AckAux"])
@@ -433,13 +434,6 @@ def canproto_period(rate_hz: float) -> float:
     return telemetry_period_s(rate_hz)
 
 
-def _name(entries, code) -> str:
-    for e in entries:
-        if e.code == code:
-            return e.name
-    return str(code)
-
-
 RESET_CAUSES = ("POWER_ON", "PIN", "SOFTWARE", "WATCHDOG", "BROWNOUT", "LOCKUP", "CLOCK")
 
 
@@ -447,7 +441,7 @@ def boot_report(d: dict) -> str:
     """The BOOT frame as one line."""
     cause = int(d["ResetCause"])
     names = [n for i, n in enumerate(RESET_CAUSES) if cause & (1 << i)] or [f"0x{cause:02X}"]
-    status = _name(protocol.record_statuses(), d["BootConfigStatus"])
+    status = protocol.name_of(protocol.record_statuses(), d["BootConfigStatus"])
     fault = f"HardFault at PC 0x{int(d['FaultPc']):08X}" if d["FaultRecord"] else "no fault record"
     return (f"reset {'|'.join(names)}, configuration "
             f"{'from the saved record' if d['ConfigFromRecord'] else 'defaults'} ({status}), "

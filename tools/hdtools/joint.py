@@ -11,7 +11,6 @@ names the reason.
 """
 from __future__ import annotations
 
-import struct
 import time
 from dataclasses import dataclass
 
@@ -30,11 +29,6 @@ class BusError(HdError):
 
 class NoAnswer(HdError):
     code = 5
-
-
-def f32(value: float) -> float:
-    """value as the float32 the bus carries."""
-    return struct.unpack("<f", struct.pack("<f", float(value)))[0]
 
 
 def open_bus(interface: str, channel: str, bitrate: int | None = None, **kwargs) -> can.BusABC:
@@ -60,13 +54,6 @@ class Ack:
     @property
     def ok(self) -> bool:
         return self.result == "OK"
-
-
-def _name(entries, code: int) -> str:
-    for e in entries:
-        if e.code == code:
-            return e.name
-    return str(code)
 
 
 class Joint:
@@ -111,7 +98,7 @@ class Joint:
             self.on_frame(msg)
         ack = self._wait_ack(data[0], token)
         if ack is None:
-            op = _name(protocol.opcodes(), data[0])
+            op = protocol.name_of(protocol.opcodes(), data[0])
             raise NoAnswer(f"node {self.node}: no answer to {op} within {self.timeout_s:g} s "
                            "(is the joint on this bus, powered, with this node id?)")
         return ack
@@ -145,8 +132,8 @@ class Joint:
             if d["AckOpcode"] != opcode or d["AckToken"] != token:
                 continue    # an answer to someone else's command
             value = d.get("AckValue", d.get("AckValueU32", 0))
-            return Ack(_name(protocol.opcodes(), opcode), token,
-                       _name(protocol.results(), d["AckResult"]), d["AckAux"], value,
+            return Ack(protocol.name_of(protocol.opcodes(), opcode), token,
+                       protocol.name_of(protocol.results(), d["AckResult"]), d["AckAux"], value,
                        msg.timestamp)
 
     # --------------------------------------------------------- parameters

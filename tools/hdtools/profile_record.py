@@ -59,10 +59,6 @@ class Record:
     lines: list[Line] = field(default_factory=list)
 
 
-def _f32(x: float) -> float:
-    return struct.unpack("<f", struct.pack("<f", x))[0]
-
-
 def check_joint(gear_ratio: float, motor_cpr: int, output_cpr: int) -> None:
     """The joint's constants against the parameter table's ranges."""
     for key, value in (("gear_ratio", gear_ratio), ("motor_cpr", motor_cpr),
@@ -184,7 +180,7 @@ def commands(lines: list[Line], node_id: int = 1, save: bool = False,
         for flag, value in ((0, ln.a_nm), (0x10, ln.b_nm)):
             out.append(canproto.command(db, "PROFILE_PUT", token, ProfilePutLine=base | flag,
                                         ProfilePutOrder=ln.order,
-                                        ProfilePutValue=_f32(value)))
+                                        ProfilePutValue=protocol.f32(value)))
     out.append(canproto.command(db, "PROFILE_LOAD", token, ProfileLoadSource=1))
     if save:
         out.append(canproto.command(db, "PROFILE_SAVE", token, ProfileSaveSource=1))

@@ -105,9 +105,14 @@ class Param:
         if self.integer and v != int(v):
             return "not a whole number"
         # the firmware receives float32: the value must survive the trip
-        if struct.unpack("<f", struct.pack("<f", v))[0] != v and self.integer:
+        if self.integer and f32(v) != v:
             return "not representable"
         return None
+
+
+def f32(value: float) -> float:
+    """value as the float32 the bus carries and the firmware computes with."""
+    return struct.unpack("<f", struct.pack("<f", float(value)))[0]
 
 
 def _int(text: str) -> int:
@@ -187,6 +192,15 @@ def by_name(entries, name: str) -> Entry:
         if e.name == name:
             return e
     raise KeyError(name)
+
+
+def name_of(entries, code: int) -> str:
+    """The name of the entry with this code, or the code itself (a value
+    this table does not know, from a newer firmware)."""
+    for e in entries:
+        if e.code == code:
+            return e.name
+    return str(code)
 
 
 def param_by_key(key: str) -> Param:
