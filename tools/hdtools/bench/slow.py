@@ -43,6 +43,7 @@ SCENARIO_DIR = ROOT / "tests" / "bench" / "scenarios" / "slow"
 SLOW_HZ = 1.0          # "slow": below this
 FF_TIMEOUT_MS = 20     # feed-forward rows: 20 frames missed = stale
 CURRENT_SEED_OFFSET = 1000
+QUICK_DURATION_S = 12.0  # --quick: every run of a scenario and its commissioning this long
 
 
 @dataclass
@@ -121,15 +122,14 @@ def commission(name: str, wd: Path, nom: dict, quick: bool) -> Commissioning:
     """The commissioning run of a joint and what the tools make of it."""
     ini = SCENARIO_DIR / f"{name}.ini"
     csv = wd / f"{name}.csv"
-    extra = ["--duration", "12"] if quick else []
-    d = simulate(ini, csv, extra)
+    dur = QUICK_DURATION_S if quick else None
+    d = simulate(ini, csv, duration_s=dur)
     ang = encoder_angles(d, nom)
     out_orders = (1, 2, 3) if "orders" in name else (1,)
     table = peers.FourierTable(output_orders=out_orders).fit(
         d["torque_nm"][d["t_s"] >= 1.0], ang[0][d["t_s"] >= 1.0], output_angle(d, nom)
         [d["t_s"] >= 1.0])
     an = wd / f"{name}_analyze"
-    dur = 12.0 if quick else None
     try:
         run_tool([HDSENSE, "analyze", csv, "--out", an, "--json", an / "report.json",
                   "--quiet"], f"hdsense analyze {csv.name}")
@@ -280,7 +280,7 @@ def run(quick: bool = False, workdir: Path | None = None, scenarios=None) -> dic
                 "note": c.note, "profile": json.loads(c.profile_json.read_text())
                 if c.profile_json else None}
         com = coms[sc.commission]
-        dur = 12.0 if quick else None
+        dur = QUICK_DURATION_S if quick else None
         d = simulate(ini, wd / f"{sc.name}.csv", duration_s=dur)
         ang = encoder_angles(d, nom)
         out_angle = output_angle(d, nom)
