@@ -70,12 +70,17 @@ def frame_counts(capture: list[str], node: int = 1) -> dict[str, int]:
     return counts
 
 
+def summary_of(lines: list[str]) -> dict[str, str]:
+    """The "KEY = VALUE" lines of a summary (the runner's, the monitor's)."""
+    return dict(line.split(" = ", 1) for line in lines if " = " in line)
+
+
 def parse_log(text: str) -> dict:
     """The numbers of one VM run from its serial log."""
     if "HDVM: VERDICT PASS" not in text:
         raise GenDocError("the VM run has no PASS verdict")
     sec = sections(text)
-    summary = dict(l.split(" = ", 1) for l in sec.get("host-summary", []) if " = " in l)
+    summary = summary_of(sec.get("host-summary", []))
     lines = text.replace("\r", "").splitlines()
     e2e_start = next((i for i, l in enumerate(lines) if l.startswith("HDVM: --- end to end")),
                      len(lines))
@@ -103,8 +108,7 @@ def parse_monitor_run(outdir: Path) -> dict:
     share = outdir / "share"
     try:
         result = json.loads((share / "result.json").read_text())
-        summary = dict(l.split(" = ", 1) for l in (share / "monitor.out").read_text()
-                       .splitlines() if " = " in l)
+        summary = summary_of((share / "monitor.out").read_text().splitlines())
     except (OSError, ValueError) as exc:
         raise GenDocError(f"{share}: {exc}") from None
     t = result["times_s"]
@@ -132,13 +136,11 @@ def measure_run(cmd: list[str], outdir: Path) -> dict:
     ctest_s = time.monotonic() - t0
     if at == 2:
         r = parse_monitor_run(outdir)
-        r["wall_s"] = float((outdir / "wall_time_s").read_text())
-        r["ctest_s"] = ctest_s
-        return r
-    r = parse_log((outdir / "serial.log").read_text(errors="replace"))
+    else:
+        r = parse_log((outdir / "serial.log").read_text(errors="replace"))
+        r["initrd_bytes"] = (outdir / "initrd.cpio.gz").stat().st_size
     r["wall_s"] = float((outdir / "wall_time_s").read_text())
     r["ctest_s"] = ctest_s
-    r["initrd_bytes"] = (outdir / "initrd.cpio.gz").stat().st_size
     return r
 
 
@@ -147,8 +149,15 @@ def span(values: list[float], fmt: str = ".1f") -> str:
     return f"{lo:{fmt}}" if f"{lo:{fmt}}" == f"{hi:{fmt}}" else f"{lo:{fmt}}-{hi:{fmt}}"
 
 
+def table(runs: list[dict], where: str, rows: list[list[str]]) -> str:
+    """A generated block: the runs' line, then the Quantity | Value rows."""
+    head = (f"_{len(runs)} runs of `tests/vm/vm_doc.py`, {where}; kernel {runs[0]['kernel']}, "
+            "TCG; wall times vary with the host's load: not checked_")
+    body = ["| Quantity | Value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
+    return head + "\n\n" + "\n".join(body)
+
+
 def render(runs: list[dict], failure_modes_s: float, where: str) -> str:
-    n = len(runs)
     s = [r["summary"] for r in runs]
     first = runs[0]
     frames = ", ".join(f"{name} {span([r['frames'].get(name, 0) for r in runs], 'd')}"
@@ -179,10 +188,7 @@ def render(runs: list[dict], failure_modes_s: float, where: str) -> str:
          f"{span([int(x['overruns']) for x in s], 'd')} overruns per {samples} ticks "
          "(flagged DEADLINE_MISS in the telemetry, equal to the CSV)"],
     ]
-    head = (f"_{n} runs of `tests/vm/vm_doc.py`, {where}; kernel {first['kernel']}, TCG; "
-            "wall times vary with the host's load: not checked_")
-    body = ["| Quantity | Value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
-    return head + "\n\n" + "\n".join(body)
+    return table(runs, where, rows)
 
 
 def render_monitor(runs: list[dict], where: str) -> str:
@@ -215,10 +221,7 @@ def render_monitor(runs: list[dict], where: str) -> str:
         ["monitor's kernel receive buffer (`rx_buffer_bytes`)",
          f"{span([int(x['rx_buffer_bytes']) / 2**20 for x in s], '.0f')} MiB"],
     ]
-    head = (f"_{len(runs)} runs of `tests/vm/vm_doc.py`, {where}; kernel {runs[0]['kernel']}, "
-            "TCG; wall times vary with the host's load: not checked_")
-    body = ["| Quantity | Value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
-    return head + "\n\n" + "\n".join(body)
+    return table(runs, where, rows)
 
 
 def main(argv: list[str] | None = None) -> int:
