@@ -27,3 +27,14 @@ def test_slow_bench_quick_is_well_formed(tmp_path):
     tabs = report.slow_tables(res)
     assert any(t[0].startswith("Slow torque: RMS error") for t in tabs)
     assert "fw_profile_ff" in report.markdown(tabs)
+
+
+def test_each_scenario_is_the_joint_of_its_commissioning_run():
+    """The firmware rows boot from the profile of a commissioning run
+    (slow.Scenario.commission): the scenario files type the joint out
+    again, so they must agree on every key but the motion."""
+    from hdtools.bench import joint
+    for sc in slow.SCENARIOS:
+        run = joint.joint_key(slow.SCENARIO_DIR / f"{sc.name}.ini")
+        com = joint.joint_key(slow.SCENARIO_DIR / f"{sc.commission}.ini")
+        assert run == com, (sc.name, sorted(set(run) ^ set(com)))
