@@ -288,9 +288,19 @@ static void test_failed_save_answers_nvm_error_and_keeps_the_old_record(void)
 static void test_saves_alternate_halves_and_survive_a_reboot(void)
 {
     firmware_on_flash();
+    static uint8_t before[2u * SECTOR];
+    size_t last = 2u; /* the half the previous save wrote (none yet) */
     for (int i = 0; i < 4; i++) {
         TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, set_gain(2.0f + (float)i, 10u).result);
+        memcpy(before, g_model.mem, sizeof before);
         TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, save(11u).result);
+        /* Exactly one half was rewritten, the one the previous save left. */
+        int a_same = memcmp(before, g_model.mem, SECTOR) == 0;
+        int b_same = memcmp(before + SECTOR, g_model.mem + SECTOR, SECTOR) == 0;
+        TEST_ASSERT_TRUE(a_same != b_same);
+        size_t half = a_same ? 1u : 0u;
+        TEST_ASSERT_TRUE(half != last);
+        last = half;
     }
     TEST_ASSERT_GREATER_OR_EQUAL(4u, g_model.erases);
     TEST_ASSERT_EQUAL_FLOAT(5.0f, saved_gain_after_reboot());
