@@ -11,7 +11,6 @@ identified from another run), the calibration is the scenario's nominal one.
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 from pathlib import Path
 
@@ -127,8 +126,7 @@ def with_motion(joint_ini: Path, motion_ini: Path, out: Path) -> Path:
 # ----------------------------------------------------------------- firmware
 
 def run_tool(cmd, what: str) -> subprocess.CompletedProcess:
-    p = subprocess.run([str(c) for c in cmd], capture_output=True, text=True,
-                       env=dict(os.environ))
+    p = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"{what}: exit {p.returncode}: {p.stderr.strip()[-400:]}")
     return p
