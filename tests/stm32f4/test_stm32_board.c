@@ -193,6 +193,9 @@ static void test_clock_fallback_is_reported_and_timing_follows(void)
     stm32_can_timing_t t;
     TEST_ASSERT_TRUE(stm32_can_timing(16000000u, 1000000u, &t));
     TEST_ASSERT_EQUAL_HEX32(stm32_can_btr(&t), g_can.regs.BTR);
+    /* By hand: 16 MHz / 1 Mbit/s = 16 quanta at prescaler 1, BS1 13 + BS2 2,
+     * sample point 14/16 = 87.5 %: BTR TS2 = 1, TS1 = 12, BRP = 0. */
+    TEST_ASSERT_EQUAL_HEX32(0x001C0000u, g_can.regs.BTR);
     for (int k = 0; k < 3; k++) {
         tick();
     }
