@@ -39,6 +39,18 @@ def load_db(node_id: int = 1, strict: bool = True) -> cantools.database.can.Data
     return db
 
 
+# TELEM_A's torques at the int16 minimum (-327.68 N m) mean "not available"
+# (hd_can_proto.h); anything above half a count of it is a value.
+_TORQUE_NOT_AVAILABLE_ABOVE = -327.675
+
+
+def torque_valid(telem_a: dict) -> bool:
+    """Whether a decoded TELEM_A carries torques (an invalid sample sends
+    both as "not available")."""
+    return (telem_a["TorqueRaw"] > _TORQUE_NOT_AVAILABLE_ABOVE and
+            telem_a["TorqueFiltered"] > _TORQUE_NOT_AVAILABLE_ABOVE)
+
+
 def faults_str(bits: int) -> str:
     return "|".join(protocol.fault_names(bits)) or "-"
 
@@ -338,7 +350,7 @@ def decode_log(path: str | Path, node_id: int | None = 1, rate_hz: float | None 
             if pending_a is not None and pending_a[1]["SeqA"] == decoded["SeqB"]:
                 row = {"t_host_s": pending_a[0], **pending_a[1], **decoded,
                        "segment": len(boots), "rate_hz": rate, "rate_kind": rate_kind}
-                row["valid"] = row["TorqueRaw"] > -327.675 and row["TorqueFiltered"] > -327.675
+                row["valid"] = torque_valid(row)
                 telem.append(row)
             pending_a = None
         elif ident == ids["TELEM_C"]:

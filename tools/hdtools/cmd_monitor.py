@@ -56,6 +56,7 @@ from . import canproto, protocol
 from .cmd_canlog import _node
 from .joint import BusError, Joint, NoAnswer, open_bus
 from .safeio import OutputError, UsageError
+from .telemetry import telemetry_period_s
 
 FLUSH_S = 0.5
 # python-can leaves its SocketCAN socket at net.core.rmem_default (~200 KiB:
@@ -66,7 +67,6 @@ RX_BUFFER_BYTES = 8 << 20
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)     # Linux; not in Python 3.11
 QUERY_PARAMS = ("telemetry_rate_hz", "angle_telemetry_every", "motor_cpr", "output_cpr",
                 "gear_ratio")
-TELEM_TYPES = {f.name: f.type for f in protocol.frames()}
 _TYPE_NAME = {f.type: f.name for f in protocol.frames()}
 
 
@@ -120,7 +120,7 @@ def malformed_reason(msg: can.Message, name: str) -> str | None:
         return "remote frame"
     if msg.is_fd:
         return "CAN FD frame"
-    want = next(f.dlc for f in protocol.frames() if f.name == name)
+    want = protocol.frame(name).dlc
     if len(msg.data) != want:
         return f"{len(msg.data)} data bytes, {name} has {want}"
     return None
@@ -249,7 +249,7 @@ class MonitorState:
     def period_s(self) -> float | None:
         rate = self.params.get("telemetry_rate_hz")
         if rate:
-            return canproto_period(rate)
+            return telemetry_period_s(rate)
         return None
 
     def db(self, node: int):
@@ -268,8 +268,9 @@ class MonitorState:
     def _feed(self, msg: can.Message) -> None:
         t = float(msg.timestamp or time.time())
         self.frames += 1
-        self.bits += frame_bits(msg)
-        self.load_samples.append((t, frame_bits(msg)))
+        bits = frame_bits(msg)
+        self.bits += bits
+        self.load_samples.append((t, bits))
         self.first_t = t if self.first_t is None else self.first_t
         self.last_t = t
         kind, node, name = classify(msg)
@@ -321,7 +322,7 @@ class MonitorState:
             self.step += steps
         self.last_seq, self.last_pair_t = seq, t
         self.pairs += 1
-        valid = a["TorqueRaw"] > -327.675 and a["TorqueFiltered"] > -327.675
+        valid = canproto.torque_valid(a)
         self.sample = {"raw": a["TorqueRaw"] if valid else float("nan"),
                        "filt": a["TorqueFiltered"] if valid else float("nan"),
                        "ripple": a["Ripple"], "vel": d["MotorVelocity"],
@@ -427,11 +428,6 @@ class MonitorState:
             if key in self.params:
                 out.append(f"param {key} = {self.params[key]:g}")
         return out
-
-
-def canproto_period(rate_hz: float) -> float:
-    from .telemetry import telemetry_period_s
-    return telemetry_period_s(rate_hz)
 
 
 RESET_CAUSES = ("POWER_ON", "PIN", "SOFTWARE", "WATCHDOG", "BROWNOUT", "LOCKUP", "CLOCK")
