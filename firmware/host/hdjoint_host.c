@@ -100,7 +100,7 @@ typedef struct {
 #define SYNTH_VPC (10.0 / 32768.0)
 #define SYNTH_CPR 4096u
 
-static void synth_push(synth_t *s, hal_mock_t *m, hd_fw_config_t *cfg)
+static void synth_push(synth_t *s, hal_mock_t *m)
 {
     double t = (double)s->k * 1e-3;
     double speed = 156.0;
@@ -116,7 +116,6 @@ static void synth_push(synth_t *s, hal_mock_t *m, hd_fw_config_t *cfg)
     hal_mock_push_sample(m, &smp);
     s->motor_angle_rad += speed * 1e-3;
     s->k++;
-    (void)cfg;
 }
 
 /* ---------------------------------------------------------------- timing */
@@ -354,13 +353,13 @@ int main(int argc, char **argv)
     uint64_t wall_start_ns = now_ns();
     uint64_t k = 0;
     int n_fed = 0;
+    uint64_t ff_frames = 0u;
+#ifdef HD_HAVE_SIM
     /* feed-forward frames come from the simulated controller unless the
      * bus is a real one */
     const bool inject_ff = strncmp(o.can, "socketcan:", 10) != 0;
     uint8_t ff_seq = 0u;
-    uint64_t ff_frames = 0u;
-    (void)inject_ff;
-    (void)ff_seq;
+#endif
     bool nvm_failed = false;
     for (; k < max_ticks && hd_hostio_signal() == 0; k++) {
         if (o.realtime) {
@@ -379,7 +378,7 @@ int main(int argc, char **argv)
             }
         }
         if (src == SRC_MOCK) {
-            synth_push(&synth, &g_mock, &cfg);
+            synth_push(&synth, &g_mock);
         }
         g_mock.now_us = k * HD_FW_TS_US; /* time stamps of the CAN log: sample time */
         /* --cmd frames, in order, as the receive queue has room */
