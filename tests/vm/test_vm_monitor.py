@@ -127,13 +127,14 @@ def test_the_log_is_whole_and_holds_what_the_kernel_delivered(run):
 def test_summary_counts_equal_the_frames_captured(run):
     s, db = run["summary"], canproto.load_db(1)
     classic = [m for m in run["capture"] if not m.is_fd]
-    kinds = collections.Counter(classic_kind for classic_kind in (classify(m, db) for m in classic))
-    ours = joint_ids(1)
-    node = [m for m in classic if classify(m, db) == "node"]
-    names = collections.Counter(ours[m.arbitration_id] for m in node)
+    kind = [classify(m, db) for m in classic]
+    kinds = collections.Counter(kind)
+    ours, node2 = joint_ids(1), joint_ids(2)
+    names = collections.Counter(ours[m.arbitration_id] for m, k in zip(classic, kind)
+                                if k == "node")
     others = collections.Counter(m.arbitration_id - canproto.BASE_IDS["TELEM_A"]
-                                 for m in classic if classify(m, db) == "foreign"
-                                 and m.is_extended_id and m.arbitration_id in joint_ids(2))
+                                 for m, k in zip(classic, kind) if k == "foreign"
+                                 and m.is_extended_id and m.arbitration_id in node2)
     # the injected frames are all there (so none of these counts is trivially 0)
     injected = {(i["can_id"] & 0x1FFFFFFF, i["len"]) for i in run["result"]["injected"]}
     assert len(injected) == 7
