@@ -10,9 +10,9 @@
 
 #include "hal_mock.h"
 #include "hal_sim.h"
-#include "hd_calib_record.h"
 #include "hd_config_text.h"
 #include "hd_fw.h"
+#include "host_nvm.h"
 
 #define HD_EMU_RX_CAP 1024u
 #define HD_EMU_TX_CAP 16384u
@@ -79,13 +79,7 @@ static int store_nominal_calibration(hd_emu_t *e)
 {
     hd_sim_nominal_t nom;
     hal_sim_nominal(&e->sim, &nom);
-    hd_calib_record_t rec;
-    hd_calib_record_default(&rec);
-    rec.gain_nm_per_v = (float)nom.gain_nm_per_v;
-    rec.offset_v = (float)nom.offset_v;
-    static uint8_t work[HD_STORE_IMAGE_MAX];
-    const hd_store_io_t io = hd_fw_store_io(&e->hal, work, sizeof work);
-    return hd_calib_store_save(&io, &rec) == HD_RECORD_OK ? 0 : -1;
+    return host_provision_calibration(&e->hal, (float)nom.gain_nm_per_v, (float)nom.offset_v);
 }
 
 static int boot(hd_emu_t *e, uint32_t reset_cause)
