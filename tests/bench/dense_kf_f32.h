@@ -18,9 +18,10 @@
  *
  * Same model features as hd_kf, from its header: lock kinds, motion-scaled
  * q and motor gains, output_learn_scale, the offset state with priming and
- * the jump gate, Nyquist freeze and phase loss, the p_max ceiling by
- * congruence.  Not the load-dependent row: ripple_load_coeff_per_nm must be
- * 0 (the benchmark's models).  Agreement with the double reference is
+ * the jump gate, Nyquist freeze and phase loss, a p_max ceiling by
+ * congruence (per diagonal entry, D_ii = sqrt(p_max / P_ii), where hd_kf
+ * scales a block by its largest eigenvalue).  Not the load-dependent row:
+ * ripple_load_coeff_per_nm must be 0 (the benchmark's models).  Agreement with the double reference is
  * printed by the benchmark.
  *
  * Firmware-compatible C (no heap, no VLAs, no libm: sine/cosine from
