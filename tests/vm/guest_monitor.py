@@ -59,7 +59,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 IFACE = "vcan0"
-RUN = Path("/tmp/hdvm-run")           # guest tmpfs: nothing slow in the hot path
+RUN = Path("/run/hdvm-run")           # guest tmpfs: nothing slow in the hot path
 END_ID = 0x7FE                        # 11-bit end marker, foreign to the joint
 END_LINE = f" {IFACE} {END_ID:03X}#".encode()
 IDLE_CONFIG = "telemetry_rate_hz = 0\n"   # the commands phase: heartbeats and answers only

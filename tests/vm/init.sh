@@ -5,8 +5,9 @@
 #    the isa-debug-exit device and an "HDVM: VERDICT" line itself;
 #  - arguments (the kernel command line after "--", run-vm.sh --share-host):
 #    the host's root is mounted read-only at /host (9p), with the guest's
-#    /proc, /sys, /dev, a tmpfs on /tmp and the writable output folder on
-#    /tmp/hdvm-out; the arguments run as a command chrooted there, and its
+#    /proc, /sys, /dev, a tmpfs on /run (not /tmp: a checkout under the
+#    host's /tmp must stay visible) and the writable output folder on
+#    /run/hdvm-out; the arguments run as a command chrooted there, and its
 #    exit status is the verdict (0 PASS, anything else FAIL).
 export PATH=/bin
 /bin/busybox --install -s /bin
@@ -42,16 +43,16 @@ if [ $# -gt 0 ]; then
   if ! mount -t 9p -o $opts,ro,cache=loose hostroot /host; then
     verdict FAIL "cannot mount the host's root (9p tag hostroot): run-vm.sh --share-host?"
   elif ! { mount -t proc proc /host/proc && mount -t sysfs sysfs /host/sys &&
-           mount -t devtmpfs devtmpfs /host/dev && mount -t tmpfs tmpfs /host/tmp &&
-           mkdir /host/tmp/hdvm-out && mount -t 9p -o $opts hdvmout /host/tmp/hdvm-out; }; then
-    verdict FAIL "cannot mount /proc, /sys, /dev, /tmp or the output folder in /host"
+           mount -t devtmpfs devtmpfs /host/dev && mount -t tmpfs tmpfs /host/run &&
+           mkdir /host/run/hdvm-out && mount -t 9p -o $opts hdvmout /host/run/hdvm-out; }; then
+    verdict FAIL "cannot mount /proc, /sys, /dev, /run or the output folder in /host"
   else
     echo "HDVM: host root on /host, guest uptime $(cut -d" " -f1 /proc/uptime) s; running $*"
     chroot /host /usr/bin/env -i PATH=/usr/local/bin:/usr/bin:/bin:/usr/sbin:/sbin \
-      HOME=/tmp LANG=C.UTF-8 PYTHONDONTWRITEBYTECODE=1 OPENBLAS_NUM_THREADS=1 "$@"
+      HOME=/run TMPDIR=/run LANG=C.UTF-8 PYTHONDONTWRITEBYTECODE=1 OPENBLAS_NUM_THREADS=1 "$@"
     rc=$?
     sync
-    umount /host/tmp/hdvm-out
+    umount /host/run/hdvm-out
     echo "HDVM: guest uptime at the end $(cut -d" " -f1 /proc/uptime) s"
     if [ $rc -eq 0 ]; then verdict PASS "$1 exited with 0"; else verdict FAIL "$1 exited with $rc"; fi
   fi

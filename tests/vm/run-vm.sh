@@ -9,7 +9,7 @@
 # With --share-host, QEMU exports the host's root read-only and the empty
 # folder OUTDIR/share writable (virtio 9p), and /init runs COMMAND (a path
 # on the host, no spaces in any argument) chrooted into the host's root,
-# with OUTDIR/share on /tmp/hdvm-out; COMMAND's exit status is the verdict.
+# with OUTDIR/share on /run/hdvm-out; COMMAND's exit status is the verdict.
 # Anything else -- QEMU missing, no boot, a timeout, a guest that powered
 # off without a verdict (QEMU exits 0 then) -- is a FAILURE with the reason
 # and the serial log tail.  The full serial log is OUTDIR/serial.log; the
