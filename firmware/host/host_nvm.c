@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "hd_fw.h"
 #include "hd_fw_records.h"
@@ -60,14 +61,14 @@ int host_nvm_load(nvm_file_t *n, uint8_t *nvm, char *err, size_t err_len)
     if (n->path == NULL) {
         return 0;
     }
+    struct stat st;
+    if (stat(n->path, &st) != 0 && errno == ENOENT) {
+        n->missing = true; /* starts erased; written at once (an unwritable path fails now) */
+        return 0;
+    }
     size_t len = 0;
     char *buf = hd_hostio_read_file(n->path, HAL_MOCK_NVM_BYTES, &len, err, err_len);
     if (buf == NULL) {
-        if (errno == ENOENT && hd_hostio_check_regular(n->path, NULL, 0) != 0 &&
-            strstr(err, "cannot open") != NULL) {
-            n->missing = true; /* starts erased; written at once (an unwritable path fails now) */
-            return 0;
-        }
         return -1;
     }
     if (len != HAL_MOCK_NVM_BYTES) {
