@@ -199,10 +199,6 @@ class Model:
             out.append({"candump": canproto.cansend_str(frame), "what": what})
         return out
 
-    def not_settable_over_can(self) -> list[str]:
-        """Every key of the configuration text has a CAN command now."""
-        return []
-
 
 def slow_step_nm(torque_nm: np.ndarray, ts_s: float, window_s: float = 0.2) -> float:
     """RMS per-sample change of the torque smoothed over window_s (ripple

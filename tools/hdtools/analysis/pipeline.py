@@ -381,7 +381,6 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     except ValueError as exc:    # an order CAN cannot carry (checked before adding)
         report["can_commands"] = []
         report["can_error"] = str(exc)
-    report["can_not_settable"] = m1.not_settable_over_can()
     for when, met in (("before", met_before), ("after", met_after)):
         report[f"residual_rms_{when}_nm"] = met["innovation_rms_nm"]
         report[f"model_residual_rms_{when}_nm"] = met["model_residual_rms_nm"]

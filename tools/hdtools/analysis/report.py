@@ -21,8 +21,6 @@ OUT_FILES = ("report.md", "model.cfg", "model.can", "profile.json", "order_spect
              "output_spectrum.png", "time_spectrum.png", "torque.png", "profile.png")
 
 
-
-
 def _clean(o):
     if isinstance(o, dict):
         return {str(k): _clean(v) for k, v in o.items()}
@@ -127,9 +125,6 @@ def can_text(report, node_id):
     lines += [f"# {c['candump']}  {c['what']}" for c in frames]
     if report.get("can_error"):
         lines.append(f"# not expressible over CAN: {report['can_error']}")
-    nots = report.get("can_not_settable") or []
-    if nots:
-        lines.append("# no CAN command (model.cfg carries them): " + ", ".join(nots))
     return "\n".join(lines) + "\n"
 
 
@@ -152,7 +147,7 @@ def _save(fig, path):
         plt.close(fig)
 
 
-def _traces(res):
+def _traces():
     """(label, signal-getter, style) for raw / reference / before / after."""
     return [("raw (measured)", lambda r: np.asarray(r.torque_nm, float), dict(color="0.55", lw=0.8)),
             ("filtered, paper model (adaptive output blocks)", lambda r: r.filtered,
@@ -169,7 +164,7 @@ def _views(res):
 def plot_makers(res, data, m0, m1, report, title):
     """(file name, make() -> figure or None when there is nothing to show)."""
     views = _views(res)
-    traces = _traces(res)
+    traces = _traces()
 
     def spectrum(kind):
         def draw():

@@ -298,9 +298,6 @@ def iiwa_table(reports: dict) -> list[str]:
     return L
 
 
-SECTIONS = ("suite", "bands", "slow", "slow-bands", "iiwa")
-
-
 def section(name, lines) -> str:
     return "\n".join([f"<!-- generated: {name} -->"] + lines + [f"<!-- end: {name} -->"])
 
