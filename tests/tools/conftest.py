@@ -6,13 +6,15 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 from hdtools import native  # noqa: E402
+# (header, array) of a CSV and back: plain numpy, independent of the tool's
+# loader (hdtools.analysis.loading); the results tables' cases use them too.
+from hdtools.analysis.results import read_csv, write_csv  # noqa: E402,F401
 
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 
@@ -30,19 +32,6 @@ def simulate(hdsim, tmp_path_factory):
     """simulate(name, *--set overrides) -> path of the CSV (cached)."""
     from hdtools.analysis import results
     return results.simulator(hdsim, tmp_path_factory.mktemp("sim"))
-
-
-def read_csv(path):
-    """The CSV as a dict of columns (numpy, independent of the tool's loader)."""
-    with open(path) as fh:
-        header = fh.readline().strip().split(",")
-    arr = np.loadtxt(path, delimiter=",", skiprows=1)
-    return header, arr
-
-
-def write_csv(path, header, arr, fmt="%.9g"):
-    np.savetxt(path, arr, delimiter=",", header=",".join(header), comments="", fmt=fmt)
-    return path
 
 
 def analyze(path, **kw):
