@@ -25,7 +25,7 @@ ROOT = protocol.ROOT
 MAGIC = b"HDPF"
 LOCKS = ("motor", "output")      # hd_kf_lock_t 0 and 1
 GEAR_TOLERANCE = 0.005           # a profile.json's gear ratio vs the joint's (relative)
-SCHEMA = "hdjoint-profile/1"     # tools/hdtools/analysis/profile.py
+SCHEMA = "hdjoint-profile/1"     # profile.json (tools/hdtools/analysis/profile.py writes it)
 
 
 def _define(path: str, name: str) -> int:

@@ -29,9 +29,8 @@ import math
 
 import numpy as np
 
+from ..profile_record import SCHEMA
 from . import replay as rp, spectra
-
-SCHEMA = "hdjoint-profile/1"
 CONVENTION = ("ripple_nm = sum over lines of a_nm cos(order alpha) + b_nm sin(order alpha); "
               "alpha = the absolute motor angle (lock motor) or output angle (lock output) in rad, "
               "zero and sign as the log's motor_angle_rad / output_angle_rad columns (the "
