@@ -16,8 +16,6 @@ import argparse
 import errno
 import importlib
 import os
-import re
-import subprocess
 import sys
 from pathlib import Path
 
@@ -44,26 +42,17 @@ def version() -> str:
         ver = info.get("version", "unknown")
         return ver + (f" (git {info['git']})" if info.get("git") else "")
     root = Path(__file__).resolve().parents[2]
-    ver = "unknown"
     try:
-        m = re.search(r"project\(\s*hdjoint\s+VERSION\s+([0-9.]+)",
-                      (root / "CMakeLists.txt").read_text())
-        if m:
-            ver = m.group(1)
+        ver = paths.project_version(root) or "unknown"
     except OSError:
+        ver = "unknown"
         try:
             from importlib.metadata import version as dist_version
             ver = dist_version("hdtools")
         except Exception:  # noqa: BLE001 - not installed either
             pass
-    try:
-        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
-                             capture_output=True, text=True, timeout=5)
-        if rev.returncode == 0 and rev.stdout.strip():
-            ver += f" (git {rev.stdout.strip()})"
-    except (OSError, subprocess.SubprocessError):
-        pass
-    return ver
+    rev = paths.git_revision(root)
+    return ver + (f" (git {rev})" if rev else "")
 
 
 def _parser() -> argparse.ArgumentParser:

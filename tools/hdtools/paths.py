@@ -16,6 +16,8 @@ from (built there on first use, as in a checkout).
 from __future__ import annotations
 
 import os
+import re
+import subprocess
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
@@ -51,6 +53,27 @@ def source_root() -> Path | None:
     if recorded and (Path(recorded) / "CMakeLists.txt").is_file():
         return Path(recorded)
     return None
+
+
+_CMAKE_VERSION = re.compile(r"project\(\s*hdjoint\s+VERSION\s+([0-9.]+)")
+
+
+def project_version(root: Path) -> str | None:
+    """The version in root/CMakeLists.txt (the one place it is written),
+    None if it names none; OSError if the file cannot be read."""
+    m = _CMAKE_VERSION.search((Path(root) / "CMakeLists.txt").read_text())
+    return m.group(1) if m else None
+
+
+def git_revision(root: Path) -> str:
+    """The commit root is checked out at (12 hex digits), "" if it is not a
+    git checkout or git is missing."""
+    try:
+        r = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
+                           capture_output=True, text=True, timeout=5)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return r.stdout.strip() if r.returncode == 0 else ""
 
 
 def source_file(rel: str) -> Path:
