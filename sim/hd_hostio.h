@@ -27,6 +27,12 @@
 extern "C" {
 #endif
 
+/* Exit status of the host programs, the same in every one (docs/reliability.md,
+ * "Exit status"): 0 ok, 128 + signal when interrupted, and: */
+#define EXIT_RUN 1   /* the run failed (hdjoint-host: SocketCAN, --cmd frames not handled) */
+#define EXIT_USAGE 2 /* bad command line or bad input */
+#define EXIT_WRITE 3 /* an output could not be written (the old files stay) */
+
 /* Limit for text inputs (scenario, configuration): far above any real one. */
 #define HD_HOSTIO_TEXT_MAX_BYTES (1u << 20)
 

@@ -24,9 +24,6 @@
 #include "hd_sim_plant.h"
 #include "hd_sim_scenario.h"
 
-#define EXIT_USAGE 2
-#define EXIT_WRITE 3
-
 #define MAX_SETS 64
 
 static void usage(FILE *f)
@@ -180,7 +177,7 @@ int main(int argc, char **argv)
     hd_sim_plant_t *plant = malloc(sizeof(*plant));
     if (plant == NULL) {
         fprintf(stderr, "hdsim: out of memory\n");
-        return 1;
+        return EXIT_RUN;
     }
     if (hd_sim_plant_init(plant, &sc, err, sizeof(err)) != 0) {
         fprintf(stderr, "hdsim: %s: %s\n", scenario, err);

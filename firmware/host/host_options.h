@@ -8,11 +8,6 @@
 
 #include "hal.h"
 
-/* Exit status of hdjoint-host (docs/reliability.md, "Exit status"). */
-#define EXIT_RUN 1
-#define EXIT_USAGE 2
-#define EXIT_WRITE 3
-
 typedef struct {
     const char *sensors;
     const char *can;

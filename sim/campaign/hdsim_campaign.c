@@ -224,7 +224,7 @@ int main(int argc, char **argv)
 {
     opts_t o = {6.60, 0.0, 0.0, 0.002, 0, 0, 0, 0, 0.01, 60.0, 0.2, 0.5, 0.0, 8, 4, 5, 1, NULL};
     if (parse_args(argc, argv, &o) != 0) {
-        return 2; /* one line said what; --help has the rest */
+        return EXIT_USAGE; /* one line said what; --help has the rest */
     }
     hd_hostio_catch_signals();
     g_state = 0x9E3779B97F4A7C15ull ^ (o.seed * 0xD1B54A32D192ED03ull);
@@ -265,7 +265,7 @@ int main(int argc, char **argv)
     hd_out_t out;
     if (hd_out_open(&out, o.out != NULL ? o.out : "-", false, err, sizeof err) != 0) {
         fprintf(stderr, "hdsim-campaign: %s\n", err);
-        return 3;
+        return EXIT_WRITE;
     }
     int ok = hd_out_printf(&out,
             "# hdsim-campaign gain=%.6g spread=%.6g offset=%.6g noise=%.6g nonlinearity=%.6g "
@@ -309,7 +309,7 @@ int main(int argc, char **argv)
     }
     if (hd_out_commit(&out, err, sizeof err) != 0) {
         fprintf(stderr, "hdsim-campaign: %s\n", err);
-        return 3;
+        return EXIT_WRITE;
     }
     return 0;
 }
