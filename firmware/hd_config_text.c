@@ -236,7 +236,7 @@ static int parse_block(hd_fw_config_t *c, const tok_t *v, size_t nv, bool *block
 /* Lines on which each table row was set (0 = not yet), for duplicates. */
 typedef struct {
     bool blocks_seen;
-    unsigned line_of[64];
+    unsigned line_of[HD_PARAM_ROWS];
 } seen_t;
 
 static int parse_value(const hd_param_info_t *p, tok_t t, float *v)
@@ -270,17 +270,15 @@ static int parse_param(hd_fw_config_t *c, tok_t key, tok_t value, seen_t *seen,
     if (p->flags & HD_PF_RO) {
         return fail(err, HD_FW_ERR_READ_ONLY, line, "read-only parameter");
     }
-    size_t row = (size_t)(p - hd_param_at(0));
-    if (row < sizeof seen->line_of / sizeof seen->line_of[0]) {
-        if (seen->line_of[row] != 0u) {
-            int rc = fail(err, HD_FW_ERR_DUPLICATE, line, "key given twice");
-            if (err != NULL) {
-                err->first_line = seen->line_of[row];
-            }
-            return rc;
+    const size_t row = (size_t)(p - hd_param_at(0)); /* < HD_PARAM_ROWS */
+    if (seen->line_of[row] != 0u) {
+        int rc = fail(err, HD_FW_ERR_DUPLICATE, line, "key given twice");
+        if (err != NULL) {
+            err->first_line = seen->line_of[row];
         }
-        seen->line_of[row] = line;
+        return rc;
     }
+    seen->line_of[row] = line;
     float v;
     if (parse_value(p, value, &v) != 0) {
         return fail(err, HD_FW_ERR_SYNTAX, line,

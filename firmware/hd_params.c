@@ -50,6 +50,7 @@ static const hd_param_info_t TABLE[] = {
 #undef LO_OPEN
 
 #define TABLE_ROWS (sizeof TABLE / sizeof TABLE[0])
+_Static_assert(TABLE_ROWS == HD_PARAM_ROWS, "HD_PARAM_ROWS counts the table's rows");
 
 static const uint8_t RETIRED[] = {
 #define HD_PARAM(...)

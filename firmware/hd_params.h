@@ -23,6 +23,13 @@ typedef enum {
     HD_PARAM_ID_MAX_ = 255
 } hd_param_id_t;
 
+/* The number of rows (hd_param_count()), as a constant for fixed arrays. */
+enum {
+#define HD_PARAM(id, NAME, ...) HD_PARAM_ROW_##NAME,
+#include "hd_params.def"
+    HD_PARAM_ROWS
+};
+
 typedef enum { HD_PT_F32, HD_PT_U32, HD_PT_U16, HD_PT_U8, HD_PT_BOOL } hd_param_type_t;
 
 /* Flags (hd_params.def's flags column). */
