@@ -197,27 +197,34 @@ static void test_nothing_new_without_the_keys(void)
     TEST_ASSERT_EQUAL_FLOAT((float)hal_sim_current(&sim)->motor_current_a, c.motor_current_a);
 }
 
+/* Each refused for its own reason: the message names the file and the key. */
 static void test_bad_values_are_refused(void)
 {
-    const char *bad[] = {
-        "feedforward = 2\n",
-        "feedforward.period_ms = 0\n",
-        "motor.efficiency = 1.5\n",
-        "motor.efficiency = 0\n",
-        "motor.kt_error = -1\n",
-        "load_sine = 1 : 0 : 0\n",
-        "load_sine = 1 : 5\n",
-        "feedforward.dropout = 2:1\n",
-        "motor.kt_nm_per_a = -0.1\n",
-        "gravity_profile = 1:2, 0.5:3\n",
+    const struct {
+        const char *text;
+        const char *key;
+    } bad[] = {
+        {"feedforward = 2\n", "feedforward must"},
+        {"feedforward.period_ms = 0\n", "feedforward.period_ms"},
+        {"motor.efficiency = 1.5\n", "motor.efficiency"},
+        {"motor.efficiency = 0\n", "motor.efficiency"},
+        {"motor.kt_error = -1\n", "motor.kt_error"},
+        {"load_sine = 1 : 0 : 0\n", "load_sine"},
+        {"load_sine = 1 : 5\n", "load_sine"},
+        {"feedforward.dropout = 2:1\n", "feedforward.dropout"},
+        {"motor.kt_nm_per_a = -0.1\n", "motor.kt_nm_per_a"},
+        {"gravity_profile = 1:2, 0.5:3\n", "gravity_profile"},
     };
     for (unsigned i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         hd_sim_scenario_t sc;
         hd_sim_scenario_default(&sc);
         err[0] = '\0';
-        TEST_ASSERT_EQUAL_INT_MESSAGE(-1, hd_sim_scenario_parse(&sc, bad[i], "t", err, sizeof err),
-                                      bad[i]);
-        TEST_ASSERT_TRUE(strncmp(err, "t", 1) == 0);
+        TEST_ASSERT_EQUAL_INT_MESSAGE(-1, hd_sim_scenario_parse(&sc, bad[i].text, "t", err,
+                                                                sizeof err),
+                                      bad[i].text);
+        if (strncmp(err, "t:", 2) != 0 || strstr(err, bad[i].key) == NULL) {
+            TEST_FAIL_MESSAGE(err);
+        }
     }
 }
 
