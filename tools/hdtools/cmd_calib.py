@@ -109,9 +109,10 @@ def run(args) -> int:
     from hdtools.calibtool import csvio, report
     from hdtools.calibtool import lib as L
     if args.input == "-":
-        text = safeio.decode_text(sys.stdin.buffer.read(safeio.TEXT_MAX_BYTES + 1), "stdin")
-        if len(text) > safeio.TEXT_MAX_BYTES:
+        data = sys.stdin.buffer.read(safeio.TEXT_MAX_BYTES + 1)
+        if len(data) > safeio.TEXT_MAX_BYTES:      # bytes, not characters, as read_text
             raise safeio.UsageError(f"stdin: more than {safeio.TEXT_MAX_BYTES} bytes")
+        text = safeio.decode_text(data, "stdin")
     else:
         text = safeio.read_text(args.input)
     try:
@@ -120,11 +121,10 @@ def run(args) -> int:
         rep, rc = L.analyze(exps, thresholds)
     except L.CalibError as exc:
         raise safeio.UsageError(f"error: {exc}") from None
+    d = report.to_dict(rep, exps, rc, thresholds)
     if rc == L.ERR_SINGLE_EXPERIMENT:
-        d = report.to_dict(rep, exps, rc, thresholds)
         sys.stdout.write(report.text(d))
         raise safeio.UsageError(f"error: {L.strerror(rc)}")
-    d = report.to_dict(rep, exps, rc, thresholds)
     write_record = bool(args.record) and (d["accepted"] or args.force_record)
     record = None
     if write_record:
