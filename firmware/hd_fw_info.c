@@ -20,6 +20,18 @@ static uint32_t version_word(void)
            (uint32_t)HD_FW_VERSION_PATCH;
 }
 
+/* The CAN backend's own counters (what it saw below the firmware: frames
+ * the controller lost, error frames, bus-off); zero without a counters
+ * function.  Read in the background: a counter may be one tick old. */
+static hal_counters_t can_counters(const hd_fw_t *fw)
+{
+    hal_counters_t c = {0};
+    if (fw->hal->can.counters != NULL) {
+        fw->hal->can.counters(fw->hal->can.ctx, &c);
+    }
+    return c;
+}
+
 bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
 {
     const hd_fw_counters_t *c = &fw->counters;
@@ -39,6 +51,7 @@ bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_FAULT_CFSR: *v = b->fault_valid ? b->fault_cfsr : 0u; return true;
     case HD_INFO_FAULT_HFSR: *v = b->fault_valid ? b->fault_hfsr : 0u; return true;
     case HD_INFO_FAULT_ADDR: *v = b->fault_valid ? b->fault_addr : 0u; return true;
+    case HD_INFO_BOARD_INIT_ERRORS: *v = b->init_errors; return true;
     case HD_INFO_TICKS: *v = c->ticks; return true;
     case HD_INFO_VALID_SAMPLES: *v = c->valid_samples; return true;
     case HD_INFO_FAULT_TICKS: *v = c->fault_ticks; return true;
@@ -50,6 +63,9 @@ bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_FRAMES_DROPPED: *v = c->frames_dropped; return true;
     case HD_INFO_FOREIGN_FRAMES: *v = c->foreign_frames; return true;
     case HD_INFO_FEEDFORWARD_FRAMES: *v = c->feedforward_frames; return true;
+    case HD_INFO_CAN_RX_OVERRUNS: *v = can_counters(fw).can_rx_overruns; return true;
+    case HD_INFO_CAN_ERROR_FRAMES: *v = can_counters(fw).can_error_frames; return true;
+    case HD_INFO_CAN_BUS_OFF: *v = can_counters(fw).can_bus_off; return true;
     default: return false;
     }
 }

@@ -69,6 +69,8 @@ typedef struct {
     uint32_t can_rx;
     uint32_t can_error_frames;
     uint32_t can_bus_off;
+    uint32_t can_rx_overruns;  /* frames the controller lost before they were read
+                                  (a full receive FIFO); 0 where the backend cannot tell */
 } hal_counters_t;
 
 /* The HAL is four independent parts, each with its own context, so a
@@ -138,6 +140,8 @@ typedef struct {
     uint32_t fault_cfsr;    /* SCB->CFSR (configurable fault status) */
     uint32_t fault_hfsr;    /* SCB->HFSR */
     uint32_t fault_addr;    /* SCB->BFAR or MMFAR when valid, else 0 */
+    uint32_t init_errors;   /* board-specific bits of drivers that failed to start at
+                               this boot (0: all started; e.g. STM32_BOARD_INIT_*) */
 } hal_boot_info_t;
 
 typedef struct {

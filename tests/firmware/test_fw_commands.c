@@ -418,6 +418,23 @@ static void test_version_and_info(void)
     TEST_ASSERT_EQUAL_UINT32(0u, info(HD_CMD_INFO, HD_INFO_FAULT_PC).value_u32);
 }
 
+/* What the HAL saw below the firmware reaches INFO: the board's failed
+ * drivers at boot, the CAN controller's lost frames, error frames and
+ * bus-off events (otherwise counted in the driver and lost to the user). */
+static void test_info_reports_what_the_hal_counted(void)
+{
+    mock.boot.init_errors = 0x14u;
+    init_fw();
+    mock.counters.can_rx_overruns = 7u;
+    mock.counters.can_error_frames = 3u;
+    mock.counters.can_bus_off = 2u;
+    TEST_ASSERT_EQUAL_HEX32(0x14u, info(HD_CMD_INFO, HD_INFO_BOARD_INIT_ERRORS).value_u32);
+    TEST_ASSERT_EQUAL_UINT32(7u, info(HD_CMD_INFO, HD_INFO_CAN_RX_OVERRUNS).value_u32);
+    TEST_ASSERT_EQUAL_UINT32(3u, info(HD_CMD_INFO, HD_INFO_CAN_ERROR_FRAMES).value_u32);
+    TEST_ASSERT_EQUAL_UINT32(2u, info(HD_CMD_INFO, HD_INFO_CAN_BUS_OFF).value_u32);
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, info(HD_CMD_VERSION, HD_INFO_CAN_BUS_OFF).result);
+}
+
 static void test_reboot_after_the_ack(void)
 {
     init_fw();
@@ -589,6 +606,7 @@ int main(void)
     RUN_TEST(test_a_direct_caller_gets_busy_while_a_change_is_pending);
     RUN_TEST(test_every_parameter_of_the_table_over_can);
     RUN_TEST(test_version_and_info);
+    RUN_TEST(test_info_reports_what_the_hal_counted);
     RUN_TEST(test_reboot_after_the_ack);
     RUN_TEST(test_configuration_survives_a_reboot);
     RUN_TEST(test_save_right_after_a_change_saves_the_change);

@@ -19,6 +19,7 @@
 #include "model_flash.h"
 #include "model_misc.h"
 #include "stm32f4_board.h"
+#include "hd_fw_internal.h"
 #include "unity.h"
 
 /* The markers are assembly on the target; no-ops here. */
@@ -156,6 +157,19 @@ static void test_boot_brings_every_part_up(void)
     TEST_ASSERT_GREATER_OR_EQUAL(100u, c.can_tx_ok); /* telemetry went out */
 }
 
+/* A driver that cannot start is not silent: the board records it and the
+ * firmware's INFO item BOARD_INIT_ERRORS reports it (here a bus held
+ * dominant, so bxCAN never reaches normal mode). */
+static void test_failed_driver_is_reported_by_info(void)
+{
+    g_can.bus_dominant = true;
+    boot();
+    TEST_ASSERT_EQUAL_HEX32(STM32_BOARD_INIT_CAN, g_board.init_errors);
+    uint32_t v = 0u;
+    TEST_ASSERT_TRUE(hd_fw_info_item(&g_fw, HD_INFO_BOARD_INIT_ERRORS, &v));
+    TEST_ASSERT_EQUAL_HEX32(STM32_BOARD_INIT_CAN, v);
+}
+
 static void test_watchdog_reset_and_hardfault_are_reported_once(void)
 {
     g_rcc.regs.CSR = STM32_RCC_CSR_IWDGRSTF | STM32_RCC_CSR_PINRSTF;
@@ -275,6 +289,7 @@ int main(int argc, char **argv)
     }
     UNITY_BEGIN();
     RUN_TEST(test_boot_brings_every_part_up);
+    RUN_TEST(test_failed_driver_is_reported_by_info);
     RUN_TEST(test_watchdog_reset_and_hardfault_are_reported_once);
     RUN_TEST(test_clock_fallback_is_reported_and_timing_follows);
     RUN_TEST(test_missing_conversion_is_an_adc_fault);

@@ -278,7 +278,7 @@ static void test_receive_fifo_order_release_and_overrun(void)
     TEST_ASSERT_EQUAL_UINT8(8u, got.len);
     TEST_ASSERT_EQUAL_MEMORY(a.data, got.data, 8u);
     TEST_ASSERT_EQUAL_UINT8(0u, got.flags);
-    TEST_ASSERT_EQUAL_UINT(1u, g_drv.rx_overruns);
+    TEST_ASSERT_EQUAL_UINT(1u, g_drv.counters.can_rx_overruns);
     TEST_ASSERT_EQUAL_UINT(2u, g_model.fifo_count); /* RFOM released one */
     TEST_ASSERT_EQUAL_INT(HAL_OK, stm32_can_recv(&g_drv, &got));
     TEST_ASSERT_EQUAL_HEX32(0x602u, got.id);

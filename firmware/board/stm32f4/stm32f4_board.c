@@ -183,6 +183,7 @@ uint32_t stm32_board_boot(stm32_board_t *b, const stm32_board_def_t *def,
     }
     boot_nvm(b, def);
     stm32_board_bind(b, hal);
+    b->boot.init_errors = b->init_errors; /* INFO BOARD_INIT_ERRORS */
     return b->init_errors;
 }
 

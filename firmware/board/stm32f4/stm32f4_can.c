@@ -82,7 +82,6 @@ int stm32_can_init(stm32_can_drv_t *drv, const stm32_can_config_t *cfg)
     drv->txq_head = 0u;
     drv->txq_count = 0u;
     drv->counters = (hal_counters_t){0};
-    drv->rx_overruns = 0u;
     drv->tx_aborted = 0u;
     drv->bus_off = false;
     drv->running = false;
@@ -288,7 +287,7 @@ int stm32_can_recv(void *ctx, hal_can_frame_t *frame)
     stm32_can_t *can = drv->cfg.can;
     uint32_t rf = STM32_RD(can->RF0R);
     if ((rf & STM32_CAN_RFR_FOVR) != 0u) {
-        drv->rx_overruns++;
+        drv->counters.can_rx_overruns++;
         STM32_WR(can->RF0R, STM32_CAN_RFR_FOVR | STM32_CAN_RFR_FULL); /* rc_w1 */
     }
     if ((rf & STM32_CAN_RFR_FMP_MASK) == 0u) {

@@ -73,7 +73,6 @@ typedef struct {
     uint32_t txq_head;
     uint32_t txq_count;
     hal_counters_t counters;
-    uint32_t rx_overruns;    /* FIFO 0 overflowed (FOVR0): frames lost in hardware */
     uint32_t tx_aborted;     /* a mailbox completed without TXOK */
     bool bus_off;            /* ESR.BOFF at the last look */
     bool running;            /* left initialization mode */
