@@ -62,11 +62,6 @@ bool stm32_tick_ack(stm32_tim_t *tim)
     return true;
 }
 
-bool stm32_tick_overrun(const stm32_tim_t *tim)
-{
-    return (STM32_RD(tim->SR) & STM32_TIM_SR_UIF) != 0u;
-}
-
 void stm32_encoder_init(stm32_encoder_t *enc, const stm32_encoder_config_t *cfg)
 {
     stm32_tim_t *tim = cfg->tim;

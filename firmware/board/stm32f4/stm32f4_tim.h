@@ -50,10 +50,6 @@ void stm32_tick_stop(stm32_tim_t *tim);
  * (false: the interrupt came from something else). */
 bool stm32_tick_ack(stm32_tim_t *tim);
 
-/* True if another update happened since the last ack (the tick body ran
- * longer than one period). */
-bool stm32_tick_overrun(const stm32_tim_t *tim);
-
 typedef struct {
     stm32_tim_t *tim;
     uint8_t counter_bits;  /* 16 (TIM1/3/4/8) or 32 (TIM2/5) */
