@@ -247,3 +247,12 @@ def test_update_docs_refuses_a_page_without_markers(tmp_path):
     assert {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()} == before
     r = run_target("budget", "--update-docs", "--board", "stm32f4", "--docs", docs)
     assert r.returncode == 2 and len(r.stderr.splitlines()) == 1, r.stderr
+
+
+def test_a_missing_slow_path_is_an_error_not_a_dropped_row():
+    counts = fake_counts()
+    label = f"{t.KF_PATHS[0][0]}:default"
+    del counts[label]
+    with pytest.raises(t.TargetError, match=label):
+        t.kf_paths_of(counts)
+    assert t.kf_paths_of({k: v for k, v in counts.items() if not k.startswith("kf:")}) == {}

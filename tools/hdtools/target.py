@@ -695,9 +695,16 @@ def section_counts(sections: list, insns: dict) -> tuple:
 def kf_paths_of(counts: dict) -> dict:
     """{model: {"typical", PATH..., "worst", "worst_path", "dense_ratio"}}:
     max instructions per call of hd_kf_step's typical and slow paths;
-    dense_ratio = dense mean / typical mean.  Empty if the image lacks them."""
-    if not all(f"{kind}:{key}" in counts for kind, _ in KF_PATHS for key, _ in MODELS):
+    dense_ratio = dense mean / typical mean.  Empty if the image counts no
+    filter step at all; a path missing beside the others (a label renamed in
+    main_bench.c) is an error, not a row that silently drops out."""
+    if not any(k.startswith("kf:") for k in counts):
         return {}
+    missing = [f"{kind}:{key}" for kind in ["kf", "dense"] + [k for k, _ in KF_PATHS]
+               for key, _ in MODELS if f"{kind}:{key}" not in counts]
+    if missing:
+        raise TargetError(f"the bench image counts no {', '.join(missing[:4])}"
+                          f"{' ...' if len(missing) > 4 else ''} (labels of main_bench.c?)")
     result = {}
     for key, _ in MODELS:
         r = {"typical": counts[f"kf:{key}"]["max"]}
