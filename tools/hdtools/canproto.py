@@ -69,6 +69,15 @@ def cansend_str(frame: tuple[int, bytes]) -> str:
     return f"{frame_id:0{width}X}#{data.hex().upper()}"
 
 
+# ADD_MOTOR / ADD_OUTPUT / ADD_FIXED carry the order (or frequency) as a
+# uint16 of hundredths (DBC_LAYOUT: MotorOrder 16 bits, scale 0.01).
+ORDER_MIN, ORDER_MAX = 0.01, 0xFFFF / 100.0
+
+
+def order_representable(order: float) -> bool:
+    return 0 < round(order * 100) <= 0xFFFF
+
+
 _ON = ("on", "1", "yes")
 _OFF = ("off", "0", "no")
 
@@ -147,10 +156,9 @@ def config_to_commands(text: str, db=None, token: int = 0) -> list[tuple[int, by
     if blocks:
         block_cmds = [command(db, "BLOCKS_CLEAR", token)]
         for index, (kind, order, q, enabled) in enumerate(blocks):
-            o100 = round(order * 100)
-            if not 0 < o100 <= 0xFFFF:
+            if not order_representable(order):
                 raise ValueError(f"block {kind} {order:g}: order not representable on CAN "
-                                 f"(0.01 .. 655.35)")
+                                 f"({ORDER_MIN:g} .. {ORDER_MAX:g})")
             if kind == "motor":
                 block_cmds.append(command(db, "ADD_MOTOR", token, MotorOrder=order, MotorQ=q))
             elif kind == "output":

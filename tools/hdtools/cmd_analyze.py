@@ -10,10 +10,8 @@ from __future__ import annotations
 import math
 import sys
 
+from . import canproto
 from .safeio import UsageError
-
-# An order travels over CAN as hundredths in 16 bits (docs/firmware.md).
-CAN_ORDER_RANGE = (0.01, 655.35)
 
 
 def register(sub):
@@ -49,7 +47,7 @@ def _orders(text, name):
         vals = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
         raise UsageError(f"--{name}: expected comma-separated numbers, got {text!r}") from None
-    lo, hi = CAN_ORDER_RANGE
+    lo, hi = canproto.ORDER_MIN, canproto.ORDER_MAX
     for v in vals:
         if not lo <= v <= hi:
             raise UsageError(f"--{name}: order {v:g} outside {lo:g}..{hi:g} (not representable "

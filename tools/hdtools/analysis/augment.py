@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 
+from .. import canproto
 from . import detect, geometry, replay as rp, spectra
 from .model import NOISE_FLOOR_NM, Block, Model, ProfileLine
 
@@ -49,14 +50,6 @@ RETUNE_FACTOR = 10.0
 LOAD_GAIN = 0.05
 PROFILE_GAIN = 0.01
 LINES_LEFT_TOL = 0.02
-# CAN carries an order as a uint16 of hundredths (docs/firmware.md).
-CAN_ORDER_MAX = 0xFFFF / 100.0
-
-
-def representable(order: float) -> bool:
-    return 0 < round(order * 100) <= 0xFFFF
-
-
 def apply(model: Model, c: detect.Candidate) -> Model | None:
     m = model.copy()
     q = Model.q_for_settle(m.r_nm2, m.ts_s, 0.05)
@@ -64,9 +57,10 @@ def apply(model: Model, c: detect.Candidate) -> Model | None:
         if len(m.blocks) >= MAX_BLOCKS:
             c.evidence["rejected_because"] = f"the filter has {MAX_BLOCKS} blocks"
             return None
-        if not representable(c.order):
+        if not canproto.order_representable(c.order):
             c.evidence["rejected_because"] = (
-                f"order {c.order:g} is not representable on CAN (0.01..{CAN_ORDER_MAX:g})")
+                f"order {c.order:g} is not representable on CAN "
+                f"({canproto.ORDER_MIN:g}..{canproto.ORDER_MAX:g})")
             return None
         lock = {"motor_order": "motor", "fixed_frequency": "fixed"}[c.kind]
         m.blocks.append(Block(lock, round(c.order, 2), q))
