@@ -34,7 +34,7 @@ import cantools
 
 from . import canproto, protocol, safeio
 from .cmd_monitor import add_bus_arguments, boot_report, _node
-from .joint import Joint, NoAnswer, open_bus
+from .joint import BOOT_TIMEOUT_S, Joint, NoAnswer, open_bus
 from .protocol import f32, name_of
 from .safeio import HdError, UsageError
 
@@ -162,7 +162,7 @@ def reboot(joint: Joint) -> str:
         raise Refused(f"node {joint.node}: REBOOT refused ({ack.result})")
     boot = joint.wait_boot()
     if boot is None:
-        raise NoAnswer(f"node {joint.node}: no BOOT frame within 3 s of REBOOT")
+        raise NoAnswer(f"node {joint.node}: no BOOT frame within {BOOT_TIMEOUT_S:g} s of REBOOT")
     return boot_report(boot)
 
 
