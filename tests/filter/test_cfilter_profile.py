@@ -30,7 +30,7 @@ def profile_nm(th_m, th_o):
     return r
 
 
-def replay(first_increment_rad: float):
+def replay(first_increment_rad: float, motor_start_rad: float = 5.0):
     """Motor speed from first_increment / ts, changing every 40 samples;
     the blocks neither learn (q 0, prior variance 0) nor see a correction
     they could use: their predictions are the imported profile turned."""
@@ -49,7 +49,7 @@ def replay(first_increment_rad: float):
     d_m[120:] = 0.33
     d_m = d_m.astype(np.float32)
     d_o = (d_m / GEAR).astype(np.float32)
-    th_m = 5.0 + np.cumsum(d_m.astype(float))   # absolute angles of the samples
+    th_m = motor_start_rad + np.cumsum(d_m.astype(float))   # absolute angles of the samples
     th_o = 2.0 + np.cumsum(d_o.astype(float))
     torque = profile_nm(th_m, th_o) + 3.0
     lines = [(cfilter.LOCK_BY_NAME[lock], order, a, b) for lock, order, a, b in LINES]
@@ -69,4 +69,11 @@ def test_a_log_starting_in_motion_is_predicted_at_its_own_angles():
 
 def test_a_log_starting_at_rest_is_predicted_at_its_own_angles():
     ripple, truth = replay(0.0)
+    assert np.max(np.abs(ripple - truth)) < 2e-5
+
+
+def test_an_angle_just_below_two_pi_is_angle_zero():
+    # 2 pi - 1e-8 rounds to float32 2 pi, outside the filter's [0, 2 pi):
+    # the import must take it as 0, not be refused (HD_KF_ERR_ANGLE).
+    ripple, truth = replay(0.0, motor_start_rad=2.0 * np.pi - 1e-8)
     assert np.max(np.abs(ripple - truth)) < 2e-5

@@ -272,6 +272,14 @@ def _fptr(a):
     return a.ctypes.data_as(_FP)
 
 
+def _angle_f32(a: float) -> float:
+    """a reduced to [0, 2 pi) as the float32 the filter receives: an angle
+    just below 2 pi rounds up to 2 pi in float32, which the filter refuses
+    (outside [0, 2 pi)); that is angle 0."""
+    r = np.float32(np.mod(a, 2.0 * np.pi))
+    return 0.0 if r >= np.float32(2.0 * np.pi) else float(r)
+
+
 def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_output_rad,
         feedforward_nm=None, track_bandwidth_hz: float = DEFAULT_TRACK_BANDWIDTH_HZ,
         amplitudes: bool = False, profile=None) -> dict:
@@ -298,12 +306,10 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
         for i, (lock, order, a, b) in enumerate(lines):
             pr.lines[i].lock, pr.lines[i].order = lock, int(order)
             pr.lines[i].a_nm, pr.lines[i].b_nm = a, b
-        two_pi = 2.0 * np.pi
         before_m = th_m0 - float(d_motor_rad[0]) if n else th_m0
         before_o = th_o0 - float(d_output_rad[0]) if n else th_o0
         err = L.hd_kf_profile_import(ctypes.byref(p.kf), ctypes.byref(pr),
-                                     float(np.mod(before_m, two_pi)),
-                                     float(np.mod(before_o, two_pi)), float(prior))
+                                     _angle_f32(before_m), _angle_f32(before_o), float(prior))
         if err < 0:
             raise FilterError(f"hd_kf_profile_import failed ({error_name(err)}): "
                               f"{error_text(err)}", error_name(err))
