@@ -21,7 +21,7 @@ static uint32_t version_word(void)
 }
 
 /* The CAN backend's own counters (what it saw below the firmware: frames
- * the controller lost, error frames, bus-off); zero without a counters
+ * the controller lost or aborted, error frames, bus-off, error counters); zero without a counters
  * function.  Read in the background: a counter may be one tick old. */
 static hal_counters_t can_counters(const hd_fw_t *fw)
 {
@@ -66,6 +66,9 @@ bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_CAN_RX_OVERRUNS: *v = can_counters(fw).can_rx_overruns; return true;
     case HD_INFO_CAN_ERROR_FRAMES: *v = can_counters(fw).can_error_frames; return true;
     case HD_INFO_CAN_BUS_OFF: *v = can_counters(fw).can_bus_off; return true;
+    case HD_INFO_CAN_TX_ABORTED: *v = can_counters(fw).can_tx_aborted; return true;
+    case HD_INFO_CAN_TX_ERROR_COUNT: *v = can_counters(fw).can_tx_error_count; return true;
+    case HD_INFO_CAN_RX_ERROR_COUNT: *v = can_counters(fw).can_rx_error_count; return true;
     default: return false;
     }
 }

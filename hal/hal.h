@@ -71,6 +71,10 @@ typedef struct {
     uint32_t can_bus_off;
     uint32_t can_rx_overruns;  /* frames the controller lost before they were read
                                   (a full receive FIFO); 0 where the backend cannot tell */
+    uint32_t can_tx_aborted;   /* frames handed to the controller that it completed
+                                  without sending; 0 where the backend cannot tell */
+    uint32_t can_tx_error_count; /* the controller's transmit / receive error counters */
+    uint32_t can_rx_error_count; /* (TEC, REC: 0..255) as last read; 0 where unknown */
 } hal_counters_t;
 
 /* The HAL is four independent parts, each with its own context, so a

@@ -192,9 +192,24 @@ int hsc_core_send(hsc_core_t *c, const hal_can_frame_t *f, hsc_write_fn wr,
     return HAL_OK;
 }
 
-void hsc_core_error_frame(hsc_core_t *c, uint32_t err_class)
+void hsc_core_error_frame(hsc_core_t *c, const hal_can_frame_t *f)
 {
+    const uint32_t err_class = f->id;
     c->counters.can_error_frames++;
+    /* linux/can/error.h: the controller's lost frames in data[1], its
+     * error counters in data[6] (TEC) and data[7] (REC). */
+    if ((err_class & CAN_ERR_CRTL) && f->len > 1u &&
+        (f->data[1] & CAN_ERR_CRTL_RX_OVERFLOW)) {
+        c->counters.can_rx_overruns++;
+    }
+    if ((err_class & CAN_ERR_CNT) && f->len > 7u) {
+        c->counters.can_tx_error_count = f->data[6];
+        c->counters.can_rx_error_count = f->data[7];
+    }
+    /* The netdevice gave up on a frame it had accepted. */
+    if (err_class & CAN_ERR_TX_TIMEOUT) {
+        c->counters.can_tx_aborted++;
+    }
     if (err_class & CAN_ERR_BUSOFF) {
         if (!c->bus_off) {
             c->counters.can_bus_off++;
@@ -220,7 +235,7 @@ int hsc_core_recv(hsc_core_t *c, hal_can_frame_t *f, hsc_read_fn rd,
             return HAL_ERR_IO;
         }
         if (f->flags & HAL_CAN_FLAG_ERR) {
-            hsc_core_error_frame(c, f->id);
+            hsc_core_error_frame(c, f);
             continue;
         }
         /* A frame from another node: the bus carries traffic again. */

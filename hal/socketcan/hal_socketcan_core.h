@@ -84,8 +84,11 @@ int hsc_core_send(hsc_core_t *c, const hal_can_frame_t *f, hsc_write_fn wr,
 int hsc_core_recv(hsc_core_t *c, hal_can_frame_t *f, hsc_read_fn rd,
                   hsc_write_fn wr, void *io);
 
-/* Accounts one error frame (error class bits as in linux/can/error.h). */
-void hsc_core_error_frame(hsc_core_t *c, uint32_t err_class);
+/* Accounts one error frame (id: the error class bits of linux/can/error.h;
+ * data as there): error frames, bus-off and restart, receive overflows
+ * (CAN_ERR_CRTL_RX_OVERFLOW), TX timeouts as aborted frames, and the
+ * controller's TEC/REC when the class has CAN_ERR_CNT. */
+void hsc_core_error_frame(hsc_core_t *c, const hal_can_frame_t *f);
 
 #ifdef __cplusplus
 }

@@ -428,10 +428,16 @@ static void test_info_reports_what_the_hal_counted(void)
     mock.counters.can_rx_overruns = 7u;
     mock.counters.can_error_frames = 3u;
     mock.counters.can_bus_off = 2u;
+    mock.counters.can_tx_aborted = 5u;
+    mock.counters.can_tx_error_count = 128u;
+    mock.counters.can_rx_error_count = 9u;
     TEST_ASSERT_EQUAL_HEX32(0x14u, info(HD_CMD_INFO, HD_INFO_BOARD_INIT_ERRORS).value_u32);
     TEST_ASSERT_EQUAL_UINT32(7u, info(HD_CMD_INFO, HD_INFO_CAN_RX_OVERRUNS).value_u32);
     TEST_ASSERT_EQUAL_UINT32(3u, info(HD_CMD_INFO, HD_INFO_CAN_ERROR_FRAMES).value_u32);
     TEST_ASSERT_EQUAL_UINT32(2u, info(HD_CMD_INFO, HD_INFO_CAN_BUS_OFF).value_u32);
+    TEST_ASSERT_EQUAL_UINT32(5u, info(HD_CMD_INFO, HD_INFO_CAN_TX_ABORTED).value_u32);
+    TEST_ASSERT_EQUAL_UINT32(128u, info(HD_CMD_INFO, HD_INFO_CAN_TX_ERROR_COUNT).value_u32);
+    TEST_ASSERT_EQUAL_UINT32(9u, info(HD_CMD_INFO, HD_INFO_CAN_RX_ERROR_COUNT).value_u32);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, info(HD_CMD_VERSION, HD_INFO_CAN_BUS_OFF).result);
 }
 

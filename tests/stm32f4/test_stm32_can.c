@@ -455,11 +455,32 @@ static void test_each_new_bus_error_counts_once(void)
     TEST_ASSERT_EQUAL_UINT(1u, cnt.can_error_frames);
     TEST_ASSERT_EQUAL_UINT(STM32_CAN_ESR_LEC_USER,
                            (g_model.regs.ESR & STM32_CAN_ESR_LEC_MASK) >> STM32_CAN_ESR_LEC_POS);
-    TEST_ASSERT_EQUAL_UINT(8u, g_drv.tec);
+    TEST_ASSERT_EQUAL_UINT(8u, cnt.can_tx_error_count); /* RM0090: +8 per transmit error */
+    TEST_ASSERT_EQUAL_UINT(0u, cnt.can_rx_error_count);
     drain(2);
     stm32_can_counters(&g_drv, &cnt);
     TEST_ASSERT_EQUAL_UINT(1u, cnt.can_error_frames);
     TEST_ASSERT_EQUAL_UINT(1u, g_model.wire_count);
+}
+
+/* A mailbox that completes without TXOK (RM0090: RQCP set, TXOK clear,
+ * TERR or ALST set: aborted, or not retransmitted) is a frame the bus never
+ * carried: counted as aborted, not as sent, and its flags cleared. */
+static void test_mailbox_completed_without_txok_counts_as_aborted(void)
+{
+    start();
+    const uint32_t shift = STM32_CAN_TSR_MAILBOX_SHIFT * 1u;
+    const uint32_t terr = STM32_CAN_TSR_RQCP0 << 3u; /* TERR0, bit 3 */
+    g_model.regs.TSR |= (STM32_CAN_TSR_RQCP0 | terr) << shift;
+    stm32_can_tx_service(&g_drv);
+    hal_counters_t cnt;
+    stm32_can_counters(&g_drv, &cnt);
+    TEST_ASSERT_EQUAL_UINT(1u, cnt.can_tx_aborted);
+    TEST_ASSERT_EQUAL_UINT(0u, cnt.can_tx_ok);
+    TEST_ASSERT_EQUAL_UINT(0u, g_model.regs.TSR & (STM32_CAN_TSR_RQCP0 << shift));
+    stm32_can_tx_service(&g_drv); /* counted once */
+    stm32_can_counters(&g_drv, &cnt);
+    TEST_ASSERT_EQUAL_UINT(1u, cnt.can_tx_aborted);
 }
 
 int main(void)
@@ -477,5 +498,6 @@ int main(void)
     RUN_TEST(test_frame_formats);
     RUN_TEST(test_bus_off_recovers_and_is_counted_once);
     RUN_TEST(test_each_new_bus_error_counts_once);
+    RUN_TEST(test_mailbox_completed_without_txok_counts_as_aborted);
     return UNITY_END();
 }

@@ -299,6 +299,28 @@ static void test_bus_off_faults_send_until_traffic_returns(void)
     TEST_ASSERT_EQUAL_UINT32(4u, core.counters.can_error_frames);
 }
 
+/* What the error frame's data says (linux/can/error.h): a controller
+ * receive overflow counts as an overrun, TX timeout as an aborted frame,
+ * CAN_ERR_CNT carries TEC in data[6] and REC in data[7]. */
+static void test_error_frame_data_reaches_the_counters(void)
+{
+    hal_can_frame_t e = {.id = CAN_ERR_CRTL | CAN_ERR_CNT, .len = 8,
+                         .flags = HAL_CAN_FLAG_ERR};
+    e.data[1] = CAN_ERR_CRTL_RX_OVERFLOW;
+    e.data[6] = 97u;
+    e.data[7] = 130u;
+    fk.rx[fk.n_rx++] = e;
+    fake_rx_error(CAN_ERR_TX_TIMEOUT);
+    fake_rx_error(CAN_ERR_CRTL); /* data[1] = 0: no overflow */
+    hal_can_frame_t in;
+    TEST_ASSERT_EQUAL_INT(HAL_ERR_NO_DATA, hsc_core_recv(&core, &in, fake_read, fake_write, &fk));
+    TEST_ASSERT_EQUAL_UINT32(3u, core.counters.can_error_frames);
+    TEST_ASSERT_EQUAL_UINT32(1u, core.counters.can_rx_overruns);
+    TEST_ASSERT_EQUAL_UINT32(1u, core.counters.can_tx_aborted);
+    TEST_ASSERT_EQUAL_UINT32(97u, core.counters.can_tx_error_count);
+    TEST_ASSERT_EQUAL_UINT32(130u, core.counters.can_rx_error_count);
+}
+
 static void test_recv_bounded_under_error_storm(void)
 {
     for (int i = 0; i < 100; ++i) {
@@ -352,6 +374,7 @@ int main(void)
     RUN_TEST(test_bad_frame_is_range_not_queued);
     RUN_TEST(test_error_frames_counted_not_returned);
     RUN_TEST(test_bus_off_faults_send_until_traffic_returns);
+    RUN_TEST(test_error_frame_data_reaches_the_counters);
     RUN_TEST(test_recv_bounded_under_error_storm);
     RUN_TEST(test_open_missing_interface_fails_with_message);
     RUN_TEST(test_open_bad_arguments);

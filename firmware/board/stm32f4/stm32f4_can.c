@@ -82,11 +82,8 @@ int stm32_can_init(stm32_can_drv_t *drv, const stm32_can_config_t *cfg)
     drv->txq_head = 0u;
     drv->txq_count = 0u;
     drv->counters = (hal_counters_t){0};
-    drv->tx_aborted = 0u;
     drv->bus_off = false;
     drv->running = false;
-    drv->tec = 0u;
-    drv->rec = 0u;
     if (!stm32_can_timing(cfg->pclk1_hz, cfg->bitrate, &drv->timing)) {
         return HAL_ERR_RANGE;
     }
@@ -248,8 +245,8 @@ static void read_errors(stm32_can_drv_t *drv)
         /* 7 is never written by hardware: the next error code shows a new error. */
         STM32_WR(can->ESR, STM32_CAN_ESR_LEC_USER << STM32_CAN_ESR_LEC_POS);
     }
-    drv->tec = (uint8_t)(esr >> STM32_CAN_ESR_TEC_POS);
-    drv->rec = (uint8_t)(esr >> STM32_CAN_ESR_REC_POS);
+    drv->counters.can_tx_error_count = (uint8_t)(esr >> STM32_CAN_ESR_TEC_POS);
+    drv->counters.can_rx_error_count = (uint8_t)(esr >> STM32_CAN_ESR_REC_POS);
 }
 
 void stm32_can_tx_service(stm32_can_drv_t *drv)
@@ -263,7 +260,7 @@ void stm32_can_tx_service(stm32_can_drv_t *drv)
             if ((tsr & (STM32_CAN_TSR_TXOK0 << (STM32_CAN_TSR_MAILBOX_SHIFT * i))) != 0u) {
                 drv->counters.can_tx_ok++;
             } else {
-                drv->tx_aborted++;
+                drv->counters.can_tx_aborted++;
             }
             STM32_WR(can->TSR, rqcp); /* rc_w1: clears RQCP, TXOK, ALST, TERR */
         }

@@ -72,11 +72,10 @@ typedef struct {
     hal_can_frame_t txq[STM32_CAN_TXQ];
     uint32_t txq_head;
     uint32_t txq_count;
-    hal_counters_t counters;
-    uint32_t tx_aborted;     /* a mailbox completed without TXOK */
+    hal_counters_t counters; /* can_tx_aborted: a mailbox completed without TXOK;
+                                TEC/REC: ESR at the last look */
     bool bus_off;            /* ESR.BOFF at the last look */
     bool running;            /* left initialization mode */
-    uint8_t tec, rec;        /* ESR error counters at the last look */
 } stm32_can_drv_t;
 
 /* Wakes the controller from sleep, enters initialization mode (INRQ/INAK),
