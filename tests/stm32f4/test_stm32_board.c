@@ -272,6 +272,27 @@ static void test_docs_show_the_pin_tables_of_the_code(void)
                                             stm32_board_odrive_v3.nvm_sector_bytes);
 }
 
+/* The microsecond clock against a 64-bit cycle total kept here: over
+ * steps up to 25 s at 168 MHz, with the 32-bit counter wrapping many
+ * times, time is floor(total cycles / 168) at every call. */
+static void test_cycle_clock_is_floor_of_total_cycles(void)
+{
+    stm32_cycle_clock_t c = {.last = 0xFFFFF000u, .rem_cycles = 0u, .us = 0u,
+                             .cycles_per_us = 168u};
+    uint64_t total = 0u;
+    uint32_t counter = c.last, seed = 12345u;
+    for (int i = 0; i < 2000; i++) {
+        seed = seed * 1664525u + 1013904223u;
+        /* mostly one tick, sometimes a long gap, sometimes the longest */
+        uint32_t step = (i % 97 == 0) ? 4200000000u
+                                      : (i % 13 == 0 ? seed % 4200000000u : 168000u + (seed >> 20));
+        counter += step;
+        total += step;
+        TEST_ASSERT_EQUAL_UINT64(total / 168u, stm32_cycle_clock_advance(&c, counter));
+    }
+    TEST_ASSERT_TRUE(total > 40ull * 0xFFFFFFFFull); /* wrapped many times */
+}
+
 static void print_pins(void)
 {
     for (size_t i = 0; i < sizeof BOARDS / sizeof BOARDS[0]; i++) {
@@ -294,5 +315,6 @@ int main(int argc, char **argv)
     RUN_TEST(test_clock_fallback_is_reported_and_timing_follows);
     RUN_TEST(test_missing_conversion_is_an_adc_fault);
     RUN_TEST(test_docs_show_the_pin_tables_of_the_code);
+    RUN_TEST(test_cycle_clock_is_floor_of_total_cycles);
     return UNITY_END();
 }

@@ -27,8 +27,9 @@ void stm32_periph_hw(const stm32_board_def_t *def, stm32_periph_t *out)
 
 static void cycle_clock_start(stm32_cycle_clock_t *c, uint32_t sysclk_hz)
 {
-    c->cycles_per_us = sysclk_hz / 1000000u;
-    c->cycles = 0u;
+    c->cycles_per_us = sysclk_hz >= 1000000u ? sysclk_hz / 1000000u : 1u;
+    c->rem_cycles = 0u;
+    c->us = 0u;
 #if defined(__arm__)
     STM32_DEMCR |= STM32_DEMCR_TRCENA;
     STM32_DWT_CYCCNT = 0u;
@@ -45,9 +46,16 @@ uint64_t stm32_board_time_us(void *ctx)
 #else
     uint32_t now = b->cycles.last;
 #endif
-    b->cycles.cycles += (uint32_t)(now - b->cycles.last); /* called each tick: < 25 s apart */
-    b->cycles.last = now;
-    return b->cycles.cycles / b->cycles.cycles_per_us;
+    return stm32_cycle_clock_advance(&b->cycles, now); /* called each tick */
+}
+
+uint64_t stm32_cycle_clock_advance(stm32_cycle_clock_t *c, uint32_t now)
+{
+    const uint32_t elapsed = (uint32_t)(now - c->last) + c->rem_cycles;
+    c->last = now;
+    c->us += elapsed / c->cycles_per_us;
+    c->rem_cycles = elapsed % c->cycles_per_us;
+    return c->us;
 }
 
 int stm32_board_encoder_read(void *ctx, hal_encoder_sample_t *out)

@@ -90,12 +90,21 @@ typedef struct {
 extern const stm32_board_def_t stm32_board_odrive_v3;
 extern const stm32_board_def_t stm32_board_mini_cheetah;
 
-/* Extends the 32-bit DWT cycle counter to microseconds since boot. */
+/* Extends the 32-bit DWT cycle counter to microseconds since boot with
+ * 32-bit divisions only (a 64-bit division is a library call of a few
+ * hundred cycles on the M4, and this runs every tick). */
 typedef struct {
-    uint32_t last;
-    uint64_t cycles;
-    uint32_t cycles_per_us;
+    uint32_t last;          /* counter at the previous call */
+    uint32_t rem_cycles;    /* cycles not yet a whole microsecond */
+    uint64_t us;            /* whole microseconds since start */
+    uint32_t cycles_per_us; /* >= 1 */
 } stm32_cycle_clock_t;
+
+/* Takes the counter's value now; calls must come less than
+ * 2^32 - cycles_per_us cycles apart (25 s at 168 MHz; the firmware calls
+ * it every tick).  Returns the microseconds since start, rounded down:
+ * floor(cycles since start / cycles_per_us). */
+uint64_t stm32_cycle_clock_advance(stm32_cycle_clock_t *c, uint32_t now);
 
 typedef struct {
     const stm32_board_def_t *def;
