@@ -201,10 +201,8 @@ def send(args) -> int:
     if not payloads:
         raise UsageError(f"{args.file}: no commands in the file")
     want, blocks = expectations(payloads)
-    out = []
 
     def say(line: str) -> None:
-        out.append(line)
         print(line, flush=True)
 
     bus = open_bus(args.interface, args.channel, args.bitrate)

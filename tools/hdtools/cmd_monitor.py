@@ -162,12 +162,10 @@ class LogRecorder:
         os.fchmod(fd, 0o666 & ~mask)
         self.f = os.fdopen(fd, "w", encoding="ascii", newline="\n")
         self.pending: list[str] = []
-        self.frames = 0
         self.last_flush = time.monotonic()
 
     def write(self, msg: can.Message) -> None:
         self.pending.append(candump_line(msg, self.iface))
-        self.frames += 1
         if time.monotonic() - self.last_flush >= FLUSH_S:
             self.flush()
 

@@ -57,8 +57,9 @@ class Ack:
 
 
 class Joint:
-    """One node on a bus.  frames_seen collects every frame received while
-    waiting for answers (the caller may look for BOOT frames there)."""
+    """One node on a bus.  BOOT frames received while waiting for answers
+    are kept in boots (wait_boot takes them first); on_frame, if set, sees
+    every frame sent or received."""
 
     def __init__(self, bus: can.BusABC, node: int, timeout_s: float = DEFAULT_TIMEOUT_S):
         if not protocol.NODE_MIN <= node <= protocol.NODE_MAX:
