@@ -113,14 +113,9 @@ class Joint:
             left = deadline - time.monotonic()
             if left <= 0:
                 return None
-            try:
-                msg = self.bus.recv(timeout=left)
-            except can.CanError as exc:
-                raise BusError(f"receive failed: {' '.join(str(exc).split())}") from None
+            msg = self._recv(left)
             if msg is None:
                 return None
-            if self.on_frame is not None:
-                self.on_frame(msg)
             if (not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame
                     or msg.is_fd or len(msg.data) != 8):
                 continue
@@ -165,11 +160,9 @@ class Joint:
             return self.boots.pop(0)
         deadline = time.monotonic() + timeout_s
         while (left := deadline - time.monotonic()) > 0:
-            msg = self.bus.recv(timeout=left)
+            msg = self._recv(left)
             if msg is None:
                 break
-            if self.on_frame is not None:
-                self.on_frame(msg)
             if (msg.is_extended_id and msg.arbitration_id == self.boot_msg.frame_id
                     and len(msg.data) == 8 and not msg.is_remote_frame):
                 return {"t_s": msg.timestamp, **self.boot_msg.decode(bytes(msg.data))}
@@ -178,6 +171,17 @@ class Joint:
     def drain(self) -> None:
         """Forgets frames already received (before a command whose answer
         or BOOT frame must be new)."""
-        while self.bus.recv(timeout=0) is not None:
+        while self._recv(0) is not None:
             pass
         self.boots.clear()
+
+    def _recv(self, timeout_s: float) -> can.Message | None:
+        """One frame from the bus (shown to on_frame), None after timeout_s;
+        a failing bus is a BusError, not a traceback."""
+        try:
+            msg = self.bus.recv(timeout=timeout_s)
+        except can.CanError as exc:
+            raise BusError(f"receive failed: {' '.join(str(exc).split())}") from None
+        if msg is not None and self.on_frame is not None:
+            self.on_frame(msg)
+        return msg
