@@ -13,6 +13,7 @@
 #include "hd_config_text.h"
 #include "hd_fw.h"
 #include "host_nvm.h"
+#include "host_sim.h"
 
 #define HD_EMU_RX_CAP 1024u
 #define HD_EMU_TX_CAP 16384u
@@ -59,20 +60,6 @@ static void on_tx(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
     o->len = f->len > 8u ? 8u : f->len;
     memcpy(o->data, f->data, o->len);
     e->tx_count++;
-}
-
-/* The sensor constants of the simulated joint as firmware defaults (what
- * a board's factory configuration would hold). */
-static void defaults_from_sim(const hal_sim_t *sim, hd_fw_config_t *cfg)
-{
-    hd_sim_nominal_t nom;
-    hal_sim_nominal(sim, &nom);
-    cfg->adc_volts_per_count = (float)nom.adc_v_per_count;
-    cfg->motor_cpr = nom.motor_cpr;
-    if (nom.output_cpr != 0u) {
-        cfg->output_cpr = nom.output_cpr;
-    }
-    cfg->gear_ratio = (float)nom.gear_ratio;
 }
 
 static int store_nominal_calibration(hd_emu_t *e)
@@ -129,7 +116,9 @@ hd_emu_t *hd_emu_create(const char *scenario_text, const char *config_text, char
     e->hal.name = "emu";
 
     hd_fw_config_default(&e->defaults);
-    defaults_from_sim(&e->sim, &e->defaults);
+    hd_sim_nominal_t nom;
+    hal_sim_nominal(&e->sim, &nom);
+    host_sim_defaults(&nom, &e->defaults);
     if (config_text != NULL) {
         hd_cfgtxt_error_t ce;
         if (hd_config_text_parse(config_text, strlen(config_text), &e->defaults, &ce) !=

@@ -52,6 +52,7 @@
 #include "host_report.h"
 #ifdef HD_HAVE_SIM
 #include "hal_sim.h"
+#include "host_sim.h"
 #endif
 #ifdef HD_HAVE_SOCKETCAN
 #include "hal_socketcan.h"
@@ -211,15 +212,7 @@ int main(int argc, char **argv)
         }
         default_gain = (float)nom.gain_nm_per_v;
         default_offset = (float)nom.offset_v;
-        cfg.adc_volts_per_count = (float)nom.adc_v_per_count;
-        cfg.motor_cpr = nom.motor_cpr;
-        if (nom.output_cpr != 0u) {
-            cfg.output_cpr = nom.output_cpr;
-        }
-        cfg.gear_ratio = (float)nom.gear_ratio;
-        /* No oracle (issue 12): the sensor's and encoders' constants are the
-         * joint's data sheet; the expected-torque model (J, b, Fc) is NOT
-         * the plant's: the firmware defaults (0) or what --config says. */
+        host_sim_defaults(&nom, &cfg); /* the data sheet's, not the plant's model */
 #else
         fprintf(stderr, "hdjoint-host: built without the simulated joint (hal/sim)\n");
         return EXIT_USAGE;
