@@ -27,8 +27,8 @@ FAULT_BITS = [f.name for f in sorted(protocol.faults(), key=lambda f: f.code)]
 
 def load_db(node_id: int = 1, strict: bool = True) -> cantools.database.can.Database:
     """Loads the DBC (raising on any warning) with identifiers for node_id."""
-    if not 1 <= node_id <= 127:
-        raise ValueError(f"node_id must be 1..127, got {node_id}")
+    if not protocol.NODE_MIN <= node_id <= protocol.NODE_MAX:
+        raise ValueError(f"node_id must be {protocol.NODE_MIN}..{protocol.NODE_MAX}, got {node_id}")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         db = cantools.database.load_file(str(DBC_PATH), strict=strict)
@@ -288,7 +288,7 @@ def read_log(path: str | Path, malformed: list | None = None):
 
 
 def nodes_in(frames) -> dict[int, int]:
-    """Frames per node id (1..127) among the joint's identifiers (29-bit
+    """Frames per node id (protocol.NODE_MIN..NODE_MAX) among the joint's identifiers (29-bit
     data frames only: remote, FD, 11-bit and error frames are not ours)."""
     counts: dict[int, int] = {}
     for _, msg in frames:
@@ -296,7 +296,7 @@ def nodes_in(frames) -> dict[int, int]:
             continue
         for base in BASE_IDS.values():
             node = msg.arbitration_id - base
-            if 1 <= node <= 127:
+            if protocol.NODE_MIN <= node <= protocol.NODE_MAX:
                 counts[node] = counts.get(node, 0) + 1
                 break
     return counts

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import sys
 
-from . import canproto
+from . import canproto, protocol
 from .safeio import UsageError
 
 
@@ -60,8 +60,8 @@ def _check_args(args):
         raise UsageError("INPUT is required")
     if not args.json and not args.out:
         raise UsageError("give --json REPORT.json and/or --out DIR")
-    if not 1 <= args.node_id <= 127:
-        raise UsageError(f"--node-id must be 1..127 (got {args.node_id})")
+    if not protocol.NODE_MIN <= args.node_id <= protocol.NODE_MAX:
+        raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} (got {args.node_id})")
     for name in ("gear_ratio", "fs", "inertia"):
         v = getattr(args, name)
         if v is not None and not math.isfinite(v):

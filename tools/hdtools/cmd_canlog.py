@@ -26,7 +26,7 @@ import sys
 
 import cantools
 
-from hdtools import canproto, safeio, telemetry
+from hdtools import canproto, protocol, safeio, telemetry
 
 SHOW_LINES = 5
 
@@ -36,8 +36,8 @@ def _node(text: str) -> int:
         node = int(text, 10)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a decimal node id") from None
-    if not 1 <= node <= 127:
-        raise argparse.ArgumentTypeError(f"node id {node} outside 1..127")
+    if not protocol.NODE_MIN <= node <= protocol.NODE_MAX:
+        raise argparse.ArgumentTypeError(f"node id {node} outside {protocol.NODE_MIN}..{protocol.NODE_MAX}")
     return node
 
 

@@ -23,7 +23,7 @@ import json
 import math
 import sys
 
-from . import canproto
+from . import canproto, protocol
 from . import profile_record as pr
 from .safeio import Outputs, UsageError, read_bytes, read_text
 
@@ -101,8 +101,8 @@ def _record(args) -> int:
 
 
 def _commands(args) -> int:
-    if not 1 <= args.node_id <= 127:
-        raise UsageError(f"--node-id must be 1..127 (got {args.node_id})")
+    if not protocol.NODE_MIN <= args.node_id <= protocol.NODE_MAX:
+        raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} (got {args.node_id})")
     lines, gear = pr.lines_from_json(_load_json(args.profile), args.profile)
     if args.gear_ratio is not None:
         if not (math.isfinite(args.gear_ratio) and args.gear_ratio >= 1):
