@@ -51,8 +51,9 @@ hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur)
     if (cur == NULL) {
         return HD_KF_ERR_NULL;
     }
-    const float v[4] = {cur->nm_per_a, cur->coulomb_nm, cur->viscous_nm_s_rad, cur->inertia_kgm2};
-    for (unsigned i = 0; i < 4u; i++) {
+    const float v[5] = {cur->nm_per_a, cur->coulomb_nm, cur->viscous_nm_s_rad, cur->inertia_kgm2,
+                        cur->backdrive_nm_per_a};
+    for (unsigned i = 0; i < 5u; i++) {
         if (!is_finite(v[i]) || v[i] < 0.0f) {
             return HD_KF_ERR_EXPECTED_CONFIG;
         }
@@ -64,7 +65,16 @@ float hd_expected_current_nm(const hd_expected_current_config_t *cur,
                              const hd_expected_config_t *cfg, float motor_current_a,
                              float vel_out_rad_s, float acc_out_rad_s2)
 {
-    return cur->nm_per_a * motor_current_a - cur->inertia_kgm2 * acc_out_rad_s2 -
-           cur->viscous_nm_s_rad * vel_out_rad_s -
-           cur->coulomb_nm * smooth_sign(cfg, vel_out_rad_s);
+    const float sign_vel = smooth_sign(cfg, vel_out_rad_s);
+    const float driving = cur->nm_per_a * motor_current_a - cur->inertia_kgm2 * acc_out_rad_s2 -
+                          cur->viscous_nm_s_rad * vel_out_rad_s - cur->coulomb_nm * sign_vel;
+    if (!(cur->backdrive_nm_per_a > 0.0f && cur->nm_per_a > 0.0f)) {
+        return driving;
+    }
+    /* share of the load driving the motor: 1 where the torque opposes the
+     * motion, 0 where it goes with it, 1/2 at standstill */
+    const float with_motion = driving >= 0.0f ? sign_vel : -sign_vel;
+    const float backdriven = 0.5f * (1.0f - with_motion);
+    const float ratio = cur->backdrive_nm_per_a / cur->nm_per_a;
+    return driving * (1.0f + backdriven * (ratio - 1.0f));
 }

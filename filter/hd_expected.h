@@ -18,6 +18,12 @@
  * sensor absorbs (rotor and wave-generator inertia N^2 J_m, motor-side
  * friction), referred to the output.  The caller adds T_cur to T_ff (it has
  * its own configuration so hd_expected_config_t keeps its layout).
+ *
+ * A gear passes power with one efficiency when the motor drives the load
+ * (eta) and another when the load drives the motor (eta_b).  k_b = N kt /
+ * eta_b is the torque per amp of the second case: T_cur above is scaled by
+ * k_b / k_i where it opposes the motion (T_cur vel < 0), the direction's
+ * sign smoothed over v_eps like the Coulomb term.  k_b = 0: one efficiency.
  */
 #ifndef HD_EXPECTED_H
 #define HD_EXPECTED_H
@@ -41,6 +47,8 @@ typedef struct {
     float coulomb_nm;        /* Fc_r [N m] */
     float viscous_nm_s_rad;  /* b_r [N m s / rad] */
     float inertia_kgm2;      /* J_r [kg m^2] */
+    float backdrive_nm_per_a; /* k_b = N kt / eta_b [N m per A] when the load drives
+                                 the motor; 0 = k_i (one efficiency) */
 } hd_expected_current_config_t;
 
 void hd_expected_config_default(hd_expected_config_t *cfg);
@@ -57,7 +65,8 @@ float hd_expected_torque_nm(const hd_expected_config_t *cfg,
  * else HD_KF_ERR_EXPECTED_CONFIG. */
 hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur);
 
-/* T_cur above; the Coulomb sign is smoothed with cfg's v_eps. */
+/* T_cur above (with k_b where it applies); the Coulomb sign and the
+ * direction of power flow are smoothed with cfg's v_eps. */
 float hd_expected_current_nm(const hd_expected_current_config_t *cur,
                              const hd_expected_config_t *cfg, float motor_current_a,
                              float vel_out_rad_s, float acc_out_rad_s2);

@@ -1,7 +1,8 @@
 /* hd_expected's motor-current term against its closed form, evaluated here
  * in double:
  *   T_cur = k_i i - J_r acc - b_r vel - Fc_r vel / (|vel| + v_eps)
- * and its configuration check.  (A filter-library unit test kept with the
+ * scaled by k_b / k_i where the load drives the motor (T_cur vel < 0; the
+ * direction smoothed like the Coulomb sign), and its configuration check.  (A filter-library unit test kept with the
  * firmware tests: the firmware is its only caller; docs/slow-torque.md.) */
 #include <math.h>
 
@@ -23,7 +24,7 @@ static void test_current_term_matches_the_closed_form(void)
     hd_expected_config_default(&e);
     e.coulomb_vel_eps_rad_s = 0.02f;
     e.coulomb_nm = 123.0f; /* the load model's own terms do not enter T_cur */
-    const hd_expected_current_config_t c = {161.5f, 1.7f, 0.9f, 2.4f};
+    const hd_expected_current_config_t c = {161.5f, 1.7f, 0.9f, 2.4f, 0.0f}; /* one efficiency */
     const float cur[] = {-12.0f, -0.3f, 0.0f, 0.05f, 7.5f};
     const float vel[] = {-3.0f, -0.01f, 0.0f, 1e-4f, 0.5f, 2.9f};
     const float acc[] = {-40.0f, 0.0f, 12.5f};
@@ -45,18 +46,55 @@ static void test_current_term_matches_the_closed_form(void)
                             hd_expected_current_nm(&c, &e, -2.0f, 0.0f, 0.0f));
     TEST_ASSERT_TRUE(hd_expected_current_nm(&c, &e, 0.0f, 1.0f, 0.0f) < 0.0f);
     /* all zero: no term */
-    const hd_expected_current_config_t off = {0.0f, 0.0f, 0.0f, 0.0f};
+    const hd_expected_current_config_t off = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_expected_current_nm(&off, &e, 30.0f, 2.0f, 100.0f));
+}
+
+/* Two efficiencies (eta 0.90 driving, eta_b 0.85 driven, as the simulated
+ * drive): k_b / k_i = 1 / (eta eta_b).  Far from standstill the term is
+ * T_cur where it goes with the motion and (k_b / k_i) T_cur where it
+ * opposes it; in between, the closed form's smooth blend. */
+static void test_backdrive_gain_where_the_load_drives_the_motor(void)
+{
+    hd_expected_config_t e;
+    hd_expected_config_default(&e);
+    e.coulomb_vel_eps_rad_s = 0.02f;
+    const double ki = 100.0 * 0.9 * 0.1, kb = 100.0 * 0.1 / 0.85;
+    const hd_expected_current_config_t c = {(float)ki, 1.7f, 0.9f, 2.4f, (float)kb};
+    const float cur[] = {-12.0f, -0.3f, 0.0f, 0.05f, 7.5f};
+    const float vel[] = {-3.0f, -0.01f, 0.0f, 1e-4f, 0.5f, 2.9f};
+    const float acc[] = {-40.0f, 0.0f, 12.5f};
+    for (unsigned a = 0; a < 5; a++) {
+        for (unsigned b = 0; b < 6; b++) {
+            for (unsigned d = 0; d < 3; d++) {
+                const double v = (double)vel[b];
+                const double u = closed_form(ki, 1.7, 0.9, 2.4, 0.02, (double)cur[a], v,
+                                             (double)acc[d]);
+                const double along = (u >= 0.0 ? 1.0 : -1.0) * v / (fabs(v) + 0.02);
+                const double expect = u * (1.0 + 0.5 * (1.0 - along) * (kb / ki - 1.0));
+                double got = (double)hd_expected_current_nm(&c, &e, cur[a], vel[b], acc[d]);
+                TEST_ASSERT_DOUBLE_WITHIN(1e-5 * (1.0 + fabs(expect)), expect, got);
+            }
+        }
+    }
+    /* lifting (torque with the motion) and lowering (against it), fast:
+     * the same current means 1 / (eta eta_b) = 1.307 times the torque */
+    const hd_expected_current_config_t bare = {(float)ki, 0.0f, 0.0f, 0.0f, (float)kb};
+    const float lift = hd_expected_current_nm(&bare, &e, 5.0f, 2.0f, 0.0f);
+    const float lower = hd_expected_current_nm(&bare, &e, 5.0f, -2.0f, 0.0f);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f * 5.0f * (float)ki, 5.0f * (float)ki, lift);
+    TEST_ASSERT_FLOAT_WITHIN(0.02f, (float)(1.0 / (0.9 * 0.85)), lower / lift);
 }
 
 static void test_current_config_check(void)
 {
-    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f};
+    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f, 12.0f};
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_expected_current_check(NULL));
-    float *f[4] = {&c.nm_per_a, &c.coulomb_nm, &c.viscous_nm_s_rad, &c.inertia_kgm2};
+    float *f[5] = {&c.nm_per_a, &c.coulomb_nm, &c.viscous_nm_s_rad, &c.inertia_kgm2,
+                   &c.backdrive_nm_per_a};
     const float bad[3] = {-1.0f, NAN, INFINITY};
-    for (unsigned i = 0; i < 4; i++) {
+    for (unsigned i = 0; i < 5; i++) {
         for (unsigned k = 0; k < 3; k++) {
             const float keep = *f[i];
             *f[i] = bad[k];
@@ -70,6 +108,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_current_term_matches_the_closed_form);
+    RUN_TEST(test_backdrive_gain_where_the_load_drives_the_motor);
     RUN_TEST(test_current_config_check);
     return UNITY_END();
 }
