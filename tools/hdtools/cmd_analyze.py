@@ -61,7 +61,8 @@ def _check_args(args):
     if not args.json and not args.out:
         raise UsageError("give --json REPORT.json and/or --out DIR")
     if not protocol.NODE_MIN <= args.node_id <= protocol.NODE_MAX:
-        raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} (got {args.node_id})")
+        raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} "
+                         f"(got {args.node_id})")
     for name in ("gear_ratio", "fs", "inertia"):
         v = getattr(args, name)
         if v is not None and not math.isfinite(v):

@@ -37,7 +37,8 @@ def _node(text: str) -> int:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a decimal node id") from None
     if not protocol.NODE_MIN <= node <= protocol.NODE_MAX:
-        raise argparse.ArgumentTypeError(f"node id {node} outside {protocol.NODE_MIN}..{protocol.NODE_MAX}")
+        raise argparse.ArgumentTypeError(f"node id {node} outside "
+                                         f"{protocol.NODE_MIN}..{protocol.NODE_MAX}")
     return node
 
 

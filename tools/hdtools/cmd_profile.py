@@ -102,7 +102,8 @@ def _record(args) -> int:
 
 def _commands(args) -> int:
     if not protocol.NODE_MIN <= args.node_id <= protocol.NODE_MAX:
-        raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} (got {args.node_id})")
+        raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} "
+                         f"(got {args.node_id})")
     lines, gear = pr.lines_from_json(_load_json(args.profile), args.profile)
     if args.gear_ratio is not None:
         if not (math.isfinite(args.gear_ratio) and args.gear_ratio >= 1):
