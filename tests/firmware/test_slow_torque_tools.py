@@ -88,6 +88,7 @@ def test_record_round_trip_and_layout(tmp_path):
     assert (gear, mcpr, ocpr, n) == (100.0, 4096, 4096, 3)   # the joint's ratio, not the log's
     assert struct.unpack_from("<BBff", data, 8 + 13 + 20)[:2] == (1, 3)
     back = json.loads(hdsense("profile", "json", rec).stdout)
+    assert len(back["lines"]) == 3  # zip below stops at the shorter list
     for (lock, order, a, b), ln in zip(MOCK_LINES + [("output", 3, -0.25, 0.125)], back["lines"]):
         assert (ln["lock"], ln["order"]) == (lock, order)
         assert ln["a_nm"] == pytest.approx(a, abs=1e-7) and ln["b_nm"] == pytest.approx(b, abs=1e-7)
@@ -243,8 +244,36 @@ def test_current_fit_recovers_the_drive(tmp_path):
         assert abs(f["value"][k] - v) < 4 * f["sigma"][k], (k, f["value"][k], f["sigma"][k], v)
     assert f["sigma"]["current_nm_per_a"] < 0.01 * truth["current_nm_per_a"]
     assert f["sigma"]["current_nm_per_a"] > 0
+    # one efficiency (eta = eta_b = 1): k_b = k_i, so none is written
+    kb, skb = f["value"]["current_backdrive_nm_per_a"], f["sigma"]["current_backdrive_nm_per_a"]
+    assert abs(kb - truth["current_nm_per_a"]) < 4 * skb, (kb, skb)
+    assert f["written"]["current_backdrive_nm_per_a"] == 0.0
     cfg = (tmp_path / "c.cfg").read_text()
     assert "current_nm_per_a = " in cfg
+
+
+def test_current_fit_recovers_two_efficiencies(tmp_path):
+    """The gear passes power with eta = 0.90 when the motor drives and
+    eta_b = 0.85 when the load drives the motor (the benchmark's drive): the
+    fit recovers k_i = N eta kt (1 + e) and k_b = N kt (1 + e) / eta_b, and
+    the friction terms scaled by eta, against the simulated drive."""
+    _, log = sim(tmp_path, "eff", CURRENT_INI + "motor.efficiency = 0.9\n"
+                 "motor.backdrive_efficiency = 0.85\n", 40)
+    out = tmp_path / "fit.json"
+    hdsense("current", log, "--gear-ratio", "100", "--json", out, "--config", tmp_path / "c.cfg")
+    f = json.loads(out.read_text())
+    kt = 0.1 * 1.07
+    truth = {"current_nm_per_a": 100 * 0.9 * kt,
+             "current_backdrive_nm_per_a": 100 * kt / 0.85,
+             "current_inertia_kgm2": 0.9 * 100 ** 2 * 4e-5,
+             "current_viscous_nm_s_rad": 0.9 * 100 ** 2 * 2e-5,
+             "current_coulomb_nm": 0.9 * 100 * 0.01}
+    for k, v in truth.items():
+        assert abs(f["value"][k] - v) < 4 * f["sigma"][k], (k, f["value"][k], f["sigma"][k], v)
+    for k in ("current_nm_per_a", "current_backdrive_nm_per_a"):
+        assert 0 < f["sigma"][k] < 0.01 * truth[k]
+    cfg = (tmp_path / "c.cfg").read_text()
+    assert f"current_backdrive_nm_per_a = {f['written']['current_backdrive_nm_per_a']:.6g}" in cfg
 
 
 def test_current_fit_refuses_logs_that_cannot_support_it(tmp_path):

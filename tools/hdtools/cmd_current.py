@@ -5,8 +5,8 @@ log with torque_nm and motor_current_a (docs/slow-torque.md, "Motor current").
 
 Prints each parameter with its standard error; OUT.cfg holds the firmware
 configuration lines (current_nm_per_a, current_inertia_kgm2, current_viscous_
-nm_s_rad, current_coulomb_nm) for hdjoint-host --config or `hdsense canlog
-commands`.  A log that cannot support the fit (no current column, too short,
+nm_s_rad, current_coulomb_nm, current_backdrive_nm_per_a) for hdjoint-host
+--config or `hdsense canlog commands`.  A log that cannot support the fit (no current column, too short,
 no reversals, a current that does not follow the load) is refused in one
 line.  Exit status: 0 fitted, 2 bad command line or a log that cannot
 support the fit, 3 an output could not be written.

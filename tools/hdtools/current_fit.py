@@ -1,11 +1,19 @@
 """Current-to-torque parameters of a joint from a log (docs/slow-torque.md,
 "Motor current").  The firmware's model (filter/hd_expected.h):
 
-    T = k_i i - J_r a - b_r w - Fc_r sgn(w)        (+ a constant: the sensor zero)
+    u = k_i i - J_r a - b_r w - Fc_r sgn(w)
+    T = u                  where u goes with the motion (the motor drives)
+    T = (k_b / k_i) u      where it opposes it (the load drives the motor)
+                                                   (+ a constant: the sensor zero)
 
 with i the motor current, w and a the output velocity and acceleration, k_i
-= N eta kt the output torque per amp, J_r, b_r, Fc_r what the drive between
-the current and the sensor absorbs, referred to the output.  Least squares
+= N eta kt the output torque per amp, k_b = N kt / eta_b its value when the
+gear passes power backwards, J_r, b_r, Fc_r what the drive between the
+current and the sensor absorbs, referred to the output.  For a given k_b / k_i
+the model is linear in the rest, and for given rest linear in k_b / k_i:
+the fit alternates the two least-squares problems (the direction of each
+sample from the sign of u w) and takes the standard errors from the joint
+Jacobian at the solution.  Least squares
 on the measured torque against i, a, w and sgn(w), all low-passed alike (the
 fast ripple and the sensor noise are not part of the slow relation) and
 decimated to about two samples per filter time constant, so that the
@@ -40,9 +48,13 @@ OUTPUT_ORDERS = 3        # output-locked nuisance lines
 # constant of the posture) the samples are left out
 SLOW_MOTOR_RAD_S = 3 * 2 * math.pi * CUTOFF_HZ / 2
 
+ALTERNATIONS = 50         # alternating least squares: at most this many rounds
+CONVERGED = 1e-9          # ... until k_b / k_i changes by less than this
+
 NAMES = ("current_nm_per_a", "current_inertia_kgm2", "current_viscous_nm_s_rad",
-         "current_coulomb_nm", "zero_nm")
-UNITS = ("N m/A", "kg m^2", "N m s/rad", "N m", "N m")
+         "current_coulomb_nm", "zero_nm", "current_backdrive_nm_per_a")
+UNITS = ("N m/A", "kg m^2", "N m s/rad", "N m", "N m", "N m/A")
+DRIVE_TERMS = 4           # k_i, J_r, b_r, Fc_r: the columns scaled by k_b / k_i
 
 
 @dataclass
@@ -159,16 +171,27 @@ def fit(data, gear_ratio: float | None = None, name: str = "log", lines=None) ->
         raise UsageError(f"{name}: the joint turns one way only ({fwd} vs {back} fit samples "
                          "forward/backward): Coulomb friction cannot be told from the sensor "
                          "zero; log a run with reversals")
-    X = np.column_stack([I, -A, -W, -S, np.ones(len(T))] + nuis)
-    coef, *_ = np.linalg.lstsq(X, T, rcond=None)
-    res = T - X @ coef
-    dof = max(1, len(T) - X.shape[1])
+    drive = np.column_stack([I, -A, -W, -S])
+    rest = np.column_stack([np.ones(len(T))] + nuis)
+    coef, ratio, backdriven, res = _two_efficiencies(T, drive, rest, w, moving)
+    u = drive @ coef[:DRIVE_TERMS]
+    jac = np.column_stack([drive * (1.0 + backdriven * (ratio - 1.0))[:, None], rest,
+                           backdriven * u])
+    dof = max(1, len(T) - jac.shape[1])
     s2 = float(res @ res) / dof
-    cov = s2 * np.linalg.pinv(X.T @ X)
+    cov = s2 * np.linalg.pinv(jac.T @ jac)
     sig = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    value = dict(zip(NAMES, (float(v) for v in coef[:len(NAMES)])))
-    sigma = dict(zip(NAMES, (float(v) for v in sig[:len(NAMES)])))
+    value = dict(zip(NAMES, (float(v) for v in coef[:len(NAMES) - 1])))
+    sigma = dict(zip(NAMES, (float(v) for v in sig[:len(NAMES) - 1])))
     ki, ski = value["current_nm_per_a"], sigma["current_nm_per_a"]
+    # k_b = ratio k_i: its error from both (first order, with their covariance)
+    i_ratio = jac.shape[1] - 1
+    kb = ratio * ki
+    var_kb = (ki ** 2 * cov[i_ratio, i_ratio] + ratio ** 2 * cov[0, 0] +
+              2 * ki * ratio * cov[0, i_ratio])
+    value["current_backdrive_nm_per_a"] = float(kb)
+    sigma["current_backdrive_nm_per_a"] = float(math.sqrt(max(var_kb, 0.0)))
+    sigma_ratio = float(math.sqrt(max(cov[i_ratio, i_ratio], 0.0)))
     if not (ki > 0 and ski < MAX_REL_ERR_GAIN * ki):
         raise UsageError(f"{name}: the torque per amp is not identifiable ({ki:.4g} +- "
                          f"{ski:.2g} N m/A): the current must vary with the load "
@@ -185,11 +208,51 @@ def fit(data, gear_ratio: float | None = None, name: str = "log", lines=None) ->
             written[k] = 0.0
         else:
             written[k] = v
+    n_back = int((moving & (backdriven > 0.5)).sum())
+    if n_back < MIN_REVERSAL_SHARE * max(1, moving.sum()):
+        notes.append(f"the load drove the motor in {n_back} fit samples only: one efficiency "
+                     "(current_backdrive_nm_per_a written as 0)")
+        written["current_backdrive_nm_per_a"] = 0.0
+    elif abs(ratio - 1.0) < SIGNIFICANT * sigma_ratio:
+        notes.append(f"k_b / k_i = {ratio:.4f} +- {sigma_ratio:.2g} is 1 within "
+                     f"{SIGNIFICANT:g} sigma: one efficiency (written as 0)")
+        written["current_backdrive_nm_per_a"] = 0.0
+    else:
+        written["current_backdrive_nm_per_a"] = float(kb)
+        notes.append(f"k_b / k_i = {ratio:.4f} +- {sigma_ratio:.2g}: the gear passes power "
+                     f"back with 1 / (eta eta_b) = {ratio:.4f} times the gain")
     if gear_ratio:
         notes.append(f"eta kt = k_i / N = {ki / gear_ratio:.5g} +- {ski / gear_ratio:.2g} N m/A "
                      f"at the motor (gear ratio {gear_ratio:g})")
     return Fit(value, sigma, written, notes, float(math.sqrt(s2)), len(T),
                len(T) / DECIMATE_HZ)
+
+
+def _two_efficiencies(T, drive, rest, w, moving):
+    """Alternating least squares for T = m * (drive @ c) + rest @ d with
+    m = 1 + backdriven * (ratio - 1), backdriven = 1 where drive @ c opposes
+    the motion (u w < 0).  Returns (coefficients c then d, ratio,
+    backdriven, residual)."""
+    ratio = 1.0
+    back = np.zeros(len(T))
+    n_drive = drive.shape[1]
+    for _ in range(ALTERNATIONS):
+        m = 1.0 + back * (ratio - 1.0)
+        X = np.column_stack([drive * m[:, None], rest])
+        coef, *_ = np.linalg.lstsq(X, T, rcond=None)
+        u = drive @ coef[:n_drive]
+        back = ((u * w < 0) & moving).astype(float)
+        bu = back * u
+        left = T - rest @ coef[n_drive:] - u
+        new = 1.0 + float(bu @ left) / float(bu @ bu) if float(bu @ bu) > 0 else 1.0
+        done = abs(new - ratio) < CONVERGED
+        ratio = new
+        if done:
+            break
+    m = 1.0 + back * (ratio - 1.0)
+    X = np.column_stack([drive * m[:, None], rest])
+    coef, *_ = np.linalg.lstsq(X, T, rcond=None)
+    return coef, ratio, back, T - X @ coef
 
 
 def config_text(f: Fit, source: str) -> str:
