@@ -42,9 +42,20 @@ def report(tmp_path: Path, csv: Path, *args: str) -> tuple[dict, subprocess.Comp
     return json.loads(js.read_text()), p
 
 
+def experiments(d: dict) -> list[dict]:
+    """The report's per-experiment fits: hdsim-campaign's default campaign
+    has 8 (a shorter list would let a loop over it pass on nothing)."""
+    assert len(d["experiments"]) == 8, len(d["experiments"])
+    return d["experiments"]
+
+
 def full_range(d: dict) -> list[dict]:
-    fs = max(f["full_scale_nm"] for f in d["experiments"])
-    return [f for f in d["experiments"] if f["full_scale_nm"] == fs]
+    """The full-scale half of the campaign (4 positions at full range, 4 at
+    --low-range)."""
+    fs = max(f["full_scale_nm"] for f in experiments(d))
+    full = [f for f in d["experiments"] if f["full_scale_nm"] == fs]
+    assert len(full) == 4, [f["full_scale_nm"] for f in d["experiments"]]
+    return full
 
 
 # ---------------------------------------------------------------- CRC and record
@@ -150,7 +161,7 @@ def test_fits_agree_with_numpy_reference(tmp_path):
     d, _ = report(tmp_path, csv)
     rows = [ln.split(",") for ln in csv.read_text().splitlines()
             if ln and not ln.startswith("#")][1:]
-    for f in d["experiments"]:
+    for f in experiments(d):
         sel = [r for r in rows if r[0] == f["experiment"]]
         t = np.array([float(r[3]) for r in sel])
         v = np.array([float(r[4]) for r in sel])
@@ -167,7 +178,7 @@ def test_known_gain_and_offset_within_standard_errors(tmp_path):
     csv = sim(tmp_path, "se", "--gain", "6.2", "--offset", "0.04", "--placement-error", "0",
               "--noise", "0.004", "--seed", "5")
     d, _ = report(tmp_path, csv)
-    for f in d["experiments"]:
+    for f in experiments(d):
         assert abs(f["gain_nm_per_v"] - 6.2) < 3.5 * f["gain_se_nm_per_v"]
         assert abs(f["offset_v"] - 0.04) < 3.5 * f["offset_se_v"]
 
