@@ -55,8 +55,8 @@ typedef struct {
     int first_errno;  /* errno of the first failed write (0: none) */
 } hd_out_t;
 
-/* Opens an output ("-" = stdout).  binary selects "wb" (no effect on POSIX).
- * sync asks for fsync of the file and its directory at commit. */
+/* Opens an output ("-" = stdout).  sync asks for fsync of the file and its
+ * directory at commit. */
 int hd_out_open(hd_out_t *o, const char *path, bool sync, char *err, size_t err_len);
 
 /* Checked writes: -1 on failure (errno kept for the commit's message). */
