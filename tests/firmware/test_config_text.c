@@ -174,6 +174,10 @@ static void test_size_limit(void)
     TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES, &cfg, &err));
     TEST_ASSERT_EQUAL_INT(HD_FW_ERR_TOO_LONG,
                           hd_config_text_parse(text, HD_CFGTXT_MAX_BYTES + 1u, &cfg, &err));
+    /* the message states the limit in force (it is typed in the text) */
+    char limit[32];
+    snprintf(limit, sizeof limit, " %u bytes", (unsigned)HD_CFGTXT_MAX_BYTES);
+    TEST_ASSERT_NOT_NULL_MESSAGE(strstr(err.message, limit), err.message);
 }
 
 /* Every writable row of hd_params.def is a key: set it to its upper bound
