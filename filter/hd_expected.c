@@ -72,9 +72,10 @@ float hd_expected_current_nm(const hd_expected_current_config_t *cur,
         return driving;
     }
     /* share of the load driving the motor: 1 where the torque opposes the
-     * motion, 0 where it goes with it, 1/2 at standstill */
+     * motion, 0 where it goes with it and at standstill (the motor holds
+     * the load) */
     const float with_motion = driving >= 0.0f ? sign_vel : -sign_vel;
-    const float backdriven = 0.5f * (1.0f - with_motion);
+    const float backdriven = with_motion < 0.0f ? -with_motion : 0.0f;
     const float ratio = cur->backdrive_nm_per_a / cur->nm_per_a;
     return driving * (1.0f + backdriven * (ratio - 1.0f));
 }

@@ -22,8 +22,9 @@
  * A gear passes power with one efficiency when the motor drives the load
  * (eta) and another when the load drives the motor (eta_b).  k_b = N kt /
  * eta_b is the torque per amp of the second case: T_cur above is scaled by
- * k_b / k_i where it opposes the motion (T_cur vel < 0), the direction's
- * sign smoothed over v_eps like the Coulomb term.  k_b = 0: one efficiency.
+ * k_b / k_i where it opposes the motion (T_cur vel < 0), blended in over
+ * v_eps like the Coulomb sign; at standstill the motor holds the load (k_i).
+ * k_b = 0: one efficiency.
  */
 #ifndef HD_EXPECTED_H
 #define HD_EXPECTED_H

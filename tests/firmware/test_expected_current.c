@@ -1,8 +1,9 @@
 /* hd_expected's motor-current term against its closed form, evaluated here
  * in double:
  *   T_cur = k_i i - J_r acc - b_r vel - Fc_r vel / (|vel| + v_eps)
- * scaled by k_b / k_i where the load drives the motor (T_cur vel < 0; the
- * direction smoothed like the Coulomb sign), and its configuration check.  (A filter-library unit test kept with the
+ * scaled by k_b / k_i where the load drives the motor (T_cur vel < 0,
+ * blended in like the Coulomb sign; k_i at standstill), and its
+ * configuration check.  (A filter-library unit test kept with the
  * firmware tests: the firmware is its only caller; docs/slow-torque.md.) */
 #include <math.h>
 
@@ -53,7 +54,7 @@ static void test_current_term_matches_the_closed_form(void)
 /* Two efficiencies (eta 0.90 driving, eta_b 0.85 driven, as the simulated
  * drive): k_b / k_i = 1 / (eta eta_b).  Far from standstill the term is
  * T_cur where it goes with the motion and (k_b / k_i) T_cur where it
- * opposes it; in between, the closed form's smooth blend. */
+ * opposes it; at standstill T_cur; in between, the closed form's blend. */
 static void test_backdrive_gain_where_the_load_drives_the_motor(void)
 {
     hd_expected_config_t e;
@@ -71,7 +72,8 @@ static void test_backdrive_gain_where_the_load_drives_the_motor(void)
                 const double u = closed_form(ki, 1.7, 0.9, 2.4, 0.02, (double)cur[a], v,
                                              (double)acc[d]);
                 const double along = (u >= 0.0 ? 1.0 : -1.0) * v / (fabs(v) + 0.02);
-                const double expect = u * (1.0 + 0.5 * (1.0 - along) * (kb / ki - 1.0));
+                const double back = along < 0.0 ? -along : 0.0;
+                const double expect = u * (1.0 + back * (kb / ki - 1.0));
                 double got = (double)hd_expected_current_nm(&c, &e, cur[a], vel[b], acc[d]);
                 TEST_ASSERT_DOUBLE_WITHIN(1e-5 * (1.0 + fabs(expect)), expect, got);
             }
@@ -84,6 +86,9 @@ static void test_backdrive_gain_where_the_load_drives_the_motor(void)
     const float lower = hd_expected_current_nm(&bare, &e, 5.0f, -2.0f, 0.0f);
     TEST_ASSERT_FLOAT_WITHIN(0.01f * 5.0f * (float)ki, 5.0f * (float)ki, lift);
     TEST_ASSERT_FLOAT_WITHIN(0.02f, (float)(1.0 / (0.9 * 0.85)), lower / lift);
+    /* holding at standstill: the driving gain */
+    TEST_ASSERT_FLOAT_WITHIN(1e-4f, 5.0f * (float)ki, hd_expected_current_nm(&bare, &e, 5.0f,
+                                                                           0.0f, 0.0f));
 }
 
 static void test_current_config_check(void)
