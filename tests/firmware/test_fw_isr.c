@@ -7,6 +7,7 @@
 #include <stdlib.h>
 
 #include "fw_rig.h"
+#include "hd_params.h"
 
 #define ID_A id_of(HD_CAN_FRAME_TELEM_A, 1)
 #define ID_B id_of(HD_CAN_FRAME_TELEM_B, 1)
@@ -252,6 +253,19 @@ static void test_missing_calibration_uses_defaults_and_flags(void)
     TEST_ASSERT_TRUE((last_faults() & HD_FAULT_CALIB_CORRUPT) != 0u);
 }
 
+/* hd_fw.h restates the calibration rows' bounds as macros (the fault tests
+ * use them as "the largest accepted gain"); the table decides. */
+static void test_calib_bound_macros_are_the_tables(void)
+{
+    const hd_param_info_t *g = hd_param_by_id(HD_PARAM_CALIB_GAIN_NM_PER_V);
+    const hd_param_info_t *o = hd_param_by_id(HD_PARAM_CALIB_OFFSET_V);
+    TEST_ASSERT_NOT_NULL(g);
+    TEST_ASSERT_NOT_NULL(o);
+    TEST_ASSERT_EQUAL_FLOAT(g->hi, HD_FW_CALIB_GAIN_MAX_NM_PER_V);
+    TEST_ASSERT_EQUAL_FLOAT(o->hi, HD_FW_CALIB_OFFSET_MAX_V);
+    TEST_ASSERT_EQUAL_FLOAT(o->lo, -HD_FW_CALIB_OFFSET_MAX_V);
+}
+
 static void test_end_of_samples_stops_the_isr(void)
 {
     init_fw();
@@ -357,6 +371,7 @@ int main(void)
     RUN_TEST(test_nyquist_frozen_block_is_flagged);
     RUN_TEST(test_can_tx_full_and_bus_off_are_flagged);
     RUN_TEST(test_missing_calibration_uses_defaults_and_flags);
+    RUN_TEST(test_calib_bound_macros_are_the_tables);
     RUN_TEST(test_end_of_samples_stops_the_isr);
     RUN_TEST(test_deadline_miss_from_the_clock);
     RUN_TEST(test_config_errors_are_refused_at_init);
