@@ -512,7 +512,7 @@ def _on_sigterm(signum, frame):
     raise _Stop()
 
 
-def _query(bus, state: MonitorState, feed, node: int, say) -> None:
+def _query(bus, feed, node: int, say) -> None:
     joint = Joint(bus, node, timeout_s=0.3)
     joint.on_frame = feed
     for key in QUERY_PARAMS:
@@ -577,7 +577,7 @@ def run(args) -> int:
                     feed(msg)
                 if not queried and state.node is not None:
                     queried = True
-                    _query(bus, state, feed, state.node, say)
+                    _query(bus, feed, state.node, say)
                 if now >= next_status:
                     next_status = now + args.interval
                     line = state.status_line(time.time())

@@ -110,15 +110,14 @@ def place(rows: list[dict], rate_hz: float | None = None) -> dict:
         if any(r.get("rate_hz") for r in rows):
             sources.add("the log's telemetry_rate_hz answers")
     kept, lost = [], 0
-    prev = None
+    prev_row = None
     t_epoch = n_epoch = 0.0
     step = 0
     for row, period in zip(rows, periods):
-        if prev is None:
+        if prev_row is None:
             row["step"], row["t_s"] = 0, 0.0
             t_epoch, n_epoch, p_epoch = 0.0, 0, period
         else:
-            prev_row, prev_p = prev
             dt = row["t_host_s"] - prev_row["t_host_s"]
             if row["segment"] != prev_row["segment"]:
                 # a reboot: the sequence restarts; continue on the host's clock
@@ -139,7 +138,7 @@ def place(rows: list[dict], rate_hz: float | None = None) -> dict:
             row["step"] = step
             row["t_s"] = t_epoch + (step - n_epoch) * p_epoch
         kept.append(row)
-        prev = (row, period)
+        prev_row = row
     rows[:] = kept
     single = len(set(periods)) == 1
     return {"period_s": periods[0] if single else None,

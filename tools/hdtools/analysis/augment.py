@@ -412,7 +412,7 @@ class Session:
                     self.tried.add(c.key())
             lines = [c for c in lines if c.action != "profile"]
             slow = detect.slow_candidates(ctx, self.model)
-            drift = detect.drift_candidate(ctx, self.model, self.data.has_feedforward,
+            drift = detect.drift_candidate(ctx, self.data.has_feedforward,
                                            self.segment_t0)
             # Order of trial: the profile, lines (strongest first), then
             # expected-torque terms, and drift last: a drift is only judged

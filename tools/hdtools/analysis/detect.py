@@ -463,7 +463,7 @@ def slow_series(runs, dec_s=0.02):
     return out
 
 
-def drift_candidate(ctx: Context, model, has_feedforward: bool,
+def drift_candidate(ctx: Context, has_feedforward: bool,
                     segment_t0: dict) -> Candidate | None:
     """Sensor drift: the slow residual is a straight line in each segment's
     time (a common slope, an intercept per time base), continuing across

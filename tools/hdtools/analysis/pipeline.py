@@ -159,7 +159,7 @@ def _first_near_least(table, current):
     return next(r for r in ok if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
 
 
-def tune_grid(data, fold, model, variants, name):
+def tune_grid(data, fold, variants, name):
     """Each variant of the model replayed over the tuning subset; the
     modelled ripple left in fold A's filtered torque (averaged-spectrum
     amplitudes of the model's motor-locked and fixed lines)."""
@@ -175,7 +175,7 @@ def tune_grid(data, fold, model, variants, name):
     return table
 
 
-def tune(session, noise_est, log):
+def tune(session, noise_est):
     """R and nyquist_fraction, each chosen on fold A like this: the third-
     difference noise estimate is far too low on logs low-pass filtered before
     logging (the iiwa's), and near the sample-rate Nyquist limit a block is
@@ -186,7 +186,7 @@ def tune(session, noise_est, log):
     values that do not raise fold A's innovation, and kept only if fold B
     agrees (augment.judge, set_tuning)."""
     m = session.model
-    noise_table = tune_grid(session.data, session.fold, m,
+    noise_table = tune_grid(session.data, session.fold,
                             [(noise_est * f, m.with_noise(noise_est * f)) for f in NOISE_GRID],
                             "noise_nm")
     best = _first_near_least(noise_table, noise_table[0])
@@ -201,7 +201,7 @@ def tune(session, noise_est, log):
         mv = m.copy()
         mv.nyquist_fraction = f
         variants.append((f, mv))
-    nyq_table = tune_grid(session.data, session.fold, m, variants, "nyquist_fraction")
+    nyq_table = tune_grid(session.data, session.fold, variants, "nyquist_fraction")
     best = _first_near_least(nyq_table, nyq_table[0])
     if abs(best["nyquist_fraction"] - m.nyquist_fraction) > 1e-6:
         c = augment.detect.Candidate("tuning", best["nyquist_fraction"], action="set_tuning",
@@ -327,7 +327,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
                               output_orders=output_orders)
     met_before = rp.metrics(session.runs, bands=True)
     vb, w_b = rp.analysis_view(session.runs, copy=True), rp.window(session.runs)
-    noise_table, nyq_table = tune(session, noise_est, log)
+    noise_table, nyq_table = tune(session, noise_est)
     session.loop()
     m1 = session.model
     met_after = rp.metrics(session.runs, bands=True)
@@ -344,7 +344,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
             e["line_amplitude_in_filtered_before_nm"] = augment.line_amplitude(vb, e["kind"], o)
             e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(va, e["kind"], o)
     lines = _lines_table(m_ref, m1, v_ref, vb, va)
-    profile_doc = prof.build(data, m1, g, session.runs, log)
+    profile_doc = prof.build(data, m1, g, session.runs)
     report = {
         "input": str(path),
         "gear_ratio": g,
@@ -408,7 +408,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     report["summary"] = s
     report["elapsed_s"] = time.perf_counter() - t0
     report["data"]["replays_full_record_equivalent"] = rp.REPLAYED["samples"] / max(data.n, 1)
-    outputs.write(report, res, data, m0, m1, title=_stem(path), node_id=node_id)
+    outputs.write(report, res, data, m1, title=_stem(path), node_id=node_id)
     return report
 
 

@@ -73,7 +73,7 @@ def _explained(view, order, a, b, ts_s):
     return 1.0 - float(np.sum((y - pred) ** 2) / max(np.sum(y ** 2), 1e-30))
 
 
-def build(data, model, gear, runs, log=print) -> dict:
+def build(data, model, gear, runs) -> dict:
     """The profile document (always returned, for the report) with
     `writable` and, if not, `why_not`."""
     doc = {"schema": SCHEMA, "gear_ratio": gear["value"], "angle_convention": CONVENTION,

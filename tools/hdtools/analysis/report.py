@@ -71,7 +71,7 @@ class Outputs:
                 raise OutputError(f"--json {self.json_path}: is a directory")
             _writable_place(self.json_path.parent, "--json")
 
-    def write(self, report, res, data, model_before, model_after, title="", node_id=1):
+    def write(self, report, res, data, model_after, title="", node_id=1):
         """Every output staged under a temporary name, then all renamed
         (hdtools.safeio.Outputs); known output files of an earlier run that
         this run does not produce are removed after."""
@@ -84,7 +84,7 @@ class Outputs:
                 except OSError as exc:
                     raise OutputError(f"--out {od}: cannot create: {exc.strerror}") from None
                 plots = []
-                for name, make in plot_makers(res, data, model_before, model_after, report, title):
+                for name, make in plot_makers(res, data, model_after, report, title):
                     fig = make()
                     if fig is None:
                         continue
@@ -161,7 +161,7 @@ def _views(res):
     return [v["before"], v["reference"], v["before"], v["after"]]
 
 
-def plot_makers(res, data, m0, m1, report, title):
+def plot_makers(res, data, m1, report, title):
     """(file name, make() -> figure or None when there is nothing to show)."""
     views = _views(res)
     traces = _traces()

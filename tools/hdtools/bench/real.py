@@ -75,7 +75,6 @@ def methods_for(seg, ts, residual_model):
     fc = min(peers.butterworth_cutoff_for(line2_hz, 20.0), 0.45 / ts)
     noise = max(noise_estimate_nm(x), 1e-3)
     ex = cfilter.ExpectedConfig()
-    d = {"torque_nm": x}
 
     def kf(config, **kw):
         import ctypes
@@ -112,7 +111,6 @@ def methods_for(seg, ts, residual_model):
                 "torque_filtered_nm"].astype(float)
         except Exception as exc:  # reported, not fatal
             out["kf_residual_error"] = str(exc)
-    del d
     return out, {"noise_nm": noise, "butter_fc_hz": fc, "wg_speed_rad_s": speed_wg}
 
 
