@@ -50,3 +50,38 @@ def test_missing_result_file_is_one_line(tmp_path, capsys, monkeypatch):
     rc = headline.main(["--check"])
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "demo.json" in err
+
+
+def _stale_readme(tmp_path, monkeypatch):
+    """A copy of the README with an emptied headline block, as headline.README."""
+    text = headline.README.read_text()
+    pre, rest = text.split(headline.BEGIN, 1)
+    stale = pre + headline.BEGIN + "\n" + headline.END + rest.split(headline.END, 1)[1]
+    readme = tmp_path / "README.md"
+    readme.write_text(stale)
+    monkeypatch.setattr(headline, "README", readme)
+    return readme, stale, text
+
+
+def test_write_replaces_the_block(tmp_path, monkeypatch):
+    readme, stale, current = _stale_readme(tmp_path, monkeypatch)
+    assert headline.main(["--check"]) == 1
+    assert headline.main(["--write"]) == 0
+    assert readme.read_text() == current != stale      # the README is current (test above)
+    assert headline.main(["--check"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md"]
+
+
+def test_failed_write_is_one_line_and_leaves_nothing(tmp_path, capsys, monkeypatch):
+    import errno
+    import os
+    readme, stale, _ = _stale_readme(tmp_path, monkeypatch)
+
+    def replace_fails(src, dst):
+        raise OSError(errno.EIO, "Input/output error", str(dst))
+    monkeypatch.setattr(os, "replace", replace_fails)
+    rc = headline.main(["--write"])
+    err = capsys.readouterr().err
+    assert rc == 3 and len(err.strip().splitlines()) == 1 and "README.md" in err
+    assert readme.read_text() == stale
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md"]   # no temporary left

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
+
+from .safeio import OutputError, Outputs
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
@@ -233,12 +234,12 @@ def main(argv: list[str] | None = None) -> int:
                   "hdtools.headline --write`", file=sys.stderr)
             return 1
         return 0
-    tmp = README.with_name(".README.md.tmp")
     try:
-        tmp.write_text(new)
-        os.replace(tmp, README)
-    except OSError as exc:
-        print(f"headline: {README}: {exc.strerror}", file=sys.stderr)
+        with Outputs() as out:      # a temporary name, renamed; removed on failure
+            out.write_text(README, new)
+            out.commit()
+    except OutputError as exc:
+        print(f"headline: {exc}", file=sys.stderr)
         return 3
     return 0
 
