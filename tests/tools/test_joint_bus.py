@@ -56,3 +56,12 @@ def test_bus_failing_while_waiting_is_one_line_exit_5(monkeypatch, capsys, answe
     assert rc == 5, err
     assert len(err.strip().splitlines()) == 1
     assert "receive failed: Network is down" in err and "internal error" not in err
+
+
+def test_device_set_bad_value_names_the_key_not_a_line(monkeypatch, capsys):
+    # the configuration-text check (canproto.param_value) without its
+    # "line N:" prefix, which belongs to a file
+    monkeypatch.setattr(cmd_device, "open_bus", lambda *a, **k: FailingBus(0))
+    rc = cli.main(["device", "vcan0", "set", "r_nm2", "abc"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.strip() == "hdsense device: r_nm2: 'abc' is not a number"

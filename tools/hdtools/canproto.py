@@ -82,24 +82,25 @@ _ON = ("on", "1", "yes")
 _OFF = ("off", "0", "no")
 
 
-def _param_value(param: protocol.Param, text: str, line: int) -> float:
-    """A configuration-text value as the firmware's parser reads it."""
+def param_value(param: protocol.Param, text: str) -> float:
+    """A configuration-text value as the firmware's parser reads it
+    (ValueError naming the key, not the line)."""
     if param.type == "BOOL":
         if text in _ON:
             return 1.0
         if text in _OFF:
             return 0.0
-        raise ValueError(f"line {line}: {param.key} must be on or off, got {text!r}")
+        raise ValueError(f"{param.key} must be on or off, got {text!r}")
     if param.integer and (not text.isdigit() or (len(text) > 1 and text[0] == "0")):
-        raise ValueError(f"line {line}: {param.key} must be a whole decimal number without a "
+        raise ValueError(f"{param.key} must be a whole decimal number without a "
                          f"leading zero, got {text!r}")
     try:
         value = float(text)
     except ValueError:
-        raise ValueError(f"line {line}: {param.key}: {text!r} is not a number") from None
+        raise ValueError(f"{param.key}: {text!r} is not a number") from None
     why = param.check(value)
     if why is not None:
-        raise ValueError(f"line {line}: {param.key} = {text}: {why}")
+        raise ValueError(f"{param.key} = {text}: {why}")
     return value
 
 
@@ -147,7 +148,10 @@ def config_to_commands(text: str, db=None, token: int = 0) -> list[tuple[int, by
         seen[key] = lineno
         if len(values) != 1:
             raise ValueError(f"line {lineno}: {key} takes one value")
-        value = _param_value(param, values[0], lineno)
+        try:
+            value = param_value(param, values[0])
+        except ValueError as exc:
+            raise ValueError(f"line {lineno}: {exc}") from None
         frame = command(db, "SET_PARAM", token, SetParamId=param.name, SetParamValue=value)
         if key == "node_id":
             node_cmd = frame

@@ -258,9 +258,9 @@ def _fmt_item(name: str, value: int) -> str:
 
 def _param_value(p: protocol.Param, text: str) -> float:
     try:
-        return canproto._param_value(p, text, 0)
+        return canproto.param_value(p, text)
     except ValueError as exc:
-        raise UsageError(str(exc).replace("line 0: ", "")) from None
+        raise UsageError(str(exc)) from None
 
 
 def device(args) -> int:
