@@ -43,11 +43,9 @@ def main(args) -> int:
         raise UsageError(f"--gear-ratio must be a finite number >= 1 (got {args.gear_ratio:g})")
     lines = None
     if args.profile:
-        from . import profile_record
-        from .cmd_profile import _load_json
+        from .cmd_profile import load_profile
         lines = [{"lock": ln.lock, "order": ln.order, "a_nm": ln.a_nm, "b_nm": ln.b_nm}
-                 for ln in profile_record.lines_from_json(_load_json(args.profile),
-                                                          args.profile)[0]]
+                 for ln in load_profile(args.profile)[0]]
     data = loading.load(args.log)
     f = current_fit.fit(data, args.gear_ratio, args.log, lines)
     if not args.quiet:

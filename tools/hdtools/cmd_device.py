@@ -265,9 +265,8 @@ def _param_value(p: protocol.Param, text: str) -> float:
 
 def device(args) -> int:
     if args.action == "profile" and args.profile_action == "put":
-        from . import profile_record as pr
-        from .cmd_profile import _load_json
-        args.profile_lines = pr.lines_from_json(_load_json(args.file), args.file)
+        from .cmd_profile import load_profile
+        args.profile_lines = load_profile(args.file)
     bus = open_bus(args.interface, args.channel, args.bitrate)
     try:
         joint = Joint(bus, args.node, timeout_s=args.timeout)

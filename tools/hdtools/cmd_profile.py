@@ -79,16 +79,20 @@ def _joint(args) -> tuple[float, int, int]:
     return float(found["gear_ratio"]), int(found["motor_cpr"]), int(found["output_cpr"])
 
 
-def _load_json(path: str):
+def load_profile(path: str) -> tuple[list, float]:
+    """(lines, gear ratio) of a profile.json file (UsageError naming the
+    file otherwise); hdsense device profile put and hdsense current read it
+    here too."""
     text = read_text(path, 1 << 20).removeprefix("\ufeff")     # a BOM is not content
     try:
-        return json.loads(text)
+        doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise UsageError(f"{path}:{exc.lineno}: not JSON: {exc.msg}") from None
+    return pr.lines_from_json(doc, path)
 
 
 def _record(args) -> int:
-    lines, gear = pr.lines_from_json(_load_json(args.profile), args.profile)
+    lines, gear = load_profile(args.profile)
     joint_gear, mcpr, ocpr = _joint(args)
     pr.check_gear(gear, joint_gear, args.profile)
     data = pr.file_bytes(pr.Record(joint_gear, mcpr, ocpr, lines))
@@ -104,7 +108,7 @@ def _commands(args) -> int:
     if not protocol.NODE_MIN <= args.node_id <= protocol.NODE_MAX:
         raise UsageError(f"--node-id must be {protocol.NODE_MIN}..{protocol.NODE_MAX} "
                          f"(got {args.node_id})")
-    lines, gear = pr.lines_from_json(_load_json(args.profile), args.profile)
+    lines, gear = load_profile(args.profile)
     if args.gear_ratio is not None:
         if not (math.isfinite(args.gear_ratio) and args.gear_ratio >= 1):
             raise UsageError("--gear-ratio must be a finite number >= 1")
