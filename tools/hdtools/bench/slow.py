@@ -136,7 +136,8 @@ def commission(name: str, wd: Path, nom: dict, quick: bool) -> Commissioning:
     except RuntimeError as exc:
         nvm, nvm_note = firmware_commissioning(ini, wd, nom, dur, "")
         return Commissioning(name, csv, None, None, None, None, str(exc), table, nvm, nvm_note)
-    nvm, nvm_note = firmware_commissioning(ini, wd, nom, dur, (an / "model.cfg").read_text())
+    model_cfg = (an / "model.cfg").read_text()
+    nvm, nvm_note = firmware_commissioning(ini, wd, nom, dur, model_cfg)
     rep = json.loads((an / "report.json").read_text())
     model = rep.get("model_after") or rep.get("model")
     rec = wd / f"{name}.hdprofile"
@@ -147,7 +148,7 @@ def commission(name: str, wd: Path, nom: dict, quick: bool) -> Commissioning:
                   "--output-cpr", int(nom["output_cpr"])], "hdsense profile record")
     except RuntimeError as exc:
         rec, note = None, f"{note}; no profile record: {exc}"
-    return Commissioning(name, csv, (an / "model.cfg").read_text(), model,
+    return Commissioning(name, csv, model_cfg, model,
                          an / "profile.json", rec, note, table, nvm, nvm_note)
 
 
