@@ -159,7 +159,8 @@ def register(subparsers) -> None:
     d = sub.add_parser("decode", help="decode a candump -l log with firmware/hdjoint.dbc")
     d.add_argument("log")
     d.add_argument("--node", type=_node, default=None,
-                   help="node id 1..127 (default: the one node found in the log)")
+                   help=f"node id {protocol.NODE_MIN}..{protocol.NODE_MAX} "
+                        "(default: the one node found in the log)")
     d.add_argument("--csv", help="write the decoded telemetry here (the columns "
                    "hdsense analyze reads: t_s in device time, torque_nm, motor_angle_rad, ...)")
     d.add_argument("--rate", type=_rate, default=None, metavar="HZ",

@@ -652,7 +652,8 @@ def register(subparsers) -> None:
     p.add_argument("--version", action="version", version=f"hdsense monitor {version()}")
     add_bus_arguments(p, channel_optional=True)
     p.add_argument("--node", type=_node, default=None,
-                   help="node id 1..127 (default: the first joint heard)")
+                   help=f"node id {protocol.NODE_MIN}..{protocol.NODE_MAX} "
+                        "(default: the first joint heard)")
     p.add_argument("--log", metavar="FILE", help="record every frame as a candump -l log")
     p.add_argument("--duration", type=_positive, default=None, metavar="S",
                    help="stop after S seconds (default: until Ctrl-C)")

@@ -128,14 +128,14 @@ def _columns(piece, ts_s, gear_ratio, lines=None, nuisance=True):
     keep[step // 2::step] = True
     keep &= ok
     if gear_ratio or piece.motor_angle_rad is not None:
-        n_ratio = gear_ratio or _ratio(piece, ts_s)
+        n_ratio = gear_ratio or _ratio(piece)
         keep &= np.abs(wl) * n_ratio > SLOW_MOTOR_RAD_S
     edge = int(round(0.5 / ts_s))    # filter start-up at both ends
     keep[:edge] = keep[n - edge:] = False
     return [c[keep] for c in cols], wl[keep]
 
 
-def _ratio(piece, ts_s) -> float:
+def _ratio(piece) -> float:
     """Motor over output travel of a piece (its gear ratio), 1 if unknown."""
     if piece.motor_angle_rad is None or piece.output_angle_rad is None:
         return 1.0
