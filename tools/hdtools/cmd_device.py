@@ -267,6 +267,13 @@ def device(args) -> int:
     if args.action == "profile" and args.profile_action == "put":
         from .cmd_profile import load_profile
         args.profile_lines = load_profile(args.file)
+    # a bad key or value is a usage error (exit 2) before any bus is opened
+    if args.action in ("get", "set"):
+        p = _param(args.key)
+        if args.action == "set":
+            if p.read_only:
+                raise UsageError(f"{p.key} is read only")
+            args.set_value = _param_value(p, args.value)
     bus = open_bus(args.interface, args.channel, args.bitrate)
     try:
         joint = Joint(bus, args.node, timeout_s=args.timeout)
@@ -289,9 +296,7 @@ def device(args) -> int:
                 lines.append(f"{p.key} = {ack.value:.9g}" if ack.ok else f"{p.key}: {ack.result}")
         elif action == "set":
             p = _param(args.key)
-            if p.read_only:
-                raise UsageError(f"{p.key} is read only")
-            ack = joint.set(p, _param_value(p, args.value))
+            ack = joint.set(p, args.set_value)
             lines.append(f"{p.key} = {ack.value:.9g}")
             if not ack.ok:
                 print("\n".join(lines))
