@@ -168,7 +168,14 @@ typedef struct {
     float torque_expected_nm;   /* T_exp from hd_expected.h (or 0) */
     float d_motor_angle_rad;    /* motor angle at this sample minus at the previous one */
     float d_output_angle_rad;   /* output angle at this sample minus at the previous one */
+    float torque_expected_var_nm2; /* variance of T_exp's error at this sample, added to
+                                      R for this step (0: T_exp as exact as R says); a
+                                      negative or non-finite value counts as 0, a larger
+                                      one as HD_KF_MAX_EXPECTED_VAR_NM2 */
 } hd_kf_input_t;
+
+/* Ceiling of hd_kf_input_t.torque_expected_var_nm2: S stays finite. */
+#define HD_KF_MAX_EXPECTED_VAR_NM2 1.0e12f
 
 /* Status bits in hd_kf_output_t.status and hd_kf_t.status_sticky (names:
  * hd_kf_status_name). */

@@ -302,6 +302,13 @@ KF_INLINE void correct(float *restrict p, float *restrict x, const float *restri
     *probe = worst;
 }
 
+/* The step's measurement variance: R plus T_exp's own (hd_kf_input_t). */
+KF_INLINE float measurement_var(const hd_kf_t *kf, float expected_var_nm2)
+{
+    const float v = expected_var_nm2 > 0.0f ? expected_var_nm2 : 0.0f; /* NaN: 0 */
+    return kf->cfg.r_nm2 + (v < HD_KF_MAX_EXPECTED_VAR_NM2 ? v : HD_KF_MAX_EXPECTED_VAR_NM2);
+}
+
 /* Offset-jump gate: e beyond offset_jump_nm and 4 sigma. */
 KF_INLINE bool offset_jump(const hd_kf_t *kf, float e, float s_var)
 {
@@ -445,7 +452,8 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
         kf->offset_primed = 1u;
     }
     const float offset = kf->x[o]; /* 0 when the offset is disabled */
-    float s_var = kf->cfg.r_nm2 + cross_covariance(kf->p, h, q, kf->offset_q_nm2, g, nb);
+    float s_var = measurement_var(kf, in->torque_expected_var_nm2) +
+                  cross_covariance(kf->p, h, q, kf->offset_q_nm2, g, nb);
     const float innovation = y - ripple - offset;
     if (UNLIKELY(valid && offset_jump(kf, innovation, s_var))) {
         /* an offset jump widens the offset's variance first */

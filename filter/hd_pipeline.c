@@ -24,7 +24,7 @@ hd_kf_err_t hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
 
 void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
                       float d_motor_angle_rad, float d_output_angle_rad,
-                      float feedforward_nm, hd_kf_output_t *out)
+                      float feedforward_nm, float feedforward_var_nm2, hd_kf_output_t *out)
 {
     (void)hd_track_update(&p->output_track, d_output_angle_rad);
     p->torque_expected_nm = hd_expected_torque_nm(
@@ -35,6 +35,7 @@ void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
         .torque_expected_nm = p->torque_expected_nm,
         .d_motor_angle_rad = d_motor_angle_rad,
         .d_output_angle_rad = d_output_angle_rad,
+        .torque_expected_var_nm2 = feedforward_var_nm2,
     };
     hd_kf_step(&p->kf, &in, out);
 }
@@ -52,13 +53,14 @@ void hd_pipeline_run(hd_pipeline_t *p, const hd_pipeline_io_t *io)
     float amp_prior[HD_KF_MAX_BLOCKS];
     for (size_t i = 0; i < io->n; i++) {
         const float ff = io->feedforward_nm != NULL ? io->feedforward_nm[i] : 0.0f;
+        const float ff_var = io->feedforward_var_nm2 != NULL ? io->feedforward_var_nm2[i] : 0.0f;
         if (io->amplitude_nm != NULL) {
             for (unsigned b = 0; b < HD_KF_MAX_BLOCKS; b++) {
                 amp_prior[b] = hd_kf_block_amplitude_nm(&p->kf, b);
             }
         }
         hd_pipeline_step(p, io->torque_meas_nm[i], io->d_motor_angle_rad[i],
-                         io->d_output_angle_rad[i], ff, &out);
+                         io->d_output_angle_rad[i], ff, ff_var, &out);
         store(io->torque_filtered_nm, i, out.torque_filtered_nm);
         store(io->ripple_nm, i, out.ripple_nm);
         store(io->offset_nm, i, out.offset_nm);

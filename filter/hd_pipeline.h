@@ -35,11 +35,14 @@ hd_kf_err_t hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
                      const hd_expected_config_t *expected_cfg,
                      float track_bandwidth_hz);
 
+/* feedforward_var_nm2: the variance of feedforward_nm's error at this
+ * sample (hd_kf_input_t.torque_expected_var_nm2; 0 = none). */
 void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
                       float d_motor_angle_rad, float d_output_angle_rad,
-                      float feedforward_nm, hd_kf_output_t *out);
+                      float feedforward_nm, float feedforward_var_nm2, hd_kf_output_t *out);
 
-/* Array form.  Inputs of length n (feedforward may be NULL = 0); every output
+/* Array form.  Inputs of length n (feedforward and its variance may be
+ * NULL = 0); every output
  * pointer may be NULL.  status, if given, receives hd_kf_output_t.status per
  * sample.  amplitude_nm, if given, is n x HD_KF_MAX_BLOCKS, row-major: row i,
  * column b is the amplitude of configured block b's prediction used at
@@ -54,6 +57,7 @@ typedef struct {
     const float *d_motor_angle_rad;
     const float *d_output_angle_rad;
     const float *feedforward_nm;
+    const float *feedforward_var_nm2;
     float *torque_filtered_nm;
     float *ripple_nm;
     float *offset_nm;

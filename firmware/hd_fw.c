@@ -23,6 +23,7 @@ void hd_fw_derive(hd_fw_settings_t *s)
     /* y += alpha (i - y): alpha = w / (1 + w), w = 2 pi f ts (backward Euler) */
     const float w = HD_TWO_PI_F * c->current_filter_hz * HD_FW_TS_S;
     s->current_alpha = (c->current_filter_hz > 0.0f) ? w / (1.0f + w) : 1.0f;
+    s->current_lag_ticks = 2.0f * (1.0f - s->current_alpha) / s->current_alpha;
     s->telem_divider = (c->telemetry_rate_hz == 0u)
                            ? 0u
                            : (HD_FW_TICK_HZ + c->telemetry_rate_hz / 2u) / c->telemetry_rate_hz;

@@ -80,6 +80,7 @@ typedef struct {
     float torque_filtered_nm;      /* NaN if the sample was invalid */
     float ripple_nm;
     float torque_expected_nm;
+    float torque_expected_var_nm2; /* the variance of T_exp's error the filter was given */
     float feedforward_nm;          /* feed-forward in T_exp this tick (after the stale fallback) */
     float motor_current_a;         /* NaN without a current channel */
     float motor_velocity_rad_s;
@@ -102,6 +103,7 @@ typedef struct {
     int32_t max_output_delta_counts;
     uint32_t telem_divider;         /* ticks per telemetry frame, 0 = off */
     float current_alpha;            /* motor-current low-pass gain per tick (1 = none) */
+    float current_lag_ticks;        /* the two stages' lag behind a ramp: 2 (1 - alpha) / alpha */
     uint32_t record_faults;         /* sticky HD_FAULT_CALIB_* / CONFIG_DEFAULTS */
     uint8_t calib_status;           /* hd_record_status_t */
     uint8_t config_status;
@@ -181,6 +183,7 @@ typedef struct {
     float cur_i1, cur_i2;
     float cur_w1, cur_w2;
     float cur_acc;
+    float cur_torque_nm;            /* the term at the last tick (its change: the lag's size) */
     bool cur_primed;
     /* absolute angles: first good count modulo cpr plus every increment
      * given to the filter, so they follow the filter's own phase */

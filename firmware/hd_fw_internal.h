@@ -37,7 +37,8 @@ bool hd_fw_queue_empty(const hd_fw_queue_t *q);
 /* Tick steps in their own files (tick context only). */
 uint32_t hd_fw_sense(hd_fw_t *fw, uint64_t t_us, hd_fw_sample_t *s, bool *ended);
 float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults);
-float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s);
+float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s,
+                              float *var_nm2);
 void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s);
 void hd_fw_stop(hd_fw_t *fw);
 

@@ -238,18 +238,21 @@ float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults)
  * drive's current noise (N kt times tens of mA) and the rotor's inertia
  * torque against a lagging acceleration estimate would enter the filter's
  * innovation (docs/slow-torque.md, "Motor current"). */
-float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s)
+float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s,
+                              float *var_nm2)
 {
     const hd_fw_settings_t *set = hd_fw_live(fw);
     const hd_fw_config_t *c = &set->cfg;
     hd_fw_tick_state_t *k = &fw->tick;
+    *var_nm2 = 0.0f;
     if (!(c->current.nm_per_a > 0.0f) || !isfinite(s->motor_current_a)) {
         k->cur_primed = false;
         return 0.0f;
     }
     const float a = set->current_alpha;
     const float w = s->d_motor_angle_rad / (c->gear_ratio * HD_FW_TS_S);
-    if (!k->cur_primed) {
+    const bool first = !k->cur_primed;
+    if (first) {
         k->cur_i1 = k->cur_i2 = s->motor_current_a;
         k->cur_w1 = k->cur_w2 = w;
         k->cur_acc = 0.0f;
@@ -262,5 +265,14 @@ float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_s
         k->cur_w2 += dw;
         k->cur_acc = dw / HD_FW_TS_S;
     }
-    return hd_expected_current_nm(&c->current, &p->expected, k->cur_i2, k->cur_w2, k->cur_acc);
+    const float t = hd_expected_current_nm(&c->current, &p->expected, k->cur_i2, k->cur_w2,
+                                           k->cur_acc);
+    /* The low-pass lags a changing torque by lag x its change per tick:
+     * that much of T_exp is wrong while it changes (starts, stops, payload
+     * steps), and the filter is told so instead of learning it as ripple
+     * (docs/slow-torque.md, "Motor current"). */
+    const float lag_nm = first ? 0.0f : set->current_lag_ticks * (t - k->cur_torque_nm);
+    *var_nm2 = lag_nm * lag_nm;
+    k->cur_torque_nm = t;
+    return t;
 }

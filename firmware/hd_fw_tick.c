@@ -230,15 +230,17 @@ static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
         import_profile(fw, s);
     }
     s->feedforward_nm = hd_fw_feedforward_nm(fw, &faults);
-    const float slow_nm = s->feedforward_nm + hd_fw_current_torque_nm(fw, p, s);
+    float slow_var_nm2;
+    const float slow_nm = s->feedforward_nm + hd_fw_current_torque_nm(fw, p, s, &slow_var_nm2);
     hd_kf_output_t out;
     hd_pipeline_step(p, s->torque_raw_nm, s->d_motor_angle_rad, s->d_output_angle_rad, slow_nm,
-                     &out);
+                     slow_var_nm2, &out);
     if (k->snapshot_pending) {
         export_profile(fw);
     }
     s->kf_status = out.status;
     s->torque_expected_nm = p->torque_expected_nm;
+    s->torque_expected_var_nm2 = slow_var_nm2;
     s->motor_velocity_rad_s = p->output_track.vel_rad_s * c->gear_ratio;
     if (!s->valid) {
         s->torque_filtered_nm = NAN;

@@ -191,7 +191,7 @@ static float run_batch(impl_t impl, int steps, float *out_nm)
 {
     float acc = 0.0f;
     for (int k = 0; k < steps; k++) {
-        const hd_kf_input_t in = {g_torque_nm[k], 0.0f, g_dm_rad[k], g_do_rad[k]};
+        const hd_kf_input_t in = {g_torque_nm[k], 0.0f, g_dm_rad[k], g_do_rad[k], 0.0f};
         float y;
         if (impl == IMPL_HD_KF) {
             hd_kf_output_t o;
@@ -200,7 +200,7 @@ static float run_batch(impl_t impl, int steps, float *out_nm)
         } else if (impl == IMPL_PIPELINE) {
             hd_kf_output_t o;
             hd_pipeline_step(&g_f.pipe, in.torque_meas_nm, in.d_motor_angle_rad,
-                             in.d_output_angle_rad, 0.0f, &o);
+                             in.d_output_angle_rad, 0.0f, 0.0f, &o);
             y = o.torque_filtered_nm;
         } else if (impl == IMPL_DENSE_F32) {
             dense_kf_f32_output_t o;

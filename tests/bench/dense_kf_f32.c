@@ -185,7 +185,9 @@ void dense_kf_f32_step(dense_kf_f32_t *kf, const hd_kf_input_t *in,
                               (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
 
     /* S = C P C' + R; the offset-jump gate widens P_oo first. */
-    float s_var = kf->cfg.r_nm2;
+    const float v = in->torque_expected_var_nm2; /* R + v, v in [0, ceiling] (hd_kf.h) */
+    const float v_cap = v < HD_KF_MAX_EXPECTED_VAR_NM2 ? v : HD_KF_MAX_EXPECTED_VAR_NM2;
+    float s_var = kf->cfg.r_nm2 + (v > 0.0f ? v_cap : 0.0f);
     for (int i = 0; i < n; i++) {
         pc[i] = 0.0f;
         for (int j = 0; j < n; j++) {

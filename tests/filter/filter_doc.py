@@ -71,6 +71,7 @@ REFERENCE_ROWS = [
     ("ref_narrow8", "narrow-band (motor 2, 4, 6 + output 1)"),
     ("ref_max", "8 blocks of every lock kind + sensor-error offset"),
     ("ref_recommended", "recommended (jump gate, motion-scaled q and gain)"),
+    ("ref_texp_var", "recommended, T_exp with its own variance (0-4 N m^2, NaN, -1, 1e15)"),
     ("ref_load_recommended", "load k = 0.3, recommended + motor 8"),
     ("ref_load_max", "load k = 0.3, 8 blocks + sensor-error offset"),
     ("ref_load_paper", "load k = 0.3, paper 6th order (no offset)"),
@@ -90,6 +91,9 @@ def reference_block(c: Cases) -> str:
                 notes.append(f"{m[field]} {text}")
         if "k0_dev" in m:
             notes.append(f"k = 0 reference {m['k0_dev']} N m away ({m['k0_x_tol']} x tol)")
+        if "v0_dev" in m:
+            notes.append(f"reference told no T_exp variance {m['v0_dev']} N m away "
+                         f"({m['v0_x_tol']} x tol)")
         rows.append([label, m["states"], m["filtered"], m["innovation"], m["state"], m["s_rel"],
                      m["p_rel"], m["tol"], "; ".join(notes)])
     base = c("ref_paper4")

@@ -218,7 +218,11 @@ static void measurement_update(ref_kf_t *r, const hd_kf_input_t *in, const plan_
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++)
             cpc += m->c[i] * r->P[i][j] * m->c[j];
-    double s_var = (double)r->cfg.r_nm2 + cpc;
+    /* R of this sample: the sensor's plus T_exp's own variance (the
+     * contract in hd_kf.h: negative or NaN is 0, capped at 1e12) */
+    const double v = (double)in->torque_expected_var_nm2;
+    const double r_k = (double)r->cfg.r_nm2 + (v > 0.0 ? fmin(v, 1e12) : 0.0);
+    double s_var = r_k + cpc;
     /* Offset jump: an innovation beyond both the absolute threshold and
      * 4 sigma inflates the offset variance by e^2 before the update. */
     out->jump_margin_rel = INFINITY;
@@ -263,7 +267,7 @@ static void measurement_update(ref_kf_t *r, const hd_kf_input_t *in, const plan_
     mat_mul(n, tmp, at, r->P);
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++)
-            r->P[i][j] += k_e[i] * (double)r->cfg.r_nm2 * k_e[j];
+            r->P[i][j] += k_e[i] * r_k * k_e[j];
 }
 
 /* Ceiling on the stored P: P <- D P D.  A block's two states share D =

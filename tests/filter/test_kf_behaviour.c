@@ -88,7 +88,7 @@ static void run_scenario(hd_kf_t *kf, const scen_t *s, run_t *r)
                        (s->t_step_nm != 0.0 && t >= s->t_step_at_s ? s->t_step_nm : 0.0);
         r->ripple_true[k] = s->a_m2 * cos(r->ph_m2[k]) + s->a_m4 * cos(r->ph_m4[k]);
         r->misalign_true[k] = s->a_o1 * cos(r->ph_o1[k]);
-        hd_kf_input_t in;
+        hd_kf_input_t in = {0};
         in.torque_meas_nm = (float)(r->t_true[k] + r->ripple_true[k] + r->misalign_true[k] +
                                     s->noise_nm * tu_gauss(&rng));
         in.torque_expected_nm = (float)(s->texp_gain * r->t_true[k]);
@@ -417,7 +417,7 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
         double am = mo.angle_rad;
         double r2 = cos(2.0 * am + 0.3), r4 = 0.4 * cos(4.0 * am + 1.1);
         hd_kf_input_t in = {(float)(10.0 + r2 + r4 + sigma * tu_gauss(&rng)), 10.0f,
-                            (float)mo.d_angle_rad, (float)(mo.d_angle_rad / GEAR_RATIO)};
+                            (float)mo.d_angle_rad, (float)(mo.d_angle_rad / GEAR_RATIO), 0.0f};
         double th4 = 4.0 * (double)in.d_motor_angle_rad;
         int expect_frozen = fabs(th4) > 0.9 * TU_PI;
         int near_limit = fabs(fabs(th4) - 0.9 * TU_PI) < 1e-5;
@@ -695,7 +695,7 @@ static void step_const(hd_kf_t *kf, size_t n, double *angle)
     for (size_t k = 0; k < n; k++) {
         *angle += 0.156;
         hd_kf_input_t in = {(float)(3.0 + cos(2.0 * *angle) + 0.4 * cos(4.0 * *angle)), 3.0f,
-                            0.156f, 0.00156f};
+                            0.156f, 0.00156f, 0.0f};
         hd_kf_output_t o;
         hd_kf_step(kf, &in, &o);
     }
@@ -715,7 +715,7 @@ static void test_nonfinite_measurement_flagged_prediction_only(void)
         for (unsigned i = 0; i < 4; i++)
             x[i] = hd_kf_state(&kf, i);
         uint32_t count0 = kf.bad_input_count;
-        hd_kf_input_t in = {c < 3 ? bad[c] : 3.0f, c < 3 ? 3.0f : NAN, 0.156f, 0.00156f};
+        hd_kf_input_t in = {c < 3 ? bad[c] : 3.0f, c < 3 ? 3.0f : NAN, 0.156f, 0.00156f, 0.0f};
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
         angle += 0.156;
@@ -736,7 +736,7 @@ static void test_nonfinite_measurement_flagged_prediction_only(void)
         }
     }
     /* a non-finite angle increment is also bad input, and nothing breaks */
-    hd_kf_input_t in = {3.0f, 3.0f, NAN, INFINITY};
+    hd_kf_input_t in = {3.0f, 3.0f, NAN, INFINITY, 0.0f};
     hd_kf_output_t o;
     hd_kf_step(&kf, &in, &o);
     TEST_ASSERT_TRUE(o.status & HD_KF_STATUS_BAD_INPUT);
@@ -748,7 +748,7 @@ static void test_nonfinite_measurement_flagged_prediction_only(void)
     step_const(&kf, 500, &angle);
     angle += 0.156;
     double truth = cos(2.0 * angle) + 0.4 * cos(4.0 * angle);
-    in = (hd_kf_input_t){(float)(3.0 + truth), 3.0f, 0.156f, 0.00156f};
+    in = (hd_kf_input_t){(float)(3.0 + truth), 3.0f, 0.156f, 0.00156f, 0.0f};
     hd_kf_step(&kf, &in, &o);
     TEST_ASSERT_FLOAT_WITHIN(0.01, truth, (double)o.ripple_nm);
 }
@@ -853,7 +853,7 @@ static void test_block_disable_enable_keeps_others(void)
     for (int k = 0; k < 6000; k++) {
         am += dm;
         hd_kf_input_t in = {(float)(cos(2 * am) + 0.4 * cos(4 * am) + 0.5 * cos(am / GEAR_RATIO)),
-                            0.0f, (float)dm, (float)(dm / GEAR_RATIO)};
+                            0.0f, (float)dm, (float)(dm / GEAR_RATIO), 0.0f};
         hd_kf_step(&kf, &in, &o);
     }
     float keep[6];
@@ -885,7 +885,7 @@ static void test_block_disable_enable_keeps_others(void)
         am += dm;
         double r4 = 0.4 * cos(4 * am);
         hd_kf_input_t in = {(float)(cos(2 * am) + r4 + 0.5 * cos(am / GEAR_RATIO)), 0.0f,
-                            (float)dm, (float)(dm / GEAR_RATIO)};
+                            (float)dm, (float)(dm / GEAR_RATIO), 0.0f};
         ref_kf_output_t ro;
         hd_kf_step(&kf, &in, &o);
         ref_kf_step(&ref, &in, &ro);
@@ -1017,7 +1017,7 @@ static void test_amplitude_and_phase_match_truth(void)
     for (int k = 0; k < 3000; k++) {
         am += dm;
         hd_kf_input_t in = {(float)(cos(2 * am + 0.3) + 0.4 * cos(4 * am + 1.1)), 0.0f, (float)dm,
-                            (float)(dm / GEAR_RATIO)};
+                            (float)(dm / GEAR_RATIO), 0.0f};
         step_with_amplitudes(&kf, &in, &o, amp_out);
     }
     TEST_ASSERT_FLOAT_WITHIN(0.02, 1.0, (double)amp_out[0]);
@@ -1055,18 +1055,18 @@ static void test_phase_lost_restarts_block(void)
         am += d_am;
         hd_kf_input_t in = {(float)(cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am + 1.1) +
                                     sigma * tu_gauss(&rng)), 0.0f, (float)d_am,
-                            (float)(d_am / GEAR_RATIO)};
+                            (float)(d_am / GEAR_RATIO), 0.0f};
         hd_kf_step(&kf, &in, &o);
     }
     const double a_before = hypot((double)hd_kf_state(&kf, 2), (double)hd_kf_state(&kf, 3));
     /* order 4 over Nyquist but a physical motion (2 rad x 4 = 8 rad < 8 pi): held */
-    hd_kf_input_t fast = {0.0f, 0.0f, 2.0f, 2.0f / (float)GEAR_RATIO};
+    hd_kf_input_t fast = {0.0f, 0.0f, 2.0f, 2.0f / (float)GEAR_RATIO, 0.0f};
     hd_kf_step(&kf, &fast, &o);
     TEST_ASSERT_TRUE(o.frozen_mask & 2u);
     const double a_held = hypot((double)hd_kf_state(&kf, 2), (double)hd_kf_state(&kf, 3));
     TEST_ASSERT_FLOAT_WITHIN(1e-4, a_before, a_held);
     /* order 4 advance of 4 x 7 = 28 rad > HD_KF_PHASE_LOST_RAD: restarted */
-    hd_kf_input_t glitch = {0.0f, 0.0f, 7.0f, 7.0f / (float)GEAR_RATIO};
+    hd_kf_input_t glitch = {0.0f, 0.0f, 7.0f, 7.0f / (float)GEAR_RATIO, 0.0f};
     hd_kf_step(&kf, &glitch, &o);
     TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, 2));
     TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_kf_state(&kf, 3));
@@ -1133,7 +1133,7 @@ static void load_step_run(float k, int with_offset, load_run_t *res)
                         LOAD_A_OUT_NM * cos(ao + 0.5) +
                         LOAD_A_FIX_NM * cos(2.0 * TU_PI * 50.0 * t + 0.7);
         hd_kf_input_t in = {(float)(torque + ripple + sigma * tu_gauss(&rng)), (float)torque,
-                            (float)d_am, (float)(d_am / GEAR_RATIO)};
+                            (float)d_am, (float)(d_am / GEAR_RATIO), 0.0f};
         /* the prior state amplitudes: what amplitude_nm reports this step */
         double st_amp[4];
         for (unsigned b = 0; b < 4; b++) {
@@ -1313,7 +1313,7 @@ static double standstill_ripple_error(float k, double *drift_nm)
                         LOAD_A_OUT_NM * cos(am / GEAR_RATIO + 0.5);
         double pickup = 0.3 * cos(2.0 * TU_PI * 50.0 * t);
         hd_kf_input_t in = {(float)(load + ripple + pickup + sigma * tu_gauss(&rng)), 0.0f,
-                            (float)d_am, (float)(d_am / GEAR_RATIO)};
+                            (float)d_am, (float)(d_am / GEAR_RATIO), 0.0f};
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
         TEST_ASSERT_EQUAL_UINT32(0u, o.status & (HD_KF_STATUS_RESET | HD_KF_STATUS_BAD_INPUT));
@@ -1373,7 +1373,7 @@ static void test_covariance_bounds_counted(void)
     hd_kf_config_t cfg;
     narrowband_cfg(&cfg, 0.02, 1);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
-    hd_kf_input_t in = {1.0f, 0.0f, 0.156f, 0.00156f};
+    hd_kf_input_t in = {1.0f, 0.0f, 0.156f, 0.00156f, 0.0f};
     hd_kf_output_t o;
     for (int k = 0; k < 100; k++)
         hd_kf_step(&kf, &in, &o);
@@ -1457,7 +1457,7 @@ static unsigned short_plans_against_full_rules(float learn_scale)
             d_out = -d_out;
         am += (double)d;
         hd_kf_input_t in = {(float)(cos(2 * am) + 0.4 * cos(4 * am) + 0.05 * tu_gauss(&rng)),
-                            0.0f, d, d_out};
+                            0.0f, d, d_out, 0.0f};
         const float m = fabsf(d);
         fast += m >= full && m < frozen;
         hd_kf_output_t oa, ob;

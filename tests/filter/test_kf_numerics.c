@@ -99,7 +99,7 @@ static void long_run(const char *key, const char *name, const hd_kf_config_t *cf
         double y = tl + cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am) +
                    0.5 * cos(am / GEAR_RATIO) + 0.05 * tu_gauss(&rng);
         hd_kf_input_t in = {(float)y, (float)(0.9 * tl), (float)mo.d_angle_rad,
-                            (float)(mo.d_angle_rad / GEAR_RATIO)};
+                            (float)(mo.d_angle_rad / GEAR_RATIO), 0.0f};
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
         clamped += (o.status & HD_KF_STATUS_P_CLAMPED) != 0;

@@ -88,7 +88,7 @@ static hd_kf_input_t joint_next(joint_t *j, double dao, double load_nm, double t
     j->dam = dao * GEAR_RATIO;
     j->ao += j->dao;
     j->am += j->dam;
-    hd_kf_input_t in;
+    hd_kf_input_t in = {0};
     in.torque_meas_nm =
         (float)(load_nm + truth_ripple(j->am, j->ao) + NOISE_NM * tu_gauss(&j->rng));
     in.torque_expected_nm = (float)t_exp_nm;
@@ -678,7 +678,7 @@ static void test_learn_scale_zero_profile_holds_for_long_runs(void)
         am += (double)dam;
         ao += (double)dao;
         hd_kf_input_t in = {(float)(truth_ripple(am, ao) + NOISE_NM * tu_gauss(&rng)), 0.0f, dam,
-                            dao};
+                            dao, 0.0f};
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
         if (k == 1)

@@ -63,7 +63,7 @@ static const double k_w[] = {0, 0, 156, 156, -156, -156, 0, 0, 450, 450, -200, -
 /* Truth for SIG_LOAD: motor-line amplitudes scale with 1 + K_TRUE |T_true|. */
 #define K_TRUE_PER_NM 0.3
 
-typedef enum { SIG_BASE, SIG_LOAD } signal_t;
+typedef enum { SIG_BASE, SIG_LOAD, SIG_TEXP_VAR } signal_t;
 
 /* T_exp for SIG_LOAD [Nm]: steps and ramps, through zero and negative. */
 static double load_t_exp(double t)
@@ -87,11 +87,27 @@ static double load_offset_true(double t)
     return t < 40.0 ? 1.5 : 3.5;
 }
 
+/* T_exp's own variance for SIG_TEXP_VAR [Nm^2]: 0 to 4 (R is 4e-4 to 1
+ * in these runs), and each second one sample each of NaN, -1 and 1e15 (the
+ * contract's 0, 0 and ceiling). */
+static float texp_var(double t)
+{
+    const long ms = lround(t * 1000.0) % 1009;
+    if (ms == 0) return NAN;
+    if (ms == 1) return -1.0f;
+    if (ms == 2) return 1e15f;
+    const double a = 1.0 + sin(2.0 * TU_PI * 0.37 * t);
+    return (float)(a * a);
+}
+
 /* Measured and expected torque at time t (motor angle am, output angle ao). */
 static void make_signal(signal_t sig, double t, double am, double ao, tu_rng_t *rng,
                         hd_kf_input_t *in)
 {
-    if (sig == SIG_BASE) {
+    if (sig == SIG_TEXP_VAR) {
+        in->torque_expected_var_nm2 = texp_var(t);
+    }
+    if (sig == SIG_BASE || sig == SIG_TEXP_VAR) {
         double t_true = 5.0 + 20.0 * sin(2.0 * TU_PI * 0.2 * t);
         double ripple = 1.0 * cos(2.0 * am + 0.3) + 0.4 * cos(4.0 * am + 1.1) +
                         2.0 * cos(ao + 0.5) + 0.3 * cos(2.0 * TU_PI * 50.0 * t);
@@ -120,6 +136,7 @@ typedef struct {
 typedef struct {
     double max_filtered, max_ripple, max_innov, max_s_rel, max_state, max_amp, max_cov_rel;
     double max_filtered_k0; /* vs a reference with k = 0 (only when k > 0) */
+    double max_filtered_v0; /* vs a reference told no T_exp variance (SIG_TEXP_VAR) */
     double scale;
     unsigned long frozen_steps, clamped_steps, jumps, jump_disagreements;
 } dev_t_;
@@ -129,8 +146,9 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
 {
     size_t next_toggle = 0;
     static hd_kf_t kf;
-    static ref_kf_t ref, ref_k0;
+    static ref_kf_t ref, ref_k0, ref_v0;
     const int with_k = cfg->ripple_load_coeff_per_nm > 0.0f;
+    const int with_var = sig == SIG_TEXP_VAR;
     tu_profile_t prof = {k_t, k_w, sizeof(k_t) / sizeof(k_t[0])};
     tu_motion_t mo;
     tu_rng_t rng;
@@ -143,6 +161,8 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
         ref_kf_init(&ref_k0, cfg);
         ref_k0.cfg.ripple_load_coeff_per_nm = 0.0f;
     }
+    if (with_var)
+        ref_kf_init(&ref_v0, cfg);
     TEST_ASSERT_EQUAL_UINT((unsigned)ref.n, hd_kf_state_count(&kf));
     tu_motion_init(&mo, &prof, TS_S);
     tu_rng_seed(&rng, 12345u);
@@ -162,7 +182,7 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
             if (with_k)
                 ref_kf_set_block_enabled(&ref_k0, tg->block, tg->enable);
         }
-        hd_kf_input_t in;
+        hd_kf_input_t in = {0};
         make_signal(sig, t, am, ao, &rng, &in);
         in.d_motor_angle_rad = (float)mo.d_angle_rad;
         in.d_output_angle_rad = (float)(mo.d_angle_rad / GEAR_RATIO);
@@ -252,6 +272,14 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
             ref_kf_step(&ref_k0, &in, &r0);
             TRACK_MAX(max_filtered_k0, fabs((double)o.torque_filtered_nm - r0.torque_filtered_nm));
         }
+        if (with_var) {
+            ref_kf_output_t r0;
+            hd_kf_input_t in0 = in;
+            in0.torque_expected_var_nm2 = 0.0f;
+            ref_v0.jump_override = -1;
+            ref_kf_step(&ref_v0, &in0, &r0);
+            TRACK_MAX(max_filtered_v0, fabs((double)o.torque_filtered_nm - r0.torque_filtered_nm));
+        }
     }
     d.scale = max_meas + max_exp;
     char msg[600];
@@ -274,6 +302,11 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
                  d.jumps);
     if (with_k)
         rel_measured(key, "k0_dev=%.3g k0_x_tol=%.0f", d.max_filtered_k0, d.max_filtered_k0 / tol);
+    if (with_var) {
+        rel_measured(key, "v0_dev=%.3g v0_x_tol=%.0f", d.max_filtered_v0, d.max_filtered_v0 / tol);
+        /* the comparison sees T_exp's variance: ignoring it is a failure */
+        TEST_ASSERT_GREATER_THAN_DOUBLE(100.0 * tol, d.max_filtered_v0);
+    }
     if (with_k) {
         snprintf(msg, sizeof(msg),
                  "%s: the same run against a k = 0 reference: max |dev| filtered %.3g Nm "
@@ -337,6 +370,16 @@ static void test_reference_7_states_recommended(void)
     hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
     compare_run("ref_recommended", "recommended (7 states)", &cfg, SIG_BASE);
+}
+
+/* T_exp with its own variance (hd_kf_input_t.torque_expected_var_nm2):
+ * R + v for that step, v clamped by the contract, against the reference
+ * that adds it to R independently. */
+static void test_reference_texp_variance(void)
+{
+    hd_kf_config_t cfg;
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.005f);
+    compare_run("ref_texp_var", "recommended, T_exp variance", &cfg, SIG_TEXP_VAR);
 }
 
 /* Maximum: HD_KF_MAX_BLOCKS blocks of every lock kind + offset (sensor error).
@@ -578,6 +621,7 @@ int main(void)
     RUN_TEST(test_reference_8_states_narrowband);
     RUN_TEST(test_reference_max_states);
     RUN_TEST(test_reference_7_states_recommended);
+    RUN_TEST(test_reference_texp_variance);
     RUN_TEST(test_reference_load_coeff_recommended);
     RUN_TEST(test_reference_load_coeff_max_states);
     RUN_TEST(test_reference_load_coeff_paper);

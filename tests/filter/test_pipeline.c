@@ -18,6 +18,7 @@ void setUp(void) {}
 void tearDown(void) {}
 
 static float g_meas[N_SAMPLES], g_dm[N_SAMPLES], g_do[N_SAMPLES], g_ff[N_SAMPLES];
+static float g_ff_var[N_SAMPLES]; /* the feed-forward's error variance: a lag's */
 
 static void make_inputs(void)
 {
@@ -32,6 +33,7 @@ static void make_inputs(void)
         g_dm[k] = (float)d;
         g_do[k] = (float)(d / 100.0);
         g_ff[k] = (float)(2.0 * sin(2.0 * TU_PI * 1.0 * t));
+        g_ff_var[k] = (float)pow(0.03 * 2.0 * 2.0 * TU_PI * cos(2.0 * TU_PI * t), 2.0);
         g_meas[k] = (float)(3.0 + (double)g_ff[k] + cos(2.0 * am) + 0.3 * cos(4.0 * am) + 0.02 * tu_gauss(&r));
     }
     g_meas[1234] = NAN; /* a bad sample on the way */
@@ -96,7 +98,7 @@ static void test_run_equals_step_bitwise(void)
             const float x1 = hd_kf_state(&ps.kf, 2u * b), x2 = hd_kf_state(&ps.kf, 2u * b + 1u);
             prior_amp[b] = sqrtf(x1 * x1 + x2 * x2);
         }
-        hd_pipeline_step(&ps, g_meas[k], g_dm[k], g_do[k], g_ff[k], &o);
+        hd_pipeline_step(&ps, g_meas[k], g_dm[k], g_do[k], g_ff[k], g_ff_var[k], &o);
         g_step.filtered[k] = o.torque_filtered_nm;
         g_step.ripple[k] = o.ripple_nm;
         g_step.offset[k] = o.offset_nm;
@@ -112,7 +114,7 @@ static void test_run_equals_step_bitwise(void)
         g_step.status[k] = o.status;
     }
     memset(&g_run, 0x5A, sizeof(g_run));
-    hd_pipeline_io_t io = {N_SAMPLES, g_meas, g_dm, g_do, g_ff,
+    hd_pipeline_io_t io = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, g_ff_var,
                            g_run.filtered, g_run.ripple, g_run.offset, g_run.innov,
                            g_run.innov_var, g_run.texp, g_run.vel, g_run.amp, g_run.status};
     hd_pipeline_run(&pr, &io);
@@ -144,7 +146,7 @@ static void test_run_null_outputs_and_null_feedforward(void)
     init_pipe(&pb);
     init_pipe(&pc);
     memset(ff0, 0, sizeof(ff0));
-    hd_pipeline_io_t all_null = {N_SAMPLES, g_meas, g_dm, g_do, g_ff,
+    hd_pipeline_io_t all_null = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, g_ff_var,
                                  NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pa, &all_null);
     hd_pipeline_io_t one = all_null;
@@ -153,15 +155,17 @@ static void test_run_null_outputs_and_null_feedforward(void)
     assert_same_state(&pa, &pb, "state with NULL outputs");
     TEST_ASSERT_EQUAL_MEMORY(g_step.filtered, filt_a, sizeof(filt_a)); /* from the previous test */
 
-    /* feedforward NULL == zeros */
+    /* feedforward and its variance NULL == zeros */
     static hd_pipeline_t pd;
     init_pipe(&pd);
     hd_pipeline_io_t zf = all_null;
     zf.feedforward_nm = ff0;
+    zf.feedforward_var_nm2 = ff0;
     zf.torque_filtered_nm = filt_a;
     hd_pipeline_run(&pc, &zf);
     hd_pipeline_io_t nf = all_null;
     nf.feedforward_nm = NULL;
+    nf.feedforward_var_nm2 = NULL;
     nf.torque_filtered_nm = filt_b;
     hd_pipeline_run(&pd, &nf);
     TEST_ASSERT_EQUAL_MEMORY(filt_a, filt_b, sizeof(filt_a));
@@ -183,12 +187,13 @@ static void test_run_chunked_equals_whole(void)
     make_inputs();
     init_pipe(&pa);
     init_pipe(&pb);
-    hd_pipeline_io_t whole = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, fa,
+    hd_pipeline_io_t whole = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, NULL, fa,
                               NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pa, &whole);
     size_t h = 1777;
-    hd_pipeline_io_t c1 = {h, g_meas, g_dm, g_do, g_ff, fb, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
-    hd_pipeline_io_t c2 = {N_SAMPLES - h, g_meas + h, g_dm + h, g_do + h, g_ff + h, fb + h,
+    hd_pipeline_io_t c1 = {h, g_meas, g_dm, g_do, g_ff, NULL, fb, NULL, NULL, NULL, NULL, NULL,
+                           NULL, NULL, NULL};
+    hd_pipeline_io_t c2 = {N_SAMPLES - h, g_meas + h, g_dm + h, g_do + h, g_ff + h, NULL, fb + h,
                            NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pb, &c1);
     hd_pipeline_run(&pb, &c2);

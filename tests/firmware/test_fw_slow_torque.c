@@ -252,6 +252,11 @@ static void test_motor_current_low_pass(void)
     const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
     const double v0 = 3.0 * 2.0 * TEST_PI / 4096.0 / 100.0 / 0.001; /* output rad/s */
     double i1 = 0.0, i2 = 0.0, w1 = 0.0, w2 = 0.0; /* the first reading has no increment */
+    /* the two stages lag a ramp by 2 (1 - a) / a ticks: T_exp is that many
+     * ticks' change off, and the filter is given its square as variance */
+    const double lag_ticks = 2.0 * (1.0 - a) / a;
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, last()->torque_expected_var_nm2); /* priming tick */
+    double prev = (double)last()->torque_expected_nm;
     for (unsigned n = 1; n <= 200; n++) {
         push_current(1.0f, HAL_OK, false);
         i1 += a * (1.0 - i1);
@@ -261,6 +266,11 @@ static void test_motor_current_low_pass(void)
         w2 += dw;
         double expect = 10.0 * i2 - 0.5 * dw / 0.001 - 2.0 * w2;
         TEST_ASSERT_DOUBLE_WITHIN(2e-4, expect, (double)last()->torque_expected_nm);
+        const double got = (double)last()->torque_expected_nm;
+        const double lag_var = pow(lag_ticks * (got - prev), 2.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3 * lag_var + 1e-9, lag_var,
+                                  (double)last()->torque_expected_var_nm2);
+        prev = got;
     }
     TEST_ASSERT_DOUBLE_WITHIN(0.02, 10.0 - 2.0 * v0, (double)last()->torque_expected_nm);
 }

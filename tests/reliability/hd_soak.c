@@ -202,7 +202,8 @@ int main(int argc, char **argv)
     for (uint64_t k = 0; k < steps; k++) {
         rel_signal_step(&sig);
         hd_kf_output_t out;
-        hd_pipeline_step(&pipe, (float)sig.meas_nm, sig.d_motor_rad, sig.d_output_rad, 0.0f, &out);
+        hd_pipeline_step(&pipe, (float)sig.meas_nm, sig.d_motor_rad, sig.d_output_rad, 0.0f, 0.0f,
+                         &out);
         if (!isfinite(out.torque_filtered_nm) || !isfinite(out.ripple_nm) ||
             !isfinite(out.offset_nm) || !isfinite(out.innovation_var_nm2)) {
             non_finite++;
@@ -221,7 +222,7 @@ int main(int argc, char **argv)
         if (k >= fresh_a) {
             hd_kf_output_t fo;
             hd_pipeline_step(&fresh, (float)sig.meas_nm, sig.d_motor_rad, sig.d_output_rad, 0.0f,
-                             &fo);
+                             0.0f, &fo);
             if (k >= last_a) {
                 double ef = (double)fo.torque_filtered_nm - sig.truth_nm;
                 fresh_sq += ef * ef;

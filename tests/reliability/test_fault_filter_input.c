@@ -67,7 +67,7 @@ static void run_case(const bad_input_t *c)
             dout = c->d_motor / (float)REL_GEAR;
         }
         hd_kf_output_t out;
-        hd_pipeline_step(&pipe, meas, dm, dout, 0.0f, &out);
+        hd_pipeline_step(&pipe, meas, dm, dout, 0.0f, 0.0f, &out);
         if (bad) {
             status_or |= out.status;
         }

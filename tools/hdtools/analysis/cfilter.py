@@ -174,6 +174,7 @@ class PipelineIO(ctypes.Structure):
     _fields_ = [("n", c_size_t),
                 ("torque_meas_nm", _FP), ("d_motor_angle_rad", _FP),
                 ("d_output_angle_rad", _FP), ("feedforward_nm", _FP),
+                ("feedforward_var_nm2", _FP),
                 ("torque_filtered_nm", _FP), ("ripple_nm", _FP), ("offset_nm", _FP),
                 ("innovation_nm", _FP), ("innovation_var_nm2", _FP),
                 ("torque_expected_nm", _FP), ("output_velocity_rad_s", _FP),
