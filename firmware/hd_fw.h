@@ -164,7 +164,6 @@ typedef struct {
     uint32_t hb_countdown;
     uint32_t pending_faults;        /* raised between samples (transmit drops) */
     uint32_t command_errors_seen;   /* CMD_ERROR raised when the background's count moves */
-    uint32_t deadline_misses_seen;
     bool boot_sent;
     volatile uint8_t state;         /* hd_fw_state_t */
     volatile bool ended;            /* the sensors reported HAL_ERR_END */
@@ -173,7 +172,6 @@ typedef struct {
     uint8_t ff_seq;                 /* of the last accepted frame */
     float ff_nm;                    /* its value */
     uint32_t ff_age_ticks;          /* ticks since it arrived (saturating) */
-    float ff_stale_from_nm;         /* the value the stale ramp starts from */
     uint32_t ff_stale_ticks;        /* ticks stale (saturating) */
     /* motor current */
     float current_a;                /* last good reading */
@@ -182,7 +180,6 @@ typedef struct {
      * increments, its derivative */
     float cur_i1, cur_i2;
     float cur_w1, cur_w2;
-    float cur_acc;
     float cur_torque_nm;            /* the term at the last tick (its change: the lag's size) */
     bool cur_primed;
     /* absolute angles: first good count modulo cpr plus every increment
@@ -204,7 +201,6 @@ typedef struct {
 typedef struct {
     hd_fw_config_t defaults;        /* hd_fw_init's: CONFIG_DEFAULTS returns to them */
     hd_calib_record_t calib;        /* the stored record's metadata (date, serial, ...) */
-    uint32_t calib_seq;
     bool config_from_record;
     hal_boot_info_t boot;
     uint8_t reboot_pending;         /* REBOOT acknowledged: restart once the ACK is out */

@@ -189,10 +189,10 @@ static bool calib_plausible(const hd_calib_record_t *r)
            hd_param_check(hd_param_by_id(HD_PARAM_CALIB_OFFSET_V), r->offset_v) == HD_FW_OK;
 }
 
-static hd_record_status_t load_calib(const hd_fw_t *fw, hd_calib_record_t *rec, uint32_t *seq)
+static hd_record_status_t load_calib(const hd_fw_t *fw, hd_calib_record_t *rec)
 {
     hd_store_io_t io = hd_fw_store_io(fw->hal, NULL, 0u);
-    hd_record_status_t st = hd_calib_store_load(&io, rec, seq);
+    hd_record_status_t st = hd_calib_store_load(&io, rec, NULL);
     if (usable(st) && !calib_plausible(rec)) {
         st = HD_RECORD_CORRUPT;
         hd_calib_record_default(rec); /* do not trust whatever was filled in */
@@ -289,7 +289,7 @@ void hd_fw_records_boot(hd_fw_t *fw, const hd_fw_config_t *defaults, hd_fw_setti
     s->config_status = (uint8_t)cst;
     s->record_faults |= config_faults_of(cst);
 
-    hd_record_status_t kst = load_calib(fw, &fw->bg.calib, &fw->bg.calib_seq);
+    hd_record_status_t kst = load_calib(fw, &fw->bg.calib);
     set_calib(s, &fw->bg.calib, kst);
 
     memset(&fw->bg.profile, 0, sizeof fw->bg.profile);
@@ -320,14 +320,12 @@ int hd_fw_calib_save(hd_fw_t *fw, uint32_t unix_s, hd_fw_settings_t *next)
 int hd_fw_calib_load(hd_fw_t *fw, hd_fw_settings_t *next, uint8_t *aux, float *value)
 {
     hd_calib_record_t rec;
-    uint32_t seq = 0u;
-    hd_record_status_t st = load_calib(fw, &rec, &seq);
+    hd_record_status_t st = load_calib(fw, &rec);
     *aux = (uint8_t)st;
     if (!usable(st)) {
         return HD_CAN_RES_NVM_ERROR; /* the calibration in RAM is unchanged */
     }
     fw->bg.calib = rec;
-    fw->bg.calib_seq = seq;
     set_calib(next, &rec, st);
     *value = rec.gain_nm_per_v;
     return HD_CAN_RES_OK;

@@ -217,7 +217,6 @@ float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults)
     }
     if (k->ff_have && k->ff_age_ticks <= c->feedforward_timeout_ms) {
         k->ff_stale_ticks = 0u;
-        k->ff_stale_from_nm = k->ff_nm;
         return k->ff_nm;
     }
     *faults |= HD_FAULT_FF_STALE;
@@ -228,7 +227,8 @@ float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults)
     if (k->ff_stale_ticks >= ramp) {
         return 0.0f;
     }
-    return k->ff_stale_from_nm * (1.0f - (float)k->ff_stale_ticks / (float)ramp);
+    /* ff_nm is the last fresh value: a frame makes it fresh again */
+    return k->ff_nm * (1.0f - (float)k->ff_stale_ticks / (float)ramp);
 }
 
 /* T_cur of hd_expected.h on inputs low-passed alike: the current, the
@@ -252,10 +252,10 @@ float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_s
     const float a = set->current_alpha;
     const float w = s->d_motor_angle_rad / (c->gear_ratio * HD_FW_TS_S);
     const bool first = !k->cur_primed;
+    float acc = 0.0f;
     if (first) {
         k->cur_i1 = k->cur_i2 = s->motor_current_a;
         k->cur_w1 = k->cur_w2 = w;
-        k->cur_acc = 0.0f;
         k->cur_primed = true;
     } else {
         k->cur_i1 += a * (s->motor_current_a - k->cur_i1);
@@ -263,10 +263,10 @@ float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_s
         k->cur_w1 += a * (w - k->cur_w1);
         const float dw = a * (k->cur_w1 - k->cur_w2);
         k->cur_w2 += dw;
-        k->cur_acc = dw / HD_FW_TS_S;
+        acc = dw / HD_FW_TS_S;
     }
     const float t = hd_expected_current_nm(&c->current, &p->expected, k->cur_i2, k->cur_w2,
-                                           k->cur_acc);
+                                           acc);
     /* The low-pass lags a changing torque by lag x its change per tick:
      * that much of T_exp is wrong while it changes (starts, stops, payload
      * steps), and the filter is told so instead of learning it as ripple
