@@ -3,12 +3,9 @@
 
 #include <stddef.h>
 
-#define DEFAULT_VEL_EPS_RAD_S 0.01f
+#include "hd_float.h"
 
-static int is_finite(float x)
-{
-    return (x - x) == 0.0f;
-}
+#define DEFAULT_VEL_EPS_RAD_S 0.01f
 
 void hd_expected_config_default(hd_expected_config_t *cfg)
 {

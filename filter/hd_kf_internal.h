@@ -8,6 +8,7 @@
 #include <stdint.h>
 
 #include "hd_kf.h"
+#include "hd_float.h"
 
 /* Integral orders up to this take powers of the lock's phasor (doubling
  * depth <= 3: angle within 2e-7 rad, docs/filter.md). */
@@ -32,12 +33,6 @@ typedef union {
 
 #define FLOAT_SIGN_BIT 0x80000000u
 #define FLOAT_INF_BITS 0x7f800000u
-
-/* isfinite without libm calls; x - x is 0 only for finite x. */
-static inline bool is_finite(float x)
-{
-    return (x - x) == 0.0f;
-}
 
 static inline uint32_t bits_of(float x)
 {

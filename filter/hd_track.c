@@ -1,15 +1,12 @@
 /* hd_track: see hd_track.h. */
 #include "hd_track.h"
 
+#include "hd_float.h"
+
 #define HD_TRACK_TWO_PI 6.28318530717958647692f
 /* Above this w*ts the forward-Euler gains no longer place the poles where
  * the continuous design says (and the loop approaches instability). */
 #define HD_TRACK_MAX_W_TS 0.5f
-
-static int is_finite(float x)
-{
-    return (x - x) == 0.0f;
-}
 
 hd_kf_err_t hd_track_init(hd_track_t *t, float ts_s, float bandwidth_hz)
 {
