@@ -12,7 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import cli, emu  # noqa: E402
+from hdtools import cli, emu, summary as key_values  # noqa: E402
 
 # The paper's drive with its ripple lines and noise (sim/scenarios/paper_156.ini),
 # long enough for any test.
@@ -52,4 +52,4 @@ def run_cli(capsys, *args):
 
 
 def summary(text: str) -> dict:
-    return dict(line.split(" = ", 1) for line in text.splitlines() if " = " in line)
+    return key_values.parse(text)

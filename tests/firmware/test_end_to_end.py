@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import canproto, native  # noqa: E402
+from hdtools import canproto, native, summary as key_values  # noqa: E402
 
 SCENARIO = ROOT / "sim" / "scenarios" / "paper_156.ini"
 
@@ -25,7 +25,7 @@ def run_host(tmp_path: Path, *extra: str, duration: float = 3.0):
     out = subprocess.run([str(exe), "--sensors", f"sim:{SCENARIO}", "--duration", str(duration),
                           "--can", f"log:{log}", "--csv", str(csv), *extra],
                          check=True, capture_output=True, text=True, timeout=60)
-    summary = dict(line.split(" = ", 1) for line in out.stdout.splitlines() if " = " in line)
+    summary = key_values.parse(out.stdout)
     return log, np.genfromtxt(csv, delimiter=",", names=True), summary
 
 

@@ -19,6 +19,9 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+from hdtools import summary  # noqa: E402
+
 HDSENSE = ROOT / "tools" / "hdsense"
 BUILD = Path(os.environ.get("HD_BUILD_DIR", ROOT / "build" / "host-release"))
 HOST = BUILD / "firmware" / "host" / "hdjoint-host"
@@ -59,7 +62,7 @@ def hdsense(*args, check=True):
 def host(*args) -> dict:
     p = subprocess.run([str(need(HOST)), *map(str, args)], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
-    return dict(line.split(" = ", 1) for line in p.stdout.splitlines() if " = " in line)
+    return summary.parse(p.stdout)
 
 
 def profile_json(path: Path, lines, gear=100.0) -> Path:

@@ -33,7 +33,7 @@ from gendoc import (ROOT, GenDocError, build_info, command_of, ctest_commands, m
                     run, update_doc)
 
 sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import protocol  # noqa: E402  (fault and result names from the .def files)
+from hdtools import protocol, summary  # noqa: E402  (fault and result names from the .def files)
 
 DOC = ROOT / "docs" / "reliability.md"
 FAULT_TESTS = ("rel_fault_sensors", "rel_fault_can", "rel_fault_calib", "rel_fault_filter_input")
@@ -61,10 +61,6 @@ def parse_measured(text: str) -> dict[str, dict[str, str]]:
     return out
 
 
-def parse_soak(text: str) -> dict[str, str]:
-    return dict(l.split(" = ", 1) for l in text.splitlines() if " = " in l)
-
-
 def measure(build: Path) -> tuple[dict[str, dict[str, str]], dict[str, str]]:
     cmds = ctest_commands(build)
     measured: dict[str, dict[str, str]] = {}
@@ -73,7 +69,7 @@ def measure(build: Path) -> tuple[dict[str, dict[str, str]], dict[str, str]]:
             if name in measured:
                 raise GenDocError(f"{test}: case {name} measured twice")
             measured[name] = kv
-    soak = parse_soak(run(command_of(cmds, SOAK_TEST, build), 600))
+    soak = summary.parse(run(command_of(cmds, SOAK_TEST, build), 600))
     if soak.get("result") != "PASS":
         raise GenDocError(f"{SOAK_TEST}: no PASS result")
     return measured, soak
@@ -352,7 +348,7 @@ def render(measured: dict, soak: dict) -> dict[str, str]:
 def soak_long(build: Path) -> dict[str, str]:
     where = machine()
     cmd = [command_of(ctest_commands(build), SOAK_TEST, build)[0]] + SOAK_LONG_ARGS
-    soak = parse_soak(run(cmd, 3600))
+    soak = summary.parse(run(cmd, 3600))
     if soak.get("result") != "PASS":
         raise GenDocError("hd_soak 10^8: no PASS result")
     head = (f"_`hd_soak {' '.join(SOAK_LONG_ARGS)}`, {build_info(build)}, {where}; written by "

@@ -26,7 +26,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from hdtools import canproto, protocol  # noqa: E402
+from hdtools import canproto, protocol, summary  # noqa: E402
 
 import vm_checks  # noqa: E402
 
@@ -50,15 +50,11 @@ def run():
     result = json.loads((share / "result.json").read_text())
     text = lambda name: (share / name).read_text()  # noqa: E731
     return {"share": share, "result": result, "text": text,
-            "summary": summary(text("monitor.out")),
-            "runner": summary(text("runner.out")),
-            "runner_device": summary(text("runner-device.out")),
+            "summary": summary.parse(text("monitor.out")),
+            "runner": summary.parse(text("runner.out")),
+            "runner_device": summary.parse(text("runner-device.out")),
             "capture": canproto.read_log(share / "capture.log"),
             "monitor": canproto.read_log(share / "monitor.log")}
-
-
-def summary(text: str) -> dict[str, str]:
-    return dict(line.split(" = ", 1) for line in text.splitlines() if " = " in line)
 
 
 def key(msg) -> tuple:

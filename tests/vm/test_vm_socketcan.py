@@ -21,7 +21,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import canproto  # noqa: E402
+from hdtools import canproto, summary as key_values  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import vm_checks  # noqa: E402
@@ -64,7 +64,7 @@ def vm(tmp_path_factory):
     capture = tmp / "capture.log"
     capture.write_text(sec["capture"])
     csv = np.genfromtxt(io.StringIO(sec["csv"]), delimiter=",", names=True)
-    summary = dict(l.split(" = ", 1) for l in sec["host-summary"].splitlines() if " = " in l)
+    summary = key_values.parse(sec["host-summary"])
     return {"decoded": canproto.decode_log(capture), "csv": csv, "summary": summary,
             "capture": capture}
 

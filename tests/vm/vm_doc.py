@@ -26,7 +26,7 @@ sys.path.insert(0, str(HERE.parent / "reliability"))
 from gendoc import ROOT, GenDocError, command_of, ctest_commands, machine, run, update_doc  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import protocol  # noqa: E402
+from hdtools import protocol, summary as key_values  # noqa: E402
 
 DOC = ROOT / "docs" / "socketcan.md"
 CAPTURE_LINE = re.compile(r"^\(\d+\.\d+\) \w+ ([0-9A-F]{3,8})#")
@@ -70,17 +70,12 @@ def frame_counts(capture: list[str], node: int = 1) -> dict[str, int]:
     return counts
 
 
-def summary_of(lines: list[str]) -> dict[str, str]:
-    """The "KEY = VALUE" lines of a summary (the runner's, the monitor's)."""
-    return dict(line.split(" = ", 1) for line in lines if " = " in line)
-
-
 def parse_log(text: str) -> dict:
     """The numbers of one VM run from its serial log."""
     if "HDVM: VERDICT PASS" not in text:
         raise GenDocError("the VM run has no PASS verdict")
     sec = sections(text)
-    summary = summary_of(sec.get("host-summary", []))
+    summary = key_values.parse("\n".join(sec.get("host-summary", [])))
     lines = text.replace("\r", "").splitlines()
     e2e_start = next((i for i, l in enumerate(lines) if l.startswith("HDVM: --- end to end")),
                      len(lines))
@@ -108,7 +103,7 @@ def parse_monitor_run(outdir: Path) -> dict:
     share = outdir / "share"
     try:
         result = json.loads((share / "result.json").read_text())
-        summary = summary_of((share / "monitor.out").read_text().splitlines())
+        summary = key_values.parse((share / "monitor.out").read_text())
     except (OSError, ValueError) as exc:
         raise GenDocError(f"{share}: {exc}") from None
     t = result["times_s"]

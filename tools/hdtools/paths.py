@@ -38,7 +38,8 @@ def build_info() -> dict[str, str]:
         text = (DATA / "build_info.txt").read_text()
     except OSError:
         return {}
-    return dict(line.split(" = ", 1) for line in text.splitlines() if " = " in line)
+    from . import summary
+    return summary.parse(text)
 
 
 def source_root() -> Path | None:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import canproto, native
+from .. import canproto, native, summary
 
 ROOT = Path(__file__).resolve().parents[3]
 HDSENSE = ROOT / "tools" / "hdsense"
@@ -136,10 +136,6 @@ def host() -> Path:
     return native.executable("hdjoint-host")
 
 
-def summary(out: str) -> dict:
-    return dict(line.split(" = ", 1) for line in out.splitlines() if " = " in line)
-
-
 def run_firmware(ini: Path, config: str, wd: Path, tag: str, duration: float | None = None,
                  profile: Path | None = None, nvm: Path | None = None) -> tuple[np.ndarray, dict]:
     """hdjoint-host on the simulated joint of `ini` with the configuration
@@ -157,7 +153,7 @@ def run_firmware(ini: Path, config: str, wd: Path, tag: str, duration: float | N
         image = wd / f"{tag}.nvm"
         image.write_bytes(nvm.read_bytes())
         cmd += ["--nvm", image]
-    s = summary(run_tool(cmd, f"hdjoint-host {tag}").stdout)
+    s = summary.parse(run_tool(cmd, f"hdjoint-host {tag}").stdout)
     return load_csv(csv)["torque_filtered_nm"], s
 
 
@@ -187,6 +183,6 @@ def firmware_commissioning(ini: Path, wd: Path, nominal: dict, duration: float |
                        f"hdjoint-host commissioning {ini.name}").stdout
     except RuntimeError as exc:
         return None, str(exc)
-    if summary(out).get("profile_status") != "0":
+    if summary.parse(out).get("profile_status") != "0":
         return None, f"PROFILE_SAVE on {ini.name} did not store a profile"
     return nvm, f"the firmware's own PROFILE_SAVE after {ini.name} in commissioning mode"
