@@ -16,12 +16,13 @@ from __future__ import annotations
 import datetime
 import json
 import os
-import platform
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
 
 
 class GenDocError(Exception):
@@ -126,16 +127,9 @@ def build_info(build: Path) -> str:
 def machine() -> str:
     """Date, processor and core count, for tables of numbers that vary
     from run to run (not checked)."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    from hdtools.bench.compute import cpu_model
     load = ""
     if hasattr(os, "getloadavg"):
         load = f", load average {os.getloadavg()[0]:.1f} at the start"
     day = datetime.date.today().isoformat()
-    return f"{day}, {cpu} ({os.cpu_count()} logical CPUs{load})"
+    return f"{day}, {cpu_model()} ({os.cpu_count()} logical CPUs{load})"

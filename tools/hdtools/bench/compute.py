@@ -11,17 +11,20 @@ from pathlib import Path
 from .. import native
 
 
-def machine() -> dict:
-    model, cores = "unknown", os.cpu_count()
+def cpu_model() -> str:
+    """The processor's name (/proc/cpuinfo), else the machine type."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
+                return line.split(":", 1)[1].strip()
     except OSError:
         pass
+    return platform.machine() or "unknown"
+
+
+def machine() -> dict:
     cc = subprocess.run(["cc", "--version"], capture_output=True, text=True).stdout
-    return {"cpu": model, "logical_cpus": cores, "kernel": platform.release(),
+    return {"cpu": cpu_model(), "logical_cpus": os.cpu_count(), "kernel": platform.release(),
             "compiler": cc.splitlines()[0] if cc else "unknown",
             "build_dir": str(native.build_dir())}
 
