@@ -23,6 +23,10 @@
 #define TS_S 1e-3
 #define GEAR_RATIO 100.0
 #define MAX_SAMPLES 25000
+/* A bound's literal as text: a measured: line prints exactly the number the
+ * assertion uses (printf cannot give "1e-3" back from the double). */
+#define BOUND_TEXT_(x) #x
+#define BOUND_TEXT(x) BOUND_TEXT_(x)
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -227,6 +231,7 @@ static void test_cancel_through_speed_ramps(void)
 }
 
 /* ---- the paper's operating point: 156 rad/s, lines at 312 and 624 rad/s -- */
+#define LINES_BOUND_DB 30 /* least attenuation of the 312 and 624 rad/s lines, both tunings */
 static void test_paper_lines_312_624_attenuated_30db(void)
 {
     static hd_kf_t kf;
@@ -244,12 +249,13 @@ static void test_paper_lines_312_624_attenuated_30db(void)
         tu_db(b2 / a2));
     msg("paper tuning, 156 rad/s: 624 rad/s line %.4f -> %.2e Nm, attenuation %.1f dB", b4, a4,
         tu_db(b4 / a4));
-    rel_measured("paper_lines", "in2=%.4f out2=%.2g db2=%.1f in4=%.4f out4=%.2g db4=%.1f bound_db=30",
+    rel_measured("paper_lines", "in2=%.4f out2=%.2g db2=%.1f in4=%.4f out4=%.2g db4=%.1f "
+                 "bound_db=" BOUND_TEXT(LINES_BOUND_DB),
                  b2, a2, tu_db(b2 / a2), b4, a4, tu_db(b4 / a4));
     TEST_ASSERT_FLOAT_WITHIN(0.02, 1.0, b2); /* the fit itself sees the injected line */
     TEST_ASSERT_FLOAT_WITHIN(0.02, 0.5, b4);
-    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b2 / a2));
-    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b4 / a4));
+    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(LINES_BOUND_DB, tu_db(b2 / a2));
+    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(LINES_BOUND_DB, tu_db(b4 / a4));
 }
 
 /* Same lines with the narrow-band tuning (reported, same >= 30 dB bound). */
@@ -268,9 +274,10 @@ static void test_narrowband_lines_312_624_attenuated_30db(void)
     double a4 = line_amp(&g_run, g_run.filtered, g_run.ph_m4, from);
     msg("narrow-band, 156 rad/s: 312 rad/s line attenuation %.1f dB, 624 rad/s %.1f dB",
         tu_db(b2 / a2), tu_db(b4 / a4));
-    rel_measured("narrow_lines", "db2=%.1f db4=%.1f bound_db=30", tu_db(b2 / a2), tu_db(b4 / a4));
-    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b2 / a2));
-    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b4 / a4));
+    rel_measured("narrow_lines", "db2=%.1f db4=%.1f bound_db=" BOUND_TEXT(LINES_BOUND_DB),
+                 tu_db(b2 / a2), tu_db(b4 / a4));
+    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(LINES_BOUND_DB, tu_db(b2 / a2));
+    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(LINES_BOUND_DB, tu_db(b4 / a4));
 }
 
 /* ---- misalignment (output order 1, gear ratio 100) ------------------------ */
@@ -291,6 +298,8 @@ static void misalign_run(int sixth, double *before, double *after)
     *after = line_amp(&g_run, g_run.filtered, g_run.ph_o1, from);
 }
 
+#define MISALIGN_6TH_BOUND_DB 30 /* least attenuation by the 6th-order model */
+#define MISALIGN_4TH_BOUND_DB 3  /* most attenuation by the 4th-order one */
 static void test_misalignment_removed_by_6th_not_4th_order(void)
 {
     double b4, a4, b6, a6;
@@ -298,11 +307,12 @@ static void test_misalignment_removed_by_6th_not_4th_order(void)
     misalign_run(1, &b6, &a6);
     msg("misalignment line (1.56 rad/s): 4th order %.1f dB, 6th order %.1f dB (amp %.3f Nm)",
         tu_db(b4 / a4), tu_db(b6 / a6), b6);
-    rel_measured("misalignment", "db6=%.1f db4=%.1f bound6_db=30 bound4_db=3", tu_db(b6 / a6),
+    rel_measured("misalignment", "db6=%.1f db4=%.1f bound6_db=" BOUND_TEXT(MISALIGN_6TH_BOUND_DB)
+                 " bound4_db=" BOUND_TEXT(MISALIGN_4TH_BOUND_DB), tu_db(b6 / a6),
                  tu_db(b4 / a4));
     TEST_ASSERT_FLOAT_WITHIN(0.05, 1.0, b6);
-    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(30.0, tu_db(b6 / a6));
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(3.0, tu_db(b4 / a4));
+    TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(MISALIGN_6TH_BOUND_DB, tu_db(b6 / a6));
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(MISALIGN_4TH_BOUND_DB, tu_db(b4 / a4));
 }
 
 /* ---- standstill and reversal ---------------------------------------------- */
@@ -346,6 +356,7 @@ static void test_standstill_stays_finite_and_bounded(void)
 
 /* Standstill then motion: after 20 s at rest (unobservable oscillator
  * derivative states grew to p_max), the filter still locks on. */
+#define STILL_RES_BOUND_X 0.5 /* ripple residual, x noise sigma */
 static void test_standstill_then_motion_cancels(void)
 {
     static hd_kf_t kf;
@@ -358,12 +369,15 @@ static void test_standstill_then_motion_cancels(void)
     size_t from = 22000; /* 1 s after reaching 156 rad/s */
     double res = rms_ripple_residual(&g_run, from, 0);
     msg("standstill 20 s then 156 rad/s: ripple residual/noise %.3f", res / sigma);
-    rel_measured("standstill_then_motion", "res_x=%.2f res_bound=0.5", res / sigma);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res);
+    rel_measured("standstill_then_motion", "res_x=%.2f res_bound=" BOUND_TEXT(STILL_RES_BOUND_X),
+                 res / sigma);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(STILL_RES_BOUND_X * sigma, res);
 }
 
 static const double k_rev_t[] = {0, 2, 2.5, 6};
 static const double k_rev_w[] = {156, 156, -156, -156};
+#define REV_RES_BOUND_X 0.5 /* RMS ripple residual, x noise sigma */
+#define REV_MAX_BOUND_X 4   /* largest ripple error, x noise sigma */
 static void test_direction_reversal(void)
 {
     static hd_kf_t kf;
@@ -384,10 +398,11 @@ static void test_direction_reversal(void)
     }
     msg("reversal +-156 rad/s: ripple residual/noise %.3f (whole), %.3f (after), max %.4f Nm",
         res / sigma, res_after / sigma, worst);
-    rel_measured("reversal", "res_x=%.2f res_bound=0.5 max=%.3f max_bound_x=4", res / sigma, worst);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res_after);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(4.0 * sigma, worst);
+    rel_measured("reversal", "res_x=%.2f res_bound=" BOUND_TEXT(REV_RES_BOUND_X)
+                 " max=%.3f max_bound_x=" BOUND_TEXT(REV_MAX_BOUND_X), res / sigma, worst);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(REV_RES_BOUND_X * sigma, res);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(REV_RES_BOUND_X * sigma, res_after);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(REV_MAX_BOUND_X * sigma, worst);
 }
 
 /* ---- over-Nyquist ---------------------------------------------------------- */
@@ -395,6 +410,9 @@ static void test_direction_reversal(void)
  * 706.9 rad/s; order 2 stays valid up to 1414 rad/s. */
 static const double k_nyq_t[] = {0, 2, 3, 5, 6, 9};
 static const double k_nyq_w[] = {500, 500, 900, 900, 500, 500};
+#define NYQ_HELD_REL_BOUND 1e-3 /* held block: amplitude and covariance trace, relative */
+#define NYQ_RESUME_BOUND_X 1   /* ripple residual 0.1 s after resuming, x noise sigma */
+#define NYQ_END_BOUND_X 0.5    /* ripple residual from 1 s after, x noise sigma */
 static void test_over_nyquist_block_frozen_then_resumes(void)
 {
     static hd_kf_t kf;
@@ -448,8 +466,8 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
                 held_amp = a1;
                 held_trace = tr1;
             }
-            TEST_ASSERT_FLOAT_WITHIN(1e-3 * held_amp, held_amp, a1);
-            TEST_ASSERT_FLOAT_WITHIN(1e-3 * held_trace, held_trace, tr1);
+            TEST_ASSERT_FLOAT_WITHIN(NYQ_HELD_REL_BOUND * held_amp, held_amp, a1);
+            TEST_ASSERT_FLOAT_WITHIN(NYQ_HELD_REL_BOUND * held_trace, held_trace, tr1);
         } else {
             TEST_ASSERT_EQUAL_UINT32(0u, o.frozen_mask);
             TEST_ASSERT_EQUAL_UINT32(0u, o.status & HD_KF_STATUS_FROZEN);
@@ -474,14 +492,15 @@ static void test_over_nyquist_block_frozen_then_resumes(void)
         "ripple residual/noise in the first 0.1 s after resuming %.3f, after 1 s %.3f",
         (double)frozen_steps, held_amp, res_resume / sigma, res_end / sigma);
     rel_measured("over_nyquist", "frozen_steps=%lu held=%.3f resume_x=%.2f end_x=%.2f "
-                 "held_rel_bound=1e-3 resume_bound=1 end_bound=0.5",
+                 "held_rel_bound=" BOUND_TEXT(NYQ_HELD_REL_BOUND) " resume_bound="
+                 BOUND_TEXT(NYQ_RESUME_BOUND_X) " end_bound=" BOUND_TEXT(NYQ_END_BOUND_X),
                  (unsigned long)frozen_steps, held_amp, res_resume / sigma, res_end / sigma);
     /* the held block resumes at once: its phase followed the encoder */
     TEST_ASSERT_EQUAL_UINT(100u, n_resume);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(sigma, res_resume);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(NYQ_RESUME_BOUND_X * sigma, res_resume);
     TEST_ASSERT_GREATER_THAN(1500, (int)frozen_steps);
     TEST_ASSERT_TRUE(kf.status_sticky & HD_KF_STATUS_FROZEN);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.5 * sigma, res_end);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(NYQ_END_BOUND_X * sigma, res_end);
 }
 
 /* ---- the paper preset ------------------------------------------------------ */
@@ -626,6 +645,7 @@ static double dc_innovation_gain(const hd_kf_config_t *cfg, double omega_rad_s)
     return fabs(1.0 - cv);
 }
 
+#define PAPER_TEXP_BOUND 0.03 /* |ratio - g0| */
 static void test_paper_preset_pulls_output_towards_expected_torque(void)
 {
     static hd_kf_t kf;
@@ -653,9 +673,10 @@ static void test_paper_preset_pulls_output_towards_expected_torque(void)
     msg("paper tuning, T_exp = 0.5 T_true: RMS(filtered - T_exp) / RMS(T_true - T_exp) = %.3f "
         "(closed-form DC gain g0 = %.3f): %.0f %% of the missed torque absorbed",
         d_exp / miss, g0, 100.0 * (1.0 - d_exp / miss));
-    rel_measured("paper_texp", "ratio=%.3f g0=%.4f bound=0.03", d_exp / miss, g0);
+    rel_measured("paper_texp", "ratio=%.3f g0=%.4f bound=" BOUND_TEXT(PAPER_TEXP_BOUND),
+                 d_exp / miss, g0);
     /* the 0.5 Hz variation sits at the DC gain (|E| varies < 1 % up to 5 Hz) */
-    TEST_ASSERT_FLOAT_WITHIN(0.03, g0, d_exp / miss);
+    TEST_ASSERT_FLOAT_WITHIN(PAPER_TEXP_BOUND, g0, d_exp / miss);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.75, d_exp / miss); /* Q >> R: substantial pull */
     /* filtered - T_exp = innovation, up to float32 rounding of ~20 Nm values */
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-4, ident);
@@ -663,6 +684,7 @@ static void test_paper_preset_pulls_output_towards_expected_torque(void)
 
 /* The contrast: the narrow-band tuning (q << R) leaves most of what T_exp
  * misses in the output; same closed form. */
+#define NARROW_TEXP_BOUND 0.03 /* |ratio - g0| */
 static void test_narrowband_keeps_torque_missed_by_expected(void)
 {
     static hd_kf_t kf;
@@ -683,8 +705,9 @@ static void test_narrowband_keeps_torque_missed_by_expected(void)
     msg("narrow-band (q 1e-5, R 4e-4), T_exp = 0.5 T_true: ratio %.3f (closed-form g0 %.3f): "
         "the output carries %.0f %% of the missed torque",
         ratio, g0, 100.0 * ratio);
-    rel_measured("narrow_texp", "ratio=%.3f g0=%.4f bound=0.03", ratio, g0);
-    TEST_ASSERT_FLOAT_WITHIN(0.03, g0, ratio);
+    rel_measured("narrow_texp", "ratio=%.3f g0=%.4f bound=" BOUND_TEXT(NARROW_TEXP_BOUND),
+                 ratio, g0);
+    TEST_ASSERT_FLOAT_WITHIN(NARROW_TEXP_BOUND, g0, ratio);
     TEST_ASSERT_GREATER_OR_EQUAL_FLOAT(0.85, ratio);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1.15, ratio);
 }
@@ -839,6 +862,7 @@ static void test_config_validation_error_codes(void)
 }
 
 /* ---- run-time enable / disable ---------------------------------------------- */
+#define DISABLED_BOUND_NM 1e-4 /* float32 rounding on ~2 Nm signals */
 static void test_block_disable_enable_keeps_others(void)
 {
     static hd_kf_t kf;
@@ -896,8 +920,8 @@ static void test_block_disable_enable_keeps_others(void)
             worst = e;
     }
     msg("block 1 disabled: max |filtered - 4-state reference| %.2e Nm", worst);
-    rel_measured("block_disabled", "dev=%.2g bound=1e-4", worst);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-4, worst); /* float32 rounding on ~2 Nm signals */
+    rel_measured("block_disabled", "dev=%.2g bound=" BOUND_TEXT(DISABLED_BOUND_NM), worst);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(DISABLED_BOUND_NM, worst);
 
     for (unsigned i = 0; i < 4; i++)
         keep[i] = hd_kf_state(&kf, i);
@@ -940,6 +964,8 @@ static double load_step_error(float jump_nm, uint32_t *status_or)
     return rms_error_vs_truth(&g_run, (size_t)(10.0 / TS_S));
 }
 
+#define GATE_ON_BOUND_NM 0.1  /* 5x the 0.02 N m noise sigma (the spec above) */
+#define GATE_OFF_BOUND_X 2    /* error without the gate, x the error with it */
 static void test_recommended_load_step_goes_to_offset(void)
 {
     uint32_t st_on, st_off;
@@ -948,11 +974,12 @@ static void test_recommended_load_step_goes_to_offset(void)
     double e_off = load_step_error(0.0f, &st_off);
     msg("10 Nm load step, recommended tuning: error RMS after step %.4f Nm with jump gate, "
         "%.4f Nm without (noise 0.02)", e_on, e_off);
-    rel_measured("load_step_gate", "on=%.4f off=%.4f on_bound=0.1 off_bound_x=2", e_on, e_off);
+    rel_measured("load_step_gate", "on=%.4f off=%.4f on_bound=" BOUND_TEXT(GATE_ON_BOUND_NM)
+                 " off_bound_x=" BOUND_TEXT(GATE_OFF_BOUND_X), e_on, e_off);
     TEST_ASSERT_TRUE(st_on & HD_KF_STATUS_OFFSET_JUMP);
     TEST_ASSERT_FALSE(st_off & HD_KF_STATUS_OFFSET_JUMP);
-    TEST_ASSERT_LESS_THAN_FLOAT(5.0 * 0.02, e_on);
-    TEST_ASSERT_GREATER_THAN_FLOAT(2.0 * e_on, e_off);
+    TEST_ASSERT_LESS_THAN_FLOAT(GATE_ON_BOUND_NM, e_on);
+    TEST_ASSERT_GREATER_THAN_FLOAT(GATE_OFF_BOUND_X * e_on, e_off);
 }
 
 /* With the offset state last: disabling the first block moves every other
@@ -1176,6 +1203,7 @@ static void load_step_run(float k, int with_offset, load_run_t *res)
     hd_kf_block_amplitude_phase(&kf, 3, &res->amp_fix_zero_load, &ph);
 }
 
+#define LOAD_STEP_BOUND_X 0.3 /* ripple error with k, x the error without */
 static void test_load_coeff_step_predicts_ripple(void)
 {
     load_run_t with_k, without_k;
@@ -1186,7 +1214,9 @@ static void test_load_coeff_step_predicts_ripple(void)
         "0.5 s before it %.4f / %.4f Nm", LOAD_A0_NM, LOAD_A0_NM * (1.0 + LOAD_K_TRUE * LOAD_STEP_NM),
         with_k.rms_after, LOAD_K_TRUE, without_k.rms_after, with_k.rms_after / without_k.rms_after,
         with_k.rms_before, without_k.rms_before);
-    rel_measured("load_coeff_step", "with_k=%.4f without_k=%.3f bound_x=0.3", with_k.rms_after,
+    rel_measured("load_coeff_step",
+                 "with_k=%.4f without_k=%.3f bound_x=" BOUND_TEXT(LOAD_STEP_BOUND_X),
+                 with_k.rms_after,
                  without_k.rms_after);
     msg("with k: amplitude_nm[order 2] %.4f Nm at 10 Nm, zero-load state %.4f Nm (truth %.2f / "
         "%.2f); 50 Hz block %.4f Nm (truth %.2f, unscaled)", (double)with_k.amp0_out,
@@ -1199,7 +1229,7 @@ static void test_load_coeff_step_predicts_ripple(void)
     TEST_ASSERT_EQUAL_DOUBLE(without_k.rms_before, with_k.rms_before);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.02, with_k.rms_before);
     /* after it, only the filter that knows k predicts the 4x line */
-    TEST_ASSERT_LESS_THAN_DOUBLE(0.3 * without_k.rms_after, with_k.rms_after);
+    TEST_ASSERT_LESS_THAN_DOUBLE(LOAD_STEP_BOUND_X * without_k.rms_after, with_k.rms_after);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(2.0 * 0.02, with_k.rms_after);
     /* the states are the zero-load ripple; amplitude_nm is at the load */
     TEST_ASSERT_FLOAT_WITHIN(0.03, LOAD_A0_NM, (double)with_k.amp0_zero_load);
@@ -1214,6 +1244,9 @@ static void test_load_coeff_step_predicts_ripple(void)
  * blocks, 1 for output-locked and fixed ones, every step of the run (with
  * no offset state T_ref = T_exp; with the recommended tuning T_ref = T_exp +
  * the prior offset, which is reported as offset_nm). */
+#define ROWS_MOTOR_BOUND 1e-5    /* motor blocks, relative */
+#define ROWS_UNSCALED_BOUND 1e-6 /* output and fixed blocks, N m */
+#define LOAD_STEP_OFFSET_BOUND_X 0.3 /* ripple error with k, x the error without */
 static void test_load_coeff_scales_motor_blocks_only(void)
 {
     load_run_t runs[2];
@@ -1226,9 +1259,11 @@ static void test_load_coeff_scales_motor_blocks_only(void)
             rec ? "with offset state" : "no offset state", LOAD_K_TRUE, r.max_c_dev_rel,
             r.max_unscaled_dev);
         rel_measured(rec ? "load_coeff_rows_offset" : "load_coeff_rows", "motor_rel=%.1e "
-                     "unscaled=%.1e motor_bound=1e-5 unscaled_bound=1e-6", r.max_c_dev_rel, r.max_unscaled_dev);
-        TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-5, r.max_c_dev_rel);
-        TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-6, r.max_unscaled_dev);
+                     "unscaled=%.1e motor_bound=" BOUND_TEXT(ROWS_MOTOR_BOUND)
+                     " unscaled_bound=" BOUND_TEXT(ROWS_UNSCALED_BOUND), r.max_c_dev_rel,
+                     r.max_unscaled_dev);
+        TEST_ASSERT_LESS_OR_EQUAL_FLOAT(ROWS_MOTOR_BOUND, r.max_c_dev_rel);
+        TEST_ASSERT_LESS_OR_EQUAL_FLOAT(ROWS_UNSCALED_BOUND, r.max_unscaled_dev);
     }
     /* with the offset state (T_ref = T_exp + its prior, jump gate on) the
      * gain is the same */
@@ -1238,9 +1273,9 @@ static void test_load_coeff_scales_motor_blocks_only(void)
     msg("load step, with offset state: ripple error RMS 20-200 ms after %.4f Nm with k, "
         "%.4f Nm with k = 0 (ratio %.3f)", rec_k.rms_after, rec_0.rms_after,
         rec_k.rms_after / rec_0.rms_after);
-    rel_measured("load_coeff_step_offset", "with_k=%.3f without_k=%.3f bound_x=0.3", rec_k.rms_after,
-                 rec_0.rms_after);
-    TEST_ASSERT_LESS_THAN_DOUBLE(0.3 * rec_0.rms_after, rec_k.rms_after);
+    rel_measured("load_coeff_step_offset", "with_k=%.3f without_k=%.3f bound_x="
+                 BOUND_TEXT(LOAD_STEP_OFFSET_BOUND_X), rec_k.rms_after, rec_0.rms_after);
+    TEST_ASSERT_LESS_THAN_DOUBLE(LOAD_STEP_OFFSET_BOUND_X * rec_0.rms_after, rec_k.rms_after);
 }
 
 /* Negative, NaN and infinite coefficients are configuration errors; 0 and
@@ -1330,6 +1365,7 @@ static double standstill_ripple_error(float k, double *drift_nm)
     return sqrt(s_end / (double)n_end);
 }
 
+#define STANDSTILL_DRIFT_BOUND_NM 1e-3
 static void test_load_coeff_standstill_does_not_drift(void)
 {
     double drift_k, drift_0;
@@ -1340,13 +1376,13 @@ static void test_load_coeff_standstill_does_not_drift(void)
         "estimate's drift since the stop %.2e / %.2e Nm", with_k, LOAD_K_TRUE, without_k,
         drift_k, drift_0);
     rel_measured("load_coeff_standstill", "drift_k=%.1e drift_0=%.1e end_k=%.3f end_0=%.3f "
-                 "bound=1e-3",
+                 "bound=" BOUND_TEXT(STANDSTILL_DRIFT_BOUND_NM),
                  drift_k, drift_0, with_k, without_k);
     /* held: the estimate 60 s later is the one at the stop (motor blocks
      * get no gain at standstill; without the hold of T_ref their row
      * follows the offset and the estimate moved 0.014 N m) */
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, drift_k);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, drift_0);
+    TEST_ASSERT_LESS_THAN_DOUBLE(STANDSTILL_DRIFT_BOUND_NM, drift_k);
+    TEST_ASSERT_LESS_THAN_DOUBLE(STANDSTILL_DRIFT_BOUND_NM, drift_0);
 }
 
 /* Coefficients above HD_KF_MAX_LOAD_COEFF_PER_NM are refused: 1e20 made
@@ -1367,6 +1403,7 @@ static void test_load_coeff_upper_bound(void)
  * block above p_max is scaled to it (largest eigenvalue = p_max, the
  * contract's invariant) and counted in p_ceiling_count; both raise
  * P_CLAMPED, and P stays PSD. */
+#define FORCED_REL_BOUND 1e-5 /* largest eigenvalue vs p_max, relative */
 static void test_covariance_bounds_counted(void)
 {
     static hd_kf_t kf;
@@ -1400,8 +1437,10 @@ static void test_covariance_bounds_counted(void)
     const double lmax = 0.5 * (a + d) + sqrt(0.25 * (a - d) * (a - d) + b * b);
     msg("forced bounds: negative count %u, ceiling count %u, block 1's largest eigenvalue "
         "%.6g (p_max 1e-3)", (unsigned)kf.p_negative_count, (unsigned)kf.p_ceiling_count, lmax);
-    rel_measured("forced_bounds", "negative=%u lmax=%.4g p_max=1e-3 rel_bound=1e-5", (unsigned)kf.p_negative_count, lmax);
-    TEST_ASSERT_FLOAT_WITHIN(1e-3 * 1e-5, 1e-3, lmax);
+    rel_measured("forced_bounds",
+                 "negative=%u lmax=%.4g p_max=1e-3 rel_bound=" BOUND_TEXT(FORCED_REL_BOUND),
+                 (unsigned)kf.p_negative_count, lmax);
+    TEST_ASSERT_FLOAT_WITHIN(1e-3 * FORCED_REL_BOUND, 1e-3, lmax);
 }
 
 /* The short plans (every enabled motor block at motion 1 and none over

@@ -39,6 +39,10 @@
 #define B1_NM 0.2
 #define AM0_RAD 1.234 /* where the joint stands at t = 0 */
 #define AO0_RAD 4.321
+/* A bound's literal as text: a measured: line prints exactly the number the
+ * assertion uses (printf cannot give "1e-3" back from the double). */
+#define BOUND_TEXT_(x) #x
+#define BOUND_TEXT(x) BOUND_TEXT_(x)
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -223,6 +227,7 @@ static void test_profile_round_trip_next_prediction(void)
  * comes at another speed (a step from 230 to 70 rad/s in one sample), and
  * the filter's prediction of it is the truth at that sample's angles:
  * the filter turns by the sample's own increment. */
+#define RUNNING_BOUND_NM 2e-05 /* the prediction vs the truth at the sample's angles */
 static void test_import_into_running_filter_predicts_through_a_speed_step(void)
 {
     static hd_kf_t kf;
@@ -256,9 +261,10 @@ static void test_import_into_running_filter_predicts_through_a_speed_step(void)
     msg("import into a running filter, then a speed step 230 -> 70 rad/s: prediction %.5f N m, "
         "truth at the sample's angles %.5f N m, at the angles the last speed would give "
         "%.5f N m", (double)o.ripple_nm, want, old_speed);
-    rel_measured("profile_import_running", "dev=%.1e lagged=%.3f bound=2e-05",
+    rel_measured("profile_import_running",
+                 "dev=%.1e lagged=%.3f bound=" BOUND_TEXT(RUNNING_BOUND_NM),
                  fabs((double)o.ripple_nm - want), fabs(want - old_speed));
-    TEST_ASSERT_FLOAT_WITHIN(2e-5, want, (double)o.ripple_nm);
+    TEST_ASSERT_FLOAT_WITHIN(RUNNING_BOUND_NM, want, (double)o.ripple_nm);
     TEST_ASSERT_GREATER_THAN_DOUBLE(0.05, fabs(want - old_speed));
 }
 
@@ -328,6 +334,9 @@ static void speed_step_run(int old_algorithm, double *worst_ripple, double *rms_
     *rms_before = sqrt(se_before / 200.0);
 }
 
+#define SPEED_STEP_WORST_BOUND_X 1   /* worst ripple error, x NOISE_NM */
+#define SPEED_STEP_AFTER_BOUND_X 1.1 /* filtered RMS error before and after, x NOISE_NM */
+#define SPEED_STEP_OLD_BOUND_X 4     /* the old algorithm's worst ripple error, x NOISE_NM */
 static void test_speed_step_with_exact_profile_leaves_only_noise(void)
 {
     double worst, after, before, worst_old, after_old, before_old;
@@ -338,19 +347,23 @@ static void test_speed_step_with_exact_profile_leaves_only_noise(void)
         "N m; the old algorithm (turned by the last increment): %.4f N m, %.4f / %.4f N m",
         NOISE_NM, worst, before, after, worst_old, before_old, after_old);
     rel_measured("speed_step_profile", "noise=%.2g worst=%.4f before=%.4f after=%.4f "
-                 "worst_old=%.4f after_old=%.4f worst_bound_x=1 after_bound_x=1.1 old_bound_x=4", NOISE_NM, worst, before, after, worst_old,
-                 after_old);
+                 "worst_old=%.4f after_old=%.4f worst_bound_x=" BOUND_TEXT(SPEED_STEP_WORST_BOUND_X)
+                 " after_bound_x=" BOUND_TEXT(SPEED_STEP_AFTER_BOUND_X)
+                 " old_bound_x=" BOUND_TEXT(SPEED_STEP_OLD_BOUND_X), NOISE_NM, worst, before, after,
+                 worst_old, after_old);
     /* the ripple estimate's error stays at the noise's level; the filtered
      * torque's error is the noise (1.035 x at constant speed, docs) */
-    TEST_ASSERT_LESS_THAN_DOUBLE(NOISE_NM, worst);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1.1 * NOISE_NM, after);
-    TEST_ASSERT_LESS_THAN_DOUBLE(1.1 * NOISE_NM, before);
+    TEST_ASSERT_LESS_THAN_DOUBLE(SPEED_STEP_WORST_BOUND_X * NOISE_NM, worst);
+    TEST_ASSERT_LESS_THAN_DOUBLE(SPEED_STEP_AFTER_BOUND_X * NOISE_NM, after);
+    TEST_ASSERT_LESS_THAN_DOUBLE(SPEED_STEP_AFTER_BOUND_X * NOISE_NM, before);
     /* the old algorithm: the lag, far above the noise */
-    TEST_ASSERT_GREATER_THAN_DOUBLE(4.0 * NOISE_NM, worst_old);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(SPEED_STEP_OLD_BOUND_X * NOISE_NM, worst_old);
 }
 
 /* ---- against the reference --------------------------------------------- */
 
+/* the tolerance of test_kf_reference: 1e-4 of the signal scale (~5 N m) */
+#define PROFILE_REF_BOUND_NM 5e-4
 static void test_profile_matches_reference(void)
 {
     static hd_kf_t kf;
@@ -401,10 +414,10 @@ static void test_profile_matches_reference(void)
     }
     msg("learn scale 0.01, varying speed: exported (a, b) vs reference max %.2e N m; filtered "
         "torque after both imported a profile mid-run: max |dev| %.2e N m", worst, worst_after);
-    rel_measured("profile_reference", "export=%.1e after_import=%.1e bound=5e-4", worst, worst_after);
-    /* the tolerance of test_kf_reference: 1e-4 of the signal scale (~5 N m) */
-    TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst);
-    TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst_after);
+    rel_measured("profile_reference", "export=%.1e after_import=%.1e bound="
+                 BOUND_TEXT(PROFILE_REF_BOUND_NM), worst, worst_after);
+    TEST_ASSERT_LESS_THAN_DOUBLE(PROFILE_REF_BOUND_NM, worst);
+    TEST_ASSERT_LESS_THAN_DOUBLE(PROFILE_REF_BOUND_NM, worst_after);
 }
 
 /* ---- contract details ---------------------------------------------------- */
@@ -577,6 +590,7 @@ static double gravity_run(float learn, double *profile_drift_nm)
     return sqrt(se / (double)n);
 }
 
+#define GRAVITY_MOVED0_BOUND_NM 1e-4 /* profile drift at learn scale 0 */
 static void test_learn_scale_zero_keeps_gravity_in_the_torque(void)
 {
     static const float scales[] = {1.0f, 1e-2f, 1e-3f, 0.0f};
@@ -588,11 +602,11 @@ static void test_learn_scale_zero_keeps_gravity_in_the_torque(void)
             drift[i]);
     }
     rel_measured("learn_scale_gravity", "rms=%.3f/%.3f/%.3f/%.3f moved=%.3g/%.2g/%.2g/%.1g "
-                 "moved0_bound=1e-4",
+                 "moved0_bound=" BOUND_TEXT(GRAVITY_MOVED0_BOUND_NM),
                  rms[0], rms[1], rms[2], rms[3], drift[0], drift[1], drift[2], drift[3]);
     /* scale 0: the block never learns; its profile moves only by the frame
      * phasors' rounding over 30 s */
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-4, drift[3]);
+    TEST_ASSERT_LESS_THAN_DOUBLE(GRAVITY_MOVED0_BOUND_NM, drift[3]);
     TEST_ASSERT_LESS_THAN_DOUBLE(rms[0], rms[3]);
     TEST_ASSERT_GREATER_THAN_DOUBLE(0.1, drift[0]); /* scale 1 takes gravity into the block */
 }
@@ -663,6 +677,8 @@ static void test_learn_scale_slow_loads_measured(void)
  * increments exactly representable (what the filter is given is what it
  * must add up), then the exported profile is the imported one.  A phasor
  * turned by each increment instead drifted 1.8e-5 rad per 10^6 steps here. */
+/* rounding of the angles passed (float, 2.4e-7 rad) and of the conversions */
+#define LONG_MOVED_BOUND_NM 1e-6
 static void test_learn_scale_zero_profile_holds_for_long_runs(void)
 {
     static hd_kf_t kf;
@@ -691,14 +707,15 @@ static void test_learn_scale_zero_profile_holds_for_long_runs(void)
     const double drift = hypot((double)o1->a_nm - A1_NM, (double)o1->b_nm - B1_NM);
     msg("output_learn_scale 0, 2e6 steps at 1.56 rad/s: the output line's profile moved "
         "%.2e N m (line %.2f N m)", drift, hypot(A1_NM, B1_NM));
-    rel_measured("learn_scale_long", "moved=%.1e bound=1e-6", drift);
-    /* rounding of the angles passed (float, 2.4e-7 rad) and of the conversions */
-    TEST_ASSERT_LESS_THAN_DOUBLE(1e-6, drift);
+    rel_measured("learn_scale_long", "moved=%.1e bound=" BOUND_TEXT(LONG_MOVED_BOUND_NM), drift);
+    TEST_ASSERT_LESS_THAN_DOUBLE(LONG_MOVED_BOUND_NM, drift);
 }
 
 /* With a partial gain the covariance update is the Joseph form, so P is
  * the exact covariance of the estimate: the filter agrees with the
  * reference's dense Joseph update (varying speed, reversals, standstill). */
+#define LEARN_REF_BOUND_NM 5e-4  /* filtered torque vs the reference */
+#define LEARN_REF_VAR_BOUND 1e-3 /* output-block variance vs the reference, relative */
 static void test_learn_scale_matches_reference(void)
 {
     static const float scales[] = {0.0f, 1e-3f, 0.3f};
@@ -729,9 +746,10 @@ static void test_learn_scale_matches_reference(void)
         msg("output_learn_scale %g vs reference: max |dev| filtered %.2e N m, output-block "
             "variance rel %.2e", (double)scales[si], worst, worst_p);
         static const char *const keys[] = {"learn_ref_0", "learn_ref_1e-3", "learn_ref_0.3"};
-        rel_measured(keys[si], "filtered=%.1e var_rel=%.1e bound=5e-4 var_bound=1e-3", worst, worst_p);
-        TEST_ASSERT_LESS_THAN_DOUBLE(5e-4, worst);
-        TEST_ASSERT_LESS_THAN_DOUBLE(1e-3, worst_p);
+        rel_measured(keys[si], "filtered=%.1e var_rel=%.1e bound=" BOUND_TEXT(LEARN_REF_BOUND_NM)
+                     " var_bound=" BOUND_TEXT(LEARN_REF_VAR_BOUND), worst, worst_p);
+        TEST_ASSERT_LESS_THAN_DOUBLE(LEARN_REF_BOUND_NM, worst);
+        TEST_ASSERT_LESS_THAN_DOUBLE(LEARN_REF_VAR_BOUND, worst_p);
     }
 }
 

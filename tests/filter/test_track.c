@@ -25,6 +25,10 @@
 
 #define TS_S 1e-3
 #define PI_D 3.14159265358979323846
+/* A bound's literal as text: a measured: line prints exactly the number the
+ * assertion uses (printf cannot give "1e-3" back from the double). */
+#define BOUND_TEXT_(x) #x
+#define BOUND_TEXT(x) BOUND_TEXT_(x)
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -72,9 +76,13 @@ static void test_track_constant_velocity_exact(void)
     TEST_ASSERT_EQUAL_INT(0, hd_track_init(&t, (float)TS_S, 20.0f));
     for (int k = 0; k < 2000; k++)
         hd_track_update(&t, -d);
-    TEST_ASSERT_FLOAT_WITHIN(1e-5 * v, -v, (double)t.vel_rad_s);
+    TEST_ASSERT_FLOAT_WITHIN(rel_bound * v, -v, (double)t.vel_rad_s);
 }
 
+/* float32 increments carry ~6e-8 relative rounding each; the loop filters
+ * it: 1e-3 rad/s on up to 150 rad/s, 0.05 rad/s^2 */
+#define ACC_VEL_BOUND_RAD_S 1e-3
+#define ACC_ACC_BOUND_RAD_S2 0.05
 static void test_track_constant_acceleration_converges(void)
 {
     hd_track_t t;
@@ -94,16 +102,16 @@ static void test_track_constant_acceleration_converges(void)
     snprintf(m, sizeof(m), "constant acceleration 50 rad/s^2: max vel error %.3g rad/s, max acc error %.3g rad/s^2",
              worst_v, worst_a);
     TEST_MESSAGE(m);
-    rel_measured("track_constant_acceleration", "vel=%.2g acc=%.2g vel_bound=1e-3 acc_bound=0.05",
-                 worst_v, worst_a);
-    /* float32 increments carry ~6e-8 relative rounding each; the loop
-     * filters it: 1e-3 rad/s on up to 150 rad/s, 0.05 rad/s^2 */
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(1e-3, worst_v);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(0.05, worst_a);
+    rel_measured("track_constant_acceleration",
+                 "vel=%.2g acc=%.2g vel_bound=" BOUND_TEXT(ACC_VEL_BOUND_RAD_S)
+                 " acc_bound=" BOUND_TEXT(ACC_ACC_BOUND_RAD_S2), worst_v, worst_a);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(ACC_VEL_BOUND_RAD_S, worst_v);
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(ACC_ACC_BOUND_RAD_S2, worst_a);
 }
 
 static double step_closed_form(double u) { return 1.0 + exp(-u) * (u * u - u - 1.0); }
 
+#define STEP_SETTLE_BOUND_U 10 /* 2 % settling, in 1/w: a few time constants */
 static void velocity_step(float bw_hz)
 {
     hd_track_t t;
@@ -125,10 +133,11 @@ static void velocity_step(float bw_hz)
     TEST_MESSAGE(m);
     char key[40];
     snprintf(key, sizeof key, "track_step_%.0f_hz", (double)bw_hz);
-    rel_measured(key, "dev=%.3f dev_bound=%.3f overshoot=%.1f settle=%.1f settle_bound=10",
+    rel_measured(key, "dev=%.3f dev_bound=%.3f overshoot=%.1f settle=%.1f settle_bound="
+                 BOUND_TEXT(STEP_SETTLE_BOUND_U),
                  worst_dev, 2.0 * w * TS_S, 100.0 * (peak - 1.0), settle_u);
     TEST_ASSERT_LESS_OR_EQUAL_FLOAT(2.0 * w * TS_S, worst_dev);
-    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(10.0, settle_u); /* a few 1/bandwidth time constants */
+    TEST_ASSERT_LESS_OR_EQUAL_FLOAT(STEP_SETTLE_BOUND_U, settle_u);
     TEST_ASSERT_FLOAT_WITHIN(1e-4 * v, v, (double)t.vel_rad_s);
 }
 
