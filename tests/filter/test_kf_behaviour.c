@@ -23,10 +23,6 @@
 #define TS_S 1e-3
 #define GEAR_RATIO 100.0
 #define MAX_SAMPLES 25000
-/* A bound's literal as text: a measured: line prints exactly the number the
- * assertion uses (printf cannot give "1e-3" back from the double). */
-#define BOUND_TEXT_(x) #x
-#define BOUND_TEXT(x) BOUND_TEXT_(x)
 
 void setUp(void) {}
 void tearDown(void) {}

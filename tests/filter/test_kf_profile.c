@@ -39,10 +39,6 @@
 #define B1_NM 0.2
 #define AM0_RAD 1.234 /* where the joint stands at t = 0 */
 #define AO0_RAD 4.321
-/* A bound's literal as text: a measured: line prints exactly the number the
- * assertion uses (printf cannot give "1e-3" back from the double). */
-#define BOUND_TEXT_(x) #x
-#define BOUND_TEXT(x) BOUND_TEXT_(x)
 
 void setUp(void) {}
 void tearDown(void) {}

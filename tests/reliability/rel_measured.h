@@ -26,4 +26,10 @@ __attribute__((format(printf, 2, 3))) static inline void rel_measured(const char
     va_end(ap);
 }
 
+/* A bound's literal as text, for a measured: line that prints exactly the
+ * number the assertion uses (printf cannot give "1e-3" back from the
+ * double):  #define X_BOUND 1e-3 ... "bound=" BOUND_TEXT(X_BOUND) */
+#define BOUND_TEXT_(x) #x
+#define BOUND_TEXT(x) BOUND_TEXT_(x)
+
 #endif /* REL_MEASURED_H */
