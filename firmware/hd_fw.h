@@ -64,7 +64,7 @@ typedef struct {
     uint32_t telemetry_frames;
     uint32_t frames_dropped;           /* transmit queue full or bus off */
     uint32_t foreign_frames;           /* received, not addressed to this node */
-    uint32_t commands_dropped;         /* command queue full */
+    uint32_t command_queue_full;       /* ticks that left frames with the driver: queue full */
     uint32_t commands;                 /* background */
     uint32_t command_errors;           /* background */
     uint32_t feedforward_frames;       /* accepted feed-forward frames */

@@ -59,7 +59,7 @@ bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_TELEMETRY_FRAMES: *v = c->telemetry_frames; return true;
     case HD_INFO_COMMANDS: *v = c->commands; return true;
     case HD_INFO_COMMAND_ERRORS: *v = c->command_errors; return true;
-    case HD_INFO_COMMANDS_DROPPED: *v = c->commands_dropped; return true;
+    case HD_INFO_COMMAND_QUEUE_FULL: *v = c->command_queue_full; return true;
     case HD_INFO_FRAMES_DROPPED: *v = c->frames_dropped; return true;
     case HD_INFO_FOREIGN_FRAMES: *v = c->foreign_frames; return true;
     case HD_INFO_FEEDFORWARD_FRAMES: *v = c->feedforward_frames; return true;

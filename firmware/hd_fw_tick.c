@@ -119,8 +119,14 @@ static void receive_frames(hd_fw_t *fw)
     const uint8_t node = hd_fw_live(fw)->cfg.node_id;
     for (unsigned i = 0; i < HD_FW_RX_PER_TICK; i++) {
         hal_can_frame_t f;
-        /* A full queue leaves the rest with the driver: back pressure, not loss. */
-        if (hd_fw_queue_full(&fw->cmd_queue) || can->recv(can->ctx, &f) != HAL_OK) {
+        /* A full queue leaves the rest with the driver: back pressure, not
+         * loss (the tick is the queue's only producer: the push below then
+         * always has room). */
+        if (hd_fw_queue_full(&fw->cmd_queue)) {
+            fw->counters.command_queue_full++;
+            break;
+        }
+        if (can->recv(can->ctx, &f) != HAL_OK) {
             break;
         }
         uint8_t type = 0u;
@@ -135,10 +141,7 @@ static void receive_frames(hd_fw_t *fw)
             fw->counters.foreign_frames++;
             continue;
         }
-        if (!hd_fw_queue_push(&fw->cmd_queue, &f)) {
-            fw->counters.commands_dropped++;
-            fw->tick.pending_faults |= HD_FAULT_CMD_ERROR;
-        }
+        (void)hd_fw_queue_push(&fw->cmd_queue, &f); /* room: checked above */
     }
 }
 

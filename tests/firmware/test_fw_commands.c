@@ -336,6 +336,33 @@ static void test_the_tick_only_queues_commands(void)
     TEST_ASSERT_EQUAL_UINT8(0, fw.request.pending);
 }
 
+/* A background that falls behind (no background between 12 ticks, 20
+ * commands waiting): the tick fills the command queue, then leaves the rest
+ * with the driver and counts each such tick; once the background runs,
+ * every command is answered, none lost. */
+static void test_a_full_command_queue_is_back_pressure_counted(void)
+{
+    init_fw();
+    run(1, 1000, 1);
+    const unsigned frames = 20u, ticks = 12u;
+    for (unsigned i = 0; i < frames; i++) {
+        hal_can_frame_t f = r_frame(HD_CMD_GET_PARAM);
+        hal_mock_push_rx(&mock, &f);
+    }
+    for (unsigned i = 0; i < ticks; i++) {
+        motor += 1;
+        hal_mock_push(&mock, 1000, motor);
+        hd_fw_isr(&fw);
+    }
+    /* HD_FW_RX_PER_TICK a tick until the queue holds HD_FW_QUEUE_LEN */
+    const unsigned filling = HD_FW_QUEUE_LEN / HD_FW_RX_PER_TICK;
+    TEST_ASSERT_EQUAL_UINT32(ticks - filling, hd_fw_counters(&fw)->command_queue_full);
+    run(40, 1000, 1); /* its first tick still finds the queue full: one more */
+    TEST_ASSERT_EQUAL_UINT32(frames, hd_fw_counters(&fw)->commands);
+    TEST_ASSERT_EQUAL_UINT32(ticks - filling + 1u,
+                             simple_cmd(HD_CMD_INFO, HD_INFO_COMMAND_QUEUE_FULL).value_u32);
+}
+
 static void test_a_direct_caller_gets_busy_while_a_change_is_pending(void)
 {
     init_fw();
@@ -609,6 +636,7 @@ int main(void)
     RUN_TEST(test_calibration_save_and_load_by_command);
     RUN_TEST(test_random_frames_never_corrupt_the_state);
     RUN_TEST(test_the_tick_only_queues_commands);
+    RUN_TEST(test_a_full_command_queue_is_back_pressure_counted);
     RUN_TEST(test_a_direct_caller_gets_busy_while_a_change_is_pending);
     RUN_TEST(test_every_parameter_of_the_table_over_can);
     RUN_TEST(test_version_and_info);
