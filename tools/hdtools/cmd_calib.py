@@ -109,10 +109,7 @@ def run(args) -> int:
     from hdtools.calibtool import csvio, report
     from hdtools.calibtool import lib as L
     if args.input == "-":
-        data = sys.stdin.buffer.read(safeio.TEXT_MAX_BYTES + 1)
-        if len(data) > safeio.TEXT_MAX_BYTES:      # bytes, not characters, as read_text
-            raise safeio.UsageError(f"stdin: more than {safeio.TEXT_MAX_BYTES} bytes")
-        text = safeio.decode_text(data, "stdin")
+        text = safeio.read_stdin_text()
     else:
         text = safeio.read_text(args.input)
     try:

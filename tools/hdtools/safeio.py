@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import stat
+import sys
 import tempfile
 from pathlib import Path
 
@@ -68,6 +69,18 @@ def read_bytes(path: str | os.PathLike, limit: int = TEXT_MAX_BYTES) -> bytes:
         raise UsageError(f"{path}: cannot read: {_why(exc)}") from None
     finally:
         os.close(fd)
+
+
+def read_stdin_text(limit: int = TEXT_MAX_BYTES) -> str:
+    """Standard input as text, as read_text reads a file: at most `limit`
+    bytes (counted before decoding), a read error is a UsageError."""
+    try:
+        data = sys.stdin.buffer.read(limit + 1)
+    except OSError as exc:
+        raise UsageError(f"stdin: cannot read: {_why(exc)}") from None
+    if len(data) > limit:
+        raise UsageError(f"stdin: more than {limit} bytes")
+    return decode_text(data, "stdin")
 
 
 def decode_text(data: bytes, name: str) -> str:

@@ -20,6 +20,18 @@ def _fields(line: str, no: int) -> list[str]:
         raise CalibError(f"line {no}: {exc}") from None
 
 
+def _control_char(line: str) -> str | None:
+    """The first control character of a line (tab allowed), else None."""
+    return next((c for c in line if (ord(c) < 32 and c != "\t") or ord(c) == 127), None)
+
+
+def _names(cols: list[str], most: int = 4, width: int = 24) -> str:
+    """Column names for a message (printable: control characters are refused
+    first), each cut at `width`, at most `most`."""
+    shown = [c if len(c) <= width else c[:width] + "..." for c in cols[:most]]
+    return ", ".join(shown) + (f" and {len(cols) - most} more" if len(cols) > most else "")
+
+
 def read_csv(text: str, counts_per_volt: float | None = None) -> list[ExperimentData]:
     """Parses the CSV; '#' lines are comments.  Raises CalibError with the
     line number for anything it cannot use."""
@@ -29,11 +41,15 @@ def read_csv(text: str, counts_per_volt: float | None = None) -> list[Experiment
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise CalibError("empty input: no header line")
+    for no, ln in lines:
+        bad = _control_char(ln)
+        if bad is not None:
+            raise CalibError(f"line {no}: control character 0x{ord(bad):02X}")
     header_no, header = lines[0]
     cols = [c.strip().lower() for c in _fields(header, header_no)]
     unknown = [c for c in cols if c not in REQUIRED + BRIDGE]
     if unknown:
-        raise CalibError(f"line {header_no}: unknown column(s) {', '.join(unknown)}; expected "
+        raise CalibError(f"line {header_no}: unknown column(s) {_names(unknown)}; expected "
                          f"{', '.join(REQUIRED)} and one of {' or '.join(BRIDGE)}")
     missing = [c for c in REQUIRED if c not in cols]
     if missing:
