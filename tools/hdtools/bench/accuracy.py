@@ -95,7 +95,7 @@ SCENARIOS = [
 class Method:
     key: str
     label: str
-    kind: str                 # kf | fw | butter | notch | table | raw | ideal
+    kind: str                 # kf | fw | butter | notch | table | paper | raw | ideal
     params: dict = field(default_factory=dict)
 
 

@@ -28,13 +28,14 @@ from __future__ import annotations
 import json
 import math
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy import signal
 
 from . import accuracy, metrics, peers
+from .accuracy import Method  # a row of the slow tables: key, label, kind, params
 from .joint import (HDSENSE, ROOT, cfg_lines, compose_config, encoder_angles,
                     firmware_commissioning, ini_value, nominal, output_angle,
                     run_firmware, run_tool, simulate)
@@ -66,41 +67,33 @@ SCENARIOS = [
 ]
 
 
-@dataclass
-class Row:
-    key: str
-    label: str
-    kind: str                  # fw | butter | notch | table | paper | raw | ideal
-    params: dict = field(default_factory=dict)
-
-
-def rows() -> list[Row]:
+def rows() -> list[Method]:
     line2_hz = 2.0 * 150.0 / (2.0 * math.pi)   # 2x line at 1.5 rad/s output
     fc20 = peers.butterworth_cutoff_for(line2_hz, 20.0)
     fc40 = peers.butterworth_cutoff_for(line2_hz, 40.0)
     return [
-        Row("fw_default", "firmware defaults, operating mode, no profile, no slow torque", "fw",
+        Method("fw_default", "firmware defaults, operating mode, no profile, no slow torque", "fw",
             {"model": False, "profile": False, "slow": None}),
-        Row("fw_adaptive", "firmware defaults, learning_mode 0 adaptive (every block at full "
+        Method("fw_adaptive", "firmware defaults, learning_mode 0 adaptive (every block at full "
             "rate: the behaviour before this issue)", "fw",
             {"model": False, "profile": False, "slow": None, "mode": 0}),
-        Row("fw_profile", "firmware + analyze model and stored profile, T_exp = 0", "fw",
+        Method("fw_profile", "firmware + analyze model and stored profile, T_exp = 0", "fw",
             {"model": True, "profile": True, "slow": None}),
-        Row("fw_profile_ff", "firmware + stored profile + controller feed-forward", "fw",
+        Method("fw_profile_ff", "firmware + stored profile + controller feed-forward", "fw",
             {"model": True, "profile": True, "slow": "ff"}),
-        Row("fw_profile_current", "firmware + stored profile + motor current (hdsense current)",
+        Method("fw_profile_current", "firmware + stored profile + motor current (hdsense current)",
             "fw", {"model": True, "profile": True, "slow": "current"}),
-        Row("butter_20db", f"Butterworth 2nd order, fc {fc20:.1f} Hz", "butter", {"fc": fc20}),
-        Row("butter_40db", f"Butterworth 2nd order, fc {fc40:.1f} Hz", "butter", {"fc": fc40}),
-        Row("order_notch", "order tracking + notch, motor 2, 4 and output orders", "notch", {}),
-        Row("fourier_table", "Fourier table fitted on the commissioning run", "table", {}),
-        Row("kf_paper6", "paper tuning Q = 1e3 I, R = 1, 6th order, T_exp = feed-forward",
+        Method("butter_20db", f"Butterworth 2nd order, fc {fc20:.1f} Hz", "butter", {"fc": fc20}),
+        Method("butter_40db", f"Butterworth 2nd order, fc {fc40:.1f} Hz", "butter", {"fc": fc40}),
+        Method("order_notch", "order tracking + notch, motor 2, 4 and output orders", "notch", {}),
+        Method("fourier_table", "Fourier table fitted on the commissioning run", "table", {}),
+        Method("kf_paper6", "paper tuning Q = 1e3 I, R = 1, 6th order, T_exp = feed-forward",
             "paper", {}),
-        Row("fw_selfprofile_ff", "firmware + its own commissioning profile (PROFILE_SAVE at the "
+        Method("fw_selfprofile_ff", "firmware + its own commissioning profile (PROFILE_SAVE at the "
             "end of the commissioning run in learning_mode 2) + feed-forward", "fw",
             {"model": True, "profile": "firmware", "slow": "ff"}),
-        Row("raw", "unfiltered measurement", "raw", {}),
-        Row("ideal", "noise floor: measured minus the true ripple", "ideal", {}),
+        Method("raw", "unfiltered measurement", "raw", {}),
+        Method("ideal", "noise floor: measured minus the true ripple", "ideal", {}),
     ]
 
 
@@ -173,7 +166,7 @@ def current_model(sc: Scenario, wd: Path, quick: bool,
                              (" with the commissioning profile" if com.profile_json else ""))
 
 
-def fw_row(row: Row, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: Path,
+def fw_row(row: Method, sc: Scenario, com: Commissioning, cur_cfg: str | None, wd: Path,
            duration: float | None) -> tuple[np.ndarray | None, dict]:
     """Runs the firmware for one row; (filtered torque, what it was told)."""
     p = row.params
