@@ -201,6 +201,32 @@ static void test_run_chunked_equals_whole(void)
     assert_same_state(&pa, &pb, "chunked");
 }
 
+/* The feed-forward's variance reaches the filter as R + v: from one state,
+ * a step given v and the same step given 0 differ in S = C P C' + R + v by
+ * exactly v (float rounding). */
+static void test_feedforward_variance_adds_to_r(void)
+{
+    static hd_pipeline_t p, q;
+    make_inputs();
+    init_pipe(&p);
+    unsigned checked = 0;
+    for (int k = 0; k < N_SAMPLES; k++) {
+        hd_kf_output_t op, oq;
+        if (k % 701 == 350) {
+            q = p;
+            const float v = 0.5f + (float)checked;
+            hd_pipeline_step(&q, g_meas[k], g_dm[k], g_do[k], g_ff[k], 0.0f, &oq);
+            hd_pipeline_step(&p, g_meas[k], g_dm[k], g_do[k], g_ff[k], v, &op);
+            TEST_ASSERT_FLOAT_WITHIN(1e-5f * op.innovation_var_nm2, v,
+                                     op.innovation_var_nm2 - oq.innovation_var_nm2);
+            checked++;
+        } else {
+            hd_pipeline_step(&p, g_meas[k], g_dm[k], g_do[k], g_ff[k], 0.0f, &op);
+        }
+    }
+    TEST_ASSERT_TRUE(checked >= 5u);
+}
+
 static void test_pipeline_init_errors(void)
 {
     static hd_pipeline_t p;
@@ -230,6 +256,7 @@ int main(void)
     RUN_TEST(test_run_equals_step_bitwise);
     RUN_TEST(test_run_null_outputs_and_null_feedforward);
     RUN_TEST(test_run_chunked_equals_whole);
+    RUN_TEST(test_feedforward_variance_adds_to_r);
     RUN_TEST(test_pipeline_init_errors);
     return UNITY_END();
 }
