@@ -30,6 +30,8 @@ static const err_entry_t ERRORS[] = {
                            "[0, p_max]"),
     ERR(HD_KF_ERR_ANGLE, "angle must be finite and in [0, 2 pi)"),
     ERR(HD_KF_ERR_INPUT, "non-finite input (ignored)"),
+    ERR(HD_KF_ERR_CORRECTION_MAX, "correction_max_nm must be finite and in [0, "
+                                  "HD_KF_MAX_ABS_Y_NM]"),
     ERR(HD_KF_ERR_TRACK_BANDWIDTH, "bad tracker bandwidth for this sample rate "
                                    "(finite, > 0, 2 pi bandwidth ts <= 0.5)"),
     ERR(HD_KF_ERR_EXPECTED_CONFIG, "bad expected-torque configuration (finite, J, b, Fc >= 0, "

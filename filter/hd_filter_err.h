@@ -26,6 +26,7 @@ typedef enum {
     HD_KF_ERR_PROFILE = -11,      /* profile: line count, lock, order or a value invalid */
     HD_KF_ERR_ANGLE = -12,        /* angle not finite or outside [0, 2 pi) */
     HD_KF_ERR_INPUT = -13,        /* non-finite input: ignored (hd_track_update) */
+    HD_KF_ERR_CORRECTION_MAX = -14, /* correction_max_nm not finite or outside [0, 1e6] */
     HD_KF_ERR_TRACK_BANDWIDTH = -100, /* tracker bandwidth not finite, <= 0 or too high */
     HD_KF_ERR_EXPECTED_CONFIG = -101, /* expected-torque configuration invalid */
 } hd_kf_err_t;

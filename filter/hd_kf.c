@@ -151,6 +151,9 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
     if (!is_nonneg(cfg->output_learn_scale) || cfg->output_learn_scale > 1.0f) {
         return HD_KF_ERR_LEARN_SCALE;
     }
+    if (!is_nonneg(cfg->correction_max_nm) || cfg->correction_max_nm > HD_KF_MAX_ABS_Y_NM) {
+        return HD_KF_ERR_CORRECTION_MAX;
+    }
     for (unsigned i = 0; i < cfg->block_count; i++) {
         const hd_kf_err_t err = check_block(&cfg->blocks[i], cfg->ts_s);
         if (err != HD_KF_OK) {
@@ -163,7 +166,7 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
 const char *hd_kf_status_name(unsigned bit)
 {
     static const char *const NAMES[HD_KF_STATUS_BITS] = {
-        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP"};
+        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP", "LIMITED"};
     return bit < HD_KF_STATUS_BITS ? NAMES[bit] : NULL;
 }
 
@@ -297,6 +300,13 @@ static void short_plan_ranges(hd_kf_t *kf)
 /* Builds every configured block's slot and the per-step constants.  A
  * model of more than UNROLLED_BLOCKS blocks gets HD_KF_MAX_BLOCKS slots,
  * the unused ones disabled. */
+/* A duration in steps, at least 1 (ts_s > 0 and finite: hd_kf_config_check). */
+static uint32_t steps_of(float duration_s, float ts_s)
+{
+    const float steps = duration_s / ts_s + 0.5f;
+    return steps >= 1.0f ? (steps < 1.0e9f ? (uint32_t)steps : 1000000000u) : 1u;
+}
+
 static void build_layout(hd_kf_t *kf)
 {
     unsigned enabled = 0;
@@ -304,6 +314,8 @@ static void build_layout(hd_kf_t *kf)
     kf->output_powers = 0u;
     kf->own_frames = 0u;
     kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
+    kf->jump_rearm_steps = steps_of(HD_KF_JUMP_REARM_S, kf->cfg.ts_s);
+    kf->limit_restart_steps = steps_of(HD_KF_LIMIT_RESTART_S, kf->cfg.ts_s);
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
         build_slot(kf, i);
         enabled += kf->slot[i].enabled;
@@ -352,6 +364,9 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->x[kf->offset_slot] = 0.0f;
     kf->frozen_mask = 0u;
     kf->offset_primed = 0u;
+    kf->jump_hold_steps = 0u;
+    kf->jump_credit = HD_KF_JUMP_BURST;
+    kf->limit_steps = 0u;
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
     kf->load_scale = 1.0f;
@@ -383,6 +398,8 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     kf->bad_input_count = 0u;
     kf->p_ceiling_count = 0u;
     kf->p_negative_count = 0u;
+    kf->jump_held_count = 0u;
+    kf->limit_count = 0u;
     return HD_KF_OK;
 }
 

@@ -54,7 +54,12 @@
  *   - offset: primed with the first valid sample's y - ripple; with
  *     offset_jump_nm > 0 an innovation with |e| > offset_jump_nm and
  *     e^2 > 16 S adds e^2 to the offset's variance before the update
- *     (HD_KF_STATUS_OFFSET_JUMP).
+ *     (HD_KF_STATUS_OFFSET_JUMP).  An event (a load step, a spike and its
+ *     return) is at most HD_KF_JUMP_BURST jumps: the gate takes no more
+ *     until HD_KF_JUMP_REARM_S of steps in a row have stayed within it;
+ *     each step beyond it restarts that count, and one beyond it with no
+ *     jump left is counted in jump_held_count (an effect the model lacks,
+ *     not a load step).
  *
  * Invariants kept every step:
  *   - P (the posterior's) is stored once (packed upper triangle), so it is
@@ -75,7 +80,15 @@
  *   - a non-finite state or covariance resets the filter (hd_kf_reset),
  *     HD_KF_STATUS_RESET, reset_count: in the step that uses it (a state
  *     that overflows in a correction is seen by the next step's prior);
- *   - the published filtered torque is always finite.
+ *   - the published filtered torque is always finite;
+ *   - with correction_max_nm > 0, |T_meas - filtered| <= correction_max_nm:
+ *     a correction beyond it is published at the limit (ripple_nm then is
+ *     the published correction), HD_KF_STATUS_LIMITED, counted in
+ *     limit_count; once the steps at the limit outnumber those below it
+ *     by HD_KF_LIMIT_RESTART_S, the filter restarts (hd_kf_reset after
+ *     the step, HD_KF_STATUS_RESET, reset_count): an estimate beyond any
+ *     physical ripple is wrong, and keeping it would only hold the output
+ *     at the limit.
  *
  *   - run-time toggles (hd_kf_set_block_enabled) change no other state.
  *
@@ -120,6 +133,15 @@ extern "C" {
  * overflow float32). */
 #define HD_KF_MAX_LOAD_COEFF_PER_NM 100.0f
 
+/* The offset-jump gate takes at most HD_KF_JUMP_BURST jumps (a step, or a
+ * spike and its return), then holds until this long within it [s]. */
+#define HD_KF_JUMP_BURST 2u
+#define HD_KF_JUMP_REARM_S 0.2f
+
+/* A filter whose steps at correction_max_nm outnumber the others by this
+ * long restarts (hd_kf_reset) [s]. */
+#define HD_KF_LIMIT_RESTART_S 0.1f
+
 /* A block phase advance beyond this in one step [rad] (four turns) is an
  * encoder fault, not motion: the block restarts. */
 #define HD_KF_PHASE_LOST_RAD 25.132741f
@@ -160,6 +182,9 @@ typedef struct {
     float output_learn_scale;      /* in [0, 1]: multiplies the gain and q of output-locked
                                       blocks (1: learn as the other blocks, the default;
                                       0: they predict and turn, but never learn) */
+    float correction_max_nm;       /* > 0: the published correction (T_meas minus the
+                                      filtered torque) is held within +-this, and a filter
+                                      that keeps reaching it restarts; 0: off */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -184,7 +209,8 @@ typedef struct {
 #define HD_KF_STATUS_RESET       (1u << 2) /* non-finite state or covariance: filter reset */
 #define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* covariance brought back to PSD, <= p_max */
 #define HD_KF_STATUS_OFFSET_JUMP (1u << 4) /* innovation beyond the gate: offset jump */
-#define HD_KF_STATUS_BITS 5u               /* bits [0, HD_KF_STATUS_BITS) are defined */
+#define HD_KF_STATUS_LIMITED     (1u << 5) /* correction held at correction_max_nm */
+#define HD_KF_STATUS_BITS 6u               /* bits [0, HD_KF_STATUS_BITS) are defined */
 
 typedef struct {
     float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */
@@ -266,6 +292,13 @@ typedef struct {
     uint32_t bad_input_count;
     uint32_t p_ceiling_count;                 /* blocks (or the offset) brought down to p_max */
     uint32_t p_negative_count;                /* non-PSD blocks / negative offset zeroed */
+    uint32_t jump_rearm_steps;                /* HD_KF_JUMP_REARM_S in steps (at least 1) */
+    uint32_t jump_hold_steps;                 /* quiet steps left until the jumps come back */
+    uint32_t jump_credit;                     /* jumps the gate may still take */
+    uint32_t jump_held_count;                 /* steps beyond the gate while it was held */
+    uint32_t limit_restart_steps;             /* HD_KF_LIMIT_RESTART_S in steps (at least 1) */
+    uint32_t limit_steps;                     /* steps at the limit less those below it */
+    uint32_t limit_count;                     /* steps with the correction held */
 } hd_kf_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,

@@ -309,13 +309,54 @@ KF_INLINE float measurement_var(const hd_kf_t *kf, float expected_var_nm2)
     return kf->cfg.r_nm2 + (v < HD_KF_MAX_EXPECTED_VAR_NM2 ? v : HD_KF_MAX_EXPECTED_VAR_NM2);
 }
 
-/* Offset-jump gate: e beyond offset_jump_nm and 4 sigma. */
-KF_INLINE bool offset_jump(const hd_kf_t *kf, float e, float s_var)
+/* Offset-jump gate: e beyond offset_jump_nm and 4 sigma, at most
+ * HD_KF_JUMP_BURST jumps per event: each step beyond the gate restarts
+ * the quiet count, and the jumps come back once jump_rearm_steps steps in
+ * a row stayed within it; a step beyond it with none left is counted. */
+KF_INLINE bool offset_jump(hd_kf_t *kf, float e, float s_var)
 {
     const float jump_nm = kf->cfg.offset_jump_nm;
     const float e2 = e * e;
-    return kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
-           e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
+    const bool beyond = kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
+                        e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
+    if (!beyond) {
+        if (kf->jump_hold_steps > 0u && --kf->jump_hold_steps == 0u) {
+            kf->jump_credit = HD_KF_JUMP_BURST;
+        }
+        return false;
+    }
+    kf->jump_hold_steps = kf->jump_rearm_steps;
+    if (kf->jump_credit == 0u) {
+        kf->jump_held_count++;
+        return false;
+    }
+    kf->jump_credit--;
+    return true;
+}
+
+/* The correction limit: a correction beyond +-correction_max_nm is
+ * published at the limit (ripple_nm then carries the published one).
+ * limit_steps counts up at the limit and down below it (a wrong estimate
+ * oscillates, crossing zero twice a cycle): once the steps at the limit
+ * outnumber the others by limit_restart_steps, the filter restarts after
+ * the step.  A non-finite correction is left to the final check. */
+static uint32_t limit_correction(hd_kf_t *kf, float meas_nm, float correction,
+                                 hd_kf_output_t *out, float *filtered, bool *restart)
+{
+    const float lim = kf->cfg.correction_max_nm;
+    if (!(correction > lim || correction < -lim)) {
+        kf->limit_steps -= kf->limit_steps > 0u ? 1u : 0u;
+        return 0u;
+    }
+    const float held = correction > lim ? lim : -lim;
+    *filtered = meas_nm - held;
+    out->ripple_nm = held - (kf->cfg.offset_is_sensor_error ? out->offset_nm : 0.0f);
+    kf->limit_count++;
+    if (++kf->limit_steps >= kf->limit_restart_steps) {
+        kf->limit_steps = 0u;
+        *restart = true;
+    }
+    return HD_KF_STATUS_LIMITED;
 }
 
 /* The output phasor's powers (rare: output orders above 1), out of line. */
@@ -469,8 +510,12 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     out->offset_nm = offset;
     out->innovation_nm = valid ? innovation : 0.0f;
     out->innovation_var_nm2 = s_var;
-    const float filtered = in->torque_meas_nm - ripple -
-                           (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    const float correction = ripple + (kf->cfg.offset_is_sensor_error ? offset : 0.0f);
+    float filtered = in->torque_meas_nm - correction;
+    bool restart = false;
+    if (kf->cfg.correction_max_nm > 0.0f) {
+        status |= limit_correction(kf, in->torque_meas_nm, correction, out, &filtered, &restart);
+    }
     out->torque_filtered_nm = filtered;
     out->frozen_mask = sum.frozen;
 
@@ -489,11 +534,13 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     if (UNLIKELY(!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
                  !is_finite(finite_probe))) {
         const uint32_t bounded = hd_kf_bound_covariance(kf, finite_probe);
-        if (bounded & HD_KF_STATUS_RESET) {
-            hd_kf_reset(kf);
-            kf->reset_count++;
-        }
+        restart = restart || (bounded & HD_KF_STATUS_RESET) != 0u;
         status |= bounded;
+    }
+    if (UNLIKELY(restart)) {
+        hd_kf_reset(kf);
+        kf->reset_count++;
+        status |= HD_KF_STATUS_RESET;
     }
     if (sum.frozen != 0u) {
         status |= HD_KF_STATUS_FROZEN;

@@ -69,6 +69,8 @@ typedef struct {
     uint32_t command_errors;           /* background */
     uint32_t feedforward_frames;       /* accepted feed-forward frames */
     uint32_t profile_imports;          /* profiles the filter took (boot, load, restarts) */
+    uint32_t unmodelled_steps;         /* ticks beyond the held offset-jump gate */
+    uint32_t correction_limited;       /* ticks with the correction at correction_max_nm */
 } hd_fw_counters_t;
 
 /* What the last tick produced (for the host runner and tests). */
@@ -163,6 +165,8 @@ typedef struct {
     uint32_t hb_faults;             /* faults since the last heartbeat */
     uint32_t hb_countdown;
     uint32_t pending_faults;        /* raised between samples (transmit drops) */
+    uint32_t mismatch_score;        /* leaky count of ticks beyond the held jump gate,
+                                       x 2^10, time constant 2^10 ticks */
     uint32_t command_errors_seen;   /* CMD_ERROR raised when the background's count moves */
     bool boot_sent;
     volatile uint8_t state;         /* hd_fw_state_t */

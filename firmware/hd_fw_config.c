@@ -13,6 +13,7 @@ void hd_fw_config_default(hd_fw_config_t *cfg)
     hd_kf_config_recommended(&cfg->kf, HD_FW_TS_S, HD_FW_DEFAULT_NOISE_NM,
                              HD_FW_DEFAULT_RIPPLE_SETTLE_S, HD_FW_DEFAULT_OFFSET_SETTLE_S);
     hd_expected_config_default(&cfg->expected);
+    cfg->kf.correction_max_nm = HD_FW_DEFAULT_CORRECTION_MAX_NM;
     cfg->track_bandwidth_hz = HD_TRACK_DEFAULT_BANDWIDTH_HZ;
     cfg->gear_ratio = 100.0f;
     cfg->motor_cpr = 4096u;

@@ -29,6 +29,9 @@ extern "C" {
 #define HD_FW_DEFAULT_FF_RAMP_MS 500u
 #define HD_FW_DEFAULT_OPERATING_LEARN_SCALE 0.0f
 #define HD_FW_DEFAULT_CURRENT_FILTER_HZ 10.0f
+/* No strain-wave gear of this class carries 8 N m of ripple: a correction
+ * beyond it is a wrong estimate (hdsense analyze writes the joint's own). */
+#define HD_FW_DEFAULT_CORRECTION_MAX_NM 8.0f
 
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */

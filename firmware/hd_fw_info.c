@@ -69,6 +69,8 @@ bool hd_fw_info_item(const hd_fw_t *fw, uint8_t item, uint32_t *v)
     case HD_INFO_CAN_TX_ABORTED: *v = can_counters(fw).can_tx_aborted; return true;
     case HD_INFO_CAN_TX_ERROR_COUNT: *v = can_counters(fw).can_tx_error_count; return true;
     case HD_INFO_CAN_RX_ERROR_COUNT: *v = can_counters(fw).can_rx_error_count; return true;
+    case HD_INFO_UNMODELLED_STEPS: *v = c->unmodelled_steps; return true;
+    case HD_INFO_CORRECTION_LIMITED: *v = c->correction_limited; return true;
     default: return false;
     }
 }

@@ -63,6 +63,8 @@ void ref_kf_init(ref_kf_t *r, const hd_kf_config_t *cfg)
     r->n = 2 * r->nb;
     r->offset_slot = -1;
     r->jump_override = -1;
+    r->jump_rearm = (int)fmax(1.0, floor((double)HD_KF_JUMP_REARM_S / (double)cfg->ts_s + 0.5));
+    r->jump_credit = (int)HD_KF_JUMP_BURST;
     if (cfg->offset_enabled)
         r->offset_slot = r->n++;
     for (int s = 0; s < r->nb; s++)
@@ -229,9 +231,20 @@ static void measurement_update(ref_kf_t *r, const hd_kf_input_t *in, const plan_
     if (r->offset_slot >= 0 && r->cfg.offset_jump_nm > 0.0f && isfinite(y)) {
         double e0 = y - cx;
         double thr = fmax((double)r->cfg.offset_jump_nm, 4.0 * sqrt(s_var));
-        out->jump_own_decision = fabs(e0) > thr;
+        /* at most HD_KF_JUMP_BURST jumps, back after jump_rearm steps in a
+         * row within the gate (each step beyond it restarts the count) */
+        const int beyond = fabs(e0) > thr;
+        out->jump_own_decision = beyond && r->jump_credit > 0;
         out->jump_margin_rel = fabs(fabs(e0) - thr) / thr;
         int jump = r->jump_override >= 0 ? r->jump_override : out->jump_own_decision;
+        if (beyond || jump) {
+            r->jump_hold = r->jump_rearm;
+        } else if (r->jump_hold > 0 && --r->jump_hold == 0) {
+            r->jump_credit = (int)HD_KF_JUMP_BURST;
+        }
+        if (jump && r->jump_credit > 0) {
+            r->jump_credit--;
+        }
         if (jump) {
             r->P[r->offset_slot][r->offset_slot] += e0 * e0;
             s_var += e0 * e0;

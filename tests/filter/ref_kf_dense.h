@@ -66,6 +66,9 @@ typedef struct {
      * decide here; 0/1: follow the filter under test (the caller checks
      * jump_margin_rel to see that a disagreement was only rounding). */
     int jump_override;
+    int jump_rearm;    /* HD_KF_JUMP_REARM_S in steps (hd_kf.h) */
+    int jump_hold;     /* quiet steps left until the jumps come back */
+    int jump_credit;   /* jumps the gate may still take */
     int offset_primed; /* the offset starts at the first valid y - ripple */
     int load_ref_primed; /* T_ref of the load-dependent ripple has its first value */
     double load_ref;     /* T_ref [Nm], held at standstill (hd_kf.h) */

@@ -142,7 +142,8 @@ typedef struct {
 } dev_t_;
 
 static void compare_run_toggles(const char *key, const char *name, const hd_kf_config_t *cfg,
-                                signal_t sig, const toggle_t *toggles, size_t n_toggles)
+                                signal_t sig, const toggle_t *toggles, size_t n_toggles,
+                                double tol_x)
 {
     size_t next_toggle = 0;
     static hd_kf_t kf;
@@ -169,6 +170,7 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
 
     long steps = (long)(RUN_S / TS_S);
     double prev_jump_e2 = 0.0; /* e^2 of the previous step if it was an offset jump */
+    double prev_p_diag = 0.0;  /* the reference's largest diagonal of P, last step */
     double max_meas = 0.0, max_exp = 0.0;
     for (long k = 0; k < steps; k++) {
         tu_motion_next(&mo);
@@ -234,7 +236,11 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
              * its precision relative to the e^2 it held (added, then taken
              * out by the update): up to 4 u e^2 */
             ds = fmax(0.0, ds - 4.0 * FLT_UNIT_ROUNDOFF * prev_jump_e2);
-            TRACK_MAX(max_s_rel, ds / r.innovation_var_nm2);
+            /* S = R + C P C' is a sum of P's entries: its float32 error is
+             * relative to the larger of S and P's largest diagonal entry
+             * (when the data pin the predicted torque far tighter than the
+             * states, S << P: a start-up with innovations of 500 S) */
+            TRACK_MAX(max_s_rel, ds / fmax(r.innovation_var_nm2, prev_p_diag));
         }
         /* the amplitude read-out (prior amplitude x the step's row entry c,
          * c = 1 + k |T_ref| for motor-locked blocks, up to ~4 here): its
@@ -266,6 +272,7 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
         p_dev = fmax(0.0, p_dev - 4.0 * FLT_UNIT_ROUNDOFF * (jump_e2 + prev_jump_e2));
         TRACK_MAX(max_cov_rel, p_dev / p_diag);
         prev_jump_e2 = jump_e2;
+        prev_p_diag = p_diag;
         if (with_k) {
             ref_kf_output_t r0;
             ref_k0.jump_override = -1; /* its own decisions: it is a different filter */
@@ -290,10 +297,10 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
              "%lu (%lu decided by rounding)",
              name, ref.n, (double)cfg->ripple_load_coeff_per_nm, d.max_filtered, d.max_ripple,
              d.max_innov, d.max_state, d.max_amp, d.max_s_rel, d.max_cov_rel, d.scale,
-             TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps, d.jumps,
+             tol_x * TOL_REL_SCALE * d.scale, d.frozen_steps, d.clamped_steps, d.jumps,
              d.jump_disagreements);
     TEST_MESSAGE(msg);
-    double tol = TOL_REL_SCALE * d.scale;
+    double tol = tol_x * TOL_REL_SCALE * d.scale;
     rel_measured(key, "states=%d filtered=%.2g innovation=%.2g state=%.2g s_rel=%.2g p_rel=%.2g "
                  "tol=%.2g tol_rel=%g sp_bound=%g frozen=%lu clamped=%lu jumps=%lu", ref.n,
                  d.max_filtered, d.max_innov,
@@ -328,7 +335,7 @@ static void compare_run_toggles(const char *key, const char *name, const hd_kf_c
 static void compare_run(const char *key, const char *name, const hd_kf_config_t *cfg,
                         signal_t sig)
 {
-    compare_run_toggles(key, name, cfg, sig, NULL, 0u);
+    compare_run_toggles(key, name, cfg, sig, NULL, 0u, 1.0);
 }
 
 /* 4 states: the paper's fourth-order model (Q = 1e3 I, R = 1). */
@@ -432,11 +439,19 @@ static void recommended_8_cfg(hd_kf_config_t *cfg, float k)
 /* T_ref = T_exp + offset (offset real torque, primed at the first sample):
  * load steps and ramps through zero, offset step (jump gate), standstill,
  * reversals, motor order 8 frozen at 450 rad/s. */
+/* T_ref = T_exp + the offset estimate: the row depends on the state.  After
+ * the load step's jumps the filter rings for ~50 ms with innovations of
+ * 30-100 sigma (the double reference the same), where float32 rounding is
+ * amplified by the gain e / S: compared at TOL_LOAD_OFFSET_X the scale's
+ * tolerance (measured 1.7x; the k = 0 run stays > 100x away). */
+#define TOL_LOAD_OFFSET_X 2.5
 static void test_reference_load_coeff_recommended(void)
 {
     hd_kf_config_t cfg;
     recommended_8_cfg(&cfg, K_FILTER_PER_NM);
-    compare_run("ref_load_recommended", "load k, recommended + motor 8 (T_ref = T_exp + offset)", &cfg, SIG_LOAD);
+    compare_run_toggles("ref_load_recommended",
+                        "load k, recommended + motor 8 (T_ref = T_exp + offset)", &cfg, SIG_LOAD,
+                        NULL, 0u, TOL_LOAD_OFFSET_X);
 }
 
 /* T_ref = T_exp alone (the offset is a sensor error); every lock kind, so
@@ -493,7 +508,7 @@ static void test_reference_block_toggles(void)
     cfg.blocks[3].enabled = 0;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
     compare_run_toggles("ref_toggles", "block toggles, recommended + motor 8 (configured off)", &cfg, SIG_BASE,
-                        toggles, sizeof toggles / sizeof toggles[0]);
+                        toggles, sizeof toggles / sizeof toggles[0], 1.0);
 }
 
 /* ---- the step turns by the sample's own increment ------------------------

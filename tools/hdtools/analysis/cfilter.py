@@ -43,10 +43,11 @@ LOCK_BY_NAME = {v: k for k, v in LOCK_NAMES.items()}
 # hd_kf_output_t.status bits (HD_KF_STATUS_* in filter/hd_kf.h).  The names
 # are the C library's (hd_kf_status_name); tests/filter/test_cfilter_names.py
 # checks every bit against it.
-STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED, STATUS_OFFSET_JUMP = (
-    1, 2, 4, 8, 16)
+(STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED, STATUS_OFFSET_JUMP,
+ STATUS_LIMITED) = (1, 2, 4, 8, 16, 32)
 STATUS_BITS = {"FROZEN": STATUS_FROZEN, "BAD_INPUT": STATUS_BAD_INPUT, "RESET": STATUS_RESET,
-               "P_CLAMPED": STATUS_P_CLAMPED, "OFFSET_JUMP": STATUS_OFFSET_JUMP}
+               "P_CLAMPED": STATUS_P_CLAMPED, "OFFSET_JUMP": STATUS_OFFSET_JUMP,
+               "LIMITED": STATUS_LIMITED}
 
 
 class BlockConfig(ctypes.Structure):
@@ -71,12 +72,13 @@ class KfConfig(ctypes.Structure):
                 ("nyquist_fraction", c_float),
                 ("offset_jump_nm", c_float),
                 ("ripple_load_coeff_per_nm", c_float),
-                ("output_learn_scale", c_float)]
+                ("output_learn_scale", c_float),
+                ("correction_max_nm", c_float)]
 
     # Fields the analysis model carries one-to-one (see model.Model).
     SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
                "output_p0_nm2", "q_motion_ref_rad", "p_max_nm2", "nyquist_fraction",
-               "offset_jump_nm", "ripple_load_coeff_per_nm")
+               "offset_jump_nm", "ripple_load_coeff_per_nm", "correction_max_nm")
 
     def add_block(self, lock: int, order: float, q_nm2: float) -> int:
         if self.block_count >= MAX_BLOCKS:
@@ -131,7 +133,14 @@ class KfState(ctypes.Structure):
                 ("reset_count", c_uint32),
                 ("bad_input_count", c_uint32),
                 ("p_ceiling_count", c_uint32),
-                ("p_negative_count", c_uint32)]
+                ("p_negative_count", c_uint32),
+                ("jump_rearm_steps", c_uint32),
+                ("jump_hold_steps", c_uint32),
+                ("jump_credit", c_uint32),
+                ("jump_held_count", c_uint32),
+                ("limit_restart_steps", c_uint32),
+                ("limit_steps", c_uint32),
+                ("limit_count", c_uint32)]
 
 
 class Track(ctypes.Structure):

@@ -66,6 +66,7 @@ class Model:
     nyquist_fraction: float = 0.9
     offset_jump_nm: float = 0.0
     ripple_load_coeff_per_nm: float = 0.0
+    correction_max_nm: float = 0.0
     inertia_kgm2: float = 0.0
     viscous_nm_s_rad: float = 0.0
     coulomb_nm: float = 0.0
@@ -173,7 +174,8 @@ class Model:
                  f"output_p0_nm2 = {self.output_p0_nm2:.6g}",
                  f"offset_jump_nm = {self.offset_jump_nm:.6g}",
                  f"q_motion_ref_rad = {self.q_motion_ref_rad:.6g}",
-                 f"ripple_load_coeff_per_nm = {self.ripple_load_coeff_per_nm:.6g}"]
+                 f"ripple_load_coeff_per_nm = {self.ripple_load_coeff_per_nm:.6g}",
+                 f"correction_max_nm = {self.correction_max_nm:.6g}"]
         for b in self.blocks:
             lines.append(f"block = {b.lock} {b.order:.6g} {b.q_nm2:.6g}")
         lines += [f"inertia_kgm2 = {self.inertia_kgm2:.6g}",

@@ -344,6 +344,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
             e["line_amplitude_in_filtered_before_nm"] = augment.line_amplitude(vb, e["kind"], o)
             e["line_amplitude_in_filtered_after_nm"] = augment.line_amplitude(va, e["kind"], o)
     lines = _lines_table(m_ref, m1, v_ref, vb, va)
+    m1.correction_max_nm = correction_envelope(lines, _noise_of(m1))
     profile_doc = prof.build(data, m1, g, session.runs)
     report = {
         "input": str(path),
@@ -410,6 +411,19 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     report["data"]["replays_full_record_equivalent"] = rp.REPLAYED["samples"] / max(data.n, 1)
     outputs.write(report, res, data, m1, title=_stem(path), node_id=node_id)
     return report
+
+
+ENVELOPE_MARGIN = 1.5
+ENVELOPE_NOISE_SIGMAS = 10.0
+
+
+def correction_envelope(lines, noise_nm):
+    """The firmware's correction_max_nm for this joint: ENVELOPE_MARGIN x the
+    sum of its lines' amplitudes in the raw torque (every line of the
+    reference and final models: the most the correction can ever need to
+    be) plus ENVELOPE_NOISE_SIGMAS x the noise."""
+    total = sum(max(0.0, float(ln.get("raw_amplitude_nm") or 0.0)) for ln in lines)
+    return float(f"{ENVELOPE_MARGIN * total + ENVELOPE_NOISE_SIGMAS * noise_nm:.4g}")
 
 
 def _without_feedforward(data, fold, models):
