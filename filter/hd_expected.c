@@ -55,6 +55,13 @@ hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur)
             return HD_KF_ERR_EXPECTED_CONFIG;
         }
     }
+    /* k_i = N kt eta and k_b = N kt / eta_b: k_i / k_b = eta eta_b must lie
+     * in [HD_EXPECTED_MIN_EFFICIENCY_PRODUCT, 1] */
+    if (cur->backdrive_nm_per_a > 0.0f && cur->nm_per_a > 0.0f &&
+        (cur->backdrive_nm_per_a < cur->nm_per_a ||
+         cur->nm_per_a < HD_EXPECTED_MIN_EFFICIENCY_PRODUCT * cur->backdrive_nm_per_a)) {
+        return HD_KF_ERR_EXPECTED_CONFIG;
+    }
     return HD_KF_OK;
 }
 

@@ -62,8 +62,15 @@ float hd_expected_torque_nm(const hd_expected_config_t *cfg,
                             float vel_out_rad_s, float acc_out_rad_s2,
                             float feedforward_nm);
 
-/* HD_KF_OK if every field is finite and >= 0; HD_KF_ERR_NULL for NULL,
- * else HD_KF_ERR_EXPECTED_CONFIG. */
+/* The least product of the two efficiencies (driving x driven) a model may
+ * imply: below it no gear transmits. */
+#define HD_EXPECTED_MIN_EFFICIENCY_PRODUCT 0.01f
+
+/* HD_KF_OK if every field is finite and >= 0 and, with both gains set, the
+ * efficiencies they imply are physical: nm_per_a / backdrive_nm_per_a =
+ * eta x eta_b in [HD_EXPECTED_MIN_EFFICIENCY_PRODUCT, 1] (backdrive at
+ * least nm_per_a); HD_KF_ERR_NULL for NULL, else
+ * HD_KF_ERR_EXPECTED_CONFIG. */
 hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur);
 
 /* T_cur above (with k_b where it applies); the Coulomb sign and the

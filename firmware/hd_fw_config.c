@@ -74,6 +74,11 @@ hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)
         hd_expected_current_check(&cfg->current) != HD_KF_OK) {
         return HD_FW_ERR_EXPECTED;
     }
+    /* a line may grow at most HD_FW_MAX_LOAD_GROWTH-fold up to the torque
+     * limit: beyond, the coefficient is not a gear's */
+    if (cfg->kf.ripple_load_coeff_per_nm * cfg->torque_limit_nm > HD_FW_MAX_LOAD_GROWTH) {
+        return HD_FW_ERR_KF;
+    }
     return HD_FW_OK;
 }
 
@@ -82,7 +87,8 @@ const char *hd_fw_err_str(int err)
     switch (err) {
     case HD_FW_OK: return "ok";
     case HD_FW_ERR_NULL: return "null argument";
-    case HD_FW_ERR_KF: return "filter configuration rejected (hd_kf_config_check)";
+    case HD_FW_ERR_KF: return "filter configuration rejected (hd_kf_config_check, or "
+                              "ripple_load_coeff_per_nm x torque_limit_nm above 100)";
     case HD_FW_ERR_EXPECTED: return "expected-torque configuration rejected";
     case HD_FW_ERR_RANGE: return "a parameter is outside its range (hd_params.def)";
     case HD_FW_ERR_TS: return "filter sample period must be 1 ms";

@@ -32,6 +32,9 @@ extern "C" {
 /* No strain-wave gear of this class carries 8 N m of ripple: a correction
  * beyond it is a wrong estimate (hdsense analyze writes the joint's own). */
 #define HD_FW_DEFAULT_CORRECTION_MAX_NM 8.0f
+/* ripple_load_coeff_per_nm x torque_limit_nm at most this (a line 101x its
+ * zero-load amplitude at the limit). */
+#define HD_FW_MAX_LOAD_GROWTH 100.0f
 
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */

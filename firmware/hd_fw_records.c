@@ -3,6 +3,7 @@
  * background context.  See hd_fw_records.h and docs/records.md. */
 #include "hd_fw_records.h"
 
+#include <math.h> /* sqrtf: an instruction with -fno-math-errno */
 #include <string.h>
 
 #include "hd_fw_internal.h"
@@ -233,11 +234,20 @@ static hd_record_status_t profile_fits(const hd_fw_config_t *c, const hd_profile
         return HD_RECORD_REFUSED;
     }
     const float lim2 = c->torque_limit_nm * c->torque_limit_nm;
+    float peak_nm = 0.0f;
     for (unsigned i = 0; i < r->profile.line_count; i++) {
         const hd_kf_profile_line_t *l = &r->profile.lines[i];
-        if (l->a_nm * l->a_nm + l->b_nm * l->b_nm > lim2) {
+        const float a2 = l->a_nm * l->a_nm + l->b_nm * l->b_nm;
+        if (a2 > lim2) {
             return HD_RECORD_CORRUPT;
         }
+        peak_nm += sqrtf(a2); /* background only: VSQRT on the M4F */
+    }
+    /* lines whose peak sum is beyond the correction envelope would hold the
+     * correction at its limit: not this joint's */
+    const float env = c->kf.correction_max_nm;
+    if (env > 0.0f && peak_nm > env) {
+        return HD_RECORD_REFUSED;
     }
     return HD_RECORD_OK;
 }

@@ -119,6 +119,12 @@ static void test_malformed_files_report_the_line_and_change_nothing(void)
         {"telemetry_rate_hz = 2.5\n", HD_FW_ERR_SYNTAX, 1},
         /* each line fine, the whole refused (p0 / R beyond float32) */
         {"r_nm2 = 1e-6\np0_nm2 = 100\n", HD_FW_ERR_KF, 0},
+        /* physically absurd: a line 121x its zero-load size at the torque
+         * limit; a current model with eta x eta_b > 1; a negative envelope */
+        {"ripple_load_coeff_per_nm = 0.6\n", HD_FW_ERR_KF, 0},
+        {"ripple_load_coeff_per_nm = 0.2\ntorque_limit_nm = 1000\n", HD_FW_ERR_KF, 0},
+        {"current_nm_per_a = 10\ncurrent_backdrive_nm_per_a = 9\n", HD_FW_ERR_EXPECTED, 0},
+        {"correction_max_nm = -1\n", HD_FW_ERR_RANGE, 1},
         /* decimal only: a leading zero is not octal, it is an error */
         {"motor_cpr = 01024\n", HD_FW_ERR_SYNTAX, 1},
         {"node_id = 0x10\n", HD_FW_ERR_SYNTAX, 1},

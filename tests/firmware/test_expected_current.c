@@ -109,11 +109,33 @@ static void test_current_config_check(void)
     }
 }
 
+/* k_i = N kt eta, k_b = N kt / eta_b: k_i / k_b = eta eta_b.  A model with
+ * k_b below k_i says eta eta_b > 1 (a gear that makes energy), one with
+ * k_b above 100 k_i says below 1 % (no gear): both refused; k_b = k_i (one
+ * efficiency of 1) and either gain alone are accepted. */
+static void test_current_efficiencies_must_be_physical(void)
+{
+    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f, 9.9f};
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_current_check(&c));
+    c.backdrive_nm_per_a = 10.0f;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
+    c.backdrive_nm_per_a = 10.0f / HD_EXPECTED_MIN_EFFICIENCY_PRODUCT;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
+    c.backdrive_nm_per_a = 1.01f * 10.0f / HD_EXPECTED_MIN_EFFICIENCY_PRODUCT;
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_current_check(&c));
+    c.backdrive_nm_per_a = 0.0f; /* one efficiency */
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
+    c.nm_per_a = 0.0f;
+    c.backdrive_nm_per_a = 3.0f; /* current unused: nothing to compare */
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_current_term_matches_the_closed_form);
     RUN_TEST(test_backdrive_gain_where_the_load_drives_the_motor);
     RUN_TEST(test_current_config_check);
+    RUN_TEST(test_current_efficiencies_must_be_physical);
     return UNITY_END();
 }

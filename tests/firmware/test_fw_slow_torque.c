@@ -422,6 +422,20 @@ static void test_profile_for_another_output_encoder_is_refused(void)
     check_refused(HD_RECORD_REFUSED);
 }
 
+/* LINES peak at 1.44 N m (the sum of their amplitudes): with the correction
+ * envelope below that the profile would hold the correction at its limit,
+ * so it is not this joint's; at 1.5 N m it is used. */
+static void test_profile_beyond_the_correction_envelope_is_refused(void)
+{
+    store_profile(100.0f, CPR, CPR, LINES, 3);
+    cfg.kf.correction_max_nm = 1.4f;
+    check_refused(HD_RECORD_REFUSED);
+    store_profile(100.0f, CPR, CPR, LINES, 3);
+    cfg.kf.correction_max_nm = 1.5f;
+    boot_filtering();
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_fw_record_status(&fw, HD_RECORD_KIND_PROFILE));
+}
+
 static void test_profile_of_another_version_is_refused(void)
 {
     uint8_t p[128];
@@ -875,6 +889,7 @@ int main(void)
     RUN_TEST(test_profile_for_another_gear_ratio_is_refused);
     RUN_TEST(test_profile_for_another_motor_encoder_is_refused);
     RUN_TEST(test_profile_for_another_output_encoder_is_refused);
+    RUN_TEST(test_profile_beyond_the_correction_envelope_is_refused);
     RUN_TEST(test_profile_of_another_version_is_refused);
     RUN_TEST(test_corrupt_profile_is_refused);
     RUN_TEST(test_one_bad_copy_still_boots_the_profile);

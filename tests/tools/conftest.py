@@ -48,6 +48,14 @@ def analyzed(case_report):
     return case_report
 
 
+def never_worse_out_of_sample(history):
+    """Every kept change lowered (or kept) the held-out innovation, by the
+    measure it was judged on (its likelihood for R, else its RMS)."""
+    for h0, h1 in zip(history, history[1:]):
+        key = "out_of_sample_" + h1.get("judged_by", "innovation_rms_nm")
+        assert h1[key] <= h0[key] + 1e-6 * abs(h0[key]), (h1["change"], key, h0[key], h1[key])
+
+
 def added(report):
     return [e for e in report["effects"] if e["added"]]
 

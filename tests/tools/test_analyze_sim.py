@@ -11,7 +11,7 @@ import re
 
 import pytest
 
-from conftest import added
+from conftest import added, never_worse_out_of_sample
 
 
 def _only(report, kind):
@@ -22,9 +22,7 @@ def _only(report, kind):
 
 
 def _never_worse_out_of_sample(r):
-    for h0, h1 in zip(r["history"], r["history"][1:]):
-        assert h1["out_of_sample_innovation_rms_nm"] <= h0["out_of_sample_innovation_rms_nm"] * (
-            1 + 1e-6), r["history"]
+    never_worse_out_of_sample(r["history"])
 
 
 def test_clean_case_adds_nothing(analyzed):

@@ -24,8 +24,13 @@ ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "bench.md"
 DOC_JSON = ROOT / "docs" / "results" / "bench.json"
 DOC_PLOT = ROOT / "docs" / "img" / "bench_accuracy.png"
+RANDOM_DOC = ROOT / "docs" / "random-joints.md"
+RANDOM_JSON = ROOT / "docs" / "results" / "random.json"
 BEGIN = "<!-- bench:results:begin -->"
 END = "<!-- bench:results:end -->"
+
+
+PARTS = ["accuracy", "slow", "random", "real", "host", "target"]
 
 
 def register(subparsers) -> None:
@@ -34,7 +39,11 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=Path, default=ROOT / "out" / "bench",
                    help="output directory (default out/bench)")
     p.add_argument("--skip", action="append", default=[],
-                   choices=["accuracy", "slow", "real", "host", "target"], help="skip a part")
+                   choices=PARTS, help="skip a part")
+    p.add_argument("--only", action="append", default=[], choices=PARTS,
+                   help="run only this part (repeatable)")
+    p.add_argument("--random-joints", type=int, default=32, metavar="N",
+                   help="joints of the random-joint part (default 32; --quick: 4)")
     p.add_argument("--quick", action="store_true",
                    help="tiny sizes (smoke test): short runs, 2 real segments, few reps")
     p.add_argument("--update-docs", action="store_true",
@@ -46,7 +55,12 @@ def run(args) -> int:
     from .bench import accuracy, compute, goals, real, report
     if args.update_docs and args.quick:
         raise UsageError("--update-docs writes the documented numbers: run without --quick")
-    doc_text = read_doc() if args.update_docs else None
+    if args.only:
+        args.skip = [x for x in PARTS if x not in args.only]
+    if not 1 <= args.random_joints <= 1000:
+        raise UsageError(f"--random-joints must be 1..1000 (got {args.random_joints})")
+    doc_text = read_doc() if args.update_docs and "accuracy" not in args.skip else None
+    random_text = read_doc(RANDOM_DOC) if args.update_docs and "random" not in args.skip else None
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -66,6 +80,11 @@ def run(args) -> int:
         from .bench import slow
         print("slow-torque benchmark (firmware on the simulated joint)...", file=sys.stderr)
         results["slow"] = slow.run(quick=bool(args.quick))
+    if "random" not in args.skip:
+        from .bench import random_bench
+        print("random-joint benchmark (firmware and analysis on drawn joints)...", file=sys.stderr)
+        results["random"] = random_bench.bench(4 if args.quick else args.random_joints,
+                                               log=lambda s: print("  " + s, file=sys.stderr))
     if "real" not in args.skip:
         print("real iiwa logs...", file=sys.stderr)
         files = sorted(real.DATA_DIR.glob("*.csv"))
@@ -113,6 +132,13 @@ def run(args) -> int:
                 report.plot(results, tmp)
                 png = Path(tmp).read_bytes()
             written.append(plot)
+        if random_text is not None:
+            from .bench import random_report
+            import json
+            out.write_text(RANDOM_DOC, splice(random_text, f"_{header}_\n\n"
+                                              + random_report.markdown(results["random"])))
+            out.write_text(RANDOM_JSON, json.dumps(results["random"], indent=1) + "\n")
+            written += [RANDOM_DOC, RANDOM_JSON]
         if doc_text is not None:
             out.write_text(DOC, splice(doc_text, md))
             out.write_text(DOC_JSON, js)
@@ -125,16 +151,16 @@ def run(args) -> int:
     return 0
 
 
-def read_doc() -> str:
-    """docs/bench.md (checked before the benchmark runs: its markers)."""
+def read_doc(doc: Path = DOC) -> str:
+    """A generated doc (checked before the benchmark runs: its markers)."""
     try:
-        text = DOC.read_text()
+        text = doc.read_text()
     except FileNotFoundError:
         return f"# Benchmarks\n\n{BEGIN}\n{END}\n"
     except OSError as exc:
-        raise UsageError(f"{DOC}: cannot read: {exc.strerror}") from None
+        raise UsageError(f"{doc}: cannot read: {exc.strerror}") from None
     if BEGIN not in text or END not in text:
-        raise UsageError(f"{DOC}: the generated-results markers {BEGIN} / {END} are missing")
+        raise UsageError(f"{doc}: the generated-results markers {BEGIN} / {END} are missing")
     return text
 
 

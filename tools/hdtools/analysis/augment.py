@@ -241,6 +241,16 @@ def _fold_metrics(met):
     return out
 
 
+NLL_EPS = 1e-3
+
+
+def judged_by(c) -> str:
+    """The held-out innovation measure a change is kept on: the likelihood
+    for R (the innovation's predicted variance), the RMS for the rest."""
+    return ("innovation_nll" if c.action == "set_tuning" and "noise_nm" in c.params
+            else "innovation_rms_nm")
+
+
 def judge(c, runs0, m0, runs1, m1, model0):
     """Returns (keep, evidence); every number that decides is from fold B."""
     B = "out_of_sample_"
@@ -251,7 +261,17 @@ def judge(c, runs0, m0, runs1, m1, model0):
     if m1.get("filter_resets", 0) > m0.get("filter_resets", 0):
         ev["rejected_because"] = "the filter reset itself with this change"
         return False, ev
-    if innov_change > INNOV_EPS:
+    if judged_by(c) == "innovation_nll":
+        # R is the innovation's predicted variance: judged by the held-out
+        # likelihood of the innovation (its RMS alone falls with any R the
+        # blocks may chase the load with)
+        n0, n1 = m0.get(B + "innovation_nll"), m1.get(B + "innovation_nll")
+        ev.update({"held_out_innovation_nll_before": n0, "held_out_innovation_nll_after": n1})
+        if n0 is not None and n1 is not None and n1 > n0 + NLL_EPS:
+            ev["rejected_because"] = (f"the held-out innovation likelihood fell (NLL {n0:.4g} -> "
+                                      f"{n1:.4g})")
+            return False, ev
+    elif innov_change > INNOV_EPS:
         ev["rejected_because"] = (f"the held-out innovation grew ({i0:.4g} -> {i1:.4g} N m)")
         return False, ev
     vb0, vb1 = rp.analysis_view(runs0, rp.HELD_OUT), rp.analysis_view(runs1, rp.HELD_OUT)
@@ -379,7 +399,8 @@ class Session:
                  + (f": {ev['rejected_because']}" if not keep else ""))
         if keep:
             self.model, self.runs, self.met = trial, runs1, met1
-            self.history.append({"step": len(self.history), "change": _describe(c), **met1})
+            self.history.append({"step": len(self.history), "change": _describe(c),
+                                 "judged_by": judged_by(c), **met1})
             if c.action == "expected_torque":
                 self.generation += 1
         return keep

@@ -147,13 +147,12 @@ def _tune_subset(data, fold):
     return data.subset(pieces), folds
 
 
-def _first_near_least(table, current):
+def _first_near_least(table, current, key="in_sample_innovation_rms_nm"):
     """Among the grid entries (ordered by preference) whose in-sample
-    innovation is no larger than the current model's (the keep rule, in
-    fold A), the first whose modelled ripple left is within 25 % of the
-    least."""
-    ok = [r for r in table
-          if r["in_sample_innovation_rms_nm"] <= current["in_sample_innovation_rms_nm"] * (1 + 1e-9)]
+    innovation (its RMS, or for R its likelihood: key) is no worse than the
+    current model's (the keep rule, in fold A), the first whose modelled
+    ripple left is within 25 % of the least."""
+    ok = [r for r in table if r[key] <= current[key] + 1e-9 * abs(current[key])]
     ok = ok or [current]
     lo = min(r["lines_left_nm"] for r in ok)
     return next(r for r in ok if r["lines_left_nm"] <= 1.25 * lo + 1e-12)
@@ -189,7 +188,7 @@ def tune(session, noise_est):
     noise_table = tune_grid(session.data, session.fold,
                             [(noise_est * f, m.with_noise(noise_est * f)) for f in NOISE_GRID],
                             "noise_nm")
-    best = _first_near_least(noise_table, noise_table[0])
+    best = _first_near_least(noise_table, noise_table[0], "in_sample_innovation_nll")
     if best is not noise_table[0]:
         c = augment.detect.Candidate("tuning", best["noise_nm"], action="set_tuning",
                                      params={"noise_nm": best["noise_nm"]},
@@ -337,6 +336,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
            "windows": {"reference": w_ref, "before": w_b, "after": rp.window(session.runs)},
            "effects": session.effects}
     effects = _merge(session.effects, g["value"])
+    _note_fixed_ambiguity(effects, data, g["value"], log)
     for e in effects:
         if e["kind"] in ("motor_order", "output_order", "fixed_frequency"):
             o = e.get("order_per_motor_rev") if e["kind"] == "motor_order" else (
@@ -411,6 +411,48 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     report["data"]["replays_full_record_equivalent"] = rp.REPLAYED["samples"] / max(data.n, 1)
     outputs.write(report, res, data, m1, title=_stem(path), node_id=node_id)
     return report
+
+
+ONE_SPEED_BAND = 0.03       # |motor speed| within 3 % of its median ...
+ONE_SPEED_SHARE = 0.9       # ... over 90 % of the moving samples: one speed
+
+
+def one_speed_hz(data, gear_ratio):
+    """The motor's turning rate [rev/s] when the log holds (almost) one
+    |speed| (a commissioning run), else None: there a line at f Hz is a
+    motor order f / rate as well, and the log cannot tell which."""
+    w = []
+    for p in data.pieces:
+        th = p.motor_angle_rad if data.has_motor else (
+            None if p.output_angle_rad is None else p.output_angle_rad * gear_ratio)
+        if th is not None and len(th) > 2:
+            w.append(np.abs(np.diff(np.asarray(th, float))) / data.ts_s)
+    if not w:
+        return None
+    w = np.concatenate(w)
+    moving = w[w > 0.05 * w.max()] if w.max() > 0 else w[:0]
+    if len(moving) < 100:
+        return None
+    med = float(np.median(moving))
+    share = float(np.mean(np.abs(moving - med) <= ONE_SPEED_BAND * med))
+    return med / (2 * np.pi) if share >= ONE_SPEED_SHARE else None
+
+
+def _note_fixed_ambiguity(effects, data, gear_ratio, log):
+    """A kept motor-order or fixed line on a one-speed log: which of the
+    two it is, the log cannot say; the report says so (and what would)."""
+    rate = one_speed_hz(data, gear_ratio)
+    if rate is None:
+        return
+    for e in effects:
+        if not e.get("added") or e["kind"] not in ("motor_order", "fixed_frequency"):
+            continue
+        f = (e.get("order_per_motor_rev") or 0.0) * rate if e["kind"] == "motor_order" else (
+            e.get("frequency_hz") or 0.0)
+        e["ambiguous"] = (f"the log turns at one speed ({rate:.4g} rev/s at the motor): a line at "
+                          f"{f:.4g} Hz is also motor order {f / rate:.4g}; a log whose speed "
+                          "varies tells a fixed-frequency line from a motor-locked one")
+        log(f"note: {e['ambiguous']}")
 
 
 ENVELOPE_MARGIN = 1.5

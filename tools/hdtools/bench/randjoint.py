@@ -121,6 +121,7 @@ class Joint:
             f"motor_speed_profile = {prof}"] + self.joint_lines())
 
     def operating_ini(self, seed_offset: int = 2) -> str:
+        seed_offset += 10 * int(self.extra.get("day", 0))
         """OPERATE_S of operation: the drawn speed plan and unknown slow loads."""
         prof = ", ".join(f"{t:.6g}:{v * self.gear_ratio:.6g}" for t, v in self.operate_plan)
         ts, step = self.load_step
@@ -131,6 +132,19 @@ class Joint:
                   f"{ts + 0.2:.6g}:{c + step:.6g}"]
         motion += [f"load_sine = {a:.6g} : {p:.6g} : {ph:.6g}" for a, p, ph in self.load_sines]
         return _ini(f"random joint {self.seed}: operation", motion + self.joint_lines())
+
+    def another_day(self, day: int = 1) -> "Joint":
+        """The same joint (lines, friction, encoders, undeclared effect) on
+        another day: its own operating plan and slow loads, drawn from their
+        own stream."""
+        from dataclasses import replace
+        rng = np.random.Generator(np.random.PCG64([self.seed, 100 + day]))
+        return replace(self, seed=self.seed, operate_plan=_speed_plan(rng),
+                       load_constant_nm=_u(rng, "load_constant_nm"),
+                       load_sines=_load_sines(rng),
+                       load_step=(float(rng.uniform(10.0, OPERATE_S - 10.0)),
+                                  _u(rng, "load_step_nm")),
+                       extra={"day": day})
 
     def describe(self) -> dict:
         d = {"seed": self.seed, "gear_ratio": self.gear_ratio,
@@ -171,6 +185,12 @@ def _speed_plan(rng) -> list:
     return plan
 
 
+def _load_sines(rng) -> list:
+    return [(_u(rng, "load_sine_amplitude_nm"), _u(rng, "load_sine_period_s"),
+             float(rng.uniform(-math.pi, math.pi)))
+            for _ in range(int(rng.integers(LOAD_SINES[0], LOAD_SINES[1] + 1)))]
+
+
 def draw(seed: int, undeclared: bool | int = False) -> Joint:
     """The joint of this seed; undeclared: False (declared lines only), True
     (one undeclared effect drawn from UNDECLARED) or an index into it."""
@@ -184,9 +204,7 @@ def draw(seed: int, undeclared: bool | int = False) -> Joint:
         motor_cpr=int(rng.choice(ENCODER_CPRS)), output_cpr=int(rng.choice(ENCODER_CPRS)),
         commission_speed_rad_s=_u(rng, "commission_speed_rad_s"),
         operate_plan=_speed_plan(rng), load_constant_nm=_u(rng, "load_constant_nm"),
-        load_sines=[(_u(rng, "load_sine_amplitude_nm"), _u(rng, "load_sine_period_s"),
-                     float(rng.uniform(-math.pi, math.pi)))
-                    for _ in range(int(rng.integers(LOAD_SINES[0], LOAD_SINES[1] + 1)))],
+        load_sines=_load_sines(rng),
         load_step=(float(rng.uniform(10.0, OPERATE_S - 10.0)), _u(rng, "load_step_nm")))
     # The undeclared effect is drawn last, from its own stream, so a joint
     # with it is the same joint as without.

@@ -10,6 +10,9 @@ or is told by the project's own tools from the commissioning log):
               the operating run booted from that NVM (operating mode);
   analyze     `hdsense analyze` of the commissioning log -> model.cfg +
               profile.json -> `hdsense profile record` -> the operating run;
+  analyze_op  the same from the operating log of another day of the joint
+              (its own speed plan and loads): a fixed-frequency line can be
+              told from a motor-locked one only where the speed varies;
   adaptive    learning_mode 0 on the operating run, no profile;
   commission  learning_mode 2 on the operating run, no profile;
   operating   learning_mode 1 (the default) on the operating run, no profile.
@@ -32,7 +35,7 @@ from . import randjoint
 from .joint import (HDSENSE, compose_config, firmware_commissioning, load_csv, nominal,
                     run_firmware, run_tool, simulate)
 
-PATHS = ("self", "analyze", "adaptive", "commission", "operating")
+PATHS = ("self", "analyze", "analyze_op", "adaptive", "commission", "operating")
 MODES = {"adaptive": "0", "commission": "2", "operating": "1"}
 GOAL_RATIO = 1.5
 SKIP_S = 1.0
@@ -71,16 +74,17 @@ def score(filtered, sim: dict) -> Score:
     return Score(_rms(np.asarray(filtered)[keep] - truth), _rms(meas - truth), _rms(floor))
 
 
-def _analyze(com_csv: Path, wd: Path, nom: dict) -> tuple[str, Path | None, str]:
-    """model.cfg and a profile record from `hdsense analyze` of the
-    commissioning log: (config text, record or None, note)."""
-    an = wd / "analyze"
+def _analyze(com_csv: Path, wd: Path, nom: dict, tag: str = "analyze"
+             ) -> tuple[str, Path | None, str]:
+    """model.cfg and a profile record from `hdsense analyze` of a log:
+    (config text, record or None, note)."""
+    an = wd / tag
     run_tool([HDSENSE, "analyze", com_csv, "--gear-ratio", f"{nom['gear_ratio']:.9g}",
               "--out", an, "--json", an / "report.json", "--quiet"], "hdsense analyze")
     rep = json.loads((an / "report.json").read_text())
     note = rep.get("starting_profile_fit", {})
     kept = [o["order"] for o in note.get("orders", [])]
-    rec = wd / "analyze.hdprofile"
+    rec = wd / f"{tag}.hdprofile"
     try:
         run_tool([HDSENSE, "profile", "record", an / "profile.json", "-o", rec,
                   "--gear-ratio", f"{nom['gear_ratio']:.9g}", "--motor-cpr",
@@ -111,6 +115,17 @@ def run_joint(joint: randjoint.Joint, wd: Path, paths=PATHS) -> dict:
         filt, _ = run_firmware(op_ini, compose_config(cfg, NO_DYNAMICS), wd, "analyze",
                                profile=rec)
         out["paths"]["analyze"] = score(filt, op_sim).to_dict()
+    if "analyze_op" in paths:
+        day = joint.another_day(1)
+        day_ini = wd / f"{joint.name}_day1.ini"
+        day_ini.write_text(day.operating_ini())
+        day_csv = wd / "day1_sim.csv"
+        simulate(day_ini, day_csv)
+        cfg, rec, note = _analyze(day_csv, wd, nom, "analyze_op")
+        out["notes"]["analyze_op"] = note
+        filt, _ = run_firmware(op_ini, compose_config(cfg, NO_DYNAMICS), wd, "analyze_op",
+                               profile=rec)
+        out["paths"]["analyze_op"] = score(filt, op_sim).to_dict()
     for p, mode in MODES.items():
         if p in paths:
             filt, _ = run_firmware(op_ini, f"learning_mode = {mode}\n", wd, p)
@@ -152,3 +167,25 @@ def run(seeds, undeclared: bool, paths=PATHS, log=None) -> dict:
 
 def fmt(x: float) -> str:
     return "n/a" if x is None or not math.isfinite(x) else f"{x:.3g}"
+
+
+def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> dict:
+    """What tests/tools/test_random_joints.py holds the CI sample to: its
+    seeds, the self-commissioned share within GOAL_RATIO and median."""
+    r = run(seeds, False, paths)
+    d = r["paths"]["self"]
+    return {"seeds": [int(s) for s in seeds], "self_within_goal": d["within_goal"],
+            "self_median": d["median"], "paths": r["paths"]}
+
+
+def bench(n_joints: int, log=None) -> dict:
+    """The benchmark: n_joints report seeds, declared effects only and with
+    one undeclared effect each, every path; plus the CI sample's record."""
+    seeds = list(randjoint.REPORT_SEEDS[:n_joints])
+    out = {"seeds": f"REPORT_SEEDS[:{n_joints}] = {seeds[0]}..{seeds[-1]}",
+           "tuned_on": f"TUNE_SEEDS ({randjoint.TUNE_SEEDS.start}..{randjoint.TUNE_SEEDS.stop - 1})",
+           "goal_ratio": GOAL_RATIO}
+    for key, und in (("declared", False), ("undeclared", True)):
+        out[key] = run(seeds, und, PATHS, log)
+    out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
+    return out
