@@ -166,7 +166,7 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
 const char *hd_kf_status_name(unsigned bit)
 {
     static const char *const NAMES[HD_KF_STATUS_BITS] = {
-        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP", "LIMITED"};
+        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP", "LIMITED", "UNMODELLED"};
     return bit < HD_KF_STATUS_BITS ? NAMES[bit] : NULL;
 }
 

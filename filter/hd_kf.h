@@ -58,8 +58,8 @@
  *     return) is at most HD_KF_JUMP_BURST jumps: the gate takes no more
  *     until HD_KF_JUMP_REARM_S of steps in a row have stayed within it;
  *     each step beyond it restarts that count, and one beyond it with no
- *     jump left is counted in jump_held_count (an effect the model lacks,
- *     not a load step).
+ *     jump left is HD_KF_STATUS_UNMODELLED, counted in jump_held_count (an
+ *     effect the model lacks, not a load step).
  *
  * Invariants kept every step:
  *   - P (the posterior's) is stored once (packed upper triangle), so it is
@@ -210,7 +210,9 @@ typedef struct {
 #define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* covariance brought back to PSD, <= p_max */
 #define HD_KF_STATUS_OFFSET_JUMP (1u << 4) /* innovation beyond the gate: offset jump */
 #define HD_KF_STATUS_LIMITED     (1u << 5) /* correction held at correction_max_nm */
-#define HD_KF_STATUS_BITS 6u               /* bits [0, HD_KF_STATUS_BITS) are defined */
+#define HD_KF_STATUS_UNMODELLED  (1u << 6) /* beyond the held jump gate: an effect the
+                                              model lacks (jump_held_count) */
+#define HD_KF_STATUS_BITS 7u               /* bits [0, HD_KF_STATUS_BITS) are defined */
 
 typedef struct {
     float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */

@@ -312,8 +312,9 @@ KF_INLINE float measurement_var(const hd_kf_t *kf, float expected_var_nm2)
 /* Offset-jump gate: e beyond offset_jump_nm and 4 sigma, at most
  * HD_KF_JUMP_BURST jumps per event: each step beyond the gate restarts
  * the quiet count, and the jumps come back once jump_rearm_steps steps in
- * a row stayed within it; a step beyond it with none left is counted. */
-KF_INLINE bool offset_jump(hd_kf_t *kf, float e, float s_var)
+ * a row stayed within it; a step beyond it with none left is counted.
+ * Returns HD_KF_STATUS_OFFSET_JUMP, HD_KF_STATUS_UNMODELLED or 0. */
+KF_INLINE uint32_t offset_jump(hd_kf_t *kf, float e, float s_var)
 {
     const float jump_nm = kf->cfg.offset_jump_nm;
     const float e2 = e * e;
@@ -323,15 +324,15 @@ KF_INLINE bool offset_jump(hd_kf_t *kf, float e, float s_var)
         if (kf->jump_hold_steps > 0u && --kf->jump_hold_steps == 0u) {
             kf->jump_credit = HD_KF_JUMP_BURST;
         }
-        return false;
+        return 0u;
     }
     kf->jump_hold_steps = kf->jump_rearm_steps;
     if (kf->jump_credit == 0u) {
         kf->jump_held_count++;
-        return false;
+        return HD_KF_STATUS_UNMODELLED;
     }
     kf->jump_credit--;
-    return true;
+    return HD_KF_STATUS_OFFSET_JUMP;
 }
 
 /* The correction limit: a correction beyond +-correction_max_nm is
@@ -496,10 +497,11 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     float s_var = measurement_var(kf, in->torque_expected_var_nm2) +
                   cross_covariance(kf->p, h, q, kf->offset_q_nm2, g, nb);
     const float innovation = y - ripple - offset;
-    if (UNLIKELY(valid && offset_jump(kf, innovation, s_var))) {
+    const uint32_t gate = valid ? offset_jump(kf, innovation, s_var) : 0u;
+    status |= gate;
+    if (UNLIKELY(gate == HD_KF_STATUS_OFFSET_JUMP)) {
         /* an offset jump widens the offset's variance first */
         const float e2 = innovation * innovation;
-        status |= HD_KF_STATUS_OFFSET_JUMP;
         kf->p[packed_entries(nb) - 1u] += e2;
         g[o] += e2;
         s_var += e2;

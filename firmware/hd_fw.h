@@ -165,8 +165,6 @@ typedef struct {
     uint32_t hb_faults;             /* faults since the last heartbeat */
     uint32_t hb_countdown;
     uint32_t pending_faults;        /* raised between samples (transmit drops) */
-    uint32_t mismatch_score;        /* leaky count of ticks beyond the held jump gate,
-                                       x 2^10, time constant 2^10 ticks */
     uint32_t command_errors_seen;   /* CMD_ERROR raised when the background's count moves */
     bool boot_sent;
     volatile uint8_t state;         /* hd_fw_state_t */

@@ -223,22 +223,12 @@ static void export_profile(hd_fw_t *fw)
 
 /* ------------------------------------------------------------- pipeline */
 
-/* MODEL_MISMATCH: more than this share of the last ~1 s of ticks beyond
- * the held jump gate (a reversal or a load step leaves a few tens). */
-#define MISMATCH_SCORE_SHIFT 10u
-#define MISMATCH_FRACTION_PERCENT 5u
-#define MISMATCH_SCORE_LIMIT                                                                \
-    ((MISMATCH_FRACTION_PERCENT << (2u * MISMATCH_SCORE_SHIFT)) / 100u)
-
 /* What the step says of the filter: frozen blocks, a restart (the next
- * tick imports the stored profile again), the correction at its limit, an
- * innovation that keeps beyond the held jump gate (an effect the model
- * lacks: every such tick counted, the fault once it persists). */
-static uint32_t filter_health(hd_fw_t *fw, const hd_kf_output_t *out, bool unmodelled)
+ * tick imports the stored profile again); the correction at its limit and
+ * an innovation beyond the held jump gate (an effect the model lacks) are
+ * counted, and travel as the step's status bits in TELEM_B. */
+static uint32_t filter_health(hd_fw_t *fw, const hd_kf_output_t *out)
 {
-    hd_fw_tick_state_t *k = &fw->tick;
-    k->mismatch_score += (unmodelled ? 1u << MISMATCH_SCORE_SHIFT : 0u) -
-                         (k->mismatch_score >> MISMATCH_SCORE_SHIFT);
     uint32_t faults = 0u;
     if ((out->status & HD_KF_STATUS_FROZEN) != 0u) {
         faults |= HD_FAULT_KF_FROZEN;
@@ -247,16 +237,8 @@ static uint32_t filter_health(hd_fw_t *fw, const hd_kf_output_t *out, bool unmod
         faults |= HD_FAULT_KF_RESET;
         fw->tick.import_pending = fw->bg.profile.line_count > 0u;
     }
-    if ((out->status & HD_KF_STATUS_LIMITED) != 0u) {
-        faults |= HD_FAULT_CORRECTION_LIMIT;
-        fw->counters.correction_limited++;
-    }
-    if (unmodelled) {
-        fw->counters.unmodelled_steps++;
-    }
-    if (k->mismatch_score > MISMATCH_SCORE_LIMIT) {
-        faults |= HD_FAULT_MODEL_MISMATCH;
-    }
+    fw->counters.correction_limited += (out->status & HD_KF_STATUS_LIMITED) != 0u ? 1u : 0u;
+    fw->counters.unmodelled_steps += (out->status & HD_KF_STATUS_UNMODELLED) != 0u ? 1u : 0u;
     return faults;
 }
 
@@ -273,10 +255,9 @@ static uint32_t run_pipeline(hd_fw_t *fw, hd_fw_sample_t *s)
     float slow_var_nm2;
     const float slow_nm = s->feedforward_nm + hd_fw_current_torque_nm(fw, p, s, &slow_var_nm2);
     hd_kf_output_t out;
-    const uint32_t held_before = p->kf.jump_held_count;
     hd_pipeline_step(p, s->torque_raw_nm, s->d_motor_angle_rad, s->d_output_angle_rad, slow_nm,
                      slow_var_nm2, &out);
-    faults |= filter_health(fw, &out, p->kf.jump_held_count != held_before);
+    faults |= filter_health(fw, &out);
     if (k->snapshot_pending) {
         export_profile(fw);
     }

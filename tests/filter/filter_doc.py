@@ -182,6 +182,12 @@ def behaviour_rows(c: Cases) -> list[list[str]]:
     rows.append(["10 N m load step, recommended tuning",
                  f"error after the step {m['on']} N m with the jump gate, {m['off']} N m without",
                  f"< {m['on_bound']} N m; without > {m['off_bound_x']} x with"])
+    m = c("unmodelled_line")
+    rows.append(["an undeclared 0.7 N m motor order 3 line (above the 0.5 N m jump gate), "
+                 "0.3-0.8 rad/s with reversals",
+                 f"filtered error {m['err']} N m, raw {m['raw']} N m, the line's own RMS "
+                 f"{m['own']} N m; {m['held']} steps beyond the held gate",
+                 f"< raw and < {m['cost_bound_x']} x its own RMS"])
     m = c("load_coeff_step")
     rows.append(["load step 0 -> 10 N m, order-2 line 0.5 -> 2 N m (x (1 + 0.3 T)), no offset",
                  f"ripple error 20-200 ms after the step {m['with_k']} N m with k = 0.3, "

@@ -43,6 +43,12 @@ def test_numbers_come_from_the_result_files():
     corpus = json.loads((headline.RESULTS / "corpus.json").read_text())
     assert re.search(rf"\| {corpus['cases']} cases", block)
     assert sum(corpus["per_class"].values()) == corpus["cases"]
+    # the random-joint row: its worse-than-raw count summed here from the runs
+    rnd = json.loads((headline.RESULTS / "random.json").read_text())
+    runs = [v for part in ("declared", "undeclared") for x in rnd[part]["runs"]
+            for v in x["paths"].values()]
+    worse = sum(v["worse_than_raw"] for v in runs)
+    assert f"filtered worse than raw in **{worse} of {len(runs)}** runs" in block
 
 
 def test_missing_result_file_is_one_line(tmp_path, capsys, monkeypatch):

@@ -44,10 +44,10 @@ LOCK_BY_NAME = {v: k for k, v in LOCK_NAMES.items()}
 # are the C library's (hd_kf_status_name); tests/filter/test_cfilter_names.py
 # checks every bit against it.
 (STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED, STATUS_OFFSET_JUMP,
- STATUS_LIMITED) = (1, 2, 4, 8, 16, 32)
+ STATUS_LIMITED, STATUS_UNMODELLED) = (1, 2, 4, 8, 16, 32, 64)
 STATUS_BITS = {"FROZEN": STATUS_FROZEN, "BAD_INPUT": STATUS_BAD_INPUT, "RESET": STATUS_RESET,
                "P_CLAMPED": STATUS_P_CLAMPED, "OFFSET_JUMP": STATUS_OFFSET_JUMP,
-               "LIMITED": STATUS_LIMITED}
+               "LIMITED": STATUS_LIMITED, "UNMODELLED": STATUS_UNMODELLED}
 
 
 class BlockConfig(ctypes.Structure):
