@@ -240,6 +240,19 @@ def _read_csv(path: Path, stats: dict) -> dict:
     return cols
 
 
+def _read_file(path: Path, stats: dict) -> tuple[dict, str]:
+    """(columns, "candump" | "csv") of a text log."""
+    with open(path, "rb") as fh:
+        head = fh.read(64)
+    try:
+        if head.lstrip().startswith(b"("):
+            return _read_candump(path), "candump"
+        return _read_csv(path, stats), "csv"
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (byte {exc.start}): expected a CSV or "
+                         "candump -l log") from None
+
+
 def _read_candump(path: Path) -> dict:
     from . import candump
     return candump.read(path)
@@ -367,21 +380,17 @@ def _new_stats(n):
 
 
 def load(path, fs_hz: float | None = None, time_unit: str | None = None,
-         angle_unit: str | None = None) -> Data:
-    path = check_path(path)
-    with open(path, "rb") as fh:
-        head = fh.read(64)
+         angle_unit: str | None = None, joint: str | None = None) -> Data:
+    """joint: which JointState joint of a bag (MCAP, rosbag2; rosio.bagin)."""
+    from ..rosio import bagin
     stats = _new_stats(0)
-    try:
-        if head.lstrip().startswith(b"("):
-            cols = _read_candump(path)
-            source = "candump"
-        else:
-            cols = _read_csv(path, stats)
-            source = "csv"
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text (byte {exc.start}): expected a CSV or "
-                         "candump -l log") from None
+    bag_notes = []
+    if bagin.is_bag(path):
+        cols, bag_notes = bagin.read(path, joint)
+        source = "bag"
+    else:
+        path = check_path(path)
+        cols, source = _read_file(path, stats)
     n = len(cols[TORQUE])
     stats["rows_in"] = int(n) + stats["blank_rows"]
     seg = cols.pop("segment", None)
@@ -450,7 +459,7 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
                 has_feedforward="torque_feedforward_nm" in cols,
                 has_current="motor_current_a" in cols,
                 units={"time": time_unit or ("s" if "t_s" in cols else "--fs"), **units})
-    data.notes = notes + _describe(stats, ts)
+    data.notes = bag_notes + notes + _describe(stats, ts)
     return data
 
 
