@@ -37,8 +37,12 @@ class BagOutput:
         if kind == "mcap" and os.path.isdir(target):
             raise OutputError(f"{target}: cannot write: is a directory")
         directory, base = os.path.split(os.path.abspath(target))
+        # a target that exists and is not a regular file (/dev/null, a FIFO)
+        # is written in place at the end, from a folder in the system's temp
+        self.in_place = kind == "mcap" and os.path.exists(target) and not os.path.isfile(target)
         try:
-            self.tmp = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp", dir=directory)
+            self.tmp = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp",
+                                        dir=None if self.in_place else directory)
         except OSError as exc:
             raise OutputError(f"{target}: cannot write: {exc.strerror}") from None
         name = base[:-5] if kind == "mcap" and base.endswith(".mcap") else base
@@ -71,10 +75,14 @@ class BagOutput:
         self._guard(self.writer.close)
         mcap = os.path.join(self.bag, os.path.basename(self.bag) + ".mcap")
         try:
-            os.replace(self.bag if self.kind == "rosbag2" else mcap, self.target)
+            if self.in_place:
+                with open(mcap, "rb") as src, open(self.target, "wb") as dst:
+                    shutil.copyfileobj(src, dst)
+            else:
+                os.replace(self.bag if self.kind == "rosbag2" else mcap, self.target)
         except OSError as exc:
             self.abort()
-            raise OutputError(f"{self.target}: cannot write: {exc.strerror}") from None
+            raise OutputError(f"{self.target}: write failed: {exc.strerror}") from None
         shutil.rmtree(self.tmp, ignore_errors=True)
 
     def abort(self) -> None:
