@@ -87,6 +87,8 @@ class MonitorOutputs:
         self.args, self.server = args, server
         self.outputs = [s for s in sinks if s is not server]
         self.recording = stream.Recording(messages.Encoder(args.joint, 0), sinks)
+        if server is not None:
+            server.advertise(self.recording.encoder.connections())
         self.listener = stream.Live(self.recording)
         self.items: dict[str, str] = {}
 
@@ -105,8 +107,7 @@ class MonitorOutputs:
                     s.abort()
                 raise
             sinks.append(server)
-            say(f"foxglove: {server.url} (open it in Foxglove or Lichtblick: Open connection, "
-                "Foxglove WebSocket)")
+            say(f"foxglove: {server.url} (in Foxglove: Open connection, Foxglove WebSocket)")
         return cls(args, sinks, server)
 
     def query(self, bus, feed, node: int, say) -> None:

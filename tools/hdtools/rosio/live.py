@@ -1,7 +1,7 @@
 """`monitor --foxglove`: the recording's channels served live on a
 Foxglove WebSocket (foxglove-sdk; the foxglove.websocket.v1 protocol that
-Foxglove and Lichtblick open with "Open connection" -> "Foxglove
-WebSocket" -> ws://127.0.0.1:8765).  Messages are the same CDR bytes the
+Foxglove opens with "Open connection" -> "Foxglove WebSocket" ->
+ws://127.0.0.1:8765; the SDK speaks the subprotocol foxglove.sdk.v1).  Messages are the same CDR bytes the
 MCAP gets, with ros2msg schemas, so a panel set up on a recording works
 live.  Bound to 127.0.0.1 unless --foxglove-host says otherwise."""
 from __future__ import annotations
@@ -44,7 +44,13 @@ class Server:
     def url(self) -> str:
         return f"ws://{self.host}:{self.port}"
 
-    def write(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> None:
+    def advertise(self, connections) -> None:
+        """Channels for every (topic, msgtype) now: a client sees them all
+        at once, before the first message."""
+        for topic, msgtype in connections:
+            self._open(topic, msgtype)
+
+    def _open(self, topic: str, msgtype: str):
         ch = self.channels.get(topic)
         if ch is None:
             msgdef, _ = messages.TYPESTORE.generate_msgdef(msgtype, ros_version=2)
@@ -52,7 +58,10 @@ class Server:
             ch = self.channels[topic] = self._channel(topic, schema=schema,
                                                       message_encoding="cdr",
                                                       context=self.context)
-        ch.log(data, log_time=int(stamp_ns))
+        return ch
+
+    def write(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> None:
+        self._open(topic, msgtype).log(data, log_time=int(stamp_ns))
 
     def close(self) -> None:
         self.server.stop()

@@ -79,12 +79,16 @@ class Live:
         getattr(self, "_" + kind)(t, d, state)
 
     def _resolve_period(self, state, final: bool) -> None:
-        """The period from the joint's telemetry_rate_hz answer; without one
-        (--passive) estimated from the host stamps once HOLD_S are held."""
-        if self.period_s is None and state.period_s:
+        """Samples are held until the monitor's queries are answered (the
+        period from telemetry_rate_hz, and gear_ratio, asked last) or HOLD_S
+        passed; without an answer (--passive) the period is estimated from
+        the host stamps."""
+        if self.period_s is not None:
+            return
+        late = final or self.queue[-1]["t_host"] - self.queue[0]["t_host"] >= HOLD_S
+        if state.period_s and ("gear_ratio" in state.params or late):
             self.period_s = state.period_s
-        elif self.period_s is None and (final or self.queue[-1]["t_host"] -
-                                        self.queue[0]["t_host"] >= HOLD_S):
+        elif late:
             guess, _ = telemetry.estimate_period_s([q["t_host"] for q in self.queue],
                                                    [q["seq"] for q in self.queue])
             self.period_s = guess or telemetry.TICK_S
