@@ -176,3 +176,47 @@ def test_analyze_bag_equals_the_csv_path(demo, tmp_path):
         bad = {k: (csv[k], v) for k, v in got.items()
                if not math.isclose(v, csv[k], rel_tol=1e-3, abs_tol=1e-6)}
         assert not bad, list(bad.items())[:5]
+
+
+def test_team_sqlite3_bag_two_joints_jittered_stamps(demo, tmp_path):
+    """Another team's bag: rosbag2 sqlite3 storage, JointState only, two
+    joints whose order changes between messages, effort = the sensor's
+    torque (as Franka's tau_J), stamps jittered by up to 30 % of a period.
+    analyze --joint wrist = analyze of a CSV holding the same numbers."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from hdtools.analysis.results import read_csv
+    from hdtools.rosio.messages import TYPESTORE
+    T = TYPESTORE.types
+    header, arr = read_csv(demo / "run.csv")
+    col = {h: arr[:, i] for i, h in enumerate(header)}
+    rng = np.random.default_rng(24)
+    t_ns = (1_700_000_000 * 10**9 + np.round(col["t_s"] * 1e9) +
+            rng.integers(-300_000, 300_001, len(col["t_s"]))).astype(np.int64)
+    torque, angle = col["torque_nm"], col["motor_angle_rad"] / 100.0
+    with Writer(tmp_path / "team", version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
+        conn = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=TYPESTORE)
+        for k, ns in enumerate(t_ns):
+            sec, nsec = divmod(int(ns), 10**9)
+            names, vals = (["shoulder", "wrist"], [0.0, 1.0]) if k % 2 else (["wrist", "shoulder"],
+                                                                              [1.0, 0.0])
+            i = names.index("wrist")
+            pos, eff = np.array(vals) * 0, np.array(vals) * 0
+            pos[i], eff[i] = angle[k], torque[k]
+            msg = T["sensor_msgs/msg/JointState"](
+                header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                    sec=sec, nanosec=nsec), frame_id=""), name=names, position=pos,
+                velocity=np.zeros(0), effort=eff)
+            w.write(conn, int(ns), TYPESTORE.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    t_s = (t_ns - t_ns[0]) * 1e-9
+    rows = "\n".join(f"{float(a)!r},{float(b)!r},{float(c)!r}"
+                     for a, b, c in zip(t_s, torque, angle))
+    (tmp_path / "team.csv").write_text("t_s,torque_nm,output_angle_rad\n" + rows + "\n")
+    reports = {}
+    for name, args in (("csv", [tmp_path / "team.csv"]),
+                       ("bag", [tmp_path / "team", "--joint", "wrist"])):
+        hdsense("analyze", *args, "--json", tmp_path / f"{name}.json", "--quiet")
+        reports[name] = json.loads((tmp_path / f"{name}.json").read_text())
+    assert any("resampled" in n for n in reports["bag"]["data"]["notes"])
+    assert any("JointState.effort" in n for n in reports["bag"]["data"]["notes"])
+    assert reports["bag"]["summary"] == reports["csv"]["summary"]
+    assert dict(_numbers(reports["bag"])) == dict(_numbers(reports["csv"]))
