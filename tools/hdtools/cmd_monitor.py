@@ -32,10 +32,16 @@ the monitor: they show as lost telemetry (sequence gaps) only.
 --window seconds (needs a display); --plot-png FILE writes the same plot
 at the end (works headless).
 
+--mcap FILE / --rosbag DIR write the telemetry as ROS 2 messages
+(/joint_states, /diagnostics, /hdjoint/JOINT/...; --joint NAME), whole
+or not at all; --foxglove serves them live on ws://127.0.0.1:8765
+(docs/ros2.md).
+
 Ends after --duration seconds, on Ctrl-C or SIGTERM, or when the plot
 window is closed: the summary is printed, the log renamed, exit 0.
-Exit status: 0 ok; 2 bad command line; 3 the log or PNG could not be
-written (the temporary log is removed; an old FILE is left as it was);
+Exit status: 0 ok; 2 bad command line; 3 the log, PNG, MCAP or rosbag2
+folder could not be written (temporaries removed; an old FILE is left as
+it was) or the Foxglove server could not start;
 5 the CAN interface cannot be opened or failed.
 """
 from __future__ import annotations
