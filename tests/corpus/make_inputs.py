@@ -186,7 +186,8 @@ def bags(build: Path, tmp: Path) -> None:
     stamps = [1_700_000_000_000_000_000 + k * 1_000_000 for k in range(100)]
     _team_bag(out / "two_joints.mcap", ["shoulder", "wrist"], stamps)
     _team_bag(out / "no_jointstate.mcap", [], stamps[:3], extra=[
-        ("/hdjoint/wrist/torque_raw_nm", "std_msgs/msg/Float64", T["std_msgs/msg/Float64"](data=1.0)),
+        ("/hdjoint/wrist/torque_raw_nm", "std_msgs/msg/Float64",
+         T["std_msgs/msg/Float64"](data=1.0)),
         ("/chatter", "std_msgs/msg/String", T["std_msgs/msg/String"](data="hello"))])
     _team_bag(out / "wrong_type.mcap", ["wrist"], stamps, extra=[
         ("/hdjoint/wrist/motor_angle_rad", "std_msgs/msg/Float32",

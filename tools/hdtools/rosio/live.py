@@ -1,9 +1,9 @@
 """`monitor --foxglove`: the recording's channels served live on a
-Foxglove WebSocket (foxglove-sdk; the foxglove.websocket.v1 protocol that
-Foxglove opens with "Open connection" -> "Foxglove WebSocket" ->
-ws://127.0.0.1:8765; the SDK speaks the subprotocol foxglove.sdk.v1).  Messages are the same CDR bytes the
-MCAP gets, with ros2msg schemas, so a panel set up on a recording works
-live.  Bound to 127.0.0.1 unless --foxglove-host says otherwise."""
+Foxglove WebSocket (foxglove-sdk, whose server speaks the subprotocol
+foxglove.sdk.v1): in Foxglove "Open connection" -> "Foxglove WebSocket"
+-> ws://127.0.0.1:8765.  Messages are the same CDR bytes the MCAP gets,
+with ros2msg schemas, so a panel set up on a recording works live.  Bound
+to 127.0.0.1 unless --foxglove-host says otherwise."""
 from __future__ import annotations
 
 from ..safeio import OutputError, UsageError
