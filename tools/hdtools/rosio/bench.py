@@ -62,6 +62,32 @@ def write_mcap(csv: Path, target: Path) -> tuple[int, float, float]:
     return n, time.perf_counter() - t0, time.process_time() - c0
 
 
+MONITOR_S = 10.0
+
+
+def monitor_cost(tmp: Path, mcap: bool) -> dict:
+    """`hdsense monitor` on the emulated joint (python-can's virtual bus,
+    1 kHz, the emulator in the same process) for MONITOR_S: its summary,
+    and the process's CPU seconds per second."""
+    import contextlib
+    import io
+    import uuid
+    from .. import cli, emu, summary
+    channel = f"bench-{uuid.uuid4().hex[:8]}"
+    args = ["monitor", "-i", "virtual", channel, "--duration", str(MONITOR_S), "-q"]
+    if mcap:
+        args += ["--mcap", str(tmp / "monitor.mcap")]
+    out = io.StringIO()
+    with emu.Emulator() as j, j.attach("virtual", channel):
+        c0, t0 = time.process_time(), time.perf_counter()
+        with contextlib.redirect_stdout(out):
+            cli.main(args)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+    s = summary.parse(out.getvalue())
+    return {"pairs": int(s["telemetry_pairs"]), "lost": int(s["lost_telemetry"]),
+            "frames": int(s["frames"]), "wall_s": wall, "cpu_per_s": cpu / wall}
+
+
 def run(duration_s: float) -> list[str]:
     sim = native.find_file("hdsim", target="hdsim_cli")
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,6 +95,7 @@ def run(duration_s: float) -> list[str]:
         subprocess.run([str(sim), str(bench_speed.SCENARIO), "--duration", str(duration_s),
                         "--set", "ripple=output:2:0.8:0.4", "--csv", str(csv)],
                        check=True, capture_output=True)
+        plain, rec = monitor_cost(Path(tmp), False), monitor_cost(Path(tmp), True)
         n, wall, cpu = write_mcap(csv, bag)
         sizes = (csv.stat().st_size / 1e6, bag.stat().st_size / 1e6)
         by_csv = bench_speed._child(csv, False)
@@ -91,6 +118,10 @@ def run(duration_s: float) -> list[str]:
         f"second) | {per_sample_us:.1f} us CPU, so {per_sample_us / 10:.1f} % of a core at 1 kHz "
         f"({n / wall:.0f} samples/s written, {3 * n / wall:.0f} frames/s with TELEM_C in every "
         f"sample) |",
+        f"| `monitor --mcap` on the emulated joint at 1 kHz, {MONITOR_S:g} s (virtual bus, the "
+        f"emulator in the same process) | {rec['pairs']} samples, {rec['lost']} lost, "
+        f"{rec['frames'] / rec['wall_s']:.0f} frames/s; process CPU {100 * rec['cpu_per_s']:.0f} % "
+        f"of a core, {100 * plain['cpu_per_s']:.0f} % without --mcap ({plain['lost']} lost) |",
         f"| `analyze` on {hours:.2f} h at 1 kHz, CSV ({sizes[0]:.0f} MB) | "
         f"{by_csv['elapsed_s']:.1f} s, peak {by_csv['peak_rss_mb']:.0f} MB |",
         f"| `analyze` on the same samples as an MCAP recording ({sizes[1]:.0f} MB) | "
