@@ -96,3 +96,14 @@ def test_layout_names_only_channels_a_recording_has():
 def test_topic_names_are_valid_ros_names(topic):
     assert re.fullmatch(r"(/[A-Za-z][A-Za-z0-9_]*)+", topic)
     assert topics.check_joint_name("j") == "j"
+
+
+def test_log_contract_table_is_what_analyze_reads():
+    from hdtools.rosio import bagin
+    rows = {r["analysis column"]: r["from the bag"] for r in table("ros2:contract")}
+    for column, channel in bagin.EXTRA_COLUMNS.items():
+        assert rows[column] == topics.channel_topic("JOINT", channel)
+    raw = topics.channel_topic("JOINT", bagin.RAW_TORQUE_CHANNEL)
+    assert rows["torque_nm"].startswith(f"`{raw}` where present".strip("`"))
+    assert set(rows) == set(bagin.EXTRA_COLUMNS) | {"t_s", "torque_nm", "output_angle_rad",
+                                                    "output_velocity_rad_s"}

@@ -1,19 +1,8 @@
 """A bag as `hdsense analyze` input: the log contract of docs/ros2.md
 ("Reading bags"), turned into the columns the CSV reader gives
 (hdtools.analysis.loading), so the same unit, gap and reset rules apply.
-
-  t_s                    JointState.header.stamp (seconds from the first)
-  torque_nm              /hdjoint/JOINT/torque_raw_nm where present (our own
-                         recordings: effort is the filtered torque), else
-                         JointState.effort (a sensor's torque: Franka's tau_J)
-  output_angle_rad       JointState.position
-  output_velocity_rad_s  JointState.velocity
-  motor_angle_rad        /hdjoint/JOINT/motor_angle_rad
-  torque_feedforward_nm  /hdjoint/JOINT/ff_torque_nm
-  motor_current_a        /hdjoint/JOINT/motor_current_a
-The extra channels are std_msgs/msg/Float64 at the bag's log time,
-interpolated onto the JointState stamps (NaN outside their span: those
-rows are dropped as a CSV row with an empty field is)."""
+EXTRA_COLUMNS and RAW_TORQUE_CHANNEL below are that table's channels; the
+rest comes from JointState (stamp, position, velocity, effort)."""
 from __future__ import annotations
 
 import os
@@ -29,10 +18,13 @@ from . import topics
 # now and then is a new segment, as in a CSV)
 MAX_BACK_STEP_FRACTION = 0.01
 SHOW_NAMES = 8
+_CHANNEL = topics.signal_channels()
+# analysis column -> channel; the motor current has no frame yet: its
+# channel is named by the same rule (a current in A)
 EXTRA_COLUMNS = {"motor_angle_rad": topics.MOTOR_ANGLE,
-                 "torque_feedforward_nm": "ff_torque_nm",
-                 "motor_current_a": "motor_current_a"}
-RAW_TORQUE_CHANNEL = "torque_raw_nm"
+                 "torque_feedforward_nm": _CHANNEL["FfTorque"],
+                 "motor_current_a": "motor_current" + topics.UNIT_SUFFIX["A"]}
+RAW_TORQUE_CHANNEL = _CHANNEL["TorqueRaw"]
 
 
 class BagError(UsageError):
