@@ -70,9 +70,27 @@ class BagOutput:
         self.count += 1
 
     def close(self) -> None:
+        self.finish()
+        self.commit()
+
+    def finish(self) -> None:
+        """Completes the files under the temporary name (commit renames)."""
         for key, value in self.metadata.items():
             self.writer.set_custom_data(key, str(value))
         self._guard(self.writer.close)
+        self._guard(self._sync)
+
+    def _sync(self) -> None:
+        """On disk before the rename (a power cut then leaves the old target
+        or the whole new one)."""
+        for name in os.listdir(self.bag):
+            fd = os.open(os.path.join(self.bag, name), os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+
+    def commit(self) -> None:
         mcap = os.path.join(self.bag, os.path.basename(self.bag) + ".mcap")
         try:
             if self.in_place:

@@ -18,6 +18,16 @@ def _joint(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _port(text: str) -> int:
+    try:
+        port = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"port {port} outside 0..65535")
+    return port
+
+
 def add_output_arguments(p, live: bool = False) -> None:
     p.add_argument("--mcap", metavar="FILE.mcap",
                    help="write ROS 2 messages (CDR) to this MCAP file (docs/ros2.md)")
@@ -33,7 +43,7 @@ def add_output_arguments(p, live: bool = False) -> None:
         p.add_argument("--foxglove-host", default="127.0.0.1", metavar="ADDR",
                        help="address the live server binds (default 127.0.0.1, this machine "
                             "only)")
-        p.add_argument("--foxglove-port", type=int, default=8765, metavar="PORT",
+        p.add_argument("--foxglove-port", type=_port, default=8765, metavar="PORT",
                        help="its port (default 8765; 0: any free port, printed)")
 
 

@@ -46,8 +46,16 @@ class Recording:
         self._put([self.encoder.diagnostics(stamp_ns, state, faults, values)], stamp_ns)
 
     def close(self) -> None:
+        """Every file completed first, then all renamed: a failure leaves
+        none of them (the live server just stops)."""
+        files = [s for s in self.sinks if hasattr(s, "commit")]
+        for sink in files:
+            sink.finish()
+        for sink in files:
+            sink.commit()
         for sink in self.sinks:
-            sink.close()
+            if sink not in files:
+                sink.close()
 
     def abort(self) -> None:
         for sink in self.sinks:
