@@ -130,7 +130,8 @@ def check_path(path) -> Path:
     except OSError as exc:
         raise InputError(f"{p}: cannot access ({exc.strerror})") from None
     if stat.S_ISDIR(st.st_mode):
-        raise InputError(f"{p}: is a directory, expected a CSV or candump -l log file")
+        raise InputError(f"{p}: is a directory, expected a CSV or candump -l log file, or a "
+                         "rosbag2 folder (with metadata.yaml)")
     if not stat.S_ISREG(st.st_mode):
         kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
                 else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
