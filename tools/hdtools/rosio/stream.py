@@ -118,15 +118,10 @@ class Live:
     def _angles(self, t, d, state) -> None:
         if not self.queue or self.queue[-1]["seq"] != d["SeqC"]:
             return
-        p = state.params
-        if p.get("motor_cpr"):
-            self.motor_anchor = _unwrap(self.motor_anchor, int(d["MotorCounts"]),
-                                        telemetry.MOTOR_COUNTS_MOD)
-        if p.get("output_cpr") and int(d["OutputPresent"]):
-            self.output_anchor = _unwrap(self.output_anchor, int(d["OutputCounts"]),
-                                         telemetry.OUTPUT_COUNTS_MOD)
-        self.queue[-1]["anchor"] = (self.motor_anchor, self.output_anchor,
-                                    p.get("motor_cpr"), p.get("output_cpr"))
+        # the counts are scaled when the sample is emitted: by then the
+        # held samples have the cpr answers too
+        self.queue[-1]["counts"] = (int(d["MotorCounts"]),
+                                    int(d["OutputCounts"]) if int(d["OutputPresent"]) else None)
         self._emit(state, keep_last=False)
 
     def flush(self, state) -> None:
@@ -142,20 +137,23 @@ class Live:
         self.queue = self.queue[-1:] if keep_last else []
         gear = state.params.get("gear_ratio")
         for s in ready:
-            self._angle(s, gear)
+            self._angle(s, gear, state.params)
             s["stamp_ns"] = self.host0_ns + _ns(s["step"] * self.period_s)
             s["output_velocity_rad_s"] = s["MotorVelocity"] / gear if gear else None
             self.rec.sample(s)
 
-    def _angle(self, s: dict, gear: float | None) -> None:
+    def _angle(self, s: dict, gear: float | None, params: dict) -> None:
         vel = s.get("MotorVelocity", 0.0)
-        anchor = s.get("anchor")
-        if anchor is not None:
-            motor, output, motor_cpr, output_cpr = anchor
-            if motor is not None:
-                self.motor_rad = motor * 2 * math.pi / motor_cpr
-            if output is not None:
-                self.output_rad = output * 2 * math.pi / output_cpr
+        counts = s.get("counts")
+        if counts is not None:
+            motor, output = counts
+            if params.get("motor_cpr"):
+                self.motor_anchor = _unwrap(self.motor_anchor, motor, telemetry.MOTOR_COUNTS_MOD)
+                self.motor_rad = self.motor_anchor * 2 * math.pi / params["motor_cpr"]
+            if output is not None and params.get("output_cpr"):
+                self.output_anchor = _unwrap(self.output_anchor, output,
+                                             telemetry.OUTPUT_COUNTS_MOD)
+                self.output_rad = self.output_anchor * 2 * math.pi / params["output_cpr"]
         else:
             if self.motor_rad is not None:
                 self.motor_rad += vel * self.period_s
