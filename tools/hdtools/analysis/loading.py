@@ -392,6 +392,8 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
     else:
         path = check_path(path)
         cols, source = _read_file(path, stats)
+        if joint:
+            bag_notes = [f"--joint {joint} ignored: {source} input has one joint"]
     n = len(cols[TORQUE])
     stats["rows_in"] = int(n) + stats["blank_rows"]
     seg = cols.pop("segment", None)
