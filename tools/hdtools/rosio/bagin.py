@@ -25,6 +25,7 @@ EXTRA_COLUMNS = {"motor_angle_rad": topics.MOTOR_ANGLE,
                  "torque_feedforward_nm": _CHANNEL["FfTorque"],
                  "motor_current_a": "motor_current" + topics.UNIT_SUFFIX["A"]}
 RAW_TORQUE_CHANNEL = _CHANNEL["TorqueRaw"]
+CHANNELS = (RAW_TORQUE_CHANNEL,) + tuple(EXTRA_COLUMNS.values())
 
 
 class BagError(UsageError):
@@ -88,13 +89,38 @@ def _joint_connections(reader, path):
                    (f" (topics: {_names(found)})" if found else " (the bag has no topics)"))
 
 
+def _contract_topics(reader) -> tuple[dict, dict]:
+    """({topic: (joint, channel)} of every contract channel of type Float64,
+    {(joint, channel): msgtype} of those of another type)."""
+    ns = topics.NAMESPACE.strip("/")
+    good, bad = {}, {}
+    for c in reader.connections:
+        parts = c.topic.split("/")
+        if len(parts) == 4 and parts[1] == ns and parts[3] in CHANNELS:
+            if c.msgtype == topics.FLOAT_TYPE:
+                good[c.topic] = (parts[2], parts[3])
+            else:
+                bad[(parts[2], parts[3])] = c.msgtype
+    return good, bad
+
+
 def _read(reader, path: Path, joint: str | None):
-    conns = _joint_connections(reader, path)
+    """One pass over the bag (the storage parses every record of a chunk
+    once per pass): JointState for the joint, every contract channel."""
+    js_conns = _joint_connections(reader, path)
+    good, bad = _contract_topics(reader)
+    extra = [c for c in reader.connections if c.topic in good]
     stamps, cols = array("q"), {k: array("d") for k in ("position", "velocity", "effort")}
+    series = {key: (array("q"), array("d")) for key in good.values()}
     present: set[str] = set()
     index_of: dict[tuple, int | None] = {}
     want = joint
-    for conn, _, raw in reader.messages(conns):
+    for conn, stamp, raw in reader.messages(js_conns + extra):
+        if conn.topic in good:
+            t, v = series[good[conn.topic]]
+            t.append(stamp)
+            v.append(reader.deserialize(raw, conn.msgtype).data)
+            continue
         m = reader.deserialize(raw, conn.msgtype)
         names = tuple(m.name)
         present.update(names)
@@ -118,8 +144,14 @@ def _read(reader, path: Path, joint: str | None):
                            (f" (joints: {_names(present)})" if present else
                             " (no JointState message names a joint)"))
         raise BagError(f"{path}: no JointState message names a joint")
-    return _columns(reader, path, want, np.frombuffer(stamps, np.int64),
-                    {k: np.frombuffer(v, float) for k, v in cols.items()})
+    for (j, channel), msgtype in bad.items():
+        if j == want:
+            raise BagError(f"{path}: {topics.channel_topic(j, channel)} is {msgtype}, expected "
+                           f"{topics.FLOAT_TYPE}")
+    mine = {channel: (np.frombuffer(t, np.int64), np.frombuffer(v, float))
+            for (j, channel), (t, v) in series.items() if j == want}
+    return _columns(path, want, np.frombuffer(stamps, np.int64),
+                    {k: np.frombuffer(v, float) for k, v in cols.items()}, mine)
 
 
 def _check_order(t_ns: np.ndarray, path) -> None:
@@ -127,22 +159,6 @@ def _check_order(t_ns: np.ndarray, path) -> None:
     if back > max(1, MAX_BACK_STEP_FRACTION * len(t_ns)):
         raise BagError(f"{path}: the JointState stamps step back {back} times in {len(t_ns)} "
                        "messages: not a recording in time order")
-
-
-def _channel(reader, path, joint: str, channel: str):
-    """(log time ns, values) of /hdjoint/JOINT/CHANNEL, or None."""
-    topic = topics.channel_topic(joint, channel)
-    conns = [c for c in reader.connections if c.topic == topic]
-    if not conns:
-        return None
-    bad = {c.msgtype for c in conns} - {topics.FLOAT_TYPE}
-    if bad:
-        raise BagError(f"{path}: {topic} is {_names(bad)}, expected {topics.FLOAT_TYPE}")
-    t, v = array("q"), array("d")
-    for conn, stamp, raw in reader.messages(conns):
-        t.append(stamp)
-        v.append(reader.deserialize(raw, conn.msgtype).data)
-    return np.frombuffer(t, np.int64), np.frombuffer(v, float)
 
 
 def _align(t_ns: np.ndarray, series) -> np.ndarray:
@@ -159,11 +175,11 @@ def _align(t_ns: np.ndarray, series) -> np.ndarray:
     return out
 
 
-def _columns(reader, path, joint, t_ns, js):
+def _columns(path, joint, t_ns, js, series):
     _check_order(t_ns, path)
     notes = [f"bag: {topics.JOINT_STATE_TYPE} of joint {joint!r}, {len(t_ns)} messages"]
     cols = {"t_s": (t_ns - t_ns[0]) * 1e-9}
-    raw = _channel(reader, path, joint, RAW_TORQUE_CHANNEL)
+    raw = series.get(RAW_TORQUE_CHANNEL)
     if raw is not None:
         cols["torque_nm"] = _align(t_ns, raw)
         notes.append(f"torque_nm from {topics.channel_topic(joint, RAW_TORQUE_CHANNEL)} "
@@ -179,9 +195,8 @@ def _columns(reader, path, joint, t_ns, js):
     if np.isfinite(js["velocity"]).any() and "output_angle_rad" in cols:
         cols["output_velocity_rad_s"] = js["velocity"]
     for column, channel in EXTRA_COLUMNS.items():
-        series = _channel(reader, path, joint, channel)
-        if series is not None:
-            cols[column] = _align(t_ns, series)
+        if channel in series:
+            cols[column] = _align(t_ns, series[channel])
             notes.append(f"{column} from {topics.channel_topic(joint, channel)}")
     if "motor_angle_rad" not in cols and "output_angle_rad" not in cols:
         raise BagError(f"{path}: joint {joint!r} has neither JointState.position nor "
