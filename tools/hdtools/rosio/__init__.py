@@ -17,4 +17,6 @@ serves the live view (an optional extra: imported only by --foxglove).
   convert    a decoded candump log -> samples (angles from TELEM_C counts)
   bagin      a bag -> the analysis log columns (the log contract)
   live       the Foxglove WebSocket server
+  cli        the options of monitor / canlog convert, and canlog convert
+  bench      recording cost and analyze on MCAP vs CSV (docs/ros2.md)
 """
