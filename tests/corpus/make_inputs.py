@@ -9,6 +9,7 @@ campaign simulator.  Run it again when a format changes (e.g. the CAN ids):
 Every file is small (the largest is a calibration CSV of ~6 KB)."""
 from __future__ import annotations
 
+import os
 import re
 import struct
 import subprocess
@@ -129,6 +130,78 @@ def campaigns(build: Path) -> None:
     put("calib/huge_value.csv", "\n".join(huge) + "\n")
 
 
+def _team_bag(path: Path, joints, stamps_ns, extra=(), storage="mcap", effort=True) -> None:
+    """A bag as another team's logger writes it: JointState of `joints`
+    (position, velocity, effort made up), plus (topic, msgtype, msg) extras."""
+    import numpy as np
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    bag = path.with_suffix("") if path.suffix else path
+    with Writer(bag, version=9, storage_plugin=plugin) as w:
+        if joints:
+            js = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
+        conns = {t: w.add_connection(t, ty, typestore=ts) for t, ty, _ in extra}
+        # log time: when the logger got it (in order); header.stamp: as given
+        for k, (ns, log_ns) in enumerate(zip(stamps_ns, sorted(stamps_ns))):
+            sec, nsec = divmod(int(ns), 10**9)
+            n = len(joints)
+            msg = T["sensor_msgs/msg/JointState"](
+                header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                    sec=sec, nanosec=nsec), frame_id=""), name=list(joints),
+                position=np.full(n, 0.001 * k), velocity=np.full(n, 1.0),
+                effort=np.full(n, 2.0 + 0.01 * k) if effort else np.zeros(0))
+            if joints:
+                w.write(js, int(log_ns), ts.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+            for t, ty, m in extra:
+                w.write(conns[t], int(log_ns), ts.serialize_cdr(m, ty))
+    if path.suffix == ".mcap":          # a bare .mcap file, as `ros2 bag` keeps none
+        (bag / f"{bag.name}.mcap").rename(path)
+        for f in bag.iterdir():
+            f.unlink()
+        bag.rmdir()
+
+
+def bags(build: Path, tmp: Path) -> None:
+    """MCAP files and rosbag2 folders for `hdsense analyze` (class ros2)."""
+    import shutil
+    from rosbags.typesys import Stores, get_typestore
+    T = get_typestore(Stores.ROS2_HUMBLE).types
+    out = HERE / "ros2"
+    for old in out.glob("*"):
+        if old.suffix != ".case":
+            shutil.rmtree(old) if old.is_dir() else old.unlink()
+    log = tmp / "short.log"
+    run(str(build / "firmware/host/hdjoint-host"), "--sensors", "mock", "--duration", "0.2",
+        "--can", f"log:{log}", "-q")
+    subprocess.run([sys.executable, "-m", "hdtools.cli", "canlog", "convert", str(log),
+                    "--joint", "wrist", "--mcap", str(out / "short.mcap")], check=True,
+                   stdout=subprocess.DEVNULL, env=dict(os.environ, PYTHONPATH=str(ROOT / "tools")))
+    data = (out / "short.mcap").read_bytes()
+    put("ros2/truncated.mcap", data[:len(data) // 2])       # a recording cut off mid-chunk
+    put("ros2/not_mcap.mcap", "t_s,torque_nm\n0,1\n")
+    put("ros2/empty.mcap", b"")
+    stamps = [1_700_000_000_000_000_000 + k * 1_000_000 for k in range(100)]
+    _team_bag(out / "two_joints.mcap", ["shoulder", "wrist"], stamps)
+    _team_bag(out / "no_jointstate.mcap", [], stamps[:3], extra=[
+        ("/hdjoint/wrist/torque_raw_nm", "std_msgs/msg/Float64",
+         T["std_msgs/msg/Float64"](data=1.0)),
+        ("/chatter", "std_msgs/msg/String", T["std_msgs/msg/String"](data="hello"))])
+    _team_bag(out / "wrong_type.mcap", ["wrist"], stamps, extra=[
+        ("/hdjoint/wrist/motor_angle_rad", "std_msgs/msg/Float32",
+         T["std_msgs/msg/Float32"](data=1.0))])
+    shuffled = stamps[::2] + stamps[1::2][::-1]
+    _team_bag(out / "shuffled.mcap", ["wrist"], shuffled)
+    _team_bag(out / "sqlite_no_effort", ["wrist"], stamps, storage="sqlite3", effort=False)
+    _team_bag(out / "version_10", ["wrist"], stamps[:10])
+    meta = out / "version_10" / "metadata.yaml"
+    meta.write_text(meta.read_text().replace("version: 9", "version: 10"))
+    (out / "bad_yaml").mkdir()
+    (out / "bad_yaml" / "metadata.yaml").write_text("rosbag2_bagfile_information: [\n")
+
+
 def main() -> int:
     if len(sys.argv) != 2:
         print(__doc__, file=sys.stderr)
@@ -137,6 +210,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         canlogs(build, Path(tmp))
         replays(build, Path(tmp))
+        bags(build, Path(tmp))
     text_bytes()
     campaigns(build)
     return 0

@@ -86,6 +86,7 @@ CLASS_TEXT = {
     "calib": "hdsense calib: data it cannot judge, dates, serials, outputs",
     "hdsense": "hdsense command line in general",
     "joint-tools": "hdsense profile, current, device, send, monitor; hdjoint-host --profile, --cmd-at",
+    "ros2": "MCAP / rosbag2 in and out: hdsense analyze on bags, canlog convert, monitor --mcap",
 }
 SANITIZER = re.compile(r"ERROR: AddressSanitizer|runtime error:|LeakSanitizer")
 

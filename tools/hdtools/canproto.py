@@ -338,6 +338,7 @@ def decode_log(path: str | Path, node_id: int | None = 1, rate_hz: float | None 
     db = load_db(node_id)
     ids = {name: BASE_IDS[name] + node_id for name in BASE_IDS}
     telem, acks, heartbeats, commands, bad_frames, boots = [], [], [], [], [], []
+    feedforward: list = []
     params: dict[str, float] = {}
     rate, rate_kind = None, None
     pending_a = None
@@ -385,12 +386,15 @@ def decode_log(path: str | Path, node_id: int | None = 1, rate_hz: float | None 
             heartbeats.append({"t_s": msg.timestamp, **decoded})
         elif ident == ids["CMD"]:
             commands.append({"t_s": msg.timestamp, **decoded})
+        elif ident == ids["FEEDFORWARD"]:
+            feedforward.append({"t_s": msg.timestamp, **decoded})
     try:
         timing = telemetry.place(telem, rate_hz)
     except ValueError as exc:
         raise safeio.UsageError(f"{path}: {exc}") from None
     return {"telemetry": telem, "acks": acks, "heartbeats": heartbeats, "boots": boots,
-            "commands": commands, "lost_telemetry": timing["lost"], "node": node_id,
+            "commands": commands, "feedforward": feedforward,
+            "lost_telemetry": timing["lost"], "node": node_id,
             "nodes": nodes, "frames": len(frames), "malformed": malformed,
             "bad_frames": bad_frames, "params": params, "period_s": timing["period_s"],
             "period_source": timing["period_source"]}

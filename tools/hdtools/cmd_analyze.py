@@ -18,7 +18,8 @@ def register(sub):
     p = sub.add_parser("analyze", help="find and add un-modelled effects in a torque log",
                        description=__doc__)
     p.add_argument("input", nargs="?", help="CSV (t_s, torque_nm, motor_angle_rad or "
-                   "output_angle_rad, ...) or candump -l log of the firmware telemetry")
+                   "output_angle_rad, ...), candump -l log of the firmware telemetry, "
+                   ".mcap file or rosbag2 folder (sensor_msgs/msg/JointState)")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
     p.add_argument("--out", metavar="DIR", help="also write report.md, PNG plots, model.cfg, "
                    "model.can and profile.json")
@@ -32,6 +33,8 @@ def register(sub):
                    help="unit of the t_s column (detected from its step when absent)")
     p.add_argument("--angle-unit", choices=("rad", "deg"),
                    help="unit of the angle columns (detected from the speeds when absent)")
+    p.add_argument("--joint", metavar="NAME", help="which joint of a bag's JointState "
+                   "(MCAP, rosbag2 folder; default: its only joint; docs/ros2.md)")
     p.add_argument("--node-id", type=int, default=1, help="CAN node id for model.can (default 1)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--bench-hour", action="store_true",
@@ -95,7 +98,8 @@ def main(args) -> int:
         report = pipeline.analyze(
             args.input, gear_ratio=args.gear_ratio, motor_orders=motor, output_orders=output,
             inertia_kgm2=args.inertia, fs_hz=args.fs, out_dir=args.out, json_path=args.json,
-            node_id=args.node_id, log=log, time_unit=args.time_unit, angle_unit=args.angle_unit)
+            node_id=args.node_id, log=log, time_unit=args.time_unit, angle_unit=args.angle_unit,
+            joint=args.joint)
     except FilterError as exc:
         raise UsageError(f"the filter refuses this log's model: {exc}") from None
     print(report["summary"])

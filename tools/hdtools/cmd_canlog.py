@@ -4,6 +4,13 @@ configuration file into CAN commands.
   hdsense canlog decode out/demo/telemetry.log [--node 1] [--csv telem.csv]
                         [--rate HZ] [--cpr MOTOR[,OUTPUT]]
   hdsense canlog commands model.cfg [--node 1]      # prints cansend lines
+  hdsense canlog convert run.log --mcap run.mcap [--rosbag DIR] [--joint NAME]
+
+convert: the decoded telemetry (as decode --csv has it) as ROS 2 messages:
+/joint_states (effort = the filtered torque), the firmware's other
+signals on /hdjoint/NAME/..., heartbeats and faults on /diagnostics, the
+device's answers in the metadata (docs/ros2.md).  Exit status as decode's;
+3 also when a rosbag2 folder exists already.
 
 decode: samples are placed in device time (telemetry sequence x period;
 the period from --rate, the log's telemetry_rate_hz answers, or estimated
@@ -141,6 +148,11 @@ def _decode(args) -> int:
     return 0
 
 
+def _convert(args) -> int:
+    from .rosio import cli as rosio_cli
+    return rosio_cli.convert(args)
+
+
 def _commands(args) -> int:
     text = safeio.read_text(args.config)
     try:
@@ -169,6 +181,17 @@ def register(subparsers) -> None:
     d.add_argument("--cpr", type=_cpr, default=None, metavar="MOTOR[,OUTPUT]",
                    help="encoder counts per revolution (default: the log's GET_PARAM answers)")
     d.set_defaults(func=_decode)
+    v = sub.add_parser("convert", help="a candump -l log -> MCAP / rosbag2 (ROS 2 messages)")
+    v.add_argument("log")
+    v.add_argument("--node", type=_node, default=None,
+                   help="node id (default: the one node found in the log)")
+    v.add_argument("--rate", type=_rate, default=None, metavar="HZ",
+                   help="telemetry_rate_hz of the log (as for decode)")
+    v.add_argument("--cpr", type=_cpr, default=None, metavar="MOTOR[,OUTPUT]",
+                   help="encoder counts per revolution (as for decode)")
+    from .rosio import cli as rosio_cli
+    rosio_cli.add_output_arguments(v)
+    v.set_defaults(func=_convert)
     c = sub.add_parser("commands", help="print the CAN commands (cansend ID#DATA) for a config file")
     c.add_argument("config")
     c.add_argument("--node", type=_node, default=1)

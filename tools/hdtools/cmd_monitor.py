@@ -32,10 +32,16 @@ the monitor: they show as lost telemetry (sequence gaps) only.
 --window seconds (needs a display); --plot-png FILE writes the same plot
 at the end (works headless).
 
+--mcap FILE / --rosbag DIR write the telemetry as ROS 2 messages
+(/joint_states, /diagnostics, /hdjoint/JOINT/...; --joint NAME), whole
+or not at all; --foxglove serves them live on ws://127.0.0.1:8765
+(docs/ros2.md).
+
 Ends after --duration seconds, on Ctrl-C or SIGTERM, or when the plot
 window is closed: the summary is printed, the log renamed, exit 0.
-Exit status: 0 ok; 2 bad command line; 3 the log or PNG could not be
-written (the temporary log is removed; an old FILE is left as it was);
+Exit status: 0 ok; 2 bad command line; 3 the log, PNG, MCAP or rosbag2
+folder could not be written (temporaries removed; an old FILE is left as
+it was) or the Foxglove server could not start;
 5 the CAN interface cannot be opened or failed.
 """
 from __future__ import annotations
@@ -235,6 +241,11 @@ class MonitorState:
         self.set_window(window_s, 1000.0)
         self.window_s = window_s
         self.load_samples: deque = deque(maxlen=4000)   # (t, bits)
+        self.listener = None    # listener(kind, t, decoded, state): the ROS 2 outputs (rosio)
+
+    def _tell(self, kind: str, t: float, d: dict) -> None:
+        if self.listener is not None:
+            self.listener(kind, t, d, self)
 
     def set_window(self, window_s: float, rate_hz: float) -> None:
         n = max(16, int(window_s * max(rate_hz, 1.0)) + 1)
@@ -258,6 +269,8 @@ class MonitorState:
     def feed(self, msg: can.Message) -> None:
         try:
             self._feed(msg)
+        except OutputError:
+            raise                   # an output (rosio's) failed: not a bad frame
         except Exception as exc:  # noqa: BLE001 - a frame never stops the monitor
             self.malformed += 1
             why = f"undecodable: {type(exc).__name__}"
@@ -333,9 +346,14 @@ class MonitorState:
         for k in ("raw", "filt", "ripple"):
             self.trace[k].append(self.sample[k])
         self.trace["step"].append(self.step)
+        self._tell("telemetry", t, {**a, **d, "step": self.step})
 
     def _on_telem_c(self, t, d):
         self.angle_frames += 1
+        self._tell("angles", t, d)
+
+    def _on_feedforward(self, t, d):
+        self._tell("feedforward", t, d)
 
     def _on_heartbeat(self, t, d):
         rec = protocol.record_statuses()
@@ -349,6 +367,7 @@ class MonitorState:
                         f"{hb['config']})")
         self.heartbeat = hb
         self.heartbeats += 1
+        self._tell("heartbeat", t, d)
 
     def _on_boot(self, t, d):
         boot = boot_report(d)
@@ -357,6 +376,7 @@ class MonitorState:
 
     def _on_ack(self, t, d):
         self.acks += 1
+        self._tell("ack", t, d)
         op = protocol.name_of(protocol.opcodes(), d["AckOpcode"])
         res = protocol.name_of(protocol.results(), d["AckResult"])
         if op in ("GET_PARAM", "SET_PARAM") and res == "OK":
@@ -543,11 +563,15 @@ def run(args) -> int:
     bus = open_bus(args.interface, channel, args.bitrate)
     rx_buffer = grow_rx_buffer(bus)
     recorder = None
+    from .rosio import cli as rosio_cli
+    ros = None
     old_term = signal.getsignal(signal.SIGTERM)
     start = time.monotonic()
     try:
         if args.log:
             recorder = LogRecorder(args.log, channel)
+        ros = rosio_cli.MonitorOutputs.open(args, say)
+        state.listener = ros.listener if ros else None
 
         def feed(msg):
             if recorder is not None:
@@ -578,6 +602,8 @@ def run(args) -> int:
                 if not queried and state.node is not None:
                     queried = True
                     _query(bus, feed, state.node, say)
+                    if ros:
+                        ros.query(bus, feed, state.node, say)
                 if now >= next_status:
                     next_status = now + args.interval
                     line = state.status_line(time.time())
@@ -599,6 +625,9 @@ def run(args) -> int:
         if recorder is not None:
             recorder.close()
             recorder = None
+        if ros:
+            ros.close(state)
+            ros = None
         if plot is not None and args.plot_png:
             plot.update(state)
             plot.save(args.plot_png)
@@ -606,6 +635,8 @@ def run(args) -> int:
         signal.signal(signal.SIGTERM, old_term)
         if recorder is not None:
             recorder.abort()
+        if ros:
+            ros.abort()
         bus.shutdown()
     lines = state.summary(time.monotonic() - start)
     if rx_buffer is not None:
@@ -614,6 +645,7 @@ def run(args) -> int:
         lines.append(f"log = {args.log}")
     if args.plot_png:
         lines.append(f"plot = {args.plot_png}")
+    lines += rosio_cli.summary_lines(args)
     out.write("\n".join(lines) + "\n")
     return 0
 
@@ -663,6 +695,8 @@ def register(subparsers) -> None:
                    help="plot window (default 5 s)")
     p.add_argument("--plot", action="store_true", help="live torque plot (needs a display)")
     p.add_argument("--plot-png", metavar="FILE", help="write the torque plot here at the end")
+    from .rosio import cli as rosio_cli
+    rosio_cli.add_output_arguments(p, live=True)
     p.add_argument("--passive", action="store_true",
                    help="send nothing (no GET_PARAM queries at the start)")
     p.add_argument("-q", "--quiet", action="store_true",

@@ -130,7 +130,8 @@ def check_path(path) -> Path:
     except OSError as exc:
         raise InputError(f"{p}: cannot access ({exc.strerror})") from None
     if stat.S_ISDIR(st.st_mode):
-        raise InputError(f"{p}: is a directory, expected a CSV or candump -l log file")
+        raise InputError(f"{p}: is a directory, expected a CSV or candump -l log file, or a "
+                         "rosbag2 folder (with metadata.yaml)")
     if not stat.S_ISREG(st.st_mode):
         kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
                 else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
@@ -238,6 +239,19 @@ def _read_csv(path: Path, stats: dict) -> dict:
     if seg is not None:
         cols["segment"] = seg
     return cols
+
+
+def _read_file(path: Path, stats: dict) -> tuple[dict, str]:
+    """(columns, "candump" | "csv") of a text log."""
+    with open(path, "rb") as fh:
+        head = fh.read(64)
+    try:
+        if head.lstrip().startswith(b"("):
+            return _read_candump(path), "candump"
+        return _read_csv(path, stats), "csv"
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (byte {exc.start}): expected a CSV or "
+                         "candump -l log") from None
 
 
 def _read_candump(path: Path) -> dict:
@@ -367,21 +381,19 @@ def _new_stats(n):
 
 
 def load(path, fs_hz: float | None = None, time_unit: str | None = None,
-         angle_unit: str | None = None) -> Data:
-    path = check_path(path)
-    with open(path, "rb") as fh:
-        head = fh.read(64)
+         angle_unit: str | None = None, joint: str | None = None) -> Data:
+    """joint: which JointState joint of a bag (MCAP, rosbag2; rosio.bagin)."""
+    from ..rosio import bagin
     stats = _new_stats(0)
-    try:
-        if head.lstrip().startswith(b"("):
-            cols = _read_candump(path)
-            source = "candump"
-        else:
-            cols = _read_csv(path, stats)
-            source = "csv"
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text (byte {exc.start}): expected a CSV or "
-                         "candump -l log") from None
+    bag_notes = []
+    if bagin.is_bag(path):
+        cols, bag_notes = bagin.read(path, joint)
+        source = "bag"
+    else:
+        path = check_path(path)
+        cols, source = _read_file(path, stats)
+        if joint:
+            bag_notes = [f"--joint {joint} ignored: {source} input has one joint"]
     n = len(cols[TORQUE])
     stats["rows_in"] = int(n) + stats["blank_rows"]
     seg = cols.pop("segment", None)
@@ -450,7 +462,7 @@ def load(path, fs_hz: float | None = None, time_unit: str | None = None,
                 has_feedforward="torque_feedforward_nm" in cols,
                 has_current="motor_current_a" in cols,
                 units={"time": time_unit or ("s" if "t_s" in cols else "--fs"), **units})
-    data.notes = notes + _describe(stats, ts)
+    data.notes = bag_notes + notes + _describe(stats, ts)
     return data
 
 

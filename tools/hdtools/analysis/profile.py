@@ -19,7 +19,8 @@ Output lines come from the geometry-vs-load fit (geometry.py, fold A,
 checked on fold B).  Motor lines are least-squares fits of the measured
 torque over fold A at the model's motor orders, kept when they explain
 part of fold B's line (held-out explained fraction > 0).  A line is written
-only if its angle is absolute in the log: a CSV column of that angle (an
+only if its angle is absolute in the log: a CSV column (or a bag's
+channel, docs/ros2.md) of that angle (an
 output angle derived from the motor angle, or a motor angle derived from the
 output angle, has an unknown zero; a candump log's angle is an integral of
 velocity)."""
@@ -79,7 +80,7 @@ def build(data, model, gear, runs) -> dict:
     doc = {"schema": SCHEMA, "gear_ratio": gear["value"], "angle_convention": CONVENTION,
            "ripple_load_coeff_per_nm": model.ripple_load_coeff_per_nm, "lines": [],
            "not_written": [], "source": {"samples": data.n, "ts_s": data.ts_s}}
-    csv_abs = data.source == "csv"
+    csv_abs = data.source in ("csv", "bag")     # a column (a bag's channel) of that angle
     out_abs = csv_abs and data.has_output
     mot_abs = csv_abs and data.has_motor
     for p in model.profile:
