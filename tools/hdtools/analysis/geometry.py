@@ -249,7 +249,7 @@ def _forward(parts, lam, ids, nblocks, no, chosen, base, orders, pool=None, min_
     largest paired t over blocks (on the per-block log ratio of the held-out
     squared errors, so blocks at a stretch's ends, where the smoother
     extrapolates, do not dominate); it joins if t >= min_t (MIN_T) and the
-    total held-out error falls by MIN_GAIN.  Returns (chosen, steps, the
+    geometric mean of the blocks' held-out errors falls by MIN_GAIN.  Returns (chosen, steps, the
     per-block errors of the final set)."""
     chosen = list(chosen)
     min_t = MIN_T if min_t is None else min_t
@@ -266,7 +266,10 @@ def _forward(parts, lam, ids, nblocks, no, chosen, base, orders, pool=None, min_
         se = ratio.std(axis=1, ddof=1) / math.sqrt(nb) + 1e-300
         tstat = ratio.mean(axis=1) / se
         j = int(np.argmax(tstat))
-        gain = 1.0 - sse[j].sum() / base.sum()
+        # the gain by the same per-block statistic as t (the geometric mean
+        # of the blocks' error ratios): a total is decided by the few blocks
+        # the motion columns model worst (a reversal), as the smoother's tau
+        gain = 1.0 - math.exp(-float(ratio[j].mean()))
         if not (tstat[j] >= min_t and gain >= MIN_GAIN):
             break
         chosen.append(rest[j])
