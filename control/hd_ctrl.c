@@ -48,11 +48,12 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
     };
 }
 
-int hd_ctrl_config_check(const hd_ctrl_config_t *k)
+int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
 {
-    if (k == NULL) {
+    if (cfg == NULL) {
         return HD_CTRL_ERR_NULL;
     }
+    const hd_ctrl_config_t *k = cfg;
     const bool ok =
         within(k->ts_s, 1e-5f, 0.1f) && within(k->gear_ratio, 1.0f, 1000.0f) &&
         within(k->kt_nm_per_a, 1e-4f, 10.0f) && (unsigned)k->feedback < HD_CTRL_FB_COUNT &&
