@@ -55,7 +55,7 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
     }
     const hd_ctrl_config_t *k = cfg;
     const bool ok =
-        within(k->ts_s, 1e-5f, 0.1f) && within(k->gear_ratio, 1.0f, 1000.0f) &&
+        within(k->ts_s, 1e-5f, 0.1f) && within(k->gear_ratio, 1.0f, 1e5f) &&
         within(k->kt_nm_per_a, 1e-4f, 10.0f) && (unsigned)k->feedback < HD_CTRL_FB_COUNT &&
         within(k->torque_kp, 0.0f, HD_CTRL_TORQUE_GAIN_MAX) &&
         within(k->torque_ki_per_s, 0.0f, HD_CTRL_KI_MAX_PER_S) &&
@@ -128,7 +128,7 @@ static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
 /* The feedback torque, or false when the selected source is unusable. */
 static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb)
 {
-    switch (c->cfg.feedback) {
+    switch ((hd_ctrl_feedback_t)c->cfg.feedback) {
     case HD_CTRL_FB_FILTERED:
         *fb = in->torque_filtered_nm;
         break;

@@ -92,7 +92,8 @@ typedef struct {
     float ts_s;                    /* tick period */
     float gear_ratio;              /* N: joint torque = N motor torque (ideal gear) */
     float kt_nm_per_a;             /* the drive's torque constant (motor N m per A) */
-    hd_ctrl_feedback_t feedback;
+    uint8_t feedback;              /* hd_ctrl_feedback_t (a byte: the firmware's
+                                      parameter table holds it as U8) */
     float torque_kp;               /* kp_t: joint N m of u per N m of error */
     float torque_ki_per_s;         /* ki_t */
     float torque_ff;               /* ff: share of tau_ref fed forward, 0..1 */
