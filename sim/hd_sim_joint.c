@@ -223,9 +223,14 @@ void hd_sim_joint_step(hd_sim_joint_t *j, double motor_torque_nm, hd_sim_joint_t
         .env_torque_nm = env_torque_nm(p, x),
         .gravity_nm = gravity_nm(p, x->output_angle_rad),
     };
-    truth->gauge_torque_nm =
-        truth->output_torque_nm +
-        p->gauge_ripple_nm * sin(2.0 * x->motor_angle_rad + p->gauge_ripple_phase_rad);
+    truth->gauge_torque_nm = hd_sim_joint_gauge_torque_nm(j);
+}
+
+double hd_sim_joint_gauge_torque_nm(const hd_sim_joint_t *j)
+{
+    const hd_sim_joint_params_t *p = &j->p;
+    return output_torque_nm(p, &j->x) +
+           p->gauge_ripple_nm * sin(2.0 * j->x.motor_angle_rad + p->gauge_ripple_phase_rad);
 }
 
 double hd_sim_joint_energy(const hd_sim_joint_t *j)

@@ -111,6 +111,9 @@ int hd_sim_joint_init(hd_sim_joint_t *j, const hd_sim_joint_params_t *p, char *e
 /* One tick under the motor torque (motor side, N m); fills *truth. */
 void hd_sim_joint_step(hd_sim_joint_t *j, double motor_torque_nm, hd_sim_joint_truth_t *truth);
 
+/* What the gauge sees now: the output torque plus the sensing artifact. */
+double hd_sim_joint_gauge_torque_nm(const hd_sim_joint_t *j);
+
 /* Kinetic + elastic (flexspline, spring or wall) + gravity potential: what
  * is conserved with no friction, damping, ripple or external torque. */
 double hd_sim_joint_energy(const hd_sim_joint_t *j);
