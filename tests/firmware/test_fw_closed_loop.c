@@ -9,7 +9,13 @@
  *   - the ripple in the true output torque at 2x the motor angle, with the
  *     filtered torque fed back against the raw one (the same gains: the
  *     law's defaults, not tuned to equal margins): raw feedback chases the
- *     gauge's sensing artifact and turns it into real torque.
+ *     gauge's sensing artifact and turns it into real torque;
+ *   - transparency: a person back-drives the free output at 0.2, 1 and 3
+ *     rad/s (a stiff velocity servo: the torque it needs is the person's);
+ *     ZERO_TORQUE on the filtered torque against the open-loop drive (zero
+ *     current: the person pays the drive train's friction);
+ *   - impedance: a person's constant torque against IMPEDANCE kp: the true
+ *     output deflects by T / kp (the rendered stiffness).
  * The 2x component is fitted by least squares on sin/cos(2 theta_m) of the
  * true motor angle over the last second.
  */
@@ -39,22 +45,38 @@ typedef struct {
     double line2_nm;      /* amplitude of its 2x motor-angle component */
     double rms_nm;        /* rms about the mean */
     double speed_rad_s;   /* mean output speed */
+    double person_nm;     /* mean person torque */
+    double angle_rad;     /* mean true output angle */
 } loop_result_t;
 
-static void viscous_load(hd_sim_joint_params_t *p)
+typedef struct {
+    uint8_t feedback;
+    uint8_t mode;
+    float torque_nm;
+    float kp_nm_rad, kd_nm_s_rad;
+    double damper_nm_s_rad;   /* viscous load (0: free output) */
+    double person_speed_rad_s; /* != 0: a person servoing the output to this speed */
+    double person_torque_nm;   /* else: a person's constant torque */
+} loop_case_t;
+
+#define PERSON_GAIN_NM_S_RAD 50.0
+
+static void joint_for(const loop_case_t *lc, hd_sim_joint_params_t *p)
 {
     hd_sim_joint_default(p);
     p->payload_kg = 0.0;
     p->link_gravity_nm = 0.0;
-    p->env = HD_SIM_ENV_SPRING; /* K_e = 0: a damper, the output runs at T / D_e */
-    p->env_stiffness_nm_rad = 0.0;
-    p->env_damping_nm_s_rad = 4.0;
+    if (lc->damper_nm_s_rad > 0.0) {
+        p->env = HD_SIM_ENV_SPRING; /* K_e = 0: a damper, the output runs at T / D_e */
+        p->env_stiffness_nm_rad = 0.0;
+        p->env_damping_nm_s_rad = lc->damper_nm_s_rad;
+    }
 }
 
-static loop_result_t run_loop(uint8_t feedback, float torque_nm)
+static void start_loop(const loop_case_t *lc, hd_fw_config_t *cfg)
 {
     hd_sim_joint_params_t jp;
-    viscous_load(&jp);
+    joint_for(lc, &jp);
     hal_simdrive_config_t dc;
     hal_simdrive_default(&dc);
     hal_simdyn_sensor_t sc;
@@ -68,66 +90,98 @@ static loop_result_t run_loop(uint8_t feedback, float torque_nm)
     hal_mock_bind_can(&mock, &hal.can);
     mock.tx_store = false;
     hal_simdyn_bind(&dyn, &hal);
-    hd_fw_config_t cfg;
-    hd_fw_config_default(&cfg);
-    cfg.ctrl.feedback = feedback;
-    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, &cfg));
+    hd_fw_config_default(cfg);
+    cfg->ctrl.feedback = lc->feedback;
+    TEST_ASSERT_EQUAL_INT(HD_FW_OK, hd_fw_init(&fw, &hal, cfg));
+    const hd_can_gains_t g = {lc->kp_nm_rad, lc->kd_nm_s_rad};
+    hal_can_frame_t f;
+    hd_can_encode_gains(cfg->node_id, &g, &f);
+    TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
+}
 
-    double s = 0, c = 0, ss = 0, cc = 0, sc2 = 0, ys = 0, yc = 0, y = 0, y2 = 0, w = 0;
-    int n = 0;
+/* Least squares v = m + a sin + b cos over the sums (3x3, Cramer): the
+ * amplitude hypot(a, b). */
+typedef struct {
+    double n, s, c, ss, cc, sc, ys, yc, y, y2;
+} fit_t;
+
+static void fit_add(fit_t *f, double angle, double v)
+{
+    const double si = sin(angle), co = cos(angle);
+    f->n += 1, f->s += si, f->c += co, f->ss += si * si, f->cc += co * co, f->sc += si * co;
+    f->ys += v * si, f->yc += v * co, f->y += v, f->y2 += v * v;
+}
+
+static double det3(const double m[3][3])
+{
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+           m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+static double fit_amplitude(const fit_t *f)
+{
+    const double m3[3][3] = {{f->n, f->s, f->c}, {f->s, f->ss, f->sc}, {f->c, f->sc, f->cc}};
+    const double r[3] = {f->y, f->ys, f->yc};
+    const double det = det3(m3);
+    double sol[3];
+    for (int col = 0; col < 3; col++) {
+        double m[3][3];
+        memcpy(m, m3, sizeof m);
+        for (int i = 0; i < 3; i++) {
+            m[i][col] = r[i];
+        }
+        sol[col] = det3(m) / det;
+    }
+    return hypot(sol[1], sol[2]);
+}
+
+static loop_result_t run_loop(const loop_case_t *lc)
+{
+    hd_fw_config_t cfg;
+    start_loop(lc, &cfg);
+    fit_t fit = {0};
+    double w = 0.0, person = 0.0, angle = 0.0;
     for (int k = 0; k < RUN_TICKS; k++) {
-        const hd_can_setpoint_t sp = {HD_CTRL_TORQUE, (uint8_t)k, torque_nm, 0.0f, 0.0f};
+        const hd_can_setpoint_t sp = {lc->mode, (uint8_t)k, lc->torque_nm, 0.0f, 0.0f};
         hal_can_frame_t f;
         hd_can_encode_setpoint(cfg.node_id, &sp, &f);
         TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
         hd_fw_isr(&fw);
         hd_fw_background(&fw);
+        dyn.joint.person_torque_nm =
+            lc->person_speed_rad_s != 0.0
+                ? PERSON_GAIN_NM_S_RAD * (lc->person_speed_rad_s - dyn.joint.x.output_velocity_rad_s)
+                : lc->person_torque_nm;
         hal_simdyn_tick(&dyn);
         if (k >= FIT_FROM) {
             const hd_sim_joint_truth_t *t = &dyn.truth;
-            const double a = 2.0 * t->motor_angle_rad;
-            const double si = sin(a), co = cos(a), v = t->output_torque_nm;
-            s += si, c += co, ss += si * si, cc += co * co, sc2 += si * co;
-            ys += v * si, yc += v * co, y += v, y2 += v * v, w += t->output_velocity_rad_s;
-            n++;
+            fit_add(&fit, 2.0 * t->motor_angle_rad, t->output_torque_nm);
+            w += t->output_velocity_rad_s;
+            person += t->person_torque_nm;
+            angle += t->output_angle_rad;
         }
     }
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_TORQUE, fw.control.out.mode);
-    /* least squares v = m + a sin + b cos (3x3 normal equations, Cramer) */
-    const double m3[3][3] = {{n, s, c}, {s, ss, sc2}, {c, sc2, cc}};
-    const double r[3] = {y, ys, yc};
-    double det = 0, sol[3];
-    for (int col = -1; col < 3; col++) {
-        double m[3][3];
-        memcpy(m, m3, sizeof m);
-        if (col >= 0) {
-            for (int i = 0; i < 3; i++) {
-                m[i][col] = r[i];
-            }
-        }
-        const double d = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                         m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                         m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-        if (col < 0) {
-            det = d;
-        } else {
-            sol[col] = d / det;
-        }
-    }
+    TEST_ASSERT_EQUAL_INT(lc->mode, fw.control.out.mode);
     loop_result_t out;
-    out.mean_nm = y / n;
-    out.line2_nm = hypot(sol[1], sol[2]);
-    out.rms_nm = sqrt(fmax(0.0, y2 / n - out.mean_nm * out.mean_nm));
-    out.speed_rad_s = w / n;
+    out.mean_nm = fit.y / fit.n;
+    out.line2_nm = fit_amplitude(&fit);
+    out.rms_nm = sqrt(fmax(0.0, fit.y2 / fit.n - out.mean_nm * out.mean_nm));
+    out.speed_rad_s = w / fit.n;
+    out.person_nm = person / fit.n;
+    out.angle_rad = angle / fit.n;
     return out;
 }
 
 static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
 {
     const float tau = 10.0f;
-    const loop_result_t filt = run_loop(HD_CTRL_FB_FILTERED, tau);
-    const loop_result_t raw = run_loop(HD_CTRL_FB_RAW, tau);
-    const loop_result_t open = run_loop(HD_CTRL_FB_NONE, tau);
+    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_TORQUE, tau, 0.0f, 0.0f, 4.0, 0.0, 0.0};
+    const loop_result_t filt = run_loop(&lc);
+    lc.feedback = HD_CTRL_FB_RAW;
+    const loop_result_t raw = run_loop(&lc);
+    lc.feedback = HD_CTRL_FB_NONE;
+    const loop_result_t open = run_loop(&lc);
     const char *names[3] = {"filtered", "raw", "open loop"};
     const loop_result_t *all[3] = {&filt, &raw, &open};
     for (int i = 0; i < 3; i++) {
@@ -142,9 +196,45 @@ static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
     TEST_ASSERT_TRUE(filt.line2_nm < 0.5 * raw.line2_nm);
 }
 
+static void test_zero_torque_transparency(void)
+{
+    const double speeds[3] = {0.2, 1.0, 3.0};
+    double worst = 0.0;
+    for (int i = 0; i < 3; i++) {
+        loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_ZERO_TORQUE, 0.0f, 0.0f, 0.0f, 0.0,
+                          speeds[i], 0.0};
+        const loop_result_t zt = run_loop(&lc);
+        lc.feedback = HD_CTRL_FB_NONE; /* zero current: the open-loop drive */
+        const loop_result_t open = run_loop(&lc);
+        const double ratio = fabs(zt.person_nm) / fabs(open.person_nm);
+        worst = fmax(worst, ratio);
+        /* the servo's finite gain leaves the open-loop case slower by friction / gain */
+        printf("closed_loop: back-driving at %.1f rad/s: ZERO_TORQUE %.4f N m (at %.3f rad/s), "
+               "open-loop drive %.4f N m (at %.3f rad/s), ratio %.4f (goal <= 0.1)\n",
+               speeds[i], zt.person_nm, zt.speed_rad_s, open.person_nm, open.speed_rad_s, ratio);
+        TEST_ASSERT_DOUBLE_WITHIN(0.02 * speeds[i], speeds[i], zt.speed_rad_s);
+    }
+    TEST_ASSERT_TRUE(worst <= 0.1);
+}
+
+static void test_impedance_rendered_stiffness(void)
+{
+    const float kp = 100.0f, kd = 2.0f;
+    const double push_nm = 10.0;
+    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kp, kd, 0.0, 0.0, push_nm};
+    const loop_result_t r = run_loop(&lc);
+    const double rendered = push_nm / r.angle_rad;
+    printf("closed_loop: IMPEDANCE kp %.0f N m/rad, a person's %.1f N m: true deflection %.5f "
+           "rad, rendered %.2f N m/rad (%+.2f %%; goal within 5 %%)\n",
+           (double)kp, push_nm, r.angle_rad, rendered, 100.0 * (rendered / (double)kp - 1.0));
+    TEST_ASSERT_DOUBLE_WITHIN(0.05 * (double)kp, (double)kp, rendered);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_torque_tracking_and_ripple_filtered_vs_raw);
+    RUN_TEST(test_zero_torque_transparency);
+    RUN_TEST(test_impedance_rendered_stiffness);
     return UNITY_END();
 }
