@@ -57,7 +57,11 @@ typedef struct {
     double damper_nm_s_rad;   /* viscous load (0: free output) */
     double person_speed_rad_s; /* != 0: a person servoing the output to this speed */
     double person_torque_nm;   /* else: a person's constant torque */
+    int step_at;               /* > 0: the setpoint is step_from_nm before this tick */
+    float step_from_nm;
 } loop_case_t;
+
+static double trace_nm[RUN_TICKS]; /* the true output torque of each tick */
 
 #define PERSON_GAIN_NM_S_RAD 50.0
 
@@ -143,7 +147,8 @@ static loop_result_t run_loop(const loop_case_t *lc)
     fit_t fit = {0};
     double w = 0.0, person = 0.0, angle = 0.0;
     for (int k = 0; k < RUN_TICKS; k++) {
-        const hd_can_setpoint_t sp = {lc->mode, (uint8_t)k, lc->torque_nm, 0.0f, 0.0f};
+        const float tau = k < lc->step_at ? lc->step_from_nm : lc->torque_nm;
+        const hd_can_setpoint_t sp = {lc->mode, (uint8_t)k, tau, 0.0f, 0.0f};
         hal_can_frame_t f;
         hd_can_encode_setpoint(cfg.node_id, &sp, &f);
         TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
@@ -154,6 +159,7 @@ static loop_result_t run_loop(const loop_case_t *lc)
                 ? PERSON_GAIN_NM_S_RAD * (lc->person_speed_rad_s - dyn.joint.x.output_velocity_rad_s)
                 : lc->person_torque_nm;
         hal_simdyn_tick(&dyn);
+        trace_nm[k] = dyn.truth.output_torque_nm;
         if (k >= FIT_FROM) {
             const hd_sim_joint_truth_t *t = &dyn.truth;
             fit_add(&fit, 2.0 * t->motor_angle_rad, t->output_torque_nm);
@@ -176,7 +182,7 @@ static loop_result_t run_loop(const loop_case_t *lc)
 static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
 {
     const float tau = 10.0f;
-    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_TORQUE, tau, 0.0f, 0.0f, 4.0, 0.0, 0.0};
+    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_TORQUE, tau, 0.0f, 0.0f, 4.0, 0.0, 0.0, 0, 0.0f};
     const loop_result_t filt = run_loop(&lc);
     lc.feedback = HD_CTRL_FB_RAW;
     const loop_result_t raw = run_loop(&lc);
@@ -196,13 +202,64 @@ static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
     TEST_ASSERT_TRUE(filt.line2_nm < 0.5 * raw.line2_nm);
 }
 
+/* Step metrics of trace_nm from tick `at` (from -> to), on a moving average
+ * over 13 ticks (one period of the 2x line at 247 rad/s): 10-90 % rise,
+ * overshoot, and the last tick outside +-5 % of the step. */
+typedef struct {
+    double rise_ms, overshoot_pct, settle_ms;
+} step_t;
+
+static step_t step_metrics(int at, double from, double to)
+{
+    enum { AVG = 13 };
+    step_t m = {-1.0, 0.0, -1.0};
+    const double span = to - from;
+    int t10 = -1, t90 = -1, last_out = at;
+    double peak = from;
+    for (int k = at; k < RUN_TICKS; k++) {
+        double a = 0.0;
+        for (int j = 0; j < AVG; j++) {
+            a += trace_nm[k - j];
+        }
+        a /= AVG;
+        const double x = (a - from) / span;
+        t10 = (t10 < 0 && x >= 0.1) ? k : t10;
+        t90 = (t90 < 0 && x >= 0.9) ? k : t90;
+        peak = fmax(peak, a);
+        last_out = fabs(a - to) > 0.05 * fabs(span) ? k : last_out;
+    }
+    m.rise_ms = (t10 >= 0 && t90 >= 0) ? (double)(t90 - t10) : -1.0;
+    m.overshoot_pct = 100.0 * fmax(0.0, (peak - to) / span);
+    m.settle_ms = (double)(last_out - at + 1);
+    return m;
+}
+
+static void test_torque_step_filtered_raw_open(void)
+{
+    const int at = 2000;
+    const uint8_t fb[3] = {HD_CTRL_FB_FILTERED, HD_CTRL_FB_RAW, HD_CTRL_FB_NONE};
+    const char *names[3] = {"filtered", "raw", "open loop"};
+    step_t r[3];
+    for (int i = 0; i < 3; i++) {
+        loop_case_t lc = {fb[i], HD_CTRL_TORQUE, 10.0f, 0.0f, 0.0f, 4.0, 0.0, 0.0, at, 5.0f};
+        (void)run_loop(&lc);
+        r[i] = step_metrics(at, 5.0, 10.0);
+        printf("closed_loop: step 5 -> 10 N m, %-9s feedback: rise (10-90 %%) %.0f ms, overshoot "
+               "%.1f %%, within 5 %% after %.0f ms (13-tick average of the true torque)\n",
+               names[i], r[i].rise_ms, r[i].overshoot_pct, r[i].settle_ms);
+    }
+    /* the loop on the filtered torque reaches and holds the new setpoint */
+    TEST_ASSERT_TRUE(r[0].rise_ms > 0.0);
+    TEST_ASSERT_TRUE(r[0].settle_ms < 1000.0);
+}
+
 static void test_zero_torque_transparency(void)
 {
     const double speeds[3] = {0.2, 1.0, 3.0};
     double worst = 0.0;
     for (int i = 0; i < 3; i++) {
         loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_ZERO_TORQUE, 0.0f, 0.0f, 0.0f, 0.0,
-                          speeds[i], 0.0};
+                          speeds[i], 0.0, 0, 0.0f};
         const loop_result_t zt = run_loop(&lc);
         lc.feedback = HD_CTRL_FB_NONE; /* zero current: the open-loop drive */
         const loop_result_t open = run_loop(&lc);
@@ -221,7 +278,7 @@ static void test_impedance_rendered_stiffness(void)
 {
     const float kp = 100.0f, kd = 2.0f;
     const double push_nm = 10.0;
-    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kp, kd, 0.0, 0.0, push_nm};
+    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kp, kd, 0.0, 0.0, push_nm, 0, 0.0f};
     const loop_result_t r = run_loop(&lc);
     const double rendered = push_nm / r.angle_rad;
     printf("closed_loop: IMPEDANCE kp %.0f N m/rad, a person's %.1f N m: true deflection %.5f "
@@ -234,6 +291,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_torque_tracking_and_ripple_filtered_vs_raw);
+    RUN_TEST(test_torque_step_filtered_raw_open);
     RUN_TEST(test_zero_torque_transparency);
     RUN_TEST(test_impedance_rendered_stiffness);
     return UNITY_END();
