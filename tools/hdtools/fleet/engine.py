@@ -35,12 +35,16 @@ class EngineError(HdError):
 def task(path: str, options: dict):
     """(values or None, refusal message or None, stats) for one log; a bad
     log is a refusal, never an exception (the run goes on)."""
+    from threadpoolctl import threadpool_limits
     from ..analysis.cfilter import FilterError
     from ..safeio import UsageError
     t0 = time.perf_counter()
     values, problem = None, None
     try:
-        values = record.analyze_log(path, **options)
+        # One BLAS thread wherever the task runs: a threaded dot product sums
+        # in another order, and the record must not depend on the worker.
+        with threadpool_limits(limits=1):
+            values = record.analyze_log(path, **options)
     except (UsageError, FilterError) as exc:
         problem = " | ".join(str(exc).splitlines()) or type(exc).__name__
     except (ValueError, FloatingPointError, MemoryError, OSError) as exc:

@@ -90,22 +90,25 @@ def flagged_by(rule, limit, base, recent, factor):
 
 
 def change_point(days, values):
-    """(day of the first record after the best split, score): the split
-    that maximises |mean after - mean before| / (sigma sqrt(1/n1 + 1/n2)),
-    sigma the median absolute deviation of each side around its median
-    (pooled, scaled to a standard deviation)."""
+    """(day of the first record after the split, score).  The split is the
+    one that leaves the least absolute deviation of each side from its own
+    median (robust: one odd log does not move it); the score is the step
+    between the two medians over its standard error, sigma from the pooled
+    absolute deviations (scaled to a standard deviation)."""
     n = len(values)
     if n < 4:
         return None, 0.0
-    best = (None, 0.0)
+    best_k, best_cost = None, math.inf
     for k in range(2, n - 1):
         a, b = values[:k], values[k:]
-        mad = np.r_[np.abs(a - np.median(a)), np.abs(b - np.median(b))]
-        sigma = max(1.4826 * float(np.median(mad)), 1e-3 * float(np.median(np.abs(values))), 1e-12)
-        score = abs(b.mean() - a.mean()) / (sigma * math.sqrt(1 / k + 1 / (n - k)))
-        if score > best[1]:
-            best = (float(days[k]), float(score))
-    return best
+        cost = float(np.abs(a - np.median(a)).sum() + np.abs(b - np.median(b)).sum())
+        if cost < best_cost:
+            best_k, best_cost = k, cost
+    a, b = values[:best_k], values[best_k:]
+    mad = np.r_[np.abs(a - np.median(a)), np.abs(b - np.median(b))]
+    sigma = max(1.4826 * float(np.median(mad)), 1e-3 * float(np.median(np.abs(values))), 1e-12)
+    score = abs(float(np.median(b) - np.median(a))) / (sigma * math.sqrt(1 / best_k + 1 / (n - best_k)))
+    return float(days[best_k]), float(score)
 
 
 def _levels(days, values, upto, th):

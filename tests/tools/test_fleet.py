@@ -1,0 +1,223 @@
+"""hdsense fleet against the simulated fleet's truth and against itself run
+without the engine (docs/fleet.md, "Tests").
+
+The fleet (seed 7) is not the one the thresholds were chosen on (seed 1):
+held out.  The engine runs are compared with the direct run (the same task
+called in this process) bit for bit: records.parquet's bytes.  A real
+`dask scheduler` and two `dask worker` processes are started on 127.0.0.1;
+one worker is killed mid-run."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from conftest import ROOT
+
+from hdtools.fleet import engine, job, simfleet, trends  # noqa: E402
+
+SEED = 7                # held out: the thresholds were looked at on seed 1
+OPTIONS = {"gear_ratio": 100.0, "loop": False}
+START_S = 60
+
+
+@pytest.fixture(scope="module")
+def fleet(hdsim, tmp_path_factory):
+    root = tmp_path_factory.mktemp("fleet")
+    truth = simfleet.generate(root, hdsim, n_joints=8, days=10, logs_per_day=1, log_s=60.0,
+                              seed=SEED)
+    (root / "j003" / "2026-01-20T08-00-00.csv").write_bytes(b"t_s,torque_nm\n\x00\x01garbage\n")
+    return root, truth
+
+
+def _run(fleet, store, **kw):
+    return job.run([str(fleet[0])], store, OPTIONS, trends.load_thresholds(), quiet=True, **kw)
+
+
+@pytest.fixture(scope="module")
+def direct(fleet, tmp_path_factory):
+    store = tmp_path_factory.mktemp("direct")
+    return store, _run(fleet, store, direct=True)
+
+
+def _bytes(store):
+    return (Path(store) / "records.parquet").read_bytes()
+
+
+def _start_day(utc):
+    from datetime import datetime, timezone
+    from hdtools.fleet import catalog
+    t = datetime.strptime(utc, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=timezone.utc)
+    return (t - catalog.EPOCH).total_seconds() / 86400.0
+
+
+EXPECTED_ALARM = {"meshing": "meshing 2x", "friction": ("viscous friction", "Coulomb friction"),
+                  "gain": "gauge gain", "tooth": "new line motor 1x"}
+
+
+def test_truth_wearing_flagged_healthy_not(fleet, direct):
+    _, truth = fleet
+    doc = json.loads((direct[0] / "report.json").read_text())
+    wearing = {j["joint"] for j in truth["joints"] if j["wear"] != "none"}
+    assert set(doc["flagged"]) == wearing
+    rows = {j["joint"]: j for j in doc["joints"]}
+    for tj in truth["joints"]:
+        if tj["wear"] == "none":
+            continue
+        want = EXPECTED_ALARM[tj["wear"]]
+        want = (want,) if isinstance(want, str) else want
+        assert set(rows[tj["joint"]]["alarms"]) & set(want), (tj, rows[tj["joint"]]["alarms"])
+        onset = _start_day(tj["onset_utc"])
+        for a in rows[tj["joint"]]["alarms"]:
+            # never before the wear began (a causal, per-day evaluation)
+            assert rows[tj["joint"]]["indicators"][a]["first_flagged_day"] > onset
+        if tj["wear"] == "tooth":
+            ind = rows[tj["joint"]]["indicators"]["new line motor 1x"]
+            assert ind["change_point"] and 0 < ind["change_point_day"] - onset <= 1.0
+
+
+def test_corrupt_log_reported_rest_complete(fleet, direct):
+    s = direct[1]
+    assert [r["path"] for r in s["refused"]] == ["j003/2026-01-20T08-00-00.csv"]
+    assert s["logs"] == 81 and s["analysed"] == 81
+    doc = json.loads((direct[0] / "report.json").read_text())
+    assert sum(j["records"] for j in doc["joints"]) == 80
+
+
+def test_rerun_skips_up_to_date_and_redoes_a_changed_log(fleet, direct, tmp_path):
+    store = tmp_path / "store"
+    shutil.copytree(direct[0], store)
+    assert _run(fleet, store, direct=True)["analysed"] == 0
+    log = fleet[0] / "j000" / "2026-01-05T08-00-00.csv"
+    saved = log.read_bytes()
+    try:
+        log.write_bytes(saved.replace(b"\n0.005000,", b"\n0.005001,", 1))
+        s = _run(fleet, store, direct=True)
+        assert s["analysed"] == 1 and s["skipped_up_to_date"] == 80
+    finally:
+        log.write_bytes(saved)
+    assert _run(fleet, store, direct=True)["analysed"] == 0
+    assert _bytes(store) == _bytes(direct[0])
+
+
+def test_local_cluster_equals_direct_bit_for_bit(fleet, direct, tmp_path):
+    s = _run(fleet, tmp_path, workers=2, memory="1GiB")
+    assert s["analysed"] == 81
+    assert _bytes(tmp_path) == _bytes(direct[0])
+
+
+def _dask(*args):
+    exe = Path(sys.executable).parent / "dask"
+    return [str(exe), *args]
+
+
+class Cluster:
+    """`dask scheduler` and two `dask worker --no-nanny` on 127.0.0.1."""
+
+    def __init__(self, tmp):
+        env = dict(os.environ, PYTHONPATH=str(ROOT / "tools"))
+        sfile = tmp / "scheduler.json"
+        quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "env": env}
+        self.procs = [subprocess.Popen(_dask("scheduler", "--host", "127.0.0.1", "--port", "0",
+                                             "--no-dashboard", "--scheduler-file", str(sfile)),
+                                       **quiet)]
+        deadline = time.monotonic() + START_S
+        while not sfile.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(0.2)
+        self.address = json.loads(sfile.read_text())["address"]
+        for _ in range(2):
+            self.procs.append(subprocess.Popen(
+                _dask("worker", self.address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                      "--host", "127.0.0.1", "--memory-limit", "1GiB"), **quiet))
+        self.workers = self.procs[1:]
+
+    def client(self):
+        from distributed import Client
+        c = Client(self.address, timeout=START_S, set_as_default=False)
+        c.wait_for_workers(2, timeout=START_S)
+        return c
+
+    def stop(self):
+        for p in reversed(self.procs):
+            if p.poll() is None:
+                p.terminate()
+        for p in self.procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    c = Cluster(tmp_path)
+    yield c
+    c.stop()
+
+
+def test_real_scheduler_two_workers_equals_direct(fleet, direct, cluster, tmp_path):
+    client = cluster.client()
+    try:
+        pids = set(client.run(os.getpid).values())
+        s = _run(fleet, tmp_path / "store", client=client)
+    finally:
+        client.close()
+    assert pids == {p.pid for p in cluster.workers}
+    assert s["analysed"] == 81
+    assert _bytes(tmp_path / "store") == _bytes(direct[0])
+
+
+def test_worker_killed_mid_run_nothing_lost_or_duplicated(fleet, direct, cluster, tmp_path):
+    client = cluster.client()
+    store = tmp_path / "store"
+    result, killed_at = {}, {}
+
+    def work():
+        result["s"] = _run(fleet, store, client=client)
+
+    t = threading.Thread(target=work)
+    t.start()
+    records = store / "records"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        n = len(list(records.glob("*.parquet"))) if records.is_dir() else 0
+        if n >= 8:
+            os.kill(cluster.workers[1].pid, signal.SIGKILL)
+            killed_at["records"] = n
+            break
+        time.sleep(0.005)
+    t.join(timeout=180)
+    client.close()
+    assert not t.is_alive()
+    assert 8 <= killed_at["records"] < 81, killed_at      # it was mid-run
+    assert cluster.workers[1].wait(timeout=10) == -signal.SIGKILL
+    s = result["s"]
+    assert s["analysed"] == 81 and len(s["refused"]) == 1
+    table = pq.read_table(store / "records.parquet")
+    keys = table.column("key").to_pylist()
+    assert len(keys) == len(set(keys)) == 81
+    assert _bytes(store) == _bytes(direct[0])
+
+
+def test_unreachable_scheduler_one_line_not_a_hang(fleet, tmp_path):
+    import socket
+    with socket.socket() as s:       # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    t0 = time.monotonic()
+    p = subprocess.run([str(ROOT / "tools" / "hdsense"), "fleet", str(fleet[0]), "--store",
+                        str(tmp_path / "st"), "--scheduler", f"tcp://127.0.0.1:{port}"],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == engine.EngineError.code
+    assert len(p.stderr.strip().splitlines()) == 1 and "cannot connect" in p.stderr
+    assert time.monotonic() - t0 < engine.CONNECT_TIMEOUT_S + 30
