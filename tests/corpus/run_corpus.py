@@ -86,6 +86,7 @@ CLASS_TEXT = {
     "calib": "hdsense calib: data it cannot judge, dates, serials, outputs",
     "hdsense": "hdsense command line in general",
     "joint-tools": "hdsense profile, current, device, send, monitor; hdjoint-host --profile, --cmd-at",
+    "fleet": "hdsense fleet: corrupt logs, other gear ratios, no identity, empty inputs, scheduler, store, full disk",
 }
 SANITIZER = re.compile(r"ERROR: AddressSanitizer|runtime error:|LeakSanitizer")
 

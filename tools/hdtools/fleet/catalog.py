@@ -94,7 +94,12 @@ def discover(inputs) -> list[LogRef]:
             key = os.path.realpath(f)
             if key not in seen:
                 seen.add(key)
-                refs.append(_identify(LogRef(f, os.path.relpath(f, base))))
+                ref = LogRef(f, os.path.relpath(f, base))
+                if not os.path.isfile(f):     # a FIFO would block the hash
+                    ref.problem = "not a regular file (FIFO, device or socket)"
+                    refs.append(ref)
+                else:
+                    refs.append(_identify(ref))
     if not refs:
         raise UsageError(f"no logs (*.csv, *.log) in {', '.join(inputs)}")
     return refs
@@ -103,16 +108,18 @@ def discover(inputs) -> list[LogRef]:
 def content_key(ref: LogRef, options: dict) -> str:
     """sha256 of the record version, the options, the log's bytes and its
     sidecar's: a record stored under this key is up to date.  An unreadable
-    log hashes its error (it is refused again, not retried forever)."""
-    h = hashlib.sha256(json.dumps([record.RECORD_VERSION, options, ref.rel],
+    log hashes its error (it is refused again, not retried forever); a
+    file that is not regular is never opened."""
+    h = hashlib.sha256(json.dumps([record.RECORD_VERSION, options, ref.rel, ref.problem],
                                   sort_keys=True).encode())
     for p in (ref.path, ref.path + ".json"):
+        if not os.path.isfile(p):
+            h.update(b"\0absent")
+            continue
         try:
             with open(p, "rb") as fh:
                 while chunk := fh.read(HASH_CHUNK):
                     h.update(chunk)
-        except FileNotFoundError:
-            h.update(b"\0absent")
         except OSError as exc:
             h.update(f"\0error {exc.errno}".encode())
     return h.hexdigest()[:32]

@@ -47,6 +47,8 @@ def task(path: str, options: dict):
             values = record.analyze_log(path, **options)
     except (UsageError, FilterError) as exc:
         problem = " | ".join(str(exc).splitlines()) or type(exc).__name__
+        # the record names the log by its relative path: no absolute path in it
+        problem = problem[len(path) + 2:] if problem.startswith(f"{path}: ") else problem
     except (ValueError, FloatingPointError, MemoryError, OSError) as exc:
         problem = f"cannot analyse: {type(exc).__name__}: {exc}"
     stats = {"elapsed_s": time.perf_counter() - t0, "pid": os.getpid(),

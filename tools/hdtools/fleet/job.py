@@ -28,9 +28,9 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
     """Returns the summary (also in report.json's "run").  `client`: an
     existing dask.distributed Client to use (tests, benchmarks)."""
     t0 = time.perf_counter()
-    store = st.Store(store_dir)
     refs = catalog.discover(inputs)
-    keys, jobs, by_key = [], [], {}
+    store = st.Store(store_dir)
+    keys, jobs, by_key, unknown = [], [], {}, 0
     for ref in refs:
         key = catalog.content_key(ref, options)
         keys.append(key)
@@ -39,6 +39,7 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
             continue
         if ref.problem:
             store.put(_row(ref, key, None, ref.problem))
+            unknown += 1
         else:
             jobs.append((key, ref.path))
     stats = []
@@ -66,7 +67,8 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
     ok = [r for r in rows if r["status"] == "ok"]
     refused = [{"path": r["path"], "message": r["message"]} for r in rows if r["status"] != "ok"]
     joint_rows = trends.joints(ok, th)
-    summary = {"logs": len(rows), "analysed": len(jobs), "skipped_up_to_date": len(rows) - len(jobs),
+    done = len(jobs) + unknown
+    summary = {"logs": len(rows), "analysed": done, "skipped_up_to_date": len(rows) - done,
                "refused": refused, "joints": len(joint_rows),
                "flagged": [j["joint"] for j in joint_rows if j["flagged"]],
                "joint_hours": sum(r["duration_s"] for r in ok) / 3600.0,
@@ -89,5 +91,5 @@ def _rss_by_worker(stats):
 
 def summary_line(s) -> str:
     return (f"{s['logs']} logs ({s['analysed']} analysed, {s['skipped_up_to_date']} up to date, "
-            f"{len(s['refused'])} refused), {s['joints']} joints, {s['joint_hours']:.2f} "
+            f"{len(s['refused'])} refused), {s['joints']} joints, {s['joint_hours']:.3g} "
             f"joint-hours; flagged: {', '.join(s['flagged']) or 'none'}")

@@ -136,7 +136,7 @@ def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), 
     g = pipeline.gear_of(data, None, _quiet)
     if gear_ratio is not None:
         if abs(g["value"] - gear_ratio) > GEAR_TOLERANCE * gear_ratio and g["source"] != "assumed":
-            raise loading.InputError(f"{path}: gear ratio {g['value']:.4g} ({g['source']}), "
+            raise loading.InputError(f"gear ratio {g['value']:.4g} ({g['source']}), "
                                      f"the fleet's is {gear_ratio:g} (--gear-ratio)")
         g = {"value": float(gear_ratio), "source": "given"}
     noise = float(np.median([estimate_noise_nm(p.torque_nm) for p in data.pieces]))
