@@ -221,3 +221,66 @@ def test_unreachable_scheduler_one_line_not_a_hang(fleet, tmp_path):
     assert p.returncode == engine.EngineError.code
     assert len(p.stderr.strip().splitlines()) == 1 and "cannot connect" in p.stderr
     assert time.monotonic() - t0 < engine.CONNECT_TIMEOUT_S + 30
+
+
+def test_long_log_in_chunks_each_at_its_place(hdsim, tmp_path):
+    """A 5 min log cut into chunks of 1 MB: one record per chunk, each
+    placed at the time of its first row (read here from the CSV at the
+    chunk's byte offset), every sample in one chunk, and each chunk's
+    meshing line that of the whole log's record (a healthy joint)."""
+    from hdtools.fleet import chunks
+    joint = next(j for j in simfleet.plan(8, 10, SEED, 300.0, 3.0) if j.wear == "none")
+    ini = tmp_path / "long.ini"
+    ini.write_text(simfleet.scenario_text(joint, 0.0, 300.0, 5))
+    big = tmp_path / "long" / joint.joint / "2026-01-05T08-00-00.csv"
+    big.parent.mkdir(parents=True)
+    subprocess.run([str(hdsim), str(ini), "--csv", str(big)], check=True, capture_output=True)
+    opts = dict(OPTIONS, chunk_bytes=1 << 20)
+    s = job.run([str(tmp_path / "long")], tmp_path / "st", opts, trends.load_thresholds(),
+                direct=True, quiet=True)
+    rngs = chunks.ranges(str(big), 1 << 20)
+    assert len(rngs) >= 3 and s["records"] == len(rngs) and not s["refused"]
+    rows = pq.read_table(tmp_path / "st" / "records.parquet").to_pylist()
+    assert [r["chunk"] for r in rows] == list(range(len(rngs)))
+    data = big.read_bytes()
+    for r, (a, _) in zip(rows, rngs):
+        t_first = float(data[a:data.index(b"\n", a)].decode().split(",")[0])
+        assert r["chunk_offset_s"] == pytest.approx(t_first, abs=1e-9)
+        assert r["start_day"] == pytest.approx(rows[0]["start_day"] + t_first / 86400, abs=1e-9)
+    whole = job.run([str(tmp_path / "long")], tmp_path / "st_whole", OPTIONS,
+                    trends.load_thresholds(), direct=True, quiet=True)
+    assert whole["records"] == 1
+    w = pq.read_table(tmp_path / "st_whole" / "records.parquet").to_pylist()[0]
+    assert sum(r["samples"] for r in rows) == w["samples"] == data.count(b"\n") - 1
+    for r in rows:
+        assert r["motor2_amp_nm"] == pytest.approx(w["motor2_amp_nm"], rel=0.05)
+
+
+def test_docs_thresholds_table_is_current():
+    from hdtools.fleet import bench
+    text = (ROOT / "docs" / "fleet.md").read_text()
+    assert bench.thresholds_table() in text
+
+
+def test_client_killed_mid_run_loses_nothing_done(fleet, direct, tmp_path):
+    """SIGKILL the `hdsense fleet` process itself mid-run: every record it
+    wrote is whole and is not redone; the next run does exactly the rest."""
+    store = tmp_path / "store"
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "tools"))
+    p = subprocess.Popen([sys.executable, "-m", "hdtools.cli", "fleet", str(fleet[0]), "--store",
+                          str(store), "--gear-ratio", "100", "--direct", "--quiet"], env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    records = store / "records"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and p.poll() is None:
+        if records.is_dir() and len(list(records.glob("*.parquet"))) >= 10:
+            p.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.005)
+    assert p.wait(timeout=30) == -signal.SIGKILL
+    done = len(list(records.glob("*.parquet")))
+    assert 10 <= done < 81 and not (store / "records.parquet").exists()
+    s = _run(fleet, store, direct=True)
+    assert s["analysed"] == 81 - done and s["skipped_up_to_date"] == done
+    assert not list(records.glob(".*"))
+    assert _bytes(store) == _bytes(direct[0])

@@ -33,6 +33,9 @@ def register(sub):
                    help="no engine: the same tasks in this process (baseline, debugging)")
     p.add_argument("--gear-ratio", type=float, help="the fleet's gear ratio: a log that shows "
                    "another (2 %% off) is refused")
+    p.add_argument("--chunk-mb", type=float, default=64.0,
+                   help="a CSV log larger than this is cut into chunks of at most this many "
+                        "MB, one task and one record each (default 64)")
     p.add_argument("--loop", action="store_true",
                    help="also run the whole analyze loop per log (slow) and keep what it added")
     p.add_argument("--thresholds", metavar="FILE.json", help="alarm thresholds over the defaults")
@@ -52,6 +55,8 @@ def _check(args):
     if args.scheduler is not None and not re.match(r"^(tcp|tls|inproc|ws|wss)://\S+$",
                                                    args.scheduler):
         raise UsageError(f"--scheduler: expected tcp://HOST:PORT (got {args.scheduler!r})")
+    if not (math.isfinite(args.chunk_mb) and 0.01 <= args.chunk_mb <= 1e6):
+        raise UsageError(f"--chunk-mb must be 0.01..1e6 (got {args.chunk_mb:g})")
     if args.scheduler and args.direct:
         raise UsageError("--scheduler and --direct exclude each other")
 
@@ -60,7 +65,8 @@ def main(args) -> int:
     _check(args)
     from .fleet import job, trends
     th = trends.load_thresholds(args.thresholds)
-    options = {"gear_ratio": args.gear_ratio, "loop": bool(args.loop)}
+    options = {"gear_ratio": args.gear_ratio, "loop": bool(args.loop),
+               "chunk_bytes": int(args.chunk_mb * (1 << 20))}
     summary = job.run(args.inputs, args.store, options, th, workers=args.workers,
                       memory=args.memory_per_worker.strip(), scheduler=args.scheduler,
                       direct=args.direct, quiet=args.quiet)

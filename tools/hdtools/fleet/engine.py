@@ -32,9 +32,9 @@ class EngineError(HdError):
     code = 1
 
 
-def task(path: str, options: dict):
-    """(values or None, refusal message or None, stats) for one log; a bad
-    log is a refusal, never an exception (the run goes on)."""
+def task(path: str, options: dict, byte_range=None):
+    """(values or None, refusal message or None, stats) for one log or one
+    chunk of it; a bad log is a refusal, never an exception (the run goes on)."""
     from threadpoolctl import threadpool_limits
     from ..analysis.cfilter import FilterError
     from ..safeio import UsageError
@@ -44,7 +44,8 @@ def task(path: str, options: dict):
         # One BLAS thread wherever the task runs: a threaded dot product sums
         # in another order, and the record must not depend on the worker.
         with threadpool_limits(limits=1):
-            values = record.analyze_log(path, **options)
+            values = record.analyze_log(path, byte_range=byte_range,
+                                        **{k: v for k, v in options.items() if k != "chunk_bytes"})
     except (UsageError, FilterError) as exc:
         problem = " | ".join(str(exc).splitlines()) or type(exc).__name__
         # the record names the log by its relative path: no absolute path in it
@@ -68,8 +69,16 @@ def connect(scheduler=None, workers=2, memory_per_worker="2GiB"):
     import dask
     from distributed import Client, LocalCluster
     _silence()
+    # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which
+    # also fixes glibc's mmap threshold: every large numpy array of a replay
+    # becomes a fresh mmap and the task ran 1.8x slower than in the client
+    # (measured, docs/fleet.md).  Our workers keep glibc's default; the
+    # nanny's memory limit still bounds them.
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
+               if k != "MALLOC_TRIM_THRESHOLD_"}
     dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
-                     "distributed.logging.distributed": "critical"})
+                     "distributed.logging.distributed": "critical",
+                     "distributed.nanny.pre-spawn-environ": environ})
     if scheduler:
         try:
             return Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
@@ -96,12 +105,12 @@ def _bar(total, quiet):
 
 
 def run(client, jobs, options, on_result, quiet=False):
-    """jobs: [(key, path)].  Calls on_result(key, values, problem, stats) as
+    """jobs: [(key, path, byte range or None)].  Calls on_result(key, values, problem, stats) as
     each task finishes, in completion order."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
-    futures = {client.submit(task, path, options, key=f"hdfleet-{key}", pure=False): key
-               for key, path in jobs}
+    futures = {client.submit(task, path, options, rng, key=f"hdfleet-{key}", pure=False): key
+               for key, path, rng in jobs}
     with _bar(len(futures), quiet) as bar:
         for fut in as_completed(list(futures), loop=client.loop):
             key = futures[fut]
@@ -122,6 +131,6 @@ def run(client, jobs, options, on_result, quiet=False):
 def run_direct(jobs, options, on_result, quiet=False):
     """The same tasks in this process, in order (no engine)."""
     with _bar(len(jobs), quiet) as bar:
-        for key, path in jobs:
-            on_result(key, *task(path, options))
+        for key, path, rng in jobs:
+            on_result(key, *task(path, options, rng))
             bar.update(1)

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..analysis import loading, pipeline, replay as rp, spectra
 from ..analysis.model import Model, estimate_noise_nm, slow_step_nm
+from . import chunks
 
 RECORD_VERSION = 1
 # Orders whose raw-torque line each record fits: the modelled meshing lines
@@ -28,7 +29,7 @@ OUTPUT_SCAN = (1, 2)
 GEAR_TOLERANCE = 0.02       # a log whose ratio is 2 % off the fleet's is another joint type
 SLOW_BLOCK_S = 0.02         # slow-torque regression on 20 ms means (as detect.py)
 
-ID_COLUMNS = (("key", "string"), ("path", "string"), ("joint", "string"),
+ID_COLUMNS = (("key", "string"), ("path", "string"), ("chunk", "int64"), ("joint", "string"),
               ("start_utc", "string"), ("start_day", "float64"), ("status", "string"),
               ("message", "string"))
 
@@ -42,7 +43,7 @@ def line_columns():
 
 
 VALUE_COLUMNS = (
-    ("duration_s", "float64"), ("samples", "int64"), ("ts_s", "float64"),
+    ("chunk_offset_s", "float64"), ("duration_s", "float64"), ("samples", "int64"), ("ts_s", "float64"),
     ("gear_ratio", "float64"), ("gear_source", "string"),
     *line_columns(),
     ("motor2_filtered_amp_nm", "float64"), ("motor4_filtered_amp_nm", "float64"),
@@ -130,8 +131,26 @@ def _quiet(*_a):
     pass
 
 
-def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), loop=False):
-    """The record's values for one log (loading.InputError on bad input)."""
+def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), loop=False,
+                byte_range=None):
+    """The record's values for one log, or for the chunk of its data rows in
+    byte_range (chunks.py); loading.InputError on bad input."""
+    if byte_range is None:
+        rec, _ = _analyze(path, gear_ratio, motor_orders, output_orders, loop)
+        rec["chunk_offset_s"] = 0.0
+        return rec
+    with chunks.extracted(path, byte_range) as (tmp, first_t):
+        try:
+            rec, data = _analyze(tmp, gear_ratio, motor_orders, output_orders, loop)
+        except loading.InputError as exc:
+            raise loading.InputError(str(exc).replace(tmp, str(path))) from None
+    scale = loading.TIME_SCALE.get(data.units.get("time", "s"), 1.0)
+    rec["chunk_offset_s"] = (float(data.pieces[0].t_s[0]) - first_t * scale
+                             if first_t is not None else math.nan)
+    return rec
+
+
+def _analyze(path, gear_ratio, motor_orders, output_orders, loop):
     data = loading.load(path)
     g = pipeline.gear_of(data, None, _quiet)
     if gear_ratio is not None:
@@ -169,4 +188,4 @@ def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), 
         rec["loop_added"] = "; ".join(pipeline.label(e) for e in rep["effects"] if e["added"])
         rec["loop_out_of_sample_innovation_after_nm"] = float(
             rep["metrics_after"]["out_of_sample_innovation_rms_nm"])
-    return rec
+    return rec, data

@@ -62,11 +62,13 @@ class Joint:
 
 def _speed_profile(rng, log_s):
     """The joint's health-check motion: motor speeds 50-130 rad/s with a
-    reversal every 5-10 s (the same motion every day)."""
+    reversal every 5-10 s (the same motion every day); longer logs reverse
+    less often (hdsim takes 64 profile points)."""
     t, pts, sign = 0.0, [], 1.0
+    step_s = max(5.0, log_s / 60.0)
     while t < log_s:
         pts.append(f"{t:.3f}:{sign * rng.uniform(50, 130):.2f}")
-        t += rng.uniform(5, 10)
+        t += rng.uniform(step_s, 2 * step_s)
         sign = -sign
     pts.append(f"{log_s:.3f}:{sign * 60:.2f}")
     return ", ".join(pts)

@@ -5,7 +5,10 @@ the consolidated table STORE/records.parquet (sorted by joint, start,
 path), rewritten whole at the end of a run.
 
     STORE/records/<key>.parquet   one row, key = catalog.content_key
-    STORE/records.parquet         every record of this run's logs"""
+    STORE/records.parquet         every record of this run's logs
+
+A store is used by one run at a time: a run removes the temporary files
+a killed run left in records/."""
 from __future__ import annotations
 
 import os
@@ -44,6 +47,11 @@ class Store:
             raise OutputError(f"--store {self.root}: cannot create: {exc.strerror}") from None
         if not os.access(self.records, os.W_OK | os.X_OK):
             raise OutputError(f"--store {self.root}: not writable")
+        for stale in self.records.glob(".*.tmp"):   # a run killed mid-write left it
+            try:
+                stale.unlink()
+            except OSError:
+                pass
 
     def _path(self, key: str) -> Path:
         return self.records / f"{key}.parquet"
