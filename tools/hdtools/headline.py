@@ -211,7 +211,8 @@ def fleet_rows(f: dict) -> list[tuple[str, str, str]]:
          f"wearing joints flagged **{n['wearing_flagged']} / {n['wearing']}**, healthy "
          f"{n['healthy_flagged']} / {n['healthy']}; first alarm at most {delay:.1f} days after "
          "the onset", src),
-        ("`hdsense fleet` throughput on 200 Hz logs, this machine (Dask LocalCluster)",
+        ("`hdsense fleet` throughput on 200 Hz logs, this machine (Dask LocalCluster; 2 cores "
+         "shared with other work, so one run's numbers: see fleet.md)",
          f"{dask[1]['joint_hours_per_min']:.0f} joint-hours/min with 1 worker "
          f"({100 * sp['dask_overhead_1_worker']:+.1f} % vs calling the analysis directly), "
          f"{dask[2]['joint_hours_per_min']:.0f} with 2 ({sp['dask_speedup_2_workers']:.2f}x)",

@@ -103,7 +103,7 @@ def _row(name, workers, s, base_s):
             "peak_rss_mb_per_worker": max(s["max_rss_mb_per_worker"], default=None)}
 
 
-REPEATS = 2     # each configuration twice, interleaved; the faster run counts (a shared machine)
+REPEATS = 3     # each configuration twice, interleaved; the faster run counts (a shared machine)
 
 
 def _dask(root, store, n):
@@ -230,8 +230,11 @@ def markdown(res) -> str:
         L.append(f"| {r['engine']} | {r['workers']} | {r['engine_s']:.2f} | {_f(r.get('startup_s'))} | "
                  f"{r['joint_hours_per_min']:.0f} | {r['joint_hours_per_min_per_worker']:.0f} | "
                  f"{r['vs_direct']:.2f}x | {_f(r['peak_rss_mb_per_worker'], '{:.0f}')} |")
-    L += ["", f"Each row the faster of {REPEATS} interleaved runs; load average at the end "
-          f"{res['load_average']:.1f} on {os.cpu_count()} cores (other work on the machine).", "",
+    L += ["", f"Each row the fastest of {REPEATS} interleaved runs. Load average "
+          f"{res['load_average'][0]:.1f} at the start and {res['load_average'][1]:.1f} at the end "
+          f"on {os.cpu_count()} cores: other work shares the machine, so rows of the same work "
+          "differ by more than the engines do (a row faster than the direct baseline is load, "
+          "not speed).", "",
           f"Dask's overhead with 1 worker against the direct call: "
           f"**{100 * sp['dask_overhead_1_worker']:+.1f} %**; 2 workers against 1: "
           f"**{sp['dask_speedup_2_workers']:.2f}x** (this machine has 2 cores, shared).", ""]
@@ -270,6 +273,7 @@ def main(argv=None) -> int:
     p.add_argument("--ray-python", help="a Python with ray installed (comparison only)")
     a = p.parse_args(argv)
     hdsim = native.executable("hdsim")
+    load_start = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="hdfleet-bench-") as tmp:
         res = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}"
                f", {os.cpu_count()} cores",
@@ -277,7 +281,7 @@ def main(argv=None) -> int:
                              "report": [detection(s, tmp, hdsim) for s in REPORT_SEEDS]},
                "speed": speed(tmp, hdsim, a.ray_python), "memory": memory(tmp, hdsim)}
     res["estimate"] = estimate(res["speed"])
-    res["load_average"] = os.getloadavg()[0]
+    res["load_average"] = [load_start, os.getloadavg()[0]]
     md = markdown(res)
     print(md)
     if a.write:

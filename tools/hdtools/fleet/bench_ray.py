@@ -1,6 +1,6 @@
-"""The same per-log task on Ray, for bench.py's Dask-vs-Ray table only.  Ray
-is not a project dependency: run with a Python that has it (and numpy,
-scipy), PYTHONPATH=tools:
+"""The same per-log task (engine.task) on Ray, for bench.py's Dask-vs-Ray
+table only.  Ray is not a project dependency: run with a Python that has
+it (and numpy, scipy, cantools, threadpoolctl), PYTHONPATH=tools:
 
     python -m hdtools.fleet.bench_ray FLEET_DIR WORKERS   -> one JSON line"""
 from __future__ import annotations
@@ -12,7 +12,7 @@ import time
 
 def main(root: str, workers: int) -> int:
     import ray
-    from . import catalog, record
+    from . import catalog, engine
     logs = [r.path for r in catalog.discover([root]) if not r.problem]
     t0 = time.perf_counter()
     ray.init(num_cpus=workers, include_dashboard=False, logging_level="ERROR",
@@ -20,9 +20,8 @@ def main(root: str, workers: int) -> int:
 
     @ray.remote(num_cpus=1)
     def task(path):
-        t = time.perf_counter()
-        rec = record.analyze_log(path, gear_ratio=100.0)
-        return rec["duration_s"], time.perf_counter() - t
+        values, _, stats = engine.task(path, {"gear_ratio": 100.0, "loop": False})
+        return values["duration_s"], stats["elapsed_s"]
 
     @ray.remote(num_cpus=1)
     def ready():
