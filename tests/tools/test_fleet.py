@@ -284,3 +284,26 @@ def test_client_killed_mid_run_loses_nothing_done(fleet, direct, tmp_path):
     assert s["analysed"] == 81 - done and s["skipped_up_to_date"] == done
     assert not list(records.glob(".*"))
     assert _bytes(store) == _bytes(direct[0])
+
+
+def test_loop_record_keeps_what_analyze_added_the_tooth_line(fleet):
+    """--loop: the whole analyze loop on a log of the tooth joint after its
+    onset adds a motor-order-1 block (the truth's new line), and its held-out
+    innovation is below the reference model's."""
+    from hdtools.fleet import record
+    tooth = next(j for j in fleet[1]["joints"] if j["wear"] == "tooth")
+    log = sorted((fleet[0] / tooth["joint"]).glob("*.csv"))[-1]
+    rec = record.analyze_log(str(log), gear_ratio=100.0, loop=True)
+    assert rec["loop_run"] and "motor order 1" in rec["loop_added"].split("; ")
+    assert rec["loop_out_of_sample_innovation_after_nm"] < rec["out_of_sample_innovation_rms_nm"]
+
+
+def test_report_flagged_joints_first_and_refusals_listed(fleet, direct):
+    doc = json.loads((direct[0] / "report.json").read_text())
+    flags = [j["flagged"] for j in doc["joints"]]
+    assert flags == sorted(flags, reverse=True) and any(flags)
+    html = (direct[0] / "report.html").read_text()
+    rows = [html.index(f"<td>{j['joint']}</td>") for j in doc["joints"]]
+    assert rows == sorted(rows)
+    assert "j003/2026-01-20T08-00-00.csv" in html.split("Refused logs")[1]
+    assert (direct[0] / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
