@@ -14,10 +14,13 @@ the baseline the engine's overhead is measured against, and the reference
 the distributed results are compared with bit for bit."""
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import resource
+import signal
 import sys
+import threading
 import time
 
 from ..safeio import HdError
@@ -89,6 +92,22 @@ def connect(scheduler=None, workers=2, memory_per_worker="2GiB"):
                            memory_limit=memory_per_worker, dashboard_address=None,
                            silence_logs=logging.CRITICAL)
     return Client(cluster, set_as_default=False)
+
+
+@contextlib.contextmanager
+def deferred_sigint():
+    """SIGINT held back while a cluster starts or stops (a KeyboardInterrupt
+    inside distributed's start-up was swallowed and the run went on, or
+    came out at exit as a death by signal); delivered, as
+    KeyboardInterrupt, when the block ends."""
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        if main:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def close(client):

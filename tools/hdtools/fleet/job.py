@@ -60,13 +60,15 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
     if jobs and direct:
         engine.run_direct(jobs, options, on_result, quiet)
     elif jobs:
-        own = client is None
-        client = client or engine.connect(scheduler, workers, memory)
+        own, given = client is None, client
         try:
+            with engine.deferred_sigint():
+                client = given or engine.connect(scheduler, workers, memory)
             engine.run(client, jobs, options, on_result, quiet)
         finally:
-            if own:
-                engine.close(client)
+            if own and client is not None:
+                with engine.deferred_sigint():
+                    engine.close(client)
     t_done = time.perf_counter()
     table = store.table(keys)
     store.write_table(table)
