@@ -31,8 +31,8 @@ from . import job, simfleet, trends
 ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "fleet.md"
 RESULT = ROOT / "docs" / "results" / "fleet.json"
-BEGIN, END = "<!-- BEGIN generated:fleet -->", "<!-- END generated:fleet -->"
-TH_BEGIN, TH_END = "<!-- BEGIN generated:thresholds -->", "<!-- END generated:thresholds -->"
+BEGIN, END = "<!-- fleet:measured:begin -->", "<!-- fleet:measured:end -->"
+TH_BEGIN, TH_END = "<!-- fleet:thresholds:begin -->", "<!-- fleet:thresholds:end -->"
 TUNE_SEEDS = (1, 2)
 REPORT_SEEDS = (3, 4)
 DETECT_FLEET = {"n_joints": 12, "days": 14, "logs_per_day": 2, "log_s": 60.0}
