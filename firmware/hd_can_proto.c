@@ -226,6 +226,15 @@ int hd_can_decode_boot(const hal_can_frame_t *f, hd_can_boot_t *out)
     return 0;
 }
 
+/* The checks every received frame of the tick gets before its bytes are read. */
+static int rx_frame_check(const hal_can_frame_t *f)
+{
+    if ((f->flags & (HAL_CAN_FLAG_RTR | HAL_CAN_FLAG_ERR | HAL_CAN_FLAG_FD)) != 0u) {
+        return HD_CAN_RES_BAD_FRAME;
+    }
+    return f->len == HD_CAN_DLC ? HD_CAN_RES_OK : HD_CAN_RES_BAD_LENGTH;
+}
+
 void hd_can_encode_feedforward(uint8_t node_id, const hd_can_feedforward_t *ff,
                                hal_can_frame_t *f)
 {
@@ -236,11 +245,9 @@ void hd_can_encode_feedforward(uint8_t node_id, const hd_can_feedforward_t *ff,
 
 int hd_can_decode_feedforward(const hal_can_frame_t *f, hd_can_feedforward_t *out)
 {
-    if ((f->flags & (HAL_CAN_FLAG_RTR | HAL_CAN_FLAG_ERR | HAL_CAN_FLAG_FD)) != 0u) {
-        return HD_CAN_RES_BAD_FRAME;
-    }
-    if (f->len != HD_CAN_DLC) {
-        return HD_CAN_RES_BAD_LENGTH;
+    const int rc = rx_frame_check(f);
+    if (rc != HD_CAN_RES_OK) {
+        return rc;
     }
     float v = hd_le_get_f32(&f->data[0]);
     if (!isfinite(v)) {
@@ -249,6 +256,88 @@ int hd_can_decode_feedforward(const hal_can_frame_t *f, hd_can_feedforward_t *ou
     out->torque_nm = v;
     out->seq = f->data[4];
     return HD_CAN_RES_OK;
+}
+
+void hd_can_encode_setpoint(uint8_t node_id, const hd_can_setpoint_t *sp, hal_can_frame_t *f)
+{
+    frame_init(f, HD_CAN_FRAME_SETPOINT, node_id);
+    f->data[0] = sp->mode;
+    f->data[1] = sp->seq;
+    hd_le_put_u16(&f->data[2], (uint16_t)hd_can_scale_i16(sp->torque_nm, HD_CAN_SETPOINT_TORQUE_LSB_NM));
+    hd_le_put_u16(&f->data[4],
+                  (uint16_t)hd_can_scale_i16(sp->position_rad, HD_CAN_SETPOINT_POSITION_LSB_RAD));
+    hd_le_put_u16(&f->data[6],
+                  (uint16_t)hd_can_scale_i16(sp->velocity_rad_s, HD_CAN_SETPOINT_VELOCITY_LSB_RAD_S));
+}
+
+int hd_can_decode_setpoint(const hal_can_frame_t *f, hd_can_setpoint_t *out)
+{
+    const int rc = rx_frame_check(f);
+    if (rc != HD_CAN_RES_OK) {
+        return rc;
+    }
+    const uint16_t t = hd_le_get_u16(&f->data[2]);
+    const uint16_t q = hd_le_get_u16(&f->data[4]);
+    const uint16_t v = hd_le_get_u16(&f->data[6]);
+    out->mode = f->data[0];
+    out->seq = f->data[1];
+    if ((int16_t)t == HD_CAN_INT16_NA || (int16_t)q == HD_CAN_INT16_NA ||
+        (int16_t)v == HD_CAN_INT16_NA) {
+        return HD_CAN_RES_NOT_FINITE;
+    }
+    out->torque_nm = i16_to_float(t, HD_CAN_SETPOINT_TORQUE_LSB_NM);
+    out->position_rad = i16_to_float(q, HD_CAN_SETPOINT_POSITION_LSB_RAD);
+    out->velocity_rad_s = i16_to_float(v, HD_CAN_SETPOINT_VELOCITY_LSB_RAD_S);
+    return HD_CAN_RES_OK;
+}
+
+void hd_can_encode_gains(uint8_t node_id, const hd_can_gains_t *g, hal_can_frame_t *f)
+{
+    frame_init(f, HD_CAN_FRAME_GAINS, node_id);
+    hd_le_put_f32(&f->data[0], g->kp_nm_rad);
+    hd_le_put_f32(&f->data[4], g->kd_nm_s_rad);
+}
+
+int hd_can_decode_gains(const hal_can_frame_t *f, hd_can_gains_t *out)
+{
+    const int rc = rx_frame_check(f);
+    if (rc != HD_CAN_RES_OK) {
+        return rc;
+    }
+    const float kp = hd_le_get_f32(&f->data[0]);
+    const float kd = hd_le_get_f32(&f->data[4]);
+    if (!isfinite(kp) || !isfinite(kd)) {
+        return HD_CAN_RES_NOT_FINITE;
+    }
+    out->kp_nm_rad = kp;
+    out->kd_nm_s_rad = kd;
+    return HD_CAN_RES_OK;
+}
+
+void hd_can_encode_ctrl_state(uint8_t node_id, const hd_can_ctrl_state_t *c, hal_can_frame_t *f)
+{
+    frame_init(f, HD_CAN_FRAME_CTRL_STATE, node_id);
+    f->data[0] = (uint8_t)((c->mode_asked & 0x0Fu) | (uint8_t)(c->mode_run << 4));
+    f->data[1] = c->limits;
+    hd_le_put_u16(&f->data[2], (uint16_t)hd_can_scale_i16(c->torque_ref_nm, HD_CAN_CTRL_TORQUE_LSB_NM));
+    hd_le_put_u16(&f->data[4], (uint16_t)hd_can_scale_i16(c->current_a, HD_CAN_CTRL_CURRENT_LSB_A));
+    f->data[6] = c->seq;
+    f->data[7] = c->flags;
+}
+
+int hd_can_decode_ctrl_state(const hal_can_frame_t *f, hd_can_ctrl_state_t *out)
+{
+    if (!frame_is(f, HD_CAN_FRAME_CTRL_STATE, NULL)) {
+        return -1;
+    }
+    out->mode_asked = f->data[0] & 0x0Fu;
+    out->mode_run = (uint8_t)(f->data[0] >> 4);
+    out->limits = f->data[1];
+    out->torque_ref_nm = i16_to_float(hd_le_get_u16(&f->data[2]), HD_CAN_CTRL_TORQUE_LSB_NM);
+    out->current_a = i16_to_float(hd_le_get_u16(&f->data[4]), HD_CAN_CTRL_CURRENT_LSB_A);
+    out->seq = f->data[6];
+    out->flags = f->data[7];
+    return 0;
 }
 
 static bool is_add_opcode(uint8_t op)
@@ -277,6 +366,9 @@ void hd_can_encode_cmd(uint8_t node_id, const hd_can_cmd_t *c, hal_can_frame_t *
 
 static bool opcode_known(uint8_t op)
 {
+    if (op == HD_CMD_SETPOINT_REFUSED) {
+        return false; /* an ACK's opcode only: no command */
+    }
     switch (op) {
 #define HD_OPCODE(code, NAME, doc) case code:
 #include "hd_protocol.def"

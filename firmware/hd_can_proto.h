@@ -76,6 +76,18 @@ typedef enum {
 #define HD_CAN_INT24_MAX 8388607
 #define HD_CAN_OUTPUT_COUNTS_MASK 0x7FFFFFu /* TELEM_C: low 23 bits, bit 23 = present */
 
+/* Control frames (issue 23; docs/protocol.md, "Control"). */
+#define HD_CAN_SETPOINT_TORQUE_LSB_NM 0.002f      /* int16: +-65.5 N m */
+#define HD_CAN_SETPOINT_POSITION_LSB_RAD 0.001f   /* int16: +-32.767 rad */
+#define HD_CAN_SETPOINT_VELOCITY_LSB_RAD_S 0.001f /* int16: +-32.767 rad/s */
+#define HD_CAN_CTRL_TORQUE_LSB_NM 0.01f
+#define HD_CAN_CTRL_CURRENT_LSB_A 0.001f
+/* CTRL_STATE byte 7 */
+#define HD_CAN_CTRL_FLAG_ENABLED  0x01u  /* the drive is told to drive */
+#define HD_CAN_CTRL_FLAG_WATCHDOG 0x02u  /* the setpoint stream timed out */
+#define HD_CAN_CTRL_FLAG_LATCHED  0x04u  /* STOP latched (encoder lost, drive fault) */
+#define HD_CAN_CTRL_FLAG_NO_DRIVE 0x08u  /* the board has no drive */
+
 /* Identifier of a frame type for a node, and the reverse: true if id is one
  * of ours (29-bit, our prefix, node in range). */
 uint32_t hd_can_id(hd_can_frame_type_t type, uint8_t node_id);
@@ -122,6 +134,35 @@ typedef struct {
     uint8_t seq;              /* free-running; repeated values are not new data */
 } hd_can_feedforward_t;
 
+/* SETPOINT: u8 mode, u8 seq, i16 torque, i16 position, i16 velocity.  The
+ * int16 value -32768 is "not a number": such a frame is refused. */
+typedef struct {
+    uint8_t mode;             /* hd_ctrl_mode_t; others are refused */
+    uint8_t seq;              /* free-running; a repeated value is stale, not new */
+    float torque_nm;
+    float position_rad;
+    float velocity_rad_s;
+} hd_can_setpoint_t;
+
+/* GAINS: f32 kp (N m/rad), f32 kd (N m s/rad). */
+typedef struct {
+    float kp_nm_rad;
+    float kd_nm_s_rad;
+} hd_can_gains_t;
+
+/* CTRL_STATE: u8 mode asked | mode run << 4, u8 limits (HD_CTRL_LIM_*),
+ * i16 torque reference (0.01 N m), i16 current command (1 mA), u8 the last
+ * setpoint's seq, u8 flags (HD_CAN_CTRL_FLAG_*). */
+typedef struct {
+    uint8_t mode_asked;
+    uint8_t mode_run;
+    uint8_t limits;
+    float torque_ref_nm;
+    float current_a;
+    uint8_t seq;
+    uint8_t flags;
+} hd_can_ctrl_state_t;
+
 typedef struct {
     uint8_t opcode;
     uint8_t token;    /* any value; echoed in the ACK so a host can match replies */
@@ -165,6 +206,16 @@ void hd_can_encode_feedforward(uint8_t node_id, const hd_can_feedforward_t *ff,
 /* Returns HD_CAN_RES_OK, HD_CAN_RES_BAD_FRAME / BAD_LENGTH, or
  * HD_CAN_RES_NOT_FINITE (the value is never trusted). */
 int hd_can_decode_feedforward(const hal_can_frame_t *f, hd_can_feedforward_t *out);
+
+void hd_can_encode_setpoint(uint8_t node_id, const hd_can_setpoint_t *sp, hal_can_frame_t *f);
+/* HD_CAN_RES_OK, BAD_FRAME / BAD_LENGTH, or NOT_FINITE (an int16 at -32768).
+ * The mode and the ranges are the firmware's to check. */
+int hd_can_decode_setpoint(const hal_can_frame_t *f, hd_can_setpoint_t *out);
+void hd_can_encode_gains(uint8_t node_id, const hd_can_gains_t *g, hal_can_frame_t *f);
+/* HD_CAN_RES_OK, BAD_FRAME / BAD_LENGTH, or NOT_FINITE. */
+int hd_can_decode_gains(const hal_can_frame_t *f, hd_can_gains_t *out);
+void hd_can_encode_ctrl_state(uint8_t node_id, const hd_can_ctrl_state_t *c, hal_can_frame_t *f);
+int hd_can_decode_ctrl_state(const hal_can_frame_t *f, hd_can_ctrl_state_t *out);
 
 void hd_can_encode_cmd(uint8_t node_id, const hd_can_cmd_t *c, hal_can_frame_t *f);
 /* Checks a received command frame (id already matched) and decodes it.

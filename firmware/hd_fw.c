@@ -12,6 +12,7 @@
 void hd_fw_derive(hd_fw_settings_t *s)
 {
     const hd_fw_config_t *c = &s->cfg;
+    hd_fw_ctrl_config(c, &s->ctrl);
     s->motor_rad_per_count = HD_TWO_PI_F / (float)c->motor_cpr;
     s->output_rad_per_count = HD_TWO_PI_F / (float)c->output_cpr;
     /* The most counts a healthy encoder can move in one tick, plus 2 counts
@@ -154,11 +155,15 @@ void hd_fw_set_rx_filter(const hd_fw_t *fw, uint8_t node_id)
 {
     const hal_can_t *can = &fw->hal->can;
     if (can->set_rx_filter != NULL) {
-        const uint32_t ids[2] = {
+        /* the control frames only with a drive (a board without one keeps
+         * the filter it always had) */
+        const uint32_t ids[4] = {
             hd_can_id(HD_CAN_FRAME_CMD, node_id) | HAL_CAN_ID_EXT_BIT,
             hd_can_id(HD_CAN_FRAME_FEEDFORWARD, node_id) | HAL_CAN_ID_EXT_BIT,
+            hd_can_id(HD_CAN_FRAME_SETPOINT, node_id) | HAL_CAN_ID_EXT_BIT,
+            hd_can_id(HD_CAN_FRAME_GAINS, node_id) | HAL_CAN_ID_EXT_BIT,
         };
-        (void)can->set_rx_filter(can->ctx, ids, 2u);
+        (void)can->set_rx_filter(can->ctx, ids, hd_fw_has_drive(fw) ? 4u : 2u);
     }
 }
 

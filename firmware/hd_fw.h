@@ -3,7 +3,7 @@
  *
  *   hd_fw_isr         the 1 kHz tick (hd_fw_tick.c):
  *                       deadline -> requests -> receive -> sense -> pipeline
- *                       -> faults -> publish
+ *                       -> control -> faults -> publish
  *                     Bounded time: it never parses a command, builds a
  *                     model or touches NVM.  It takes the frames the HAL
  *                     received (feed-forward applied at once, commands queued
@@ -31,6 +31,7 @@
 
 #include "hal.h"
 #include "hd_calib_record.h"
+#include "hd_ctrl.h"
 #include "hd_can_proto.h"
 #include "hd_fw_config.h"
 #include "hd_params.h"
@@ -99,6 +100,7 @@ typedef struct {
 /* Everything the tick reads from the configuration, swapped as a whole. */
 typedef struct {
     hd_fw_config_t cfg;
+    hd_ctrl_config_t ctrl;          /* hd_fw_ctrl_config(cfg) */
     float motor_rad_per_count;
     float output_rad_per_count;
     int32_t max_motor_delta_counts;
@@ -199,6 +201,38 @@ typedef struct {
     volatile uint32_t snapshot_seq; /* incremented when snapshot is written */
 } hd_fw_tick_state_t;
 
+/* The control stage's state (hd_fw_control.c): only the tick writes it. */
+typedef struct {
+    hd_ctrl_t ctrl;                 /* the law's state (built from the live settings) */
+    const hd_fw_settings_t *built_from; /* the settings ctrl was built from */
+    hd_ctrl_setpoint_t sp;          /* the last accepted setpoint (STOP at boot) */
+    float kp_nm_rad;                /* the last accepted GAINS */
+    float kd_nm_s_rad;
+    bool sp_have;
+    uint8_t sp_seq;
+    uint32_t sp_age_ticks;          /* ticks since the last new setpoint (saturating) */
+    bool stop_latched;              /* encoder lost or drive fault: STOP until a STOP setpoint */
+    bool watchdog;                  /* the stream timed out (until a new setpoint) */
+    bool drive_on;                  /* what the drive was last told */
+    uint32_t misses_seen;           /* counters.deadline_misses at the last tick */
+    uint32_t miss_score;            /* +HD_FW_MISS_WEIGHT per missed tick, -1 per tick */
+    float angle_rad;                /* output angle since boot (compensated sum) */
+    float angle_comp_rad;
+    /* a refused SETPOINT / GAINS frame's ACK, sent by publish */
+    bool refuse_pending;
+    uint8_t refuse_node;
+    uint8_t refuse_token;
+    uint8_t refuse_aux;
+    uint8_t refuse_result;
+    hd_ctrl_output_t out;           /* the last step's */
+} hd_fw_ctrl_state_t;
+
+/* Repeated deadline misses (the DAMP reaction): each missed tick adds this,
+ * each tick takes 1 away; at HD_FW_MISS_DAMP_SCORE or more the controller
+ * runs DAMP.  One late tick now and then never trips it; 3 within ~20 ticks do. */
+#define HD_FW_MISS_WEIGHT 10u
+#define HD_FW_MISS_DAMP_SCORE 21u
+
 /* State only the background writes. */
 typedef struct {
     hd_fw_config_t defaults;        /* hd_fw_init's: CONFIG_DEFAULTS returns to them */
@@ -229,6 +263,7 @@ typedef struct {
     hd_fw_queue_t cmd_queue;        /* tick -> background */
     hd_fw_queue_t ack_queue;        /* background -> tick */
     hd_fw_tick_state_t tick;
+    hd_fw_ctrl_state_t control;     /* written by the tick only */
     hd_fw_bg_state_t bg;
     hd_fw_sample_t last;
     hd_fw_counters_t counters;

@@ -7,6 +7,13 @@
 #include "hd_params.h"
 #include "hd_track.h"
 
+void hd_fw_ctrl_config(const hd_fw_config_t *cfg, hd_ctrl_config_t *out)
+{
+    *out = cfg->ctrl;
+    out->ts_s = HD_FW_TS_S;
+    out->gear_ratio = cfg->gear_ratio;
+}
+
 void hd_fw_config_default(hd_fw_config_t *cfg)
 {
     memset(cfg, 0, sizeof *cfg);
@@ -32,6 +39,9 @@ void hd_fw_config_default(hd_fw_config_t *cfg)
     cfg->feedforward_ramp_ms = HD_FW_DEFAULT_FF_RAMP_MS;
     cfg->learning_mode = HD_FW_LEARN_OPERATING;
     cfg->operating_output_learn_scale = HD_FW_DEFAULT_OPERATING_LEARN_SCALE;
+    hd_ctrl_config_default(&cfg->ctrl); /* control/'s defaults */
+    cfg->ctrl_watchdog_ms = HD_FW_DEFAULT_CTRL_WATCHDOG_MS;
+    cfg->ctrl_damp_ms = HD_FW_DEFAULT_CTRL_DAMP_MS;
 }
 
 void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out)
@@ -79,6 +89,11 @@ hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param)
     if (cfg->kf.ripple_load_coeff_per_nm * cfg->torque_limit_nm > HD_FW_MAX_LOAD_GROWTH) {
         return HD_FW_ERR_KF;
     }
+    hd_ctrl_config_t ctrl;
+    hd_fw_ctrl_config(cfg, &ctrl);
+    if (hd_ctrl_config_check(&ctrl) != HD_CTRL_OK) {
+        return HD_FW_ERR_CONTROL;
+    }
     return HD_FW_OK;
 }
 
@@ -102,6 +117,7 @@ const char *hd_fw_err_str(int err)
     case HD_FW_ERR_DUPLICATE: return "key given twice";
     case HD_FW_ERR_BYTES: return "NUL, control or non-ASCII byte outside a comment";
     case HD_FW_ERR_TOO_LONG: return "configuration text too long";
+    case HD_FW_ERR_CONTROL: return "controller settings rejected (hd_ctrl_config_check)";
     default: return "unknown error";
     }
 }

@@ -10,6 +10,7 @@
 
 #include <stdint.h>
 
+#include "hd_ctrl.h"
 #include "hd_expected.h"
 #include "hd_kf.h"
 
@@ -36,6 +37,9 @@ extern "C" {
  * zero-load amplitude at the limit). */
 #define HD_FW_MAX_LOAD_GROWTH 100.0f
 
+#define HD_FW_DEFAULT_CTRL_WATCHDOG_MS 100u /* as moteus */
+#define HD_FW_DEFAULT_CTRL_DAMP_MS 500u
+
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */
     hd_expected_config_t expected;
@@ -58,6 +62,10 @@ typedef struct {
     uint8_t learning_mode;          /* HD_FW_LEARN_* */
     uint8_t node_id;                /* 1..127 */
     uint8_t filter_enabled;         /* 0: filtered torque = raw torque */
+    hd_ctrl_config_t ctrl;          /* the joint controller (issue 23; its ts_s and
+                                       gear_ratio are the firmware's: hd_fw_ctrl_config) */
+    uint16_t ctrl_watchdog_ms;      /* no new setpoint for this long: DAMP */
+    uint16_t ctrl_damp_ms;          /* then DAMP this long, then STOP */
 } hd_fw_config_t;
 
 /* learning_mode: how fast output-locked (geometric) blocks learn
@@ -89,6 +97,7 @@ typedef enum {
     HD_FW_ERR_DUPLICATE = -13,    /* a key given twice */
     HD_FW_ERR_BYTES = -14,        /* NUL, control or non-ASCII byte outside a comment */
     HD_FW_ERR_TOO_LONG = -15,     /* configuration text above HD_CFGTXT_MAX_BYTES */
+    HD_FW_ERR_CONTROL = -16,      /* hd_ctrl_config_check refused the controller's settings */
 } hd_fw_err_t;
 
 /* The defaults: hd_kf_config_recommended (motor orders 2 and 4, output
@@ -108,6 +117,10 @@ hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param);
  * output_learn_scale (and, commissioning, the offset's q) set by the
  * learning mode. */
 void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out);
+
+/* The controller configuration the firmware runs: cfg->ctrl with the tick
+ * period and cfg->gear_ratio. */
+void hd_fw_ctrl_config(const hd_fw_config_t *cfg, hd_ctrl_config_t *out);
 const char *hd_fw_err_str(int err);
 
 #ifdef __cplusplus

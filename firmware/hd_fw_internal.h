@@ -40,6 +40,13 @@ float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults);
 float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s,
                               float *var_nm2);
 void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s);
+
+/* hd_fw_control.c: a SETPOINT or GAINS frame of ours (the tick's receive
+ * step), and the control stage after the pipeline; returns its faults. */
+void hd_fw_take_control_frame(hd_fw_t *fw, const hal_can_frame_t *f, uint8_t type);
+uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults);
+/* A drive is present: the actuator part has enable and command_current. */
+bool hd_fw_has_drive(const hd_fw_t *fw);
 void hd_fw_stop(hd_fw_t *fw);
 
 /* Records (hd_fw_records.c).  Boot: loads the calibration and configuration

@@ -37,16 +37,17 @@ static void send_boot(hd_fw_t *fw)
     fw->tick.boot_sent = true;
 }
 
-static void send_telemetry(hd_fw_t *fw, const hd_fw_sample_t *s)
+/* Returns true on the ticks it sends a TELEM_A/B pair. */
+static bool send_telemetry(hd_fw_t *fw, const hd_fw_sample_t *s)
 {
     const hd_fw_settings_t *set = hd_fw_live(fw);
     hd_fw_tick_state_t *k = &fw->tick;
     if (set->telem_divider == 0u) {
-        return;
+        return false;
     }
     if (k->telem_countdown > 0u) {
         k->telem_countdown--;
-        return;
+        return false;
     }
     k->telem_countdown = set->telem_divider - 1u;
     hd_can_telem_t t = {s->torque_filtered_nm, s->torque_raw_nm, s->ripple_nm, s->valid,
@@ -68,6 +69,33 @@ static void send_telemetry(hd_fw_t *fw, const hd_fw_sample_t *s)
     k->telem_pairs++;
     k->telem_seq++;
     fw->counters.telemetry_frames++;
+    return true;
+}
+
+/* CTRL_STATE with each telemetry pair (only with a drive: a board without
+ * one sends what it always did), and the ACK of a refused SETPOINT/GAINS. */
+static void send_control(hd_fw_t *fw, bool telemetry_tick)
+{
+    hd_fw_ctrl_state_t *c = &fw->control;
+    const uint8_t node = hd_fw_live(fw)->cfg.node_id;
+    hal_can_frame_t f;
+    if (c->refuse_pending) {
+        c->refuse_pending = false;
+        const hd_can_ack_t a = {HD_CMD_SETPOINT_REFUSED, c->refuse_token, c->refuse_result,
+                                c->refuse_aux, 0.0f, 0u};
+        hd_can_encode_ack(c->refuse_node, &a, &f);
+        send_frame(fw, &f);
+    }
+    if (!telemetry_tick || !hd_fw_has_drive(fw)) {
+        return;
+    }
+    const uint8_t flags = (uint8_t)((c->out.enable ? HD_CAN_CTRL_FLAG_ENABLED : 0u) |
+                                    (c->watchdog ? HD_CAN_CTRL_FLAG_WATCHDOG : 0u) |
+                                    (c->stop_latched ? HD_CAN_CTRL_FLAG_LATCHED : 0u));
+    const hd_can_ctrl_state_t st = {(uint8_t)c->sp.mode, (uint8_t)c->out.mode, c->out.limits,
+                                    c->out.torque_ref_nm, c->out.current_a, c->sp_seq, flags};
+    hd_can_encode_ctrl_state(node, &st, &f);
+    send_frame(fw, &f);
 }
 
 static uint16_t sat16(uint32_t v)
@@ -106,7 +134,8 @@ void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s)
     if (!fw->tick.boot_sent) {
         send_boot(fw);
     }
-    send_telemetry(fw, s);
+    const bool telemetry_tick = send_telemetry(fw, s);
+    send_control(fw, telemetry_tick);
     send_heartbeat(fw, false);
     send_acks(fw);
 }

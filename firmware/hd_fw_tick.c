@@ -105,8 +105,8 @@ static void take_feedforward(hd_fw_t *fw, const hal_can_frame_t *f)
 }
 
 /* Commands for this node wait for the background (the queue never
- * overflows: when full, frames stay with the driver); feed-forward frames
- * are taken at once; the rest is counted. */
+ * overflows: when full, frames stay with the driver); feed-forward and
+ * control frames are taken at once; the rest is counted. */
 static void receive_frames(hd_fw_t *fw)
 {
     if (fw->tick.ff_age_ticks < UINT32_MAX) {
@@ -135,6 +135,10 @@ static void receive_frames(hd_fw_t *fw)
                           hd_can_id_parse(f.id, f.flags, &type, &to) && to == node;
         if (ours && type == HD_CAN_FRAME_FEEDFORWARD) {
             take_feedforward(fw, &f);
+            continue;
+        }
+        if (ours && (type == HD_CAN_FRAME_SETPOINT || type == HD_CAN_FRAME_GAINS)) {
+            hd_fw_take_control_frame(fw, &f, type); /* at once, like feed-forward */
             continue;
         }
         if (!ours || type != HD_CAN_FRAME_CMD) {
@@ -327,6 +331,8 @@ void hd_fw_isr(hd_fw_t *fw)
         return;
     }
     faults |= run_pipeline(fw, &s);
+    /* with the faults raised between samples (a bus-off seen by a send) */
+    faults |= hd_fw_control(fw, &s, faults | fw->tick.pending_faults);
     account_faults(fw, &s, faults);
     fw->last = s;
     fw->counters.ticks++;

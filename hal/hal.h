@@ -2,12 +2,12 @@
  * hal: everything the 1 kHz ISR touches, as one small interface.
  *
  * A backend fills one or more parts of an hal_t (sensors, can, nvm, clock,
- * system)
+ * system, actuator)
  * with its context and function pointers.  Backends live in their own
  * folders (hal/mock, hal/sim, hal/replay, hal/socketcan, and the MCU ports).
  * Firmware checks for NULL before calling a part.
  *
- * Rules for every function called from the ISR (sensors, can, clock):
+ * Rules for every function called from the ISR (sensors, can, clock, actuator):
  * non-blocking, bounded time, no allocation.
  * Return codes: 0 = ok, negative = hal_err_t.
  */
@@ -77,7 +77,7 @@ typedef struct {
     uint32_t can_rx_error_count; /* (TEC, REC: 0..255) as last read; 0 where unknown */
 } hal_counters_t;
 
-/* The HAL is four independent parts, each with its own context, so a
+/* The HAL is independent parts, each with its own context, so a
  * runner can compose them: e.g. sensors from the simulated joint, CAN from
  * SocketCAN, NVM from a file.  A part whose functions are NULL is absent. */
 
@@ -159,6 +159,33 @@ typedef struct {
     void (*reboot)(void *ctx);
 } hal_system_t;
 
+/* What a motor drive reports about itself (hal_actuator_t.status). */
+typedef struct {
+    bool enabled;           /* its output stage is on */
+    bool fault;             /* it reported a fault: it will not (or must not) drive */
+    uint32_t fault_code;    /* the drive's own code (0: none; ODrive axis error, moteus fault) */
+    float bus_voltage_v;    /* NaN where unknown */
+    float temperature_c;    /* NaN where unknown */
+    float current_a;        /* the q-axis current it measured; NaN where unknown */
+    uint32_t age_ticks;     /* ticks since the drive last reported (0: this tick) */
+} hal_drive_status_t;
+
+/* The motor drive (issue 23).  May be absent (all NULL): the firmware then
+ * refuses every control mode but STOP with a status.  Called from the tick:
+ * non-blocking, bounded, no allocation.  The firmware calls enable(false)
+ * or command_current once per tick with control on; a drive that hears
+ * nothing for its own watchdog time must stop by itself. */
+typedef struct {
+    void *ctx;
+    /* Output stage on (closed-loop current control) or off (coasting). */
+    int (*enable)(void *ctx, bool on);
+    /* This tick's q-axis current, A (+ = + motor torque).  The backend
+     * saturates to what the drive can do; the firmware has already limited it. */
+    int (*command_current)(void *ctx, float current_a);
+    /* The drive's latest report, without waiting. */
+    int (*status)(void *ctx, hal_drive_status_t *out);
+} hal_actuator_t;
+
 typedef struct {
     const char *name;
     hal_sensors_t sensors;
@@ -166,6 +193,7 @@ typedef struct {
     hal_nvm_t nvm;
     hal_clock_t clock;
     hal_system_t system;
+    hal_actuator_t actuator;
 } hal_t;
 
 #ifdef __cplusplus

@@ -202,6 +202,47 @@ def bags(build: Path, tmp: Path) -> None:
     (out / "bad_yaml" / "metadata.yaml").write_text("rosbag2_bagfile_information: [\n")
 
 
+FLEET_INI = """duration_s = 5
+ts_s = 0.005
+seed = {seed}
+gear_ratio = {ratio}
+output_encoder_cpr = 65536
+motor_speed_profile = 0:80, 2.5:-110, 5:90
+load_sine = 3 : 4 : 0
+ripple = motor : 2 : 1.0 : 0.3
+noise_nm = 0.02
+feedforward = 1
+feedforward.load_scale = 1
+feedforward.inertia_kgm2 = 0.1
+"""
+FLEET_COLUMNS = ("t_s", "motor_angle_rad", "output_angle_rad", "torque_nm", "torque_feedforward_nm")
+
+
+def fleet_log(build: Path, tmp: Path, rel: str, seed: int, ratio: int = 100) -> None:
+    """A 5 s, 200 Hz hdsim log with only the columns hdsense fleet reads."""
+    ini, csv = tmp / "f.ini", tmp / "f.csv"
+    ini.write_text(FLEET_INI.format(seed=seed, ratio=ratio))
+    run(str(build / "sim/hdsim"), str(ini), "--csv", str(csv))
+    rows = [r.split(",") for r in csv.read_text().splitlines()]
+    idx = [rows[0].index(c) for c in FLEET_COLUMNS]
+    put(rel, "\n".join(",".join(r[i] for i in idx) for r in rows) + "\n")
+
+
+def fleets(build: Path, tmp: Path) -> None:
+    """hdsense fleet: good logs, one of another gear ratio, a corrupt one,
+    one without identity, a sidecar, a bad sidecar."""
+    fleet_log(build, tmp, "fleet/fl/j001/2026-01-05T08-00-00.csv", 1)
+    fleet_log(build, tmp, "fleet/fl/j001/2026-01-06T08-00-00.csv", 2)
+    fleet_log(build, tmp, "fleet/fl/j002/2026-01-05T08-00-00.csv", 3, ratio=160)
+    put("fleet/fl/j002/2026-01-06T08-00-00.csv", b"t_s,torque_nm\n\x00\x01\xff garbage\n")
+    fleet_log(build, tmp, "fleet/fl/j003/run.csv", 4)
+    put("fleet/fl/j003/run.csv.json", '{"joint": "j003", "start_utc": "2026-01-05T09:00:00Z"}\n')
+    put("fleet/fl/j003/other.csv", "t_s,torque_nm\n")
+    put("fleet/fl/j003/other.csv.json", '{"joint": "j003", "start_utc": \n')
+    put("fleet/fl/misc/notes.csv", "t_s,torque_nm\n0,1\n")
+    put("fleet/bad/j9/2026-01-05T08-00-00.csv", b"\x00" * 64)
+
+
 def main() -> int:
     if len(sys.argv) != 2:
         print(__doc__, file=sys.stderr)
@@ -211,6 +252,7 @@ def main() -> int:
         canlogs(build, Path(tmp))
         replays(build, Path(tmp))
         bags(build, Path(tmp))
+        fleets(build, Path(tmp))
     text_bytes()
     campaigns(build)
     return 0

@@ -87,6 +87,7 @@ CLASS_TEXT = {
     "hdsense": "hdsense command line in general",
     "joint-tools": "hdsense profile, current, device, send, monitor; hdjoint-host --profile, --cmd-at",
     "ros2": "MCAP / rosbag2 in and out: hdsense analyze on bags, canlog convert, monitor --mcap",
+    "fleet": "hdsense fleet: corrupt logs, other gear ratios, no identity, empty inputs, scheduler, store, full disk",
 }
 SANITIZER = re.compile(r"ERROR: AddressSanitizer|runtime error:|LeakSanitizer")
 

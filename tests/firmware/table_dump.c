@@ -65,5 +65,14 @@ int main(void)
     hd_can_feedforward_t ff = {-2.5f, 7u};
     hd_can_encode_feedforward(3, &ff, &a);
     frame("FEEDFORWARD", &a);
+    hd_can_setpoint_t sp = {3u, 200u, -12.5f, 1.25f, -0.75f};
+    hd_can_encode_setpoint(3, &sp, &a);
+    frame("SETPOINT", &a);
+    hd_can_gains_t g = {150.0f, 2.5f};
+    hd_can_encode_gains(3, &g, &a);
+    frame("GAINS", &a);
+    hd_can_ctrl_state_t cs = {2u, 1u, 0x28u, -3.5f, 1.234f, 17u, 0x03u};
+    hd_can_encode_ctrl_state(3, &cs, &a);
+    frame("CTRL_STATE", &a);
     return 0;
 }

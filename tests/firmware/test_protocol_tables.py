@@ -99,6 +99,16 @@ def test_c_encoder_bytes_decode_through_the_dbc(dump):
     assert cmd["SetParamValue"] == 121.0
     ff = decode("FEEDFORWARD", "FEEDFORWARD")
     assert ff["FfTorque"] == -2.5 and ff["FfSeq"] == 7
+    sp = decode("SETPOINT", "SETPOINT")
+    assert (sp["SpMode"], sp["SpSeq"]) == (3, 200)
+    assert sp["SpTorque"] == pytest.approx(-12.5) and sp["SpPosition"] == pytest.approx(1.25)
+    assert sp["SpVelocity"] == pytest.approx(-0.75)
+    g = decode("GAINS", "GAINS")
+    assert g["GainKp"] == 150.0 and g["GainKd"] == 2.5
+    cs = decode("CTRL_STATE", "CTRL_STATE")
+    assert (cs["CtrlModeAsked"], cs["CtrlModeRun"], cs["CtrlLimits"]) == (2, 1, 0x28)
+    assert cs["CtrlTorqueRef"] == pytest.approx(-3.5) and cs["CtrlCurrent"] == pytest.approx(1.234)
+    assert (cs["CtrlSeq"], cs["CtrlFlags"]) == (17, 3)
 
 
 def test_python_checks_values_like_the_table():

@@ -242,6 +242,26 @@ def param_table_crc() -> int:
 # unit, value table key or None, multiplexer spec or "").  Little-endian.
 F32_MAX = "3.4E+038"
 DBC_LAYOUT = {
+    "SETPOINT": [
+        ("SpMode", 0, 8, False, 1, 0, 0, 4, "", None, "", ""),
+        ("SpSeq", 8, 8, False, 1, 0, 0, 255, "", None, "", ""),
+        ("SpTorque", 16, 16, True, 0.002, 0, -65.534, 65.534, "Nm", None, "", ""),
+        ("SpPosition", 32, 16, True, 0.001, 0, -32.767, 32.767, "rad", None, "", ""),
+        ("SpVelocity", 48, 16, True, 0.001, 0, -32.767, 32.767, "rad/s", None, "", ""),
+    ],
+    "GAINS": [
+        ("GainKp", 0, 32, True, 1, 0, 0, 2000, "Nm/rad", None, "", "float"),
+        ("GainKd", 32, 32, True, 1, 0, 0, 50, "Nm s/rad", None, "", "float"),
+    ],
+    "CTRL_STATE": [
+        ("CtrlModeAsked", 0, 4, False, 1, 0, 0, 15, "", None, "", ""),
+        ("CtrlModeRun", 4, 4, False, 1, 0, 0, 15, "", None, "", ""),
+        ("CtrlLimits", 8, 8, False, 1, 0, 0, 255, "", None, "", ""),
+        ("CtrlTorqueRef", 16, 16, True, 0.01, 0, -327.68, 327.67, "Nm", None, "", ""),
+        ("CtrlCurrent", 32, 16, True, 0.001, 0, -32.768, 32.767, "A", None, "", ""),
+        ("CtrlSeq", 48, 8, False, 1, 0, 0, 255, "", None, "", ""),
+        ("CtrlFlags", 56, 8, False, 1, 0, 0, 255, "", None, "", ""),
+    ],
     "FEEDFORWARD": [
         ("FfTorque", 0, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "Nm", None, "", "float"),
         ("FfSeq", 32, 8, False, 1, 0, 0, 255, "", None, "", ""),

@@ -30,7 +30,9 @@ DEFINITIONS = {
 }
 
 
-def _gear(data, given, log):
+def gear_of(data, given, log):
+    """The gear ratio: given, else inferred from the encoders or the torque's
+    order spectrum, else the paper's 100 (said so)."""
     if given is not None:
         return {"value": float(given), "source": "given"}
     if data.has_motor and data.has_output:
@@ -297,7 +299,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     data = loading.load(path, fs_hz, time_unit, angle_unit, joint)
     for n in data.notes:
         log(n)
-    g = _gear(data, gear_ratio, log)
+    g = gear_of(data, gear_ratio, log)
     noise_est = float(np.median([estimate_noise_nm(p.torque_nm) for p in data.pieces]))
     fold = rp.folds(data)
     data, ff_desc = position_feedforward(data, fold)
@@ -399,7 +401,7 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
         report["raw_error_rms_nm"] = met_before["raw_error_rms_nm"]
     added = [e for e in effects if e["added"]]
     s = (f"gear ratio {g['value']:g} ({g['source']}); {len(added)} change(s) kept: "
-         + (", ".join(_label(e) for e in added) or "none")
+         + (", ".join(label(e) for e in added) or "none")
          + f"; innovation RMS in/out of sample {met_before['in_sample_innovation_rms_nm']:.4g}"
            f"/{met_before['out_of_sample_innovation_rms_nm']:.4g} -> "
            f"{met_after['in_sample_innovation_rms_nm']:.4g}"
@@ -527,7 +529,8 @@ def _lines_table(m_ref, m1, vr, vb, va):
     return out
 
 
-def _label(e):
+def label(e):
+    """A kept change in a few words (the summary line, fleet records)."""
     if e["kind"] == "motor_order":
         return f"motor order {e['order_per_motor_rev']:.4g}"
     if e["kind"] == "output_order":

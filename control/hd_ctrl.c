@@ -1,0 +1,292 @@
+/* hd_ctrl: the joint controller's law (hd_ctrl.h has the equations). */
+#include "hd_ctrl.h"
+
+#include <stddef.h>
+
+#define TWO_PI_F 6.28318530717958647692f
+
+/* isfinite without a libm call: x - x is 0 only for finite x. */
+static bool finite_f(float x)
+{
+    return (x - x) == 0.0f;
+}
+
+/* lo <= x <= hi, false for NaN. */
+static bool within(float x, float lo, float hi)
+{
+    return x >= lo && x <= hi;
+}
+
+static float clampf(float x, float lo, float hi)
+{
+    return x < lo ? lo : (x > hi ? hi : x);
+}
+
+void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
+{
+    if (cfg == NULL) {
+        return;
+    }
+    *cfg = (hd_ctrl_config_t){
+        .ts_s = 1e-3f,
+        .gear_ratio = 100.0f,
+        .kt_nm_per_a = 0.06f,
+        .feedback = HD_CTRL_FB_FILTERED,
+        .torque_kp = 1.0f,
+        .torque_ki_per_s = 30.0f,
+        .torque_ff = 1.0f,
+        .lowpass_hz = 50.0f,
+        .friction_nm = 0.0f,
+        .friction_velocity_rad_s = 0.05f,
+        .damp_nm_s_rad = 1.0f,
+        .torque_limit_nm = 40.0f,
+        .current_limit_a = 8.0f,
+        .velocity_limit_rad_s = 6.0f,
+        .velocity_gain_nm_s_rad = 20.0f,
+        .position_min_rad = -100.0f,
+        .position_max_rad = 100.0f,
+    };
+}
+
+int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
+{
+    if (cfg == NULL) {
+        return HD_CTRL_ERR_NULL;
+    }
+    const hd_ctrl_config_t *k = cfg;
+    const bool ok =
+        within(k->ts_s, 1e-5f, 0.1f) && within(k->gear_ratio, 1.0f, 1e5f) &&
+        within(k->kt_nm_per_a, 1e-4f, 10.0f) && (unsigned)k->feedback < HD_CTRL_FB_COUNT &&
+        within(k->torque_kp, 0.0f, HD_CTRL_TORQUE_GAIN_MAX) &&
+        within(k->torque_ki_per_s, 0.0f, HD_CTRL_KI_MAX_PER_S) &&
+        within(k->torque_ff, 0.0f, 1.0f) && k->lowpass_hz > 0.0f &&
+        k->lowpass_hz < 0.5f / k->ts_s && within(k->friction_nm, 0.0f, 1000.0f) &&
+        within(k->friction_velocity_rad_s, 1e-4f, 100.0f) &&
+        within(k->damp_nm_s_rad, 0.0f, 1000.0f) && within(k->torque_limit_nm, 1e-3f, 1e4f) &&
+        within(k->current_limit_a, 1e-3f, 1000.0f) &&
+        within(k->velocity_limit_rad_s, 1e-3f, 1e4f) &&
+        within(k->velocity_gain_nm_s_rad, 0.0f, 1e4f) &&
+        within(k->position_min_rad, -1e6f, 1e6f) && within(k->position_max_rad, -1e6f, 1e6f) &&
+        k->position_min_rad < k->position_max_rad;
+    return ok ? HD_CTRL_OK : HD_CTRL_ERR_CONFIG;
+}
+
+void hd_ctrl_reset(hd_ctrl_t *c)
+{
+    if (c == NULL) {
+        return;
+    }
+    c->integral_nm = 0.0f;
+    c->lowpass_nm = 0.0f;
+    c->lowpass_primed = false;
+}
+
+int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
+{
+    if (c == NULL || cfg == NULL) {
+        return HD_CTRL_ERR_NULL;
+    }
+    const int rc = hd_ctrl_config_check(cfg);
+    if (rc != HD_CTRL_OK) {
+        return rc;
+    }
+    c->cfg = *cfg;
+    const float wts = TWO_PI_F * cfg->lowpass_hz * cfg->ts_s;
+    c->lowpass_alpha = wts / (1.0f + wts);
+    hd_ctrl_reset(c);
+    return HD_CTRL_OK;
+}
+
+bool hd_ctrl_setpoint_valid(const hd_ctrl_setpoint_t *sp)
+{
+    return sp != NULL && (unsigned)sp->mode < HD_CTRL_MODE_COUNT && finite_f(sp->torque_nm) &&
+           finite_f(sp->position_rad) && finite_f(sp->velocity_rad_s) &&
+           within(sp->kp_nm_rad, 0.0f, HD_CTRL_KP_MAX_NM_RAD) &&
+           within(sp->kd_nm_s_rad, 0.0f, HD_CTRL_KD_MAX_NM_S_RAD);
+}
+
+static bool uses_torque_loop(hd_ctrl_mode_t m)
+{
+    return m == HD_CTRL_TORQUE || m == HD_CTRL_IMPEDANCE || m == HD_CTRL_ZERO_TORQUE;
+}
+
+/* The low-pass runs every tick the raw torque is usable, so switching to it
+ * starts from a settled state. */
+static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
+{
+    if (!in->torque_valid || !finite_f(in->torque_raw_nm)) {
+        return;
+    }
+    if (!c->lowpass_primed) {
+        c->lowpass_nm = in->torque_raw_nm;
+        c->lowpass_primed = true;
+        return;
+    }
+    c->lowpass_nm += c->lowpass_alpha * (in->torque_raw_nm - c->lowpass_nm);
+}
+
+/* The feedback torque, or false when the selected source is unusable. */
+static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb)
+{
+    switch ((hd_ctrl_feedback_t)c->cfg.feedback) {
+    case HD_CTRL_FB_FILTERED:
+        *fb = in->torque_filtered_nm;
+        break;
+    case HD_CTRL_FB_RAW:
+        *fb = in->torque_raw_nm;
+        break;
+    case HD_CTRL_FB_LOWPASS:
+        *fb = c->lowpass_nm;
+        if (!c->lowpass_primed) {
+            return false;
+        }
+        break;
+    default:
+        *fb = 0.0f;
+        return true;
+    }
+    return in->torque_valid && finite_f(*fb);
+}
+
+/* The mode that can run safely with these inputs. */
+static hd_ctrl_mode_t pick_mode(const hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp,
+                                const hd_ctrl_input_t *in, uint8_t *limits)
+{
+    if (sp->mode == HD_CTRL_STOP) {
+        return HD_CTRL_STOP;
+    }
+    hd_ctrl_mode_t m = hd_ctrl_setpoint_valid(sp) ? sp->mode : HD_CTRL_DAMP;
+    float fb;
+    if (!finite_f(in->velocity_rad_s) || !finite_f(in->angle_rad)) {
+        m = HD_CTRL_STOP;
+    } else if (uses_torque_loop(m) && !feedback_nm(c, in, &fb)) {
+        m = HD_CTRL_DAMP;
+    }
+    if (m != sp->mode) {
+        *limits |= HD_CTRL_LIM_FALLBACK;
+    }
+    return m;
+}
+
+/* ODrive's velocity-limited torque: the torque may not push the speed
+ * beyond +-v_lim; beyond it, it must pull back at vel_gain. */
+static float velocity_limited(const hd_ctrl_config_t *k, float tau, float v, uint8_t *limits)
+{
+    const float hi = k->velocity_gain_nm_s_rad * (k->velocity_limit_rad_s - v);
+    const float lo = k->velocity_gain_nm_s_rad * (-k->velocity_limit_rad_s - v);
+    if (tau > hi || tau < lo) {
+        *limits |= HD_CTRL_LIM_VELOCITY;
+        return tau > hi ? hi : lo;
+    }
+    return tau;
+}
+
+static float torque_reference(const hd_ctrl_config_t *k, hd_ctrl_mode_t m,
+                              const hd_ctrl_setpoint_t *sp, const hd_ctrl_input_t *in,
+                              uint8_t *limits)
+{
+    const float q = in->angle_rad, v = in->velocity_rad_s;
+    float tau = 0.0f;
+    if (m == HD_CTRL_DAMP) {
+        tau = -k->damp_nm_s_rad * v;
+    } else if (m == HD_CTRL_TORQUE) {
+        tau = velocity_limited(k, sp->torque_nm, v, limits);
+    } else if (m == HD_CTRL_IMPEDANCE) {
+        tau = sp->kp_nm_rad * (sp->position_rad - q) + sp->kd_nm_s_rad * (sp->velocity_rad_s - v) +
+              sp->torque_nm;
+    }
+    if (tau > k->torque_limit_nm || tau < -k->torque_limit_nm) {
+        tau = clampf(tau, -k->torque_limit_nm, k->torque_limit_nm);
+        *limits |= HD_CTRL_LIM_TORQUE;
+    }
+    /* Outside the window, no torque that pushes further out. */
+    if ((q > k->position_max_rad && tau > 0.0f) || (q < k->position_min_rad && tau < 0.0f)) {
+        tau = 0.0f;
+        *limits |= HD_CTRL_LIM_POSITION;
+    }
+    return tau;
+}
+
+static float friction_feedforward(const hd_ctrl_config_t *k, float v)
+{
+    return k->friction_nm * clampf(v / k->friction_velocity_rad_s, -1.0f, 1.0f);
+}
+
+/* PI with the setpoint fed forward; the integral moves only while the
+ * command is not saturated in the error's direction. */
+static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
+{
+    const hd_ctrl_config_t *k = &c->cfg;
+    const float e = tau_ref - fb;
+    const float u = k->torque_ff * tau_ref + k->torque_kp * e + c->integral_nm +
+                    friction_feedforward(k, v);
+    const float u_max = k->current_limit_a * k->kt_nm_per_a * k->gear_ratio;
+    const bool wind_up = (u >= u_max && e > 0.0f) || (u <= -u_max && e < 0.0f);
+    if (!wind_up) {
+        c->integral_nm = clampf(c->integral_nm + k->torque_ki_per_s * k->ts_s * e, -u_max, u_max);
+    }
+    return u;
+}
+
+static void stop(hd_ctrl_t *c, hd_ctrl_output_t *out)
+{
+    c->integral_nm = 0.0f;
+    out->enable = false;
+    out->current_a = 0.0f;
+    out->motor_torque_nm = 0.0f;
+    out->torque_ref_nm = 0.0f;
+    out->torque_fb_nm = 0.0f;
+    out->mode = HD_CTRL_STOP;
+}
+
+void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_input_t *in,
+                  hd_ctrl_output_t *out)
+{
+    if (out == NULL) {
+        return;
+    }
+    *out = (hd_ctrl_output_t){0};
+    if (c == NULL || sp == NULL || in == NULL) {
+        out->mode = HD_CTRL_STOP;
+        return;
+    }
+    lowpass_update(c, in);
+    const hd_ctrl_mode_t m = pick_mode(c, sp, in, &out->limits);
+    if (m == HD_CTRL_STOP) {
+        stop(c, out);
+        return;
+    }
+    const hd_ctrl_config_t *k = &c->cfg;
+    const float tau_ref = torque_reference(k, m, sp, in, &out->limits);
+    float u;
+    if (!uses_torque_loop(m) || k->feedback == HD_CTRL_FB_NONE) {
+        c->integral_nm = 0.0f;
+        u = m == HD_CTRL_DAMP ? tau_ref : tau_ref + friction_feedforward(k, in->velocity_rad_s);
+    } else {
+        (void)feedback_nm(c, in, &out->torque_fb_nm);
+        u = torque_loop(c, tau_ref, out->torque_fb_nm, in->velocity_rad_s);
+    }
+    float i = u / (k->gear_ratio * k->kt_nm_per_a);
+    if (!finite_f(i)) {
+        hd_ctrl_reset(c);
+        stop(c, out);
+        out->limits |= HD_CTRL_LIM_NONFINITE;
+        return;
+    }
+    if (i > k->current_limit_a || i < -k->current_limit_a) {
+        i = clampf(i, -k->current_limit_a, k->current_limit_a);
+        out->limits |= HD_CTRL_LIM_CURRENT;
+    }
+    out->enable = true;
+    out->current_a = i;
+    out->motor_torque_nm = i * k->kt_nm_per_a;
+    out->torque_ref_nm = tau_ref;
+    out->mode = m;
+}
+
+const char *hd_ctrl_mode_name(int mode)
+{
+    static const char *const names[HD_CTRL_MODE_COUNT] = {"STOP", "DAMP", "TORQUE", "IMPEDANCE",
+                                                          "ZERO_TORQUE"};
+    return mode >= 0 && mode < HD_CTRL_MODE_COUNT ? names[mode] : "unknown";
+}

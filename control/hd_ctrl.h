@@ -1,0 +1,174 @@
+/*
+ * hd_ctrl: the joint controller's law, one step per tick (issue 23).
+ *
+ * Pure: no I/O, no HAL, no globals, no heap; float32, bounded time, no libm.
+ * The firmware hands it the pipeline's output (filtered and raw flexspline
+ * torque, output angle and velocity) and a setpoint; it returns the motor
+ * q-axis current to command and whether the drive is enabled.
+ *
+ * Modes (a setpoint's mode; the step may run a safer one, see below):
+ *   STOP         drive disabled, current 0, the torque loop's state cleared.
+ *   DAMP         tau_ref = -damp v, open loop through the torque constant
+ *                (no torque feedback: DAMP is the fallback when the gauge fails).
+ *   TORQUE       tau_ref = the setpoint's torque, velocity-limited (ODrive's
+ *                rule: tau within vel_gain (+-v_lim - v)).
+ *   IMPEDANCE    tau_ref = kp (q_d - q) + kd (v_d - v) + tau_ff.
+ *   ZERO_TORQUE  tau_ref = 0: the loop cancels what the drive train resists.
+ * TORQUE, IMPEDANCE and ZERO_TORQUE track tau_ref with the torque loop:
+ *   e     = tau_ref - tau_fb
+ *   u     = ff tau_ref + kp_t e + I + friction_nm sat(v / v_eps)   (joint N m)
+ *   I    += ki_t ts e     only while u is not saturated in e's direction
+ *                         (conditional integration: the anti-windup)
+ *   i_q   = u / (N kt)
+ * A PI on the torque error with the setpoint fed forward: the structure of
+ * the torque controllers of Taghirad & Belanger's refs [5], [10] and the
+ * torque loop of Albu-Schaeffer, Ott et al. (2007) without its motor-inertia
+ * scaling (a later step; docs/control.md).
+ * Feedback source (tau_fb): the filtered torque, the raw gauge torque, a
+ * first-order low-pass of the raw torque (backward Euler, corner lowpass_hz),
+ * or none: then u = tau_ref + friction, open loop through kt.
+ *
+ * Limits, applied last so no path exceeds them whatever the input:
+ *   tau_ref within +-torque_limit_nm;
+ *   position window: outside [position_min, position_max] a tau_ref that
+ *     pushes further out is cut to 0 (HD_CTRL_LIM_POSITION);
+ *   i_q within +-current_limit_a (HD_CTRL_LIM_CURRENT);
+ *   any non-finite intermediate gives i_q = 0, drive disabled and the loop
+ *     cleared (HD_CTRL_LIM_NONFINITE).
+ * Inputs that make a mode impossible pick a safer mode (hd_ctrl_output_t.mode):
+ *   torque feedback needed but not valid or not finite -> DAMP;
+ *   velocity not finite -> STOP (nothing safe to damp with);
+ *   a setpoint value not finite, or an unknown mode -> DAMP.
+ */
+#ifndef HD_CTRL_H
+#define HD_CTRL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The one error vocabulary of control/. */
+typedef enum {
+    HD_CTRL_OK = 0,
+    HD_CTRL_ERR_NULL = -1,
+    HD_CTRL_ERR_CONFIG = -2,  /* a configuration value non-finite or out of range */
+} hd_ctrl_err_t;
+
+typedef enum {
+    HD_CTRL_STOP = 0,
+    HD_CTRL_DAMP = 1,
+    HD_CTRL_TORQUE = 2,
+    HD_CTRL_IMPEDANCE = 3,
+    HD_CTRL_ZERO_TORQUE = 4,
+    HD_CTRL_MODE_COUNT = 5,
+} hd_ctrl_mode_t;
+
+typedef enum {
+    HD_CTRL_FB_FILTERED = 0,
+    HD_CTRL_FB_RAW = 1,
+    HD_CTRL_FB_LOWPASS = 2,
+    HD_CTRL_FB_NONE = 3,
+    HD_CTRL_FB_COUNT = 4,
+} hd_ctrl_feedback_t;
+
+/* hd_ctrl_output_t.limits: which limit shaped this step's command. */
+#define HD_CTRL_LIM_TORQUE     0x01u
+#define HD_CTRL_LIM_VELOCITY   0x02u
+#define HD_CTRL_LIM_POSITION   0x04u
+#define HD_CTRL_LIM_CURRENT    0x08u
+#define HD_CTRL_LIM_NONFINITE  0x10u
+#define HD_CTRL_LIM_FALLBACK   0x20u  /* the step ran a safer mode than asked */
+
+/* Ranges hd_ctrl_config_check enforces (and a setpoint's kp/kd must meet). */
+#define HD_CTRL_KP_MAX_NM_RAD 2000.0f
+#define HD_CTRL_KD_MAX_NM_S_RAD 50.0f
+#define HD_CTRL_TORQUE_GAIN_MAX 50.0f
+#define HD_CTRL_KI_MAX_PER_S 5000.0f
+
+typedef struct {
+    float ts_s;                    /* tick period */
+    float gear_ratio;              /* N: joint torque = N motor torque (ideal gear) */
+    float kt_nm_per_a;             /* the drive's torque constant (motor N m per A) */
+    uint8_t feedback;              /* hd_ctrl_feedback_t (a byte: the firmware's
+                                      parameter table holds it as U8) */
+    float torque_kp;               /* kp_t: joint N m of u per N m of error */
+    float torque_ki_per_s;         /* ki_t */
+    float torque_ff;               /* ff: share of tau_ref fed forward, 0..1 */
+    float lowpass_hz;              /* HD_CTRL_FB_LOWPASS corner */
+    float friction_nm;             /* joint-side Coulomb friction compensated (0: off) */
+    float friction_velocity_rad_s; /* v_eps: the compensation fades in over |v| < v_eps */
+    float damp_nm_s_rad;           /* DAMP's damping */
+    float torque_limit_nm;         /* |tau_ref| */
+    float current_limit_a;         /* |i_q| */
+    float velocity_limit_rad_s;    /* TORQUE mode's |v| */
+    float velocity_gain_nm_s_rad;  /* how hard the velocity limit pushes back */
+    float position_min_rad;        /* position window (output angle) */
+    float position_max_rad;
+} hd_ctrl_config_t;
+
+typedef struct {
+    hd_ctrl_mode_t mode;
+    float torque_nm;          /* TORQUE setpoint, IMPEDANCE feed-forward */
+    float position_rad;       /* IMPEDANCE q_d */
+    float velocity_rad_s;     /* IMPEDANCE v_d */
+    float kp_nm_rad;          /* IMPEDANCE stiffness, 0..HD_CTRL_KP_MAX_NM_RAD */
+    float kd_nm_s_rad;        /* IMPEDANCE damping, 0..HD_CTRL_KD_MAX_NM_S_RAD */
+} hd_ctrl_setpoint_t;
+
+typedef struct {
+    float torque_filtered_nm; /* the pipeline's filtered torque */
+    float torque_raw_nm;      /* the gauge's torque before the filter */
+    bool torque_valid;        /* the gauge and the filter are usable this tick */
+    float angle_rad;          /* output angle */
+    float velocity_rad_s;     /* output velocity */
+} hd_ctrl_input_t;
+
+typedef struct {
+    bool enable;              /* drive enabled */
+    float current_a;          /* q-axis current command, within +-current_limit_a */
+    float motor_torque_nm;    /* current_a kt: the motor torque asked for */
+    float torque_ref_nm;      /* the joint torque the loop tracked (after limits) */
+    float torque_fb_nm;       /* the feedback it used (0 without) */
+    uint8_t limits;           /* HD_CTRL_LIM_* */
+    hd_ctrl_mode_t mode;      /* the mode that ran */
+} hd_ctrl_output_t;
+
+typedef struct {
+    hd_ctrl_config_t cfg;
+    float lowpass_alpha;      /* w ts / (1 + w ts) */
+    float integral_nm;        /* I */
+    float lowpass_nm;         /* the low-pass state */
+    bool lowpass_primed;
+} hd_ctrl_t;
+
+/* Defaults of a 40 N m class joint (docs/control.md). */
+void hd_ctrl_config_default(hd_ctrl_config_t *cfg);
+
+/* HD_CTRL_OK or HD_CTRL_ERR_CONFIG (every value finite, in range). */
+int hd_ctrl_config_check(const hd_ctrl_config_t *cfg);
+
+/* Checks cfg, then starts with a cleared loop.  On error *c is unchanged. */
+int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
+
+/* Clears the loop's state (integral, low-pass). */
+void hd_ctrl_reset(hd_ctrl_t *c);
+
+/* true when every value of sp is finite, the mode known and kp, kd within
+ * their ranges: what the firmware checks before it accepts a setpoint. */
+bool hd_ctrl_setpoint_valid(const hd_ctrl_setpoint_t *sp);
+
+/* One tick.  Never fails: whatever sp and in hold, out->current_a is finite
+ * and within +-cfg.current_limit_a, and 0 with the drive disabled in STOP. */
+void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_input_t *in,
+                  hd_ctrl_output_t *out);
+
+const char *hd_ctrl_mode_name(int mode);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* HD_CTRL_H */

@@ -1,0 +1,368 @@
+/*
+ * hd_ctrl (control/) against closed forms and properties.
+ *
+ * Torque loop: the plant is a first-order lag of time constant T between
+ * the joint torque the drive is asked for (u = N kt i) and the measured
+ * torque, integrated exactly over each tick (zero-order hold).  With the PI
+ * zero placed on the plant's pole (ki = kp / T) and no feed-forward the
+ * open loop is kp / (s T), so the closed loop is first order:
+ *     tau(t) / tau_d = 1 - exp(-t kp / T)
+ * The controller's one-tick sampling delays the response by about half a
+ * tick; we allow 2 % of the step for that (ts kp / T = 0.1 here).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hd_ctrl.h"
+#include "unity.h"
+
+#define TS 1e-3
+
+void setUp(void) {}
+void tearDown(void) {}
+
+typedef struct {
+    double tau_nm;   /* the plant's output torque */
+    double lag_s;    /* T */
+    double gain;     /* torque per N m asked for */
+} lag_plant_t;
+
+/* One tick of the plant under the drive's command (zero-order hold). */
+static void plant_step(lag_plant_t *p, const hd_ctrl_config_t *k, const hd_ctrl_output_t *o)
+{
+    const double asked = (double)o->current_a * (double)k->kt_nm_per_a * (double)k->gear_ratio;
+    const double a = exp(-TS / p->lag_s);
+    p->tau_nm = a * p->tau_nm + (1.0 - a) * p->gain * asked;
+}
+
+static hd_ctrl_input_t input_of(double tau_nm, double q, double v)
+{
+    /* The raw torque is deliberately wrong by 5 N m: a loop that fed back
+     * the wrong source would settle 5 N m off. */
+    return (hd_ctrl_input_t){.torque_filtered_nm = (float)tau_nm,
+                             .torque_raw_nm = (float)tau_nm + 5.0f,
+                             .torque_valid = true,
+                             .angle_rad = (float)q,
+                             .velocity_rad_s = (float)v};
+}
+
+static void loop_config(hd_ctrl_config_t *k, double kp, double lag_s)
+{
+    hd_ctrl_config_default(k);
+    k->torque_kp = (float)kp;
+    k->torque_ki_per_s = (float)(kp / lag_s);
+    k->torque_ff = 0.0f;
+}
+
+static void test_config_check(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_t c;
+    hd_ctrl_config_default(&k);
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    const hd_ctrl_config_t good = k;
+    float *fields[] = {&k.ts_s, &k.gear_ratio, &k.kt_nm_per_a, &k.torque_kp, &k.torque_ki_per_s,
+                       &k.torque_ff, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
+                       &k.damp_nm_s_rad, &k.torque_limit_nm, &k.current_limit_a,
+                       &k.velocity_limit_rad_s, &k.velocity_gain_nm_s_rad};
+    const float bad[] = {NAN, INFINITY, -1.0f, 1e9f};
+    for (size_t f = 0; f < sizeof fields / sizeof fields[0]; f++) {
+        for (size_t b = 0; b < sizeof bad / sizeof bad[0]; b++) {
+            k = good;
+            *fields[f] = bad[b];
+            TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_config_check(&k));
+        }
+    }
+    k = good;
+    k.position_min_rad = k.position_max_rad;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_config_check(&k));
+    k = good;
+    k.feedback = HD_CTRL_FB_COUNT;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_init(&c, &k));
+    k = good;
+    k.lowpass_hz = 500.0f; /* Nyquist at 1 kHz */
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_config_check(&k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_NULL, hd_ctrl_init(NULL, &good));
+}
+
+/* Step of the filtered-feedback loop against the first-order closed form. */
+static void test_torque_step_first_order_closed_loop(void)
+{
+    const double kp = 2.0, lag = 0.02, step = 10.0, tau_cl = lag / kp;
+    hd_ctrl_config_t k;
+    hd_ctrl_t c;
+    loop_config(&k, kp, lag);
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 1.0};
+    const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = (float)step};
+    double worst = 0.0;
+    for (int n = 1; n <= 200; n++) {
+        hd_ctrl_output_t o;
+        const hd_ctrl_input_t in = input_of(p.tau_nm, 0.0, 0.0);
+        hd_ctrl_step(&c, &sp, &in, &o);
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_TORQUE, o.mode);
+        plant_step(&p, &k, &o);
+        const double expect = step * (1.0 - exp(-n * TS / tau_cl));
+        worst = fmax(worst, fabs(p.tau_nm - expect));
+    }
+    printf("control: first-order closed loop, worst deviation %.4f N m of a %.0f N m step\n",
+           worst, step);
+    TEST_ASSERT_DOUBLE_WITHIN(0.02 * step, 0.0, worst);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, step, p.tau_nm); /* integral action: no offset */
+}
+
+/* Saturated for 2 s, then a reachable setpoint: with the conditional
+ * integration the loop leaves saturation at once and settles like an
+ * unsaturated step; a wound-up integral holds it off. */
+static void test_antiwindup_recovers_like_a_fresh_step(void)
+{
+    const double kp = 2.0, lag = 0.02, tau_cl = lag / kp;
+    hd_ctrl_config_t k;
+    hd_ctrl_t c;
+    loop_config(&k, kp, lag);
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    /* a weak drive (gain 0.5): u_max = 8 A * 0.06 * 100 = 48 gives 24 N m */
+    lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 0.5};
+    hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 40.0f};
+    hd_ctrl_output_t o;
+    for (int n = 0; n < 2000; n++) {
+        const hd_ctrl_input_t in = input_of(p.tau_nm, 0.0, 0.0);
+        hd_ctrl_step(&c, &sp, &in, &o);
+        plant_step(&p, &k, &o);
+    }
+    TEST_ASSERT_TRUE(o.limits & HD_CTRL_LIM_CURRENT);
+    TEST_ASSERT_DOUBLE_WITHIN(0.01, 24.0, p.tau_nm);
+    sp.torque_nm = 10.0f;
+    int settled = -1;
+    for (int n = 1; n <= 500 && settled < 0; n++) {
+        const hd_ctrl_input_t in = input_of(p.tau_nm, 0.0, 0.0);
+        hd_ctrl_step(&c, &sp, &in, &o);
+        plant_step(&p, &k, &o);
+        if (fabs(p.tau_nm - 10.0) < 0.02 * 14.0) {
+            settled = n;
+        }
+    }
+    /* within 2 % of the 14 N m step: 3.9 tau_cl for a first-order loop */
+    printf("control: after 2 s saturated, 2 %% settling in %d ms (first order: %.1f ms)\n",
+           settled, 1e3 * tau_cl * log(50.0));
+    TEST_ASSERT_TRUE(settled > 0);
+    TEST_ASSERT_LESS_OR_EQUAL((int)(1.3 * tau_cl * log(50.0) / TS), settled);
+}
+
+/* Impedance through the torque loop against a fixed output: the torque the
+ * plant settles at is kp (q_d - q) + kd (v_d - v) + tau_ff; the slope over
+ * q is the rendered stiffness. */
+static void test_impedance_renders_kp(void)
+{
+    const double kp_t = 2.0, lag = 0.02;
+    const double kp = 150.0, kd = 2.0, qd = 0.3, vd = 0.5, ff = 1.5;
+    hd_ctrl_config_t k;
+    hd_ctrl_t c;
+    loop_config(&k, kp_t, lag);
+    const double qs[2] = {0.25, 0.4};
+    double tau[2];
+    for (int j = 0; j < 2; j++) {
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 1.0};
+        const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_IMPEDANCE, .torque_nm = (float)ff,
+                                       .position_rad = (float)qd, .velocity_rad_s = (float)vd,
+                                       .kp_nm_rad = (float)kp, .kd_nm_s_rad = (float)kd};
+        for (int n = 0; n < 500; n++) {
+            hd_ctrl_output_t o;
+            const hd_ctrl_input_t in = input_of(p.tau_nm, qs[j], 0.0);
+            hd_ctrl_step(&c, &sp, &in, &o);
+            plant_step(&p, &k, &o);
+        }
+        tau[j] = p.tau_nm;
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3, kp * (qd - qs[j]) + kd * vd + ff, tau[j]);
+    }
+    const double rendered = -(tau[1] - tau[0]) / (qs[1] - qs[0]);
+    printf("control: rendered stiffness %.3f N m/rad for kp %.0f\n", rendered, kp);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3 * kp, kp, rendered);
+}
+
+static hd_ctrl_output_t one_step(const hd_ctrl_config_t *k, hd_ctrl_setpoint_t sp,
+                                 hd_ctrl_input_t in)
+{
+    hd_ctrl_t c;
+    hd_ctrl_output_t o;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, k));
+    hd_ctrl_step(&c, &sp, &in, &o);
+    return o;
+}
+
+static void test_modes_and_fallbacks(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_config_default(&k);
+    const float amps_per_nm = 1.0f / (k.gear_ratio * k.kt_nm_per_a);
+    const hd_ctrl_input_t in = input_of(0.0, 0.1, 0.8);
+    hd_ctrl_output_t o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_STOP}, in);
+    TEST_ASSERT_FALSE(o.enable);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, o.current_a);
+    /* DAMP: -damp v, open loop */
+    o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_DAMP}, in);
+    TEST_ASSERT_TRUE(o.enable);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6, -k.damp_nm_s_rad * 0.8f * amps_per_nm, o.current_a);
+    /* an invalid setpoint (unknown mode, NaN, kp out of range) runs DAMP */
+    const hd_ctrl_setpoint_t bad[] = {
+        {.mode = (hd_ctrl_mode_t)7},
+        {.mode = HD_CTRL_TORQUE, .torque_nm = NAN},
+        {.mode = HD_CTRL_IMPEDANCE, .kp_nm_rad = HD_CTRL_KP_MAX_NM_RAD * 2.0f},
+        {.mode = HD_CTRL_IMPEDANCE, .kd_nm_s_rad = -1.0f},
+        {.mode = HD_CTRL_IMPEDANCE, .position_rad = INFINITY},
+    };
+    for (size_t j = 0; j < sizeof bad / sizeof bad[0]; j++) {
+        TEST_ASSERT_FALSE(hd_ctrl_setpoint_valid(&bad[j]));
+        o = one_step(&k, bad[j], in);
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_DAMP, o.mode);
+        TEST_ASSERT_TRUE(o.limits & HD_CTRL_LIM_FALLBACK);
+    }
+    /* the gauge unusable: the torque loop cannot run, DAMP ... */
+    hd_ctrl_input_t nogauge = in;
+    nogauge.torque_valid = false;
+    const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 3.0f};
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_DAMP, one_step(&k, sp, nogauge).mode);
+    nogauge.torque_valid = true;
+    nogauge.torque_filtered_nm = NAN;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_DAMP, one_step(&k, sp, nogauge).mode);
+    /* ... but open loop needs no gauge: tau / (N kt) */
+    k.feedback = HD_CTRL_FB_NONE;
+    o = one_step(&k, sp, nogauge);
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_TORQUE, o.mode);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6, 3.0f * amps_per_nm, o.current_a);
+    /* no velocity: nothing safe to damp with, STOP */
+    hd_ctrl_input_t novel = in;
+    novel.velocity_rad_s = NAN;
+    o = one_step(&k, sp, novel);
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_STOP, o.mode);
+    TEST_ASSERT_FALSE(o.enable);
+}
+
+static void test_velocity_and_position_limits(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_config_default(&k);
+    k.feedback = HD_CTRL_FB_NONE;
+    /* beyond the velocity limit a forward torque becomes a pull-back of
+     * vel_gain (v_lim - v) */
+    const float v = k.velocity_limit_rad_s + 0.5f;
+    hd_ctrl_output_t o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_TORQUE, .torque_nm = 5.0f},
+                                  input_of(0.0, 0.0, v));
+    TEST_ASSERT_TRUE(o.limits & HD_CTRL_LIM_VELOCITY);
+    TEST_ASSERT_FLOAT_WITHIN(1e-4, -0.5f * k.velocity_gain_nm_s_rad, o.torque_ref_nm);
+    /* just below it, the torque passes unchanged */
+    o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_TORQUE, .torque_nm = 5.0f},
+                 input_of(0.0, 0.0, k.velocity_limit_rad_s - 0.5f));
+    TEST_ASSERT_EQUAL_FLOAT(5.0f, o.torque_ref_nm);
+    /* beyond the window: outward torque cut, inward torque kept */
+    const float q = k.position_max_rad + 0.1f;
+    o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_TORQUE, .torque_nm = 5.0f},
+                 input_of(0.0, q, 0.0));
+    TEST_ASSERT_TRUE(o.limits & HD_CTRL_LIM_POSITION);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, o.current_a);
+    o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_TORQUE, .torque_nm = -5.0f},
+                 input_of(0.0, q, 0.0));
+    TEST_ASSERT_EQUAL_FLOAT(-5.0f, o.torque_ref_nm);
+    /* the torque limit */
+    o = one_step(&k, (hd_ctrl_setpoint_t){.mode = HD_CTRL_TORQUE, .torque_nm = 1e6f},
+                 input_of(0.0, 0.0, 0.0));
+    TEST_ASSERT_TRUE(o.limits & HD_CTRL_LIM_TORQUE);
+    TEST_ASSERT_EQUAL_FLOAT(k.torque_limit_nm, o.torque_ref_nm);
+}
+
+/* xorshift64*: a reproducible stream for the property test. */
+static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+static uint64_t rng_next(void)
+{
+    rng_state ^= rng_state >> 12;
+    rng_state ^= rng_state << 25;
+    rng_state ^= rng_state >> 27;
+    return rng_state * 2685821657736338717ull;
+}
+
+/* Any float: specials, huge, tiny and ordinary values. */
+static float any_float(void)
+{
+    const uint64_t r = rng_next();
+    switch (r % 8u) {
+    case 0: return NAN;
+    case 1: return (r & 256u) ? INFINITY : -INFINITY;
+    case 2: return (r & 256u) ? 3.0e38f : -3.0e38f;
+    case 3: {
+        const uint32_t bits = (uint32_t)(r >> 32);
+        float f;
+        memcpy(&f, &bits, sizeof f);
+        return f;
+    }
+    default: return (float)((double)(int64_t)(r >> 11) / 9007199254740992.0 * 200.0 - 100.0);
+    }
+}
+
+static float unit(void)
+{
+    return (float)((double)(rng_next() >> 11) / 9007199254740992.0);
+}
+
+/* 200 random in-range configurations x 1000 steps of random setpoints and
+ * inputs: the current never leaves +-limit, never is non-finite, STOP never
+ * enables the drive, and tau_ref never leaves +-torque limit. */
+static void test_property_limits_hold_for_any_input(void)
+{
+    long steps = 0, clamped = 0;
+    for (int cfg_n = 0; cfg_n < 200; cfg_n++) {
+        hd_ctrl_config_t k;
+        hd_ctrl_config_default(&k);
+        k.feedback = (hd_ctrl_feedback_t)(rng_next() % HD_CTRL_FB_COUNT);
+        k.torque_kp = unit() * HD_CTRL_TORQUE_GAIN_MAX;
+        k.torque_ki_per_s = unit() * HD_CTRL_KI_MAX_PER_S;
+        k.torque_ff = unit();
+        k.friction_nm = unit() * 1000.0f;
+        k.damp_nm_s_rad = unit() * 1000.0f;
+        k.current_limit_a = 0.01f + unit() * 50.0f;
+        k.torque_limit_nm = 0.01f + unit() * 100.0f;
+        k.velocity_gain_nm_s_rad = unit() * 1e4f;
+        hd_ctrl_t c;
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        for (int n = 0; n < 1000; n++, steps++) {
+            const hd_ctrl_setpoint_t sp = {
+                .mode = (hd_ctrl_mode_t)(rng_next() % 7u), .torque_nm = any_float(),
+                .position_rad = any_float(), .velocity_rad_s = any_float(),
+                .kp_nm_rad = (rng_next() & 1u) ? unit() * HD_CTRL_KP_MAX_NM_RAD : any_float(),
+                .kd_nm_s_rad = (rng_next() & 1u) ? unit() * HD_CTRL_KD_MAX_NM_S_RAD : any_float()};
+            const hd_ctrl_input_t in = {.torque_filtered_nm = any_float(),
+                                        .torque_raw_nm = any_float(),
+                                        .torque_valid = (rng_next() & 3u) != 0u,
+                                        .angle_rad = any_float(),
+                                        .velocity_rad_s = any_float()};
+            hd_ctrl_output_t o;
+            hd_ctrl_step(&c, &sp, &in, &o);
+            TEST_ASSERT_TRUE(isfinite(o.current_a));
+            TEST_ASSERT_TRUE(fabsf(o.current_a) <= k.current_limit_a);
+            TEST_ASSERT_TRUE(fabsf(o.torque_ref_nm) <= k.torque_limit_nm);
+            TEST_ASSERT_TRUE(isfinite(c.integral_nm));
+            if (sp.mode == HD_CTRL_STOP || o.mode == HD_CTRL_STOP) {
+                TEST_ASSERT_FALSE(o.enable);
+                TEST_ASSERT_EQUAL_FLOAT(0.0f, o.current_a);
+            }
+            clamped += (o.limits & HD_CTRL_LIM_CURRENT) != 0u;
+        }
+    }
+    printf("control: %ld random steps, %ld at the current limit, none beyond\n", steps, clamped);
+    TEST_ASSERT_GREATER_THAN(1000, clamped); /* the limit was exercised */
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_config_check);
+    RUN_TEST(test_torque_step_first_order_closed_loop);
+    RUN_TEST(test_antiwindup_recovers_like_a_fresh_step);
+    RUN_TEST(test_impedance_renders_kp);
+    RUN_TEST(test_modes_and_fallbacks);
+    RUN_TEST(test_velocity_and_position_limits);
+    RUN_TEST(test_property_limits_hold_for_any_input);
+    return UNITY_END();
+}
