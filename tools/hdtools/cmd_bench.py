@@ -55,11 +55,14 @@ def run(args) -> int:
     from .bench import accuracy, compute, goals, real, report
     if args.update_docs and args.quick:
         raise UsageError("--update-docs writes the documented numbers: run without --quick")
-    if args.only:
-        args.skip = [x for x in PARTS if x not in args.only]
-    if not 1 <= args.random_joints <= 1000:
-        raise UsageError(f"--random-joints must be 1..1000 (got {args.random_joints})")
-    doc_text = read_doc() if args.update_docs and "accuracy" not in args.skip else None
+    only = getattr(args, "only", None) or []
+    n_random = getattr(args, "random_joints", 32)
+    if only:
+        args.skip = [x for x in PARTS if x not in only]
+    if not 1 <= n_random <= 1000:
+        raise UsageError(f"--random-joints must be 1..1000 (got {n_random})")
+    # bench.md holds every part but the random joints' (docs/random-joints.md)
+    doc_text = read_doc() if args.update_docs and set(only) != {"random"} else None
     random_text = read_doc(RANDOM_DOC) if args.update_docs and "random" not in args.skip else None
     try:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -83,8 +86,10 @@ def run(args) -> int:
     if "random" not in args.skip:
         from .bench import random_bench
         print("random-joint benchmark (firmware and analysis on drawn joints)...", file=sys.stderr)
-        results["random"] = random_bench.bench(4 if args.quick else args.random_joints,
-                                               log=lambda s: print("  " + s, file=sys.stderr))
+        results["random"] = random_bench.bench(
+            1 if args.quick else n_random, log=lambda s: print("  " + s, file=sys.stderr),
+            paths=random_bench.QUICK_PATHS if args.quick else random_bench.PATHS,
+            ci_sample=not args.quick)
     if "real" not in args.skip:
         print("real iiwa logs...", file=sys.stderr)
         files = sorted(real.DATA_DIR.glob("*.csv"))
@@ -151,8 +156,10 @@ def run(args) -> int:
     return 0
 
 
-def read_doc(doc: Path = DOC) -> str:
-    """A generated doc (checked before the benchmark runs: its markers)."""
+def read_doc(doc: Path | None = None) -> str:
+    """A generated doc, docs/bench.md by default (checked before the
+    benchmark runs: its markers)."""
+    doc = DOC if doc is None else doc
     try:
         text = doc.read_text()
     except FileNotFoundError:

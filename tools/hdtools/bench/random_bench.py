@@ -178,14 +178,18 @@ def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> d
             "self_median": d["median"], "paths": r["paths"]}
 
 
-def bench(n_joints: int, log=None) -> dict:
+QUICK_PATHS = ("self", "adaptive")     # tools/bench --quick: a smoke run
+
+
+def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
     """The benchmark: n_joints report seeds, declared effects only and with
-    one undeclared effect each, every path; plus the CI sample's record."""
+    one undeclared effect each, on these paths; plus the CI sample's record."""
     seeds = list(randjoint.REPORT_SEEDS[:n_joints])
     out = {"seeds": f"REPORT_SEEDS[:{n_joints}] = {seeds[0]}..{seeds[-1]}",
            "tuned_on": f"TUNE_SEEDS ({randjoint.TUNE_SEEDS.start}..{randjoint.TUNE_SEEDS.stop - 1})",
            "goal_ratio": GOAL_RATIO}
     for key, und in (("declared", False), ("undeclared", True)):
-        out[key] = run(seeds, und, PATHS, log)
-    out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
+        out[key] = run(seeds, und, paths, log)
+    if ci_sample:
+        out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
     return out

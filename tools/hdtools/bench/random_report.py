@@ -38,10 +38,10 @@ def markdown(res: dict) -> str:
                 f"{GOAL_RATIO:g}x; worse than raw = filtered error above the raw measurement's.",
                 "", "| path | what | runs | median | 90th pct | worst | within | worse than raw |",
                 "|---|---|---|---|---|---|---|---|"]
-        out += [_row(p, res[key]["paths"][p]) for p in PATHS]
+        out += [_row(p, res[key]["paths"].get(p, {})) for p in PATHS]
     out += ["", "### Goals", "", "| goal | measured | met |", "|---|---|---|"]
     for key, path, frac in GOALS:
-        d = res[key]["paths"][path]
+        d = res[key]["paths"].get(path, {})
         got = d.get("fraction_within_goal", 0.0)
         out.append(f"| {key}, {path}: within {GOAL_RATIO:g}x in >= {100 * frac:.0f} % | "
                    f"{100 * got:.0f} % ({d.get('within_goal', 0)} of {d.get('runs', 0)}) | "
