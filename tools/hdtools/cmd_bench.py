@@ -55,8 +55,7 @@ def run(args) -> int:
     from .bench import accuracy, compute, goals, real, report
     if args.update_docs and args.quick:
         raise UsageError("--update-docs writes the documented numbers: run without --quick")
-    only = getattr(args, "only", None) or []
-    n_random = getattr(args, "random_joints", 32)
+    only, n_random = args.only, args.random_joints
     if only:
         args.skip = [x for x in PARTS if x not in only]
     if not 1 <= n_random <= 1000:

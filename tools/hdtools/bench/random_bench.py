@@ -24,7 +24,6 @@ steps), their ratio, and filtered <= raw.
 from __future__ import annotations
 
 import json
-import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from . import randjoint
+from .metrics import rms
 from .joint import (HDSENSE, compose_config, firmware_commissioning, load_csv, nominal,
                     run_firmware, run_tool, simulate)
 
@@ -60,10 +60,6 @@ class Score:
                 "worse_than_raw": bool(self.error_nm > self.raw_nm)}
 
 
-def _rms(x) -> float:
-    return float(np.sqrt(np.mean(np.square(x))))
-
-
 def score(filtered, sim: dict) -> Score:
     """filtered against the truth of the simulated run, after SKIP_S."""
     t = sim["t_s"]
@@ -71,7 +67,7 @@ def score(filtered, sim: dict) -> Score:
     truth = sim["torque_true_nm"][keep]
     meas = sim["torque_nm"][keep]
     floor = meas - sim["ripple_true_nm"][keep] - truth
-    return Score(_rms(np.asarray(filtered)[keep] - truth), _rms(meas - truth), _rms(floor))
+    return Score(rms(np.asarray(filtered)[keep] - truth), rms(meas - truth), rms(floor))
 
 
 def _analyze(com_csv: Path, wd: Path, nom: dict, tag: str = "analyze"
@@ -164,32 +160,3 @@ def run(seeds, undeclared: bool, paths=PATHS, log=None) -> dict:
     return {"seeds": [int(s) for s in seeds], "undeclared": bool(undeclared),
             "runs": runs, "paths": {p: distribution(runs, p) for p in paths}}
 
-
-def fmt(x: float) -> str:
-    return "n/a" if x is None or not math.isfinite(x) else f"{x:.3g}"
-
-
-def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> dict:
-    """What tests/tools/test_random_joints.py holds the CI sample to: its
-    seeds, the self-commissioned share within GOAL_RATIO and median."""
-    r = run(seeds, False, paths)
-    d = r["paths"]["self"]
-    return {"seeds": [int(s) for s in seeds], "self_within_goal": d["within_goal"],
-            "self_median": d["median"], "paths": r["paths"]}
-
-
-QUICK_PATHS = ("self", "adaptive")     # tools/bench --quick: a smoke run
-
-
-def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
-    """The benchmark: n_joints report seeds, declared effects only and with
-    one undeclared effect each, on these paths; plus the CI sample's record."""
-    seeds = list(randjoint.REPORT_SEEDS[:n_joints])
-    out = {"seeds": f"REPORT_SEEDS[:{n_joints}] = {seeds[0]}..{seeds[-1]}",
-           "tuned_on": f"TUNE_SEEDS ({randjoint.TUNE_SEEDS.start}..{randjoint.TUNE_SEEDS.stop - 1})",
-           "goal_ratio": GOAL_RATIO}
-    for key, und in (("declared", False), ("undeclared", True)):
-        out[key] = run(seeds, und, paths, log)
-    if ci_sample:
-        out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
-    return out
