@@ -160,3 +160,28 @@ def run(seeds, undeclared: bool, paths=PATHS, log=None) -> dict:
     return {"seeds": [int(s) for s in seeds], "undeclared": bool(undeclared),
             "runs": runs, "paths": {p: distribution(runs, p) for p in paths}}
 
+
+def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> dict:
+    """What tests/tools/test_random_joints.py holds the CI sample to: its
+    seeds, the self-commissioned share within GOAL_RATIO and median."""
+    r = run(seeds, False, paths)
+    d = r["paths"]["self"]
+    return {"seeds": [int(s) for s in seeds], "self_within_goal": d["within_goal"],
+            "self_median": d["median"], "paths": r["paths"]}
+
+
+QUICK_PATHS = ("self", "adaptive")     # tools/bench --quick: a smoke run
+
+
+def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
+    """The benchmark: n_joints report seeds, declared effects only and with
+    one undeclared effect each, on these paths; plus the CI sample's record."""
+    seeds = list(randjoint.REPORT_SEEDS[:n_joints])
+    out = {"seeds": f"REPORT_SEEDS[:{n_joints}] = {seeds[0]}..{seeds[-1]}",
+           "tuned_on": f"TUNE_SEEDS ({randjoint.TUNE_SEEDS.start}..{randjoint.TUNE_SEEDS.stop - 1})",
+           "goal_ratio": GOAL_RATIO}
+    for key, und in (("declared", False), ("undeclared", True)):
+        out[key] = run(seeds, und, paths, log)
+    if ci_sample:
+        out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
+    return out
