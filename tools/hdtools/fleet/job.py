@@ -37,9 +37,9 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
     keys, jobs, by_key, unknown = [], [], {}, 0
     for ref in refs:
         base = catalog.content_key(ref, options)
-        parts = None if ref.problem else _ranges(ref.path, options)
-        for i, rng in enumerate(parts or [None]):
-            key = base if parts is None else f"{base}-{i}"
+        parts = None if ref.problem else chunks.parts(ref, options["chunk_bytes"])
+        for i, part in enumerate(parts or [None]):
+            key = base if parts is None or len(parts) == 1 else f"{base}-{i}"
             keys.append(key)
             by_key[key] = (ref, i)
             if store.has(key):
@@ -48,7 +48,7 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
                 store.put(_row(ref, 0, key, None, ref.problem))
                 unknown += 1
             else:
-                jobs.append((key, ref.path, rng))
+                jobs.append((key, ref.path, part))
     stats = []
 
     def on_result(key, values, problem, s):
@@ -93,13 +93,6 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
                                                 if k not in ("refused", "flagged")}, th)
     report.write(Path(store_dir), doc)
     return summary
-
-
-def _ranges(path, options):
-    try:
-        return chunks.ranges(path, options["chunk_bytes"])
-    except OSError:
-        return None          # the task refuses the log with the loader's message
 
 
 def _rss_by_worker(stats):
