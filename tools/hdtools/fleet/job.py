@@ -7,7 +7,7 @@ import math
 import time
 from pathlib import Path
 
-from . import catalog, chunks, engine, report, store as st, trends
+from . import catalog, chunks, engine, record, report, store as st, trends
 
 
 def _row(ref, chunk, key, values, problem):
@@ -79,6 +79,10 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
         per_path[r["path"]] = per_path.get(r["path"], 0) + 1
     refused = [{"path": r["path"] + (f" chunk {r['chunk']}" if per_path[r["path"]] > 1 else ""),
                 "message": r["message"]} for r in rows if r["status"] != "ok"]
+    if options["gear_ratio"] is None:
+        ok, odd = gear_outliers(ok)
+        refused += [{"path": r["path"] + (f" chunk {r['chunk']}" if per_path[r["path"]] > 1 else ""),
+                     "message": why} for r, why in odd]
     joint_rows = trends.joints(ok, th)
     done = len(jobs) + unknown
     summary = {"logs": len({r["path"] for r in rows}), "records": len(rows), "analysed": done, "skipped_up_to_date": len(rows) - done,
@@ -93,6 +97,36 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
                                                 if k not in ("refused", "flagged")}, th)
     report.write(Path(store_dir), doc)
     return summary
+
+
+def gear_outliers(ok):
+    """Without --gear-ratio each log's ratio is its own (inferred); a log
+    whose ratio is not that of most of its joint's logs is another joint
+    type (a mislabelled log): (rows kept, [(row, why)] left out of the
+    trends).  A joint whose logs have no majority ratio is left out whole."""
+    tol = record.GEAR_TOLERANCE
+    by_joint: dict[str, list] = {}
+    for r in ok:
+        by_joint.setdefault(r["joint"], []).append(r)
+    kept, odd = [], []
+    for rows in by_joint.values():
+        def near(a, b):
+            return abs(a["gear_ratio"] - b["gear_ratio"]) <= tol * b["gear_ratio"]
+        best = max(rows, key=lambda r: sum(near(o, r) for o in rows))
+        if 2 * sum(near(o, best) for o in rows) > len(rows):
+            for r in rows:
+                if near(r, best):
+                    kept.append(r)
+                else:
+                    odd.append((r, f"gear ratio {r['gear_ratio']:.4g} ({r['gear_source']}), most "
+                                   f"of joint {r['joint']}'s logs {best['gear_ratio']:.4g}: another "
+                                   "joint type, left out of its trends"))
+        else:
+            seen = ", ".join(sorted({f"{r['gear_ratio']:.4g}" for r in rows}))
+            odd += [(r, f"joint {r['joint']}'s logs disagree on the gear ratio ({seen}): give "
+                        "--gear-ratio") for r in rows]
+    order = {id(r): i for i, r in enumerate(ok)}
+    return sorted(kept, key=lambda r: order[id(r)]), odd
 
 
 def _rss_by_worker(stats):
