@@ -6,8 +6,9 @@
  *
  *   hdctrl-bench --input IN --out OUT.csv [options]
  *
- * IN has one line per tick: "setpoint_nm inject_a".  setpoint_nm is the
- * SETPOINT frame's torque (TORQUE: the torque; IMPEDANCE: tau_ff); inject_a
+ * IN has one line per tick: "setpoint_nm inject_a speed_rad_s".  setpoint_nm
+ * is the SETPOINT frame's torque (TORQUE: the torque; IMPEDANCE: tau_ff);
+ * speed_rad_s is the dynamometer's speed (--load dyno); inject_a
  * is added to the current the firmware commands before the drive sees it:
  * the loop broken at the plant input for the margin measurement (the
  * firmware's own command is logged apart, so L = -cmd / drive per
@@ -16,10 +17,14 @@
  *
  * The load on the output (--load):
  *   dyno   a velocity servo (PI on the true output speed, like a
- *          dynamometer) holding --speed rad/s: the mean speed is exact
+ *          dynamometer: --dyno-kv, --dyno-ki) holding the input's speed:
+ *          the mean speed is exact, at 0 it holds the position
  *   free   nothing but --person-nm, a constant torque of a person
  *   wall   a stiff wall at --wall-rad (--wall-stiffness, --wall-damping),
  *          plus --person-nm
+ * --preroll N: the first N ticks run ZERO_TORQUE with the dynamometer on
+ * the input's speed whatever the load (the joint back-driven, so that the
+ * filter has seen it move before the scene starts).
  * Every other parameter is the firmware's default and the simulated joint's
  * default: the firmware is told nothing about the plant.
  * Exit 0 with OUT whole, or one line on stderr and 1 (2: usage).
@@ -46,10 +51,11 @@ typedef struct {
     double kp, ki, ff, lowpass_hz, notch_width_hz;
     int lowpass_order, notch_mask;
     int load;           /* 0 dyno, 1 free, 2 wall */
-    double speed_rad_s, dyno_kv, dyno_ki, person_nm;
+    double dyno_kv, dyno_ki, person_nm;
     double wall_rad, wall_k, wall_d;
     double imp_kp, imp_kd, imp_q_rad;
     unsigned seed;
+    size_t preroll;
 } opts_t;
 
 static hal_mock_t mock; /* the CAN part only */
@@ -104,7 +110,7 @@ static int parse(int argc, char **argv, opts_t *o)
     *o = (opts_t){.mode = HD_CTRL_TORQUE, .feedback = d->feedback, .kp = d->torque_kp,
                   .ki = d->torque_ki_per_s, .ff = d->torque_ff, .lowpass_hz = d->lowpass_hz,
                   .notch_width_hz = d->notch_width_hz, .lowpass_order = d->lowpass_order,
-                  .notch_mask = d->notch_mask, .dyno_kv = 50.0, .dyno_ki = 500.0,
+                  .notch_mask = d->notch_mask, .dyno_kv = 50.0, .dyno_ki = 5000.0,
                   .wall_k = 2e4, .wall_d = 5.0, .imp_kd = 0.0, .seed = 0x5EEDu};
     for (int i = 1; i < argc; i++) {
         const char *k = argv[i];
@@ -118,7 +124,7 @@ static int parse(int argc, char **argv, opts_t *o)
         struct { const char *name; double *dst; } nums[] = {
             {"--kp", &o->kp}, {"--ki", &o->ki}, {"--ff", &o->ff},
             {"--lowpass-hz", &o->lowpass_hz}, {"--notch-width-hz", &o->notch_width_hz},
-            {"--speed", &o->speed_rad_s}, {"--dyno-kv", &o->dyno_kv}, {"--dyno-ki", &o->dyno_ki},
+            {"--dyno-kv", &o->dyno_kv}, {"--dyno-ki", &o->dyno_ki},
             {"--person-nm", &o->person_nm}, {"--wall-rad", &o->wall_rad},
             {"--wall-stiffness", &o->wall_k}, {"--wall-damping", &o->wall_d},
             {"--imp-kp", &o->imp_kp}, {"--imp-kd", &o->imp_kd}, {"--imp-q", &o->imp_q_rad}};
@@ -147,6 +153,8 @@ static int parse(int argc, char **argv, opts_t *o)
             o->lowpass_order = (int)x;
         } else if (strcmp(k, "--notch-mask") == 0 && num && x >= 0 && x <= 255) {
             o->notch_mask = (int)x;
+        } else if (strcmp(k, "--preroll") == 0 && num && x >= 0 && x <= MAX_TICKS) {
+            o->preroll = (size_t)x;
         } else if (strcmp(k, "--seed") == 0 && num && x >= 0 && x < 4294967296.0) {
             o->seed = (unsigned)x;
         } else {
@@ -157,15 +165,17 @@ static int parse(int argc, char **argv, opts_t *o)
     if (o->input == NULL || o->out == NULL) {
         fprintf(stderr, "usage: hdctrl-bench --input IN --out OUT.csv [--mode M] [--feedback F] "
                         "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
-                        "--notch-width-hz] [--load dyno|free|wall --speed --person-nm "
+                        "--notch-width-hz] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
                         "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
-                        "--imp-q] [--seed]\n");
+                        "--imp-q] [--preroll N] [--seed]\n");
         return -1;
     }
     return 0;
 }
 
-/* The input's two columns; *n ticks.  Returns NULL (+ message) on error. */
+#define COLS 3u
+
+/* The input's columns; *n ticks.  Returns NULL (+ message) on error. */
 static double *read_input(const char *path, size_t *n)
 {
     char err[160];
@@ -175,26 +185,23 @@ static double *read_input(const char *path, size_t *n)
         fprintf(stderr, "hdctrl-bench: %s\n", err);
         return NULL;
     }
-    double *v = malloc(2u * MAX_TICKS * sizeof *v);
+    double *v = malloc(COLS * MAX_TICKS * sizeof *v);
     size_t k = 0;
     char *p = text;
     while (v != NULL && *p != '\0') {
-        char *end;
-        const double a = strtod(p, &end);
-        if (end == p) {
-            break;
+        for (unsigned c = 0; c < COLS; c++) {
+            char *end;
+            const double a = strtod(p, &end);
+            if (end == p || k >= MAX_TICKS || !isfinite(a)) {
+                fprintf(stderr, "hdctrl-bench: %s: line %zu: want %u finite numbers (at most "
+                                "%u lines)\n", path, k + 1u, COLS, MAX_TICKS);
+                free(text);
+                free(v);
+                return NULL;
+            }
+            p = end;
+            v[COLS * k + c] = a;
         }
-        p = end;
-        const double b = strtod(p, &end);
-        if (end == p || k >= MAX_TICKS || !isfinite(a) || !isfinite(b)) {
-            fprintf(stderr, "hdctrl-bench: %s: line %zu: want two finite numbers (at most %u "
-                            "lines)\n", path, k + 1u, MAX_TICKS);
-            free(text);
-            free(v);
-            return NULL;
-        }
-        p = end;
-        v[2u * k] = a, v[2u * k + 1u] = b;
         k++;
         while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') {
             p++;
@@ -203,7 +210,8 @@ static double *read_input(const char *path, size_t *n)
     const bool bad = v == NULL || *p != '\0' || k == 0u;
     free(text);
     if (bad) {
-        fprintf(stderr, "hdctrl-bench: %s: not lines of \"setpoint_nm inject_a\"\n", path);
+        fprintf(stderr, "hdctrl-bench: %s: not lines of \"setpoint_nm inject_a speed_rad_s\"\n",
+                path);
         free(v);
         return NULL;
     }
@@ -272,8 +280,10 @@ static int run(const opts_t *o, const double *in, size_t n, hd_out_t *out)
                        "output_velocity_rad_s,person_nm,env_nm,mode\n");
     double dyno_int = 0.0;
     for (size_t k = 0; k < n; k++) {
-        const hd_can_setpoint_t sp = {.mode = (uint8_t)o->mode, .seq = (uint8_t)k,
-                                      .torque_nm = (float)in[2u * k],
+        const bool pre = k < o->preroll;
+        const hd_can_setpoint_t sp = {.mode = pre ? (uint8_t)HD_CTRL_ZERO_TORQUE : (uint8_t)o->mode,
+                                      .seq = (uint8_t)k,
+                                      .torque_nm = (float)in[COLS * k],
                                       .position_rad = (float)o->imp_q_rad,
                                       .velocity_rad_s = 0.0f};
         hal_can_frame_t f;
@@ -281,15 +291,16 @@ static int run(const opts_t *o, const double *in, size_t n, hd_out_t *out)
         if (hal_mock_push_rx(&mock, &f) != 0) {
             return fail("CAN receive queue full", NULL);
         }
-        inject_a = in[2u * k + 1u];
+        inject_a = in[COLS * k + 1u];
         cmd_a = 0.0;
         hd_fw_isr(&fw);
         hd_fw_background(&fw);
         const double v = dyn.joint.x.output_velocity_rad_s;
         double person = o->person_nm;
-        if (o->load == 0) {
-            dyno_int += o->dyno_ki * (o->speed_rad_s - v) * dyn.joint.p.ts_s;
-            person = o->dyno_kv * (o->speed_rad_s - v) + dyno_int;
+        if (o->load == 0 || pre) {
+            const double target = in[COLS * k + 2u];
+            dyno_int += o->dyno_ki * (target - v) * dyn.joint.p.ts_s;
+            person = o->dyno_kv * (target - v) + dyno_int;
         }
         dyn.joint.person_torque_nm = person;
         const hd_fw_sample_t *s = &fw.last;
@@ -298,7 +309,7 @@ static int run(const opts_t *o, const double *in, size_t n, hd_out_t *out)
         const hd_sim_joint_truth_t *t = &dyn.truth;
         hd_out_printf(out, "%zu,%.5g,%.6g,%.6g,%.7g,%.7g,%.7g,%.7g,%.7g,%.7g,%.9g,%.9g,%.7g,%.7g,"
                            "%.7g,%d\n",
-                      k, in[2u * k], inject_a, cmd_a, t->output_torque_nm, t->gauge_torque_nm,
+                      k, in[COLS * k], inject_a, cmd_a, t->output_torque_nm, t->gauge_torque_nm,
                       (double)s->torque_raw_nm, (double)s->torque_filtered_nm,
                       (double)c->torque_fb_nm, (double)c->torque_ref_nm, t->motor_angle_rad,
                       t->output_angle_rad, t->output_velocity_rad_s, t->person_torque_nm,
