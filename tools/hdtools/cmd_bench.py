@@ -5,11 +5,14 @@ scenarios) and the real iiwa logs, the host compute benchmark
 (tests/bench/bench_compute) and the Cortex-M4 counts if tools/target exists;
 checks issue 12's goals against the numbers (bench/goals.py); prints the
 tables, writes OUT/results.json, OUT/results.md and OUT/bench_accuracy.png
-(OUT = out/bench).  --update-docs also writes the tables into docs/bench.md
+(OUT = out/bench; the control part, --only control: OUT/control.json).
+--update-docs also writes the tables into docs/bench.md
 (between the generated-results markers), results.json to
 docs/results/bench.json (the README headline reads it) and the plot to
-docs/img/bench_accuracy.png.  Every file is written under a temporary name
-and all are renamed together once all are complete.
+docs/img/bench_accuracy.png; the control part's (issue 23) go into
+docs/control.md and docs/results/control.json, and bench.md is left alone
+when only the random and control parts ran.  Every file is written under a
+temporary name and all are renamed together once all are complete.
 """
 from __future__ import annotations
 

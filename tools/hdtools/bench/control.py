@@ -174,6 +174,7 @@ def wall_contact(v: cl.Variant, kd: float) -> dict:
     p2p = float(force.max() - force.min())
     losses = int(np.sum((late[1:] <= 0) & (late[:-1] > 0)))
     return {"kp_nm_rad": w["kp"], "kd_nm_s_rad": kd, "mean_nm": float(force.mean()),
+            "commanded_nm": float(np.mean(d["torque_ref_nm"][-1000:])),
             "p2p_nm": p2p, "contact_losses": losses,
             "limit_cycle": bool(losses > 0 or p2p > 0.1 * abs(float(force.mean())))}
 

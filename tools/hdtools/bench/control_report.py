@@ -53,7 +53,9 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
         elif cfg["notch_mask"]:
             what = f"raw, notches at orders 2 and 4 ({cfg['notch_width_hz']:g} Hz wide)"
         if "measured" not in t:
-            tab.append([key, what, "-", "-"] + ["-"] * len(conds) + [t.get("method", "-")])
+            note = ("open loop: no loop" if cfg["feedback"] == "none"
+                    else "NO (no gains on the grid meet them)")
+            tab.append([key, what, "-", "-"] + ["-"] * len(conds) + [note])
             continue
         cells = [f"{_n(t['measured'][c]['pm_deg'], '{:.0f}', 'no crossover')} / "
                  f"{_n(t['measured'][c]['gm_db'], '{:.1f}', 'no phase crossover')}"
@@ -100,8 +102,10 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                   f"{r['error_pct']:+.1f}"] for r in res["impedance"]["rows"]]))
     out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, filtered feedback): "
                 "the true torque over the last second",
-                ["kd N m s/rad", "mean N m", "peak to peak N m", "contact losses", "limit cycle"],
-                [[f"{c['kd_nm_s_rad']:g}", f"{c['mean_nm']:.2f}", f"{c['p2p_nm']:.2f}",
+                ["kd N m s/rad", "mean N m", "commanded (mean) N m", "peak to peak N m",
+                 "contact losses", "limit cycle"],
+                [[f"{c['kd_nm_s_rad']:g}", f"{c['mean_nm']:.2f}", f"{c['commanded_nm']:.2f}",
+                  f"{c['p2p_nm']:.2f}",
                   str(c["contact_losses"]), "YES" if c["limit_cycle"] else "no"]
                  for c in res["wall"]]))
     return out
