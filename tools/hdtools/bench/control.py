@@ -14,6 +14,7 @@ boots the firmware with its defaults, and the gains come from the tuning.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -86,7 +87,9 @@ def chirp_response(v: cl.Variant, speed: float, seconds: float = CHIRP_S) -> dic
     band = (f >= 1.0) & (f <= CHIRP_F1_HZ)
     h = pxy[band] / pxx[band]
     bw = ct.bandwidth_hz(f[band], h)
-    return {"bandwidth_hz": bw, "peak_db": float(20 * np.log10(np.abs(h).max()))}
+    above = bw == math.inf   # never below -3 dB up to the chirp's end
+    return {"bandwidth_hz": CHIRP_F1_HZ if above else bw, "above_band": above,
+            "peak_db": float(20 * np.log10(np.abs(h).max()))}
 
 
 def step_response(v: cl.Variant, speed: float) -> dict:
@@ -173,8 +176,11 @@ def wall_contact(v: cl.Variant, kd: float) -> dict:
     force = d["true_torque_nm"][-1000:]
     p2p = float(force.max() - force.min())
     losses = int(np.sum((late[1:] <= 0) & (late[:-1] > 0)))
-    return {"kp_nm_rad": w["kp"], "kd_nm_s_rad": kd, "mean_nm": float(force.mean()),
+    return {"kp_nm_rad": w["kp"], "kd_nm_s_rad": kd, "torque_ki_per_s": v.ki,
+            "mean_nm": float(force.mean()),
             "commanded_nm": float(np.mean(d["torque_ref_nm"][-1000:])),
+            "filtered_error_nm": float(np.nanmean(d["filtered_nm"][-1000:] - force)),
+            "invalid_ticks": int(np.sum(~np.isfinite(d["filtered_nm"][-1000:]))),
             "p2p_nm": p2p, "contact_losses": losses,
             "limit_cycle": bool(losses > 0 or p2p > 0.1 * abs(float(force.mean())))}
 
@@ -209,6 +215,8 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
         t["ratio"] = abs(t["zero_torque_nm"]) / abs(t["open_loop_nm"])
     imp = impedance(filt)
     wall = [wall_contact(filt, kd) for kd in WALL["kds"][:1 if quick else None]]
+    if not quick:   # the same loop without its integral: what the contact's cycle needs
+        wall.append(wall_contact(dataclasses.replace(filt, ki=0.0), WALL["kds"][0]))
     return {"speeds_rad_s": list(SPEEDS_RAD_S), "margins": {"pm_deg": ct.PM_DEG, "gm_db": ct.GM_DB},
             "tuning": tuning, "rows": rows, "best_butterworth": best.key,
             "transparency": transp, "impedance": imp, "wall": wall,
@@ -248,6 +256,7 @@ def goals(rows: dict, best: str, transp: dict, imp: dict, wall: list) -> list[di
     out.append({"goal": f"rendered stiffness within {STIFFNESS_GOAL_PCT:g} %",
                 "worst": abs(w["error_pct"]), "where": f"kp {w['commanded']:g} N m/rad",
                 "met": abs(w["error_pct"]) <= STIFFNESS_GOAL_PCT})
+    wall = [c for c in wall if c["torque_ki_per_s"] > 0]   # the tuned loop's
     bad = [c for c in wall if c["limit_cycle"]]
     out.append({"goal": "stiff-wall contact without a limit cycle",
                 "worst": max(c["p2p_nm"] for c in wall),

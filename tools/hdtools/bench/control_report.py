@@ -31,8 +31,10 @@ def _n(x, fmt="{:.1f}", none="-"):
     return none if x is None or (isinstance(x, float) and not math.isfinite(x)) else fmt.format(x)
 
 
-def _bw(x):
-    return _n(x, "{:.1f}", "< 1")
+def _bw(chirp: dict) -> str:
+    if chirp.get("above_band"):
+        return f"> {chirp['bandwidth_hz']:g}"
+    return _n(chirp["bandwidth_hz"], "{:.1f}", "< 1")
 
 
 def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
@@ -73,7 +75,7 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     for key, r in rows.items():
         sp = r["speeds"]
         tab.append([key + (" (best low-pass)" if key == best else "")]
-                   + [_bw(sp[s]["chirp"]["bandwidth_hz"]) for s in speeds]
+                   + [_bw(sp[s]["chirp"]) for s in speeds]
                    + [f"{_n(sp[s]['step']['overshoot_pct'], '{:.0f}')} / "
                       f"{_n(sp[s]['step']['settle_ms'], '{:.0f}')}" for s in speeds])
     out.append(("Torque tracking, true output torque against the setpoint: -3 dB bandwidth "
@@ -102,11 +104,16 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                   f"{r['error_pct']:+.1f}"] for r in res["impedance"]["rows"]]))
     out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, filtered feedback): "
                 "the true torque over the last second",
-                ["kd N m s/rad", "mean N m", "commanded (mean) N m", "peak to peak N m",
-                 "contact losses", "limit cycle"],
-                [[f"{c['kd_nm_s_rad']:g}", f"{c['mean_nm']:.2f}", f"{c['commanded_nm']:.2f}",
-                  f"{c['p2p_nm']:.2f}",
-                  str(c["contact_losses"]), "YES" if c["limit_cycle"] else "no"]
+                ["kd N m s/rad", "torque loop ki 1/s", "mean N m", "commanded (mean) N m",
+                 "filtered - true N m", "peak to peak N m", "contact losses",
+                 "ticks without a valid torque", "limit cycle"],
+                [[f"{c['kd_nm_s_rad']:g}",
+                  f"{c['torque_ki_per_s']:.3g}" + ("" if c["torque_ki_per_s"] else
+                                                   " (diagnostic: the tuned kp, no integral)"),
+                  f"{c['mean_nm']:.2f}", f"{c['commanded_nm']:.2f}",
+                  f"{c['filtered_error_nm']:+.2f}", f"{c['p2p_nm']:.2f}",
+                  str(c["contact_losses"]), str(c["invalid_ticks"]),
+                  "YES" if c["limit_cycle"] else "no"]
                  for c in res["wall"]]))
     return out
 
@@ -146,8 +153,7 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
         "Torque loop on the simulated joint, gains from the project's own tuning "
         f"(PM >= {c['margins']['pm_deg']:g} deg, GM >= {c['margins']['gm_db']:g} dB, measured "
         "by breaking the loop)",
-        "filtered feedback -3 dB bandwidth " + " / ".join(_bw(f[s]["chirp"]["bandwidth_hz"])
-                                                          for s in speeds)
+        "filtered feedback -3 dB bandwidth " + " / ".join(_bw(f[s]["chirp"]) for s in speeds)
         + f" Hz at {' / '.join(speeds)} rad/s = {ratios} the best low-pass-fed loop "
         f"(goal 2x: {status(bw)}); true-torque ripple {g['true-torque']['worst']:.2f}x raw "
         f"({status(g['true-torque'])}); back-drive {g['back-drive']['worst']:.3f}x the open "

@@ -125,14 +125,14 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None)
         log(f"{v.key}: no gains on the grid meet the margins in every condition")
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
     v.kp, v.ki, predicted = found
+    v.kp, v.ki = float(f"{v.kp:.3g}"), float(f"{v.ki:.3g}")   # as the law's defaults hold them
     checked = {}
     for _ in range(25):
         checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
         ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
         if all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()):
             break
-        v.kp *= 0.9
-        v.ki *= 0.9
+        v.kp, v.ki = float(f"{0.9 * v.kp:.3g}"), float(f"{0.9 * v.ki:.3g}")
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
     log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
