@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..safeio import HdError
+
 TS_S = 1e-3
 GEAR_RATIO = 100.0      # the law's defaults (control/hd_ctrl.c): what the firmware is told
 KT_NM_PER_A = 0.06
@@ -41,8 +43,8 @@ RIPPLE_GUARD_HZ = 1.5
 PREROLL_SPEED_RAD_S, PREROLL_RAMP_S, PREROLL_RUN_S, PREROLL_HOLD_S = 3.0, 0.5, 1.5, 0.5
 
 
-class BenchError(Exception):
-    """A run of the runner failed (its one-line message)."""
+class BenchError(HdError):
+    """A run of the runner failed (its one-line message; the CLI's exit 1)."""
 
 
 def runner() -> Path:
