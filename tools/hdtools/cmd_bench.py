@@ -50,7 +50,8 @@ def register(subparsers) -> None:
     p.add_argument("--random-joints", type=int, default=32, metavar="N",
                    help="joints of the random-joint part (default 32; --quick: 4)")
     p.add_argument("--quick", action="store_true",
-                   help="tiny sizes (smoke test): short runs, 2 real segments, few reps")
+                   help="tiny sizes (smoke test): short runs, 2 real segments, few reps; the "
+                        "control part only with --only control")
     p.add_argument("--update-docs", action="store_true",
                    help="write the tables into docs/bench.md and the plot into docs/img/")
     p.set_defaults(func=run)
@@ -63,10 +64,13 @@ def run(args) -> int:
     only, n_random = args.only, args.random_joints
     if only:
         args.skip = [x for x in PARTS if x not in only]
+    elif args.quick and "control" not in args.skip:
+        args.skip = args.skip + ["control"]   # --quick: the control part only with --only control
     if not 1 <= n_random <= 1000:
         raise UsageError(f"--random-joints must be 1..1000 (got {n_random})")
     # bench.md holds every part but the random joints' (docs/random-joints.md)
-    doc_text = read_doc() if args.update_docs and not set(only) <= {"random", "control"} else None
+    own_docs = bool(only) and set(only) <= {"random", "control"}  # parts with docs of their own
+    doc_text = read_doc() if args.update_docs and not own_docs else None
     random_text = read_doc(RANDOM_DOC) if args.update_docs and "random" not in args.skip else None
     control_text = (read_doc(CONTROL_DOC, control_report.BEGIN, control_report.END)
                     if args.update_docs and "control" not in args.skip else None)
