@@ -89,7 +89,8 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
            for key, r in rows.items()]
     out.append(("Ripple in the true output torque at a constant 10 N m [N m]: the 2x "
                 "motor-angle line and the rms about the mean",
-                ["variant"] + [f"2x line {s} rad/s" for s in moving] + [f"rms {s} rad/s" for s in moving],
+                ["variant"] + [f"2x line {s} rad/s" for s in moving]
+                + [f"rms {s} rad/s" for s in moving],
                 tab))
     out.append(("Transparency: the torque needed to back-drive the output (ZERO_TORQUE on the "
                 "filtered torque, tuned gains) against the open-loop drive (zero current) [N m]",
@@ -111,7 +112,7 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                   f"{c['torque_ki_per_s']:.3g}" + ("" if c["torque_ki_per_s"] else
                                                    " (diagnostic: the tuned kp, no integral)"),
                   f"{c['mean_nm']:.2f}", f"{c['commanded_nm']:.2f}",
-                  f"{c['filtered_error_nm']:+.2f}", f"{c['p2p_nm']:.2f}",
+                  _n(c["filtered_error_nm"], "{:+.2f}"), f"{c['p2p_nm']:.2f}",
                   str(c["contact_losses"]), str(c["invalid_ticks"]),
                   "YES" if c["limit_cycle"] else "no"]
                  for c in res["wall"]]))
