@@ -141,8 +141,8 @@ def test_joint_without_a_drive_refuses(capsys, channel, joint):
 
 
 @pytest.mark.parametrize("args, says", [
-    (["set", "torque", "--torque", "nan"], "not a finite number"),
-    (["set", "torque", "--torque", "inf"], "not a finite number"),
+    (["set", "torque", "--torque", "nan"], "is not finite"),
+    (["set", "torque", "--torque", "inf"], "is not finite"),
     (["set", "torque", "--torque", "1e9"], "outside the frame's range"),
     (["set", "warp"], "unknown mode"),
     (["set", "impedance", "--kp", "-1"], "outside the frame's range"),

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import can
 
 from . import protocol, safeio
+from .cmd_calib import _finite    # a finite float, or argparse's one-line error
 from .cmd_monitor import add_bus_arguments, _node
 from .joint import BusError, NoAnswer, open_bus
 from .safeio import HdError, UsageError
@@ -207,16 +208,6 @@ def step_metrics(t: list[float], y: list[float], t0: float, t_end: float, before
 
 
 # ------------------------------------------------------------- commands
-def _finite(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
-    return v
-
-
 def _ranged(lo: float, hi: float, what: str):
     def parse(text: str) -> float:
         v = _finite(text)
