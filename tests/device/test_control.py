@@ -92,6 +92,16 @@ def test_set_torque_reaches_the_loop(capsys, channel, dyn_joint):  # noqa: ARG00
     assert "ENABLED" in s["flags"]
 
 
+def test_set_impedance_with_gains(capsys, channel, dyn_joint):  # noqa: ARG001
+    rc, out, err = ctl(capsys, channel, "set", "impedance", "--position", "0.01", "--kp", "200",
+                       "--kd", "2", "--hold", "0.3")
+    assert rc == 0, err
+    s = summary(out)
+    assert s["mode_asked"] == "IMPEDANCE" and s["mode_run"] == "IMPEDANCE"
+    # kp (q_d - q) + kd (v_d - v) with the output near rest near 0: about 200 x 0.01 N m
+    assert 0.5 < float(s["torque_ref_nm"]) < 3.0
+
+
 def test_step_against_truth(capsys, channel, dyn_joint, tmp_path):
     j, att, truth = dyn_joint
     csv = tmp_path / "step.csv"

@@ -294,7 +294,8 @@ def cmd_step(args) -> list[str]:
     band = args.band
     bus, c = _open(args)
     try:
-        c.gains(args.kp or 0.0, args.kd or 0.0)
+        if args.kp is not None or args.kd is not None:   # else the joint's latched gains
+            c.gains(args.kp or 0.0, args.kd or 0.0)
         before = (args.mode, args.torque_from, args.position, 0.0)
         after = (args.mode, args.torque_to, args.position, 0.0)
         last_before = c.stream(before, args.before, args.rate)
