@@ -354,8 +354,11 @@ static void test_property_limits_hold_for_any_input(void)
     TEST_ASSERT_GREATER_THAN(1000, clamped); /* the limit was exercised */
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_config_check);
     RUN_TEST(test_torque_step_first_order_closed_loop);
