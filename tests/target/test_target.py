@@ -23,7 +23,6 @@ import os
 import shutil
 import struct
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -35,7 +34,6 @@ SCENARIOS = ROOT / "sim" / "scenarios"
 
 
 def load_target_module():
-    sys.path.insert(0, str(ROOT / "tools"))
     import hdtools.target
     return hdtools.target
 

@@ -11,7 +11,7 @@ second copy lives in git.
 The C libraries (libhdfilter.so, libhd_emu.so, ...) are never copied: they
 are found in $HD_BUILD_DIR, else in build/host-release of the source tree:
 $HD_ROOT if set, else this tree, else the tree the package was installed
-from (built there on first use, as in a checkout).
+from.  Nothing builds them on demand (hdtools/native.py says how).
 """
 from __future__ import annotations
 
