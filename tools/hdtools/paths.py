@@ -24,7 +24,8 @@ PACKAGE = Path(__file__).resolve().parent
 DATA = PACKAGE / "data"
 # Source-tree files the tools read at run time (copied by tools/setup.py).
 DATA_FILES = ("firmware/hd_params.def", "firmware/hd_protocol.def", "firmware/hdjoint.dbc",
-              "firmware/hd_fw_records.h", "filter/hd_kf.h")
+              "firmware/hd_fw_records.h", "filter/hd_kf.h", "control/hd_ctrl.h",
+              "firmware/hd_can_proto.h")
 _TREE = PACKAGE.parents[1]
 
 
