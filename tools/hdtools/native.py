@@ -1,10 +1,12 @@
 """Locate the project's C libraries and host executables.
 
 The tools never re-implement the filter: they load the same C code the
-firmware runs, built as shared libraries by CMake.  The build directory is
-$HD_BUILD_DIR if set (CTest sets it), else build/host-release.  Nothing here
-runs a build: a missing artefact is a NativeMissing error that names the
-command building it (the CLIs print it as one line, exit status 1).
+firmware runs, built as shared libraries by CMake.  They are looked up in
+$HD_BUILD_DIR if set (CTest sets it), else in the package itself (the wheel
+of `pip install ./tools` carries them in hdtools/lib and hdtools/bin:
+cmake/HdWheel.cmake), else in build/host-release of the source tree.
+Nothing here runs a build: a missing artefact is a NativeMissing error that
+names the command building it (the CLIs print it as one line, exit status 1).
 """
 from __future__ import annotations
 
@@ -48,6 +50,22 @@ def _missing(what: str, target: str | None) -> NativeMissing:
                          " (or set HD_BUILD_DIR to a build tree that has it)")
 
 
+# Where the wheel puts the libraries (lib) and executables (bin).
+PACKAGED = (Path(__file__).resolve().parent / "lib", Path(__file__).resolve().parent / "bin")
+
+
+def _packaged(name: str, want_exec: bool = False) -> Path | None:
+    """The wheel's copy of an artefact; None in a source checkout or when
+    HD_BUILD_DIR names a build tree to use instead."""
+    if os.environ.get("HD_BUILD_DIR"):
+        return None
+    for folder in PACKAGED:
+        path = folder / name
+        if path.is_file() and (not want_exec or os.access(path, os.X_OK)):
+            return path
+    return None
+
+
 # Parts of a build tree that hold no artefacts of ours but scratch files that
 # tests create and delete while other tests run (a walk must not trip on them).
 _SKIP_DIRS = {"CMakeFiles", "Testing", "vm", "cache"}
@@ -66,6 +84,9 @@ def _walk_for(bdir: Path, name: str, want_exec: bool = False) -> list[Path]:
 
 def find_file(name: str, target: str | None = None) -> Path:
     """Path of a built artefact (library or executable) by file name."""
+    packaged = _packaged(name)
+    if packaged is not None:
+        return packaged
     bdir = build_dir()
     hits = _walk_for(bdir, name) if bdir.is_dir() else []
     if not hits:
@@ -84,6 +105,9 @@ _TARGET_OF = {"hdsim": "hdsim_cli"}
 
 def executable(name: str) -> Path:
     """Path of a built host executable by file name."""
+    packaged = _packaged(name, want_exec=True)
+    if packaged is not None:
+        return packaged
     bdir = build_dir()
     hits = _walk_for(bdir, name, want_exec=True) if bdir.is_dir() else []
     if not hits:
