@@ -49,22 +49,23 @@ def build_dir() -> Path:
     return Path(bdir)
 
 
-@pytest.hookimpl(wrapper=True)
-def pytest_runtest_setup(item):
-    # a fixture found a C artefact missing (hdtools.native.NativeMissing)
+def _not_built_is_a_skip():
+    """Wraps a test's setup (its fixtures) or call: a C artefact missing
+    (hdtools.native.NativeMissing) skips it, unless the caller named the
+    build tree."""
     try:
         return (yield)
     except native.NativeMissing as exc:
         if GIVEN:
             raise
         pytest.skip(str(exc))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item):
+    return (yield from _not_built_is_a_skip())
 
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item):
-    try:
-        return (yield)
-    except native.NativeMissing as exc:
-        if GIVEN:
-            raise
-        pytest.skip(str(exc))
+    return (yield from _not_built_is_a_skip())

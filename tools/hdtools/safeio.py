@@ -15,6 +15,7 @@ one line (docs/reliability.md, "Exit status"):
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 import sys
 import tempfile
@@ -241,6 +242,34 @@ class StreamOutput:
         if self.tmp is not None:
             _unlink(self.tmp)
             self.tmp = None
+
+
+class StagedDir:
+    """A temporary folder next to the target for outputs a library writes as
+    a folder (rosbags' Writer: a rosbag2 folder, or one .mcap inside it);
+    publish() renames a path of it over the target, discard() removes it.
+    in_system_temp: the target is written in place at the end (/dev/null,
+    a FIFO), so the folder goes to the system's temporary directory."""
+
+    def __init__(self, target: str | os.PathLike, in_system_temp: bool = False) -> None:
+        self.target = os.fspath(target)
+        directory, base = os.path.split(os.path.abspath(self.target))
+        try:
+            self.path = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp",
+                                         dir=None if in_system_temp else directory)
+        except OSError as exc:
+            raise OutputError(f"{self.target}: cannot write: {_why(exc)}") from None
+
+    def publish(self, inside: str) -> None:
+        try:
+            os.replace(inside, self.target)
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"{self.target}: write failed: {_why(exc)}") from None
+        self.discard()
+
+    def discard(self) -> None:
+        shutil.rmtree(self.path, ignore_errors=True)
 
 
 class _StagedPath:
