@@ -5,11 +5,16 @@
 #   harness is the project's own (tests/harness) unless HD_UNITY_DIR points at
 #   an upstream Unity checkout, in which case the same test files build
 #   against that instead.
+#   Besides the test <name> (every RUN_TEST of the executable), each RUN_TEST
+#   in SOURCES becomes a test <name>.<case> that runs `<name> -n <case>`; they
+#   belong to the CTest configuration "case", so a plain `ctest` does not run
+#   them and `ctest -C case -R '^<name>\.<case>$'` runs one (docs/testing.md).
 
 if(HD_UNITY_DIR)
   add_library(hd_unity STATIC ${HD_UNITY_DIR}/src/unity.c)
   target_include_directories(hd_unity PUBLIC ${HD_UNITY_DIR}/src)
-  target_compile_definitions(hd_unity PUBLIC UNITY_INCLUDE_DOUBLE UNITY_SUPPORT_64)
+  target_compile_definitions(hd_unity PUBLIC UNITY_INCLUDE_DOUBLE UNITY_SUPPORT_64
+                             UNITY_USE_COMMAND_LINE_ARGS)
   # Upstream Unity is not ours to keep warning-free.
   target_compile_options(hd_unity PRIVATE -w)
 else()
@@ -31,6 +36,20 @@ function(hd_add_unity_test)
   if(T_LABELS)
     set_tests_properties(${T_NAME} PROPERTIES LABELS "${T_LABELS}")
   endif()
+  foreach(src ${T_SOURCES})
+    get_filename_component(src_path ${src} ABSOLUTE)
+    set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${src_path})
+    file(STRINGS ${src_path} runs REGEX "^[ \t]*RUN_TEST\\([A-Za-z0-9_]+\\)")
+    foreach(run ${runs})
+      string(REGEX REPLACE "^[ \t]*RUN_TEST\\(([A-Za-z0-9_]+)\\).*" "\\1" case ${run})
+      add_test(NAME ${T_NAME}.${case} CONFIGURATIONS case COMMAND ${T_NAME} -n ${case})
+      set_tests_properties(${T_NAME}.${case} PROPERTIES TIMEOUT ${T_TIMEOUT}
+                           FAIL_REGULAR_EXPRESSION ":FAIL")
+      if(T_LABELS)
+        set_tests_properties(${T_NAME}.${case} PROPERTIES LABELS "${T_LABELS}")
+      endif()
+    endforeach()
+  endforeach()
 endfunction()
 
 # hd_add_python_test(NAME <name> ARGS <pytest args...>)

@@ -4,11 +4,9 @@ only for well-formed output (its goals are benchmark numbers, not pass/fail
 tests), and its tables, JSON, docs section and README row rendered."""
 import json
 import math
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
 from hdtools.bench import control, control_report  # noqa: E402
 

@@ -3,17 +3,12 @@ and `tools/bench --update-docs` (tools/hdtools/cmd_bench.py): on results
 made up here, whose worst cases are known by construction."""
 import argparse
 import json
-import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from hdtools import cmd_bench  # noqa: E402
-from hdtools.bench import goals, report  # noqa: E402
-from hdtools.safeio import OutputError, UsageError  # noqa: E402
+from hdtools import cmd_bench
+from hdtools.bench import goals, report
+from hdtools.safeio import OutputError, UsageError
 
 
 def _acc(rows):

@@ -5,13 +5,8 @@ then run in operating mode from that profile.  Short runs (--quick sizes):
 the output is checked for form and for what the firmware was told, not for
 accuracy (the benchmark prints numbers; docs/bench.md)."""
 import math
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from hdtools.bench import accuracy, joint, report  # noqa: E402
+from hdtools.bench import accuracy, joint, report
 
 ROW = "fw_commissioned"
 # The benchmark joint's true plant (tests/bench/scenarios/*.ini): the

@@ -2,13 +2,8 @@
 one scenario on tiny sizes, checked only for well-formed output (the
 benchmark prints numbers; its goals are not pass/fail tests)."""
 import math
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from hdtools.bench import report, slow  # noqa: E402
+from hdtools.bench import report, slow
 
 
 def test_slow_bench_quick_is_well_formed(tmp_path):

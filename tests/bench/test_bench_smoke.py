@@ -5,11 +5,9 @@ import json
 import math
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
 
 def test_bench_quick_output_is_well_formed(tmp_path):

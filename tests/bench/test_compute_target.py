@@ -2,14 +2,9 @@
 numbers from the budget code of hdtools.target in-process: the rows it
 reports are the budget's, and a setup problem or a failed check is reported
 as a status, never raised."""
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from hdtools import target as budget_tool  # noqa: E402
-from hdtools.bench import compute  # noqa: E402
+from hdtools import target as budget_tool
+from hdtools.bench import compute
 
 BUDGET = {
     "flash_bytes": 40000, "ram_bytes": 80000, "stack_reserved_bytes": 8192,

@@ -5,11 +5,9 @@ written by `tools/bench --only control --update-docs`):
   * the generated section of docs/control.md is the tables of that JSON."""
 import json
 import re
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
 from hdtools.bench import control_report  # noqa: E402
 

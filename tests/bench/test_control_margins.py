@@ -12,14 +12,12 @@ control_loop.py) against loops with a closed-form L:
   * bandwidth_hz of a first-order response: its corner.
 """
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import brentq
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
 from hdtools.bench import control_loop as cl  # noqa: E402
 from hdtools.bench import control_tune as ct  # noqa: E402

@@ -479,8 +479,11 @@ static void test_f_pvalue_against_published_tables(void)
     TEST_ASSERT_TRUE(isnan(hd_calib_f_pvalue(1.0f, 0.0f, 5.0f)));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_noise_free_line_is_exact);
     RUN_TEST(test_known_gain_within_stated_standard_error);

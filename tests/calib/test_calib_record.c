@@ -248,8 +248,11 @@ static void test_power_loss_one_copy_present(void) { power_loss_sweep(1); }
 static void test_power_loss_both_copies_present(void) { power_loss_sweep(2); }
 static void test_power_loss_many_saves(void) { power_loss_sweep(5); }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_defaults_are_nominal);
     RUN_TEST(test_encode_layout_and_roundtrip);

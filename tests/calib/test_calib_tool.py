@@ -8,7 +8,6 @@ import math
 import os
 import struct
 import subprocess
-import sys
 import zlib
 from pathlib import Path
 
@@ -16,10 +15,9 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import native  # noqa: E402
-from hdtools.calibtool import lib as L  # noqa: E402
+from hdtools import native
+from hdtools.calibtool import lib as L
 
 
 def sim(tmp_path: Path, name: str, *args: str) -> Path:
@@ -95,9 +93,8 @@ def test_record_layout_matches_documentation():
 # has n-1 degrees of freedom.  Checked over many independent campaigns
 # against those distributions (scipy), not against "2.0 %".  The same
 # figures are written into docs/calibration.md by calib_doc.py.
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import calib_doc  # noqa: E402
-from calib_doc import N_CAMPAIGNS, N_EXP, TRUE_GAIN, TRUE_SPREAD, spread_interval  # noqa: E402,F401
+import calib_doc
+from calib_doc import N_CAMPAIGNS, N_EXP, TRUE_GAIN, TRUE_SPREAD, spread_interval  # noqa: F401
 
 
 def campaign_figures(tmp_path: Path, seed: int) -> dict:

@@ -297,8 +297,11 @@ static void test_power_loss_one_record(void) { power_loss_sweep(1); }
 static void test_power_loss_three_records(void) { power_loss_sweep(3); }
 static void test_power_loss_many_saves(void) { power_loss_sweep(7); }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_crc32_check_value);
     RUN_TEST(test_blank_is_missing_and_garbage_is_corrupt);

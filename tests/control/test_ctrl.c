@@ -426,8 +426,11 @@ static void test_order_notch_tracks_the_speed(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 1.0, still);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_config_check);
     RUN_TEST(test_torque_step_first_order_closed_loop);

@@ -3,22 +3,25 @@ firmware on the mock HAL with the simulated joint, tools/hdtools/emu.py)
 on python-can's in-process virtual bus, and the hdsense CLI in-process."""
 from __future__ import annotations
 
-import sys
 import uuid
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import cli, emu, summary as key_values  # noqa: E402
+from hdtools import cli, emu, summary as key_values
 
 # The paper's drive with its ripple lines and noise (sim/scenarios/paper_156.ini),
 # long enough for any test.
 PAPER = (ROOT / "sim" / "scenarios" / "paper_156.ini").read_text().replace(
     "duration_s = 10", "duration_s = 3600")
 assert "duration_s = 3600" in PAPER
+
+
+@pytest.fixture(scope="session")
+def paper_scenario():
+    return PAPER
 
 
 @pytest.fixture

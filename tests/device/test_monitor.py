@@ -174,3 +174,52 @@ def test_monitor_errors_are_one_line(capsys, tmp_path, channel):
     assert rc == 2 and len(err.splitlines()) == 1
     rc, out, err = run_cli(capsys, "monitor", "--version")
     assert rc == 0 and out.startswith("hdsense monitor ")
+
+
+def ctrl_state_bytes(asked, run, limits, torque_ref_nm, current_a, seq, flags):
+    """CTRL_STATE as docs/protocol.md lays it out: mode asked (bits 0..3) and
+    run (4..7), the limits, int16 torque reference (0.01 N m), int16 current
+    command (1 mA), the setpoint's sequence, flags."""
+    return struct.pack("<BBhhBB", asked | run << 4, limits, round(torque_ref_nm * 100),
+                       round(current_a * 1000), seq, flags)
+
+
+def test_monitor_shows_and_records_the_control_state(joint, channel, capsys, tmp_path):
+    """CTRL_STATE frames (a board with a drive; the emulated joint has none,
+    so they are sent beside it): the mode run and asked, torque reference,
+    current command, limits and flags by the names of docs/protocol.md
+    (modes 1 DAMP, 2 TORQUE, 3 IMPEDANCE; limits 1 torque, 8 current,
+    32 fallback; flags 1 enabled, 2 watchdog), and the frames in the log."""
+    ident = canproto.BASE_IDS["CTRL_STATE"] + 1
+    sent = [ctrl_state_bytes(3, 1, 0x20, -1.25, 0.5, 7, 2)] * 3 + \
+           [ctrl_state_bytes(2, 2, 0x09, 12.34, -2.5, 8, 1)] * 3
+    log = tmp_path / "run.log"
+
+    def inject():
+        bus = can.Bus(interface="virtual", channel=channel)
+        time.sleep(0.4)
+        for data in sent:
+            bus.send(can.Message(arbitration_id=ident, data=data))
+            time.sleep(0.05)
+        bus.shutdown()
+
+    with joint().attach("virtual", channel):
+        t = threading.Thread(target=inject)
+        t.start()
+        rc, out, err = run_cli(capsys, "monitor", "-i", "virtual", channel, "--duration", "1.5",
+                               "--passive", "--quiet", "--log", log)
+        t.join()
+    assert rc == 0, err
+    s = summary(out)
+    assert s["malformed_frames"] == "0" and s["ctrl_state_frames"] == "6"
+    assert s["last_ctrl_state"] == ("TORQUE (asked TORQUE), torque ref +12.34 Nm, current "
+                                    "-2.500 A, limits TORQUE|CURRENT, flags ENABLED, "
+                                    "setpoint seq 8")
+    assert s["ctrl_limits_seen"] == "TORQUE|CURRENT|FALLBACK"
+    events = [line for line in out.splitlines() if line.startswith("control: ")]
+    assert events == ["control: mode DAMP (asked IMPEDANCE)", "control: flags WATCHDOG",
+                      "control: limited by FALLBACK", "control: mode TORQUE (asked TORQUE)",
+                      "control: flags ENABLED", "control: limited by TORQUE|CURRENT"]
+    recorded = [line.split()[2].split("#")[1] for line in log.read_text().splitlines()
+                if line.split()[2].startswith(f"{ident:08X}#")]
+    assert recorded == [d.hex().upper() for d in sent]

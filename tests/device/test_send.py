@@ -48,16 +48,12 @@ def read_device(channel, node, keys):
 
 
 @pytest.fixture(scope="module")
-def analyzed(tmp_path_factory):
+def analyzed(tmp_path_factory, paper_scenario):
     """model.cfg and model.can that `hdsense analyze` wrote for a log of the
     emulated joint (decoded by `hdsense canlog decode --csv`)."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).parent))
-    from conftest import PAPER
     from hdtools import cli, emu
     tmp = tmp_path_factory.mktemp("analyzed")
-    with emu.Emulator(scenario=PAPER, config="angle_telemetry_every = 1\n") as j:
+    with emu.Emulator(scenario=paper_scenario, config="angle_telemetry_every = 1\n") as j:
         frames = j.run_frames(6000)
     log = tmp / "joint.log"
     log.write_text("".join(candump_line(m, "vcan0") for m in frames))

@@ -5,8 +5,8 @@ tests measure (nothing typed):
   filter_doc.py --build BUILD           run the filter tests of BUILD, rewrite the blocks
   filter_doc.py --build BUILD --check   exit 1 if a block differs (CTest filter_doc)
 
-The tests (test_kf_reference, test_kf_behaviour, test_kf_profile,
-test_kf_numerics, test_trig, test_track) print one `measured: NAME
+The tests (filter_kf_reference, filter_kf_behaviour, filter_kf_profile,
+filter_kf_numerics, filter_trig, filter_track) print one `measured: NAME
 key=value ...` line per measured case (tests/reliability/rel_measured.h),
 bounds included where the test asserts one; they run with the command lines
 CTest has for them.  Every run is deterministic (fixed seeds, no timing), and
@@ -32,8 +32,8 @@ from gendoc import GenDocError, ROOT, command_of, ctest_commands, run, update_do
 from rel_doc import parse_measured, table  # noqa: E402
 
 DOC = ROOT / "docs" / "filter-tests.md"
-TESTS = ("test_kf_reference", "test_kf_behaviour", "test_kf_profile", "test_kf_numerics",
-         "test_trig", "test_track")
+TESTS = ("filter_kf_reference", "filter_kf_behaviour", "filter_kf_profile", "filter_kf_numerics",
+         "filter_trig", "filter_track")
 REGENERATE = "tests/filter/filter_doc.py --build build/host-debug"
 
 

@@ -5,15 +5,13 @@ against it, and against the C header's #defines and enum."""
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools.analysis import cfilter  # noqa: E402
+from hdtools.analysis import cfilter
 
 HEADER = (ROOT / "filter" / "hd_kf.h").read_text()
 ERR_HEADER = (ROOT / "filter" / "hd_filter_err.h").read_text()

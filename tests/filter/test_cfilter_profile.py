@@ -7,15 +7,10 @@ increment itself).  Expected values: the profile evaluated in closed form
 with numpy at the log's angles."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from hdtools.analysis import cfilter  # noqa: E402
+from hdtools.analysis import cfilter
 
 TS_S = 1e-3
 GEAR = 100.0

@@ -1662,8 +1662,11 @@ static void test_short_plans_are_bit_exact(void)
     rel_measured("short_plans", "motor_steps=%u of=20000", fast);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_cancel_constant_speed_to_noise_floor);
     RUN_TEST(test_cancel_through_speed_ramps);

@@ -206,8 +206,11 @@ static void test_numerics_max_states(void)
     long_run("numerics_max", "max blocks + offset", &cfg, 200000L, 99u);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_numerics_paper_6th_order_1e6_steps);
     RUN_TEST(test_numerics_narrowband_offset_5e5_steps);

@@ -749,8 +749,11 @@ static void test_learn_scale_matches_reference(void)
     }
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_export_recovers_truth_coefficients);
     RUN_TEST(test_profile_round_trip_next_prediction);

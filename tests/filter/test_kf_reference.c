@@ -628,8 +628,11 @@ static void test_step_is_the_old_one_fed_the_next_increment(void)
     shift_run("shift_max", "max blocks + sensor-error offset, k 0.3", &cfg);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_reference_4_states_paper);
     RUN_TEST(test_reference_6_states_paper);

@@ -250,8 +250,11 @@ static void test_pipeline_init_errors(void)
     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_TS, hd_pipeline_init(&p, &kc, &ec, 20.0f));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_run_equals_step_bitwise);
     RUN_TEST(test_run_null_outputs_and_null_feedforward);

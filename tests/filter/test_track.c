@@ -220,8 +220,11 @@ static void test_expected_config_check(void)
     hd_expected_config_default(&c); c.coulomb_vel_eps_rad_s = NAN;     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_config_check(&c));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_track_init_validation);
     RUN_TEST(test_track_constant_velocity_exact);

@@ -149,8 +149,11 @@ static void test_sincos_nonfinite_and_huge(void)
     }
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_sincos_within_2e7_on_minus_pi_pi);
     RUN_TEST(test_sincos_quadrant_boundaries_exhaustive);

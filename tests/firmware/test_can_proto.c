@@ -263,8 +263,11 @@ static void test_candump_line_format(void)
     TEST_ASSERT_EQUAL_INT(-1, hal_candump_format(&f, 0, "can0", buf, 10)); /* too small */
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_telem_bytes_match_the_documented_layout);
     RUN_TEST(test_telem_saturates_and_marks_not_available);

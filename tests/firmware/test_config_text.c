@@ -252,8 +252,11 @@ static void test_number_parser_agrees_with_strtod(void)
     }
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_good_file_sets_every_key);
     RUN_TEST(test_empty_file_keeps_the_base);

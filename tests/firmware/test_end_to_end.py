@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import canproto, native, summary as key_values  # noqa: E402
+from hdtools import canproto, native, summary as key_values
 
 SCENARIO = ROOT / "sim" / "scenarios" / "paper_156.ini"
 

@@ -130,8 +130,11 @@ static void test_current_efficiencies_must_be_physical(void)
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_current_term_matches_the_closed_form);
     RUN_TEST(test_backdrive_gain_where_the_load_drives_the_motor);

@@ -287,8 +287,11 @@ static void test_impedance_rendered_stiffness(void)
     TEST_ASSERT_DOUBLE_WITHIN(0.05 * (double)kp, (double)kp, rendered);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_torque_tracking_and_ripple_filtered_vs_raw);
     RUN_TEST(test_torque_step_filtered_raw_open);

@@ -625,8 +625,11 @@ static void test_block_toggle_keeps_the_other_estimates(void)
     TEST_ASSERT_TRUE(y0 * y0 + y1 * y1 > 0.8f * (x0 * x0 + x1 * x1));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_set_and_get_parameters);
     RUN_TEST(test_rejected_commands_change_nothing);

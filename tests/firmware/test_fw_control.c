@@ -688,8 +688,11 @@ static void test_ctrl_state_telemetry(void)
     TEST_ASSERT_TRUE(st.flags & HD_CAN_CTRL_FLAG_ENABLED);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_watchdog_damp_then_stop);
     RUN_TEST(test_fresh_setpoints_keep_the_mode);

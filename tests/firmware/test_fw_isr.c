@@ -359,8 +359,11 @@ static void test_frames_for_others_are_counted_not_queued(void)
     TEST_ASSERT_EQUAL_UINT32(0, hd_fw_counters(&fw)->commands);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_telemetry_scaled_values_and_sequence);
     RUN_TEST(test_rate_divider_and_heartbeat_period);

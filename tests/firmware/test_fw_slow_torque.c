@@ -874,8 +874,11 @@ static void test_profile_record_version_is_reported(void)
     TEST_ASSERT_EQUAL_UINT32(HD_PROFILE_RECORD_VERSION, a.value_u32);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_feedforward_is_latched_into_t_exp_and_goes_stale_with_a_ramp);
     RUN_TEST(test_a_stale_ramp_of_zero_drops_at_once_and_none_received_is_stale);

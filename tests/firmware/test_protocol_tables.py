@@ -8,14 +8,10 @@ from __future__ import annotations
 import json
 import struct
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import canproto, native, protocol  # noqa: E402
+from hdtools import canproto, native, protocol
 
 TYPES = ["F32", "U32", "U16", "U8", "BOOL"]
 FLAGS = {"LIVE": 0x01, "REBUILD": 0x02, "RO": 0x04, "CONFIG": 0x08, "CALIB": 0x10, "LO_OPEN": 0x20}

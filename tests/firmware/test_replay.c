@@ -168,8 +168,11 @@ static void test_isr_runs_from_a_recording(void)
     hal_replay_close(r);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_records_are_decoded_in_order);
     RUN_TEST(test_bad_files_are_refused_with_a_message);

@@ -19,8 +19,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import summary  # noqa: E402
+from hdtools import summary
 
 HDSENSE = ROOT / "tools" / "hdsense"
 BUILD = Path(os.environ.get("HD_BUILD_DIR", ROOT / "build" / "host-release"))

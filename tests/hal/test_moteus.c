@@ -68,8 +68,11 @@ static void test_actuator_on_a_mock_bus(void)
     TEST_ASSERT_EQUAL_UINT32(33u, st.fault_code);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_actuator_on_a_mock_bus);
     return UNITY_END();

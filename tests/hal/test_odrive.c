@@ -98,8 +98,11 @@ static void test_status_from_the_heartbeat(void)
     TEST_ASSERT_TRUE(s.enabled);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_enable_command_disable_on_the_wire);
     RUN_TEST(test_status_from_the_heartbeat);

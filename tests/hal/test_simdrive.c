@@ -99,8 +99,11 @@ static void test_bad_config_refused(void)
     TEST_ASSERT_EQUAL_INT(-1, hal_simdrive_init(&drive, &cfg));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_step_is_delayed_first_order_lag);
     RUN_TEST(test_saturation_disable_fault_nonfinite);

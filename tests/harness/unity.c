@@ -18,6 +18,104 @@ static struct {
     int current_ignored;
 } unity;
 
+/* Kept apart from `unity`: UnityBegin clears that, and the options are parsed
+ * before it. */
+static struct {
+    const char *include; /* comma-separated name parts, NULL: every test */
+    const char *exclude;
+    int list_only;
+    unsigned selected;
+} options;
+
+static void print_usage(const char *program)
+{
+    printf("Options: %s [-n NAME] [-x NAME] [-l] [-h]\n"
+           "  -n NAME  run only tests whose name contains NAME (-f, -n=NAME;"
+           " a comma-separated list)\n"
+           "  -x NAME  skip tests whose name contains NAME\n"
+           "  -l       list the test names\n"
+           "  -h       this text\n", program);
+}
+
+int UnityParseOptions(int argc, char **argv)
+{
+    memset(&options, 0, sizeof options);
+    for (int i = 1; i < argc; i++) {
+        const char *arg = argv[i];
+        if (arg[0] != '-' || arg[1] == '\0') {
+            printf("ERROR: Unknown Argument %s\n", arg);
+            print_usage(argv[0]);
+            return 1;
+        }
+        const char **target = NULL;
+        switch (arg[1]) {
+        case 'n':
+        case 'f':
+            target = &options.include;
+            break;
+        case 'x':
+            target = &options.exclude;
+            break;
+        case 'l':
+            options.list_only = 1;
+            continue;
+        case 'q':
+        case 'v':
+            continue; /* Unity's verbosity flags: one output format here */
+        case 'h':
+            print_usage(argv[0]);
+            return 1;
+        default:
+            printf("ERROR: Unknown Option %s\n", arg);
+            print_usage(argv[0]);
+            return 1;
+        }
+        if (arg[2] == '=') {
+            *target = arg + 3;
+        } else if (arg[2] != '\0') {
+            *target = arg + 2;
+        } else if (i + 1 < argc) {
+            *target = argv[++i];
+        } else {
+            printf("ERROR: No Test String to Include Matches For\n");
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* Does `name` contain one of the comma-separated parts of `patterns`? */
+static int name_matches(const char *name, const char *patterns)
+{
+    const char *part = patterns;
+    for (;;) {
+        const char *end = strchr(part, ',');
+        size_t len = end ? (size_t)(end - part) : strlen(part);
+        if (len > 0) {
+            for (const char *s = name; *s != '\0'; s++) {
+                if (strncmp(s, part, len) == 0) {
+                    return 1;
+                }
+            }
+        }
+        if (end == NULL) {
+            return 0;
+        }
+        part = end + 1;
+    }
+}
+
+static int test_selected(const char *name)
+{
+    if (options.include != NULL && !name_matches(name, options.include)) {
+        return 0;
+    }
+    if (options.exclude != NULL && name_matches(name, options.exclude)) {
+        return 0;
+    }
+    return 1;
+}
+
 /* Unity prints the file name as given by __FILE__; keep the base name so the
  * output is the same wherever the build tree is. */
 static const char *base_name(const char *path)
@@ -34,16 +132,35 @@ void UnityBegin(const char *filename)
 
 int UnityEnd(void)
 {
+    if (options.list_only) {
+        fflush(stdout);
+        return 0;
+    }
     printf("\n-----------------------\n");
     printf("%u Tests %u Failures %u Ignored \n", unity.tests, unity.failures,
            unity.ignored);
     printf("%s\n", unity.failures == 0 ? "OK" : "FAIL");
     fflush(stdout);
+    if ((options.include != NULL || options.exclude != NULL) &&
+        options.selected == 0) {
+        fprintf(stderr, "no test matches the filter (-n %s -x %s)\n",
+                options.include ? options.include : "",
+                options.exclude ? options.exclude : "");
+        return 1;
+    }
     return (int)unity.failures;
 }
 
 void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line)
 {
+    if (!test_selected(name)) {
+        return;
+    }
+    options.selected++;
+    if (options.list_only) {
+        printf("%s\n", name);
+        return;
+    }
     unity.test_name = name;
     unity.test_line = line;
     unity.current_failed = 0;

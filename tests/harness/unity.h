@@ -12,6 +12,16 @@
  *   N Tests F Failures I Ignored
  *   OK | FAIL
  *
+ * Test selection, as Unity's UNITY_USE_COMMAND_LINE_ARGS runners: a test's
+ * main passes argv to UnityParseOptions before UNITY_BEGIN().
+ *   -n NAME | -f NAME | -n=NAME   run only tests whose name contains NAME
+ *                                 (a comma-separated list: any of them)
+ *   -x NAME                       skip tests whose name contains NAME
+ *   -l                            list the test names, run nothing
+ *   -h                            the options
+ * A filter that selects no test fails the run (exit status non-zero), so a
+ * misspelt name cannot pass as "0 Tests 0 Failures".
+ *
  * A failing assertion ends the current test at once (longjmp), as in Unity.
  * Doubles are always supported here; with upstream Unity the build defines
  * UNITY_INCLUDE_DOUBLE.
@@ -33,6 +43,7 @@ typedef void (*UnityTestFunction)(void);
 void setUp(void);
 void tearDown(void);
 
+int UnityParseOptions(int argc, char **argv);
 void UnityBegin(const char *filename);
 int UnityEnd(void);
 void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line);

@@ -9,18 +9,13 @@ inputs per reader.  Property: a reader either returns, or raises its own
 documented error (CalibError / InputError); never any other exception.
 Any failing input is printed so it can become a fixed regression case.
 """
-import pathlib
-import sys
 
 import numpy as np
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from hdtools.calibtool.csvio import read_csv  # noqa: E402
-from hdtools.calibtool.lib import CalibError  # noqa: E402
-from hdtools.analysis.loading import InputError, load  # noqa: E402
+from hdtools.calibtool.csvio import read_csv
+from hdtools.calibtool.lib import CalibError
+from hdtools.analysis.loading import InputError, load
 
 CALIB_SEED = (
     "experiment,direction,position_deg,torque_nm,bridge_v\n"

@@ -431,8 +431,11 @@ static void test_profile_power_loss_at_every_byte_of_a_save(void)
                  new_seen);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_missing_record);
     RUN_TEST(test_crc_corrupt_both_copies);

@@ -330,8 +330,11 @@ static void test_implausible_gain_rejected_large_gain_flagged(void)
     TEST_ASSERT_TRUE(rec >= 0 && rec <= 20);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_tx_queue_full_500ms);
     RUN_TEST(test_bus_off_500ms_and_recovery);

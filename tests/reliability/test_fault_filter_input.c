@@ -158,8 +158,11 @@ static void test_huge_angle_increment(void)
     run_case(&c);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_nan_torque);
     RUN_TEST(test_infinite_torque);

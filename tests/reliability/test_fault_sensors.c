@@ -350,8 +350,11 @@ static void test_undeclared_line_is_reported_not_absorbed(void)
     TEST_ASSERT_LESS_THAN_DOUBLE(own + 5.0 * 0.02, err);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_undeclared_line_is_reported_not_absorbed);
     RUN_TEST(test_no_fault_baseline);

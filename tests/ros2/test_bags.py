@@ -10,7 +10,6 @@ import io
 import json
 import math
 import subprocess
-import sys
 from pathlib import Path
 
 import cantools
@@ -21,9 +20,8 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import cli, native  # noqa: E402
+from hdtools import cli, native
 
 DBC = ROOT / "firmware" / "hdjoint.dbc"
 JOINT = "wrist"

@@ -11,7 +11,6 @@ import json
 import math
 import socket
 import struct
-import sys
 import threading
 import uuid
 from pathlib import Path
@@ -23,10 +22,9 @@ from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-from test_bags import can_frames, mcap_messages  # noqa: E402
+from test_bags import can_frames, mcap_messages
 
-from hdtools import cli, emu  # noqa: E402
+from hdtools import cli, emu
 
 GEAR, CPR = 100.0, 4096.0          # what the emulated joint answers (hd_fw_config defaults)
 SUBPROTOCOL = "foxglove.sdk.v1"    # what foxglove-sdk 0.30 serves

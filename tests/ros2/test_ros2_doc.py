@@ -6,17 +6,15 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import canproto, protocol  # noqa: E402
-from hdtools.rosio import messages, topics  # noqa: E402
+from hdtools import canproto, protocol
+from hdtools.rosio import messages, topics
 
 DOC = (ROOT / "docs" / "ros2.md").read_text()
 TRANSPORT_PARAMS = {"can_interface"}       # the only hardware param that is not a joint parameter

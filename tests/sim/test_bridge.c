@@ -111,8 +111,11 @@ static void test_bad_input_gives_nan(void)
     TEST_ASSERT_TRUE(isnan(hd_bridge_gain_nm_per_v(&cfg)));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_default_gain_is_table_one);
     RUN_TEST(test_equation4_output_is_k_eps_e);

@@ -494,8 +494,11 @@ static void test_hal_adc_only_loop_steps_every_read(void)
     TEST_ASSERT_EQUAL_INT(1, faults);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_encoder_counts_follow_prescribed_angle);
     RUN_TEST(test_output_angle_is_motor_over_ratio);

@@ -220,8 +220,11 @@ static void test_wall_pushes_never_pulls(void)
     TEST_ASSERT_EQUAL_FLOAT(0.0f, (float)least_env);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_defaults_valid_and_checked);
     RUN_TEST(test_flexspline_mode_frequency);

@@ -228,8 +228,11 @@ static void test_bad_values_are_refused(void)
     }
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_gravity_with_a_payload_change);
     RUN_TEST(test_slow_sine_loads_add_to_the_profile);

@@ -308,6 +308,9 @@ int main(int argc, char **argv)
         print_pins();
         return 0;
     }
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_boot_brings_every_part_up);
     RUN_TEST(test_failed_driver_is_reported_by_info);

@@ -483,8 +483,11 @@ static void test_mailbox_completed_without_txok_counts_as_aborted(void)
     TEST_ASSERT_EQUAL_UINT(1u, cnt.can_tx_aborted);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_register_offsets_match_rm0090);
     RUN_TEST(test_bit_timing_is_the_best_exact_setting);

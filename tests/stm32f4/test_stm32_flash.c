@@ -307,8 +307,11 @@ static void test_saves_alternate_halves_and_survive_a_reboot(void)
     TEST_ASSERT_EQUAL_UINT(0u, g_model.violations);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_register_offsets_match_rm0090);
     RUN_TEST(test_erase_one_half_leaves_the_other);

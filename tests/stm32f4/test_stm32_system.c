@@ -242,8 +242,11 @@ static void test_pin_table_sets_mode_alternate_function_and_pull(void)
     TEST_ASSERT_EQUAL_INT(-1, stm32_gpio_setup(&g_rcc.regs, p, &bad, 1u));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_register_offsets_match_rm0090);
     RUN_TEST(test_pll_plan_for_8mhz_to_168mhz);

@@ -234,8 +234,11 @@ static void test_encoder_count_across_counter_wraps(void)
     TEST_ASSERT_EQUAL_HEX32((uint32_t)-100, stm32_encoder_counts(&enc));
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_register_offsets_match_rm0090);
     RUN_TEST(test_period_is_exact_and_fits);

@@ -14,16 +14,14 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import target as t  # noqa: E402
-from hdtools import target_stm32f4 as f4  # noqa: E402
+from hdtools import target as t
+from hdtools import target_stm32f4 as f4
 
 MHZ = 100
 BEGIN, END = "<!-- target:budget:begin -->", "<!-- target:budget:end -->"

@@ -27,7 +27,6 @@ import re
 import shutil
 import struct
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -39,7 +38,6 @@ SCENARIOS = ROOT / "sim" / "scenarios"
 
 
 def load_target_module():
-    sys.path.insert(0, str(ROOT / "tools"))
     import hdtools.target
     return hdtools.target
 
@@ -85,7 +83,6 @@ def test_closed_loop_lockstep_bit_identical(built):
 
 
 def test_closed_loop_comparison_catches_one_ulp():
-    sys.path.insert(0, str(ROOT / "tools"))
     from hdtools import target_closed_loop as cl
     bits = struct.unpack("<I", struct.pack("<f", 1.875))[0]
     host = [(k, 2 | 1 << 8, bits, bits, bits, 0, 0) for k in range(4)]

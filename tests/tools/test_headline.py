@@ -5,13 +5,11 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
 
-from hdtools import headline  # noqa: E402
+from hdtools import headline
 
 
 def test_readme_headline_is_current():

@@ -8,7 +8,6 @@ from __future__ import annotations
 import can
 import pytest
 
-import conftest  # noqa: F401  (puts tools/ on sys.path)
 from hdtools import canproto, cli, cmd_device, protocol
 
 

@@ -358,8 +358,11 @@ static void test_open_bad_arguments(void)
     hal_socketcan_close(NULL); /* accepted */
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (UnityParseOptions(argc, argv) != 0) {
+        return 1;
+    }
     UNITY_BEGIN();
     RUN_TEST(test_classic_std_frame_to_linux);
     RUN_TEST(test_ext_rtr_flags_to_linux);

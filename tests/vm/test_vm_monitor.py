@@ -17,18 +17,15 @@ import json
 import os
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from hdtools import canproto, protocol, summary  # noqa: E402
+from hdtools import canproto, protocol, summary
 
-import vm_checks  # noqa: E402
+import vm_checks
 
 SCENARIO = ROOT / "sim" / "scenarios" / "paper_156.ini"
 

@@ -20,11 +20,9 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-from hdtools import canproto, summary as key_values  # noqa: E402
+from hdtools import canproto, summary as key_values
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import vm_checks  # noqa: E402
+import vm_checks
 
 DURATION_S = 2.0  # hd_vm_can_test runs the runner for 2 s at 1 kHz
 
@@ -156,7 +154,6 @@ def test_vm_doc_reads_the_run_as_the_dbc_decoder_does(vm):
     """tests/vm/vm_doc.py (which writes the measured table of
     docs/socketcan.md) counts the captured frames as python-can + cantools
     decode them, the runner's own transmit count, and every in-guest check."""
-    sys.path.insert(0, str(ROOT / "tests" / "vm"))
     import vm_doc
     text = serial_log().read_text(errors="replace")
     r = vm_doc.parse_log(text)

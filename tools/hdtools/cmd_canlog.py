@@ -34,19 +34,9 @@ import sys
 import cantools
 
 from hdtools import canproto, protocol, safeio, telemetry
+from hdtools.canshared import node_id as _node
 
 SHOW_LINES = 5
-
-
-def _node(text: str) -> int:
-    try:
-        node = int(text, 10)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a decimal node id") from None
-    if not protocol.NODE_MIN <= node <= protocol.NODE_MAX:
-        raise argparse.ArgumentTypeError(f"node id {node} outside "
-                                         f"{protocol.NODE_MIN}..{protocol.NODE_MAX}")
-    return node
 
 
 def _rate(text: str) -> float:

@@ -41,7 +41,7 @@ import can
 
 from . import protocol, safeio
 from .cmd_calib import _finite    # a finite float, or argparse's one-line error
-from .cmd_monitor import add_bus_arguments, _node
+from .canshared import add_bus_arguments, node_id as _node
 from .joint import BusError, NoAnswer, open_bus
 from .safeio import HdError, UsageError
 

@@ -33,7 +33,7 @@ import time
 import cantools
 
 from . import canproto, protocol, safeio
-from .cmd_monitor import add_bus_arguments, boot_report, _node
+from .canshared import add_bus_arguments, boot_report, fmt_item as _fmt_item, node_id as _node
 from .joint import BOOT_TIMEOUT_S, Joint, NoAnswer, open_bus
 from .protocol import f32, name_of
 from .safeio import HdError, UsageError
@@ -244,18 +244,6 @@ def send(args) -> int:
 
 
 # --------------------------------------------------------------- device
-def _fmt_item(name: str, value: int) -> str:
-    if name == "FIRMWARE_VERSION":
-        return f"{value >> 16}.{(value >> 8) & 0xFF}.{value & 0xFF}"
-    if name in ("GIT_HASH", "PARAM_TABLE_CRC", "FAULT_PC", "FAULT_LR", "FAULT_CFSR",
-                "FAULT_HFSR", "FAULT_ADDR", "RESET_CAUSE"):
-        return f"0x{value:08X}"
-    if name == "BOARD_ID":
-        text = value.to_bytes(4, "little").decode("ascii", "replace")
-        return f"{text!r}"
-    return str(value)
-
-
 def _param_value(p: protocol.Param, text: str) -> float:
     try:
         return canproto.param_value(p, text)

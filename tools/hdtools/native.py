@@ -1,44 +1,69 @@
-"""Locate (and if needed build) the project's C libraries for ctypes.
+"""Locate the project's C libraries and host executables.
 
 The tools never re-implement the filter: they load the same C code the
-firmware runs, built as shared libraries by CMake.  The build directory is
-$HD_BUILD_DIR if set (CTest sets it), else build/host-release, which is
-configured and built on first use.
+firmware runs, built as shared libraries by CMake.  They are looked up in
+$HD_BUILD_DIR if set (CTest sets it), else in the package itself (the wheel
+of `pip install ./tools` carries them in hdtools/lib and hdtools/bin:
+cmake/HdWheel.cmake), else in build/host-release of the source tree.
+Nothing here runs a build: a missing artefact is a NativeMissing error that
+names the command building it (the CLIs print it as one line, exit status 1).
 """
 from __future__ import annotations
 
 import ctypes
 import os
-import subprocess
 from pathlib import Path
 
 from . import paths
+from .safeio import HdError
 
 # The source tree ($HD_ROOT, this checkout, or the one an installed package
 # was built from: hdtools/paths.py).
 ROOT = paths.source_root() or Path(__file__).resolve().parents[2]
 
 
+class NativeMissing(HdError, FileNotFoundError):
+    """A C library or host executable is not built; the message says how to
+    build it.  A FileNotFoundError too, for callers that catch that."""
+    code = 1
+
+
 def build_dir() -> Path:
     env = os.environ.get("HD_BUILD_DIR")
     if not env and paths.source_root() is None:
-        raise FileNotFoundError("no build of the C libraries: set HD_BUILD_DIR to a build "
-                                "directory or HD_ROOT to the project's source tree")
+        raise NativeMissing("no build of the C libraries: set HD_BUILD_DIR to a build "
+                            "directory or HD_ROOT to the project's source tree")
     return Path(env) if env else ROOT / "build" / "host-release"
 
 
-def ensure_built(target: str | None = None) -> Path:
-    """Configures/builds build_dir() if it is the default and not built yet."""
-    bdir = build_dir()
-    if not (bdir / "build.ninja").exists() and not os.environ.get("HD_BUILD_DIR"):
-        subprocess.run(["cmake", "--preset", "host-release"], cwd=ROOT, check=True,
-                       stdout=subprocess.DEVNULL)
-    if not os.environ.get("HD_BUILD_DIR"):
-        cmd = ["cmake", "--build", str(bdir)]
-        if target:
-            cmd += ["--target", target]
-        subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
-    return bdir
+def build_command(target: str | None = None) -> str:
+    """The shell command that builds `target` (everything if None) in build_dir()."""
+    tail = f" --target {target}" if target else ""
+    if os.environ.get("HD_BUILD_DIR"):
+        return f"cmake --build {build_dir()}{tail}"
+    return (f"cd {ROOT} && cmake --preset host-release && "
+            f"cmake --build --preset host-release{tail}")
+
+
+def _missing(what: str, target: str | None) -> NativeMissing:
+    return NativeMissing(f"{what} is not built in {build_dir()}: run `{build_command(target)}`"
+                         " (or set HD_BUILD_DIR to a build tree that has it)")
+
+
+# Where the wheel puts the libraries (lib) and executables (bin).
+PACKAGED = (Path(__file__).resolve().parent / "lib", Path(__file__).resolve().parent / "bin")
+
+
+def _packaged(name: str, want_exec: bool = False) -> Path | None:
+    """The wheel's copy of an artefact; None in a source checkout or when
+    HD_BUILD_DIR names a build tree to use instead."""
+    if os.environ.get("HD_BUILD_DIR"):
+        return None
+    for folder in PACKAGED:
+        path = folder / name
+        if path.is_file() and (not want_exec or os.access(path, os.X_OK)):
+            return path
+    return None
 
 
 # Parts of a build tree that hold no artefacts of ours but scratch files that
@@ -59,10 +84,13 @@ def _walk_for(bdir: Path, name: str, want_exec: bool = False) -> list[Path]:
 
 def find_file(name: str, target: str | None = None) -> Path:
     """Path of a built artefact (library or executable) by file name."""
-    bdir = ensure_built(target)
-    hits = _walk_for(bdir, name)
+    packaged = _packaged(name)
+    if packaged is not None:
+        return packaged
+    bdir = build_dir()
+    hits = _walk_for(bdir, name) if bdir.is_dir() else []
     if not hits:
-        raise FileNotFoundError(f"{name} not found under {bdir}; build the project first")
+        raise _missing(name, target or name)
     return hits[0]
 
 
@@ -76,9 +104,12 @@ _TARGET_OF = {"hdsim": "hdsim_cli"}
 
 
 def executable(name: str) -> Path:
-    """Path of a built host executable by file name (built if needed)."""
-    bdir = ensure_built(_TARGET_OF.get(name, name))
-    hits = _walk_for(bdir, name, want_exec=True)
+    """Path of a built host executable by file name."""
+    packaged = _packaged(name, want_exec=True)
+    if packaged is not None:
+        return packaged
+    bdir = build_dir()
+    hits = _walk_for(bdir, name, want_exec=True) if bdir.is_dir() else []
     if not hits:
-        raise FileNotFoundError(f"executable {name} not found under {bdir}")
-    return sorted(hits)[0]
+        raise _missing(f"executable {name}", _TARGET_OF.get(name, name))
+    return hits[0]

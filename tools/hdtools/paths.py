@@ -2,16 +2,17 @@
 as an installed package (`pip install ./tools`).
 
 In the source tree (tools/hdtools next to firmware/): the files themselves.
-Installed: the build step (tools/setup.py) copies the files of DATA_FILES
-(the parameter table, the protocol vocabulary, the DBC and the two headers
-whose constants the tools read) into hdtools/data/ and records the source
-tree it was built from and its version (hdtools/data/build_info.txt); no
-second copy lives in git.
+Installed: the wheel's build (cmake/HdWheel.cmake) copies the files of
+DATA_FILES (the parameter table, the protocol vocabulary, the DBC and the
+headers whose constants the tools read) into hdtools/data/ and records the
+source tree it was built from and its version (hdtools/data/build_info.txt);
+no second copy lives in git.
 
-The C libraries (libhdfilter.so, libhd_emu.so, ...) are never copied: they
-are found in $HD_BUILD_DIR, else in build/host-release of the source tree:
-$HD_ROOT if set, else this tree, else the tree the package was installed
-from (built there on first use, as in a checkout).
+The C libraries (libhdfilter.so, libhd_emu.so, ...) and host executables
+are built into the wheel too (hdtools/lib, hdtools/bin); $HD_BUILD_DIR, if
+set, names a build tree to use instead, and a source checkout uses its
+build/host-release ($HD_ROOT if set, else this tree).  Nothing builds them
+on demand (hdtools/native.py says how).
 """
 from __future__ import annotations
 
@@ -22,9 +23,11 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 DATA = PACKAGE / "data"
-# Source-tree files the tools read at run time (copied by tools/setup.py).
+# Source-tree files the tools read at run time (copied into the wheel by
+# cmake/HdWheel.cmake, which reads this tuple).
 DATA_FILES = ("firmware/hd_params.def", "firmware/hd_protocol.def", "firmware/hdjoint.dbc",
-              "firmware/hd_fw_records.h", "filter/hd_kf.h")
+              "firmware/hd_fw_records.h", "filter/hd_kf.h", "control/hd_ctrl.h",
+              "firmware/hd_can_proto.h")
 _TREE = PACKAGE.parents[1]
 
 

@@ -15,6 +15,7 @@ one line (docs/reliability.md, "Exit status"):
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 import sys
 import tempfile
@@ -118,30 +119,7 @@ class Outputs:
         self.discard()
 
     def _temp(self, target: str) -> tuple[int | None, str | None]:
-        """(fd, temporary path) for a regular target, (None, None) to write in place."""
-        try:
-            st = os.stat(target)
-        except FileNotFoundError:
-            st = None
-        except OSError as exc:
-            raise OutputError(f"{target}: cannot write: {_why(exc)}") from None
-        if st is not None and stat.S_ISDIR(st.st_mode):
-            raise OutputError(f"{target}: cannot write: is a directory")
-        if st is not None and not stat.S_ISREG(st.st_mode):
-            return None, None
-        directory, base = os.path.split(os.path.abspath(target))
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=directory)
-        except OSError as exc:
-            raise OutputError(f"{target}: cannot write: {_why(exc)}") from None
-        if st is not None:
-            mode = st.st_mode & 0o7777
-        else:
-            mask = os.umask(0)
-            os.umask(mask)
-            mode = 0o666 & ~mask
-        os.fchmod(fd, mode)
-        return fd, tmp
+        return _temp(target)
 
     def write_bytes(self, target: str | os.PathLike, data: bytes) -> None:
         target = os.fspath(target)
@@ -186,6 +164,112 @@ class Outputs:
             if tmp is not None:
                 _unlink(tmp)
         self._staged = []
+
+
+def _temp(target: str) -> tuple[int | None, str | None]:
+    """(fd, temporary path) for a regular target, (None, None) to write in place."""
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write: {_why(exc)}") from None
+    if st is not None and stat.S_ISDIR(st.st_mode):
+        raise OutputError(f"{target}: cannot write: is a directory")
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        return None, None
+    directory, base = os.path.split(os.path.abspath(target))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write: {_why(exc)}") from None
+    if st is not None:
+        mode = st.st_mode & 0o7777
+    else:
+        mask = os.umask(0)
+        os.umask(mask)
+        mode = 0o666 & ~mask
+    os.fchmod(fd, mode)
+    return fd, tmp
+
+
+class StreamOutput:
+    """One output written a piece at a time (the monitor's candump log): a
+    temporary file next to the target, as Outputs stages one (a non-regular
+    target such as /dev/null is written directly).  write() sends whole
+    pieces to the file; commit() syncs it and renames it over the target;
+    discard() removes it.  Failures are OutputError, the temporary removed."""
+
+    def __init__(self, target: str | os.PathLike, encoding: str = "utf-8") -> None:
+        self.target = os.fspath(target)
+        fd, self.tmp = _temp(self.target)
+        try:
+            if fd is None:
+                self.file = open(self.target, "w", encoding=encoding, newline="\n")
+            else:
+                self.file = os.fdopen(fd, "w", encoding=encoding, newline="\n")
+        except OSError as exc:
+            if self.tmp is not None:
+                _unlink(self.tmp)
+            raise OutputError(f"{self.target}: cannot write: {_why(exc)}") from None
+
+    def write(self, text: str) -> None:
+        try:
+            self.file.write(text)
+            self.file.flush()
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"{self.target}: write failed: {_why(exc)}") from None
+
+    def commit(self) -> None:
+        try:
+            self.file.flush()
+            if self.tmp is not None:
+                os.fsync(self.file.fileno())
+            self.file.close()
+            if self.tmp is not None:
+                os.replace(self.tmp, self.target)
+                self.tmp = None
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"{self.target}: cannot write: {_why(exc)}") from None
+
+    def discard(self) -> None:
+        try:
+            self.file.close()
+        except OSError:
+            pass
+        if self.tmp is not None:
+            _unlink(self.tmp)
+            self.tmp = None
+
+
+class StagedDir:
+    """A temporary folder next to the target for outputs a library writes as
+    a folder (rosbags' Writer: a rosbag2 folder, or one .mcap inside it);
+    publish() renames a path of it over the target, discard() removes it.
+    in_system_temp: the target is written in place at the end (/dev/null,
+    a FIFO), so the folder goes to the system's temporary directory."""
+
+    def __init__(self, target: str | os.PathLike, in_system_temp: bool = False) -> None:
+        self.target = os.fspath(target)
+        directory, base = os.path.split(os.path.abspath(self.target))
+        try:
+            self.path = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp",
+                                         dir=None if in_system_temp else directory)
+        except OSError as exc:
+            raise OutputError(f"{self.target}: cannot write: {_why(exc)}") from None
+
+    def publish(self, inside: str) -> None:
+        try:
+            os.replace(inside, self.target)
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"{self.target}: write failed: {_why(exc)}") from None
+        self.discard()
+
+    def discard(self) -> None:
+        shutil.rmtree(self.path, ignore_errors=True)
 
 
 class _StagedPath:

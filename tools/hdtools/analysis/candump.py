@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .loading import InputError
+from .errors import InputError
 
 
 def read(path: str | Path) -> dict:

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import os
 import shutil
-import tempfile
 
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.rosbag2.errors import WriterError
 
-from ..safeio import OutputError
+from ..safeio import OutputError, StagedDir
 from . import messages
 
 KINDS = ("mcap", "rosbag2")
@@ -36,15 +35,12 @@ class BagOutput:
             raise OutputError(f"{target}: exists (a rosbag2 folder is never written over)")
         if kind == "mcap" and os.path.isdir(target):
             raise OutputError(f"{target}: cannot write: is a directory")
-        directory, base = os.path.split(os.path.abspath(target))
+        base = os.path.basename(os.path.abspath(target))
         # a target that exists and is not a regular file (/dev/null, a FIFO)
         # is written in place at the end, from a folder in the system's temp
         self.in_place = kind == "mcap" and os.path.exists(target) and not os.path.isfile(target)
-        try:
-            self.tmp = tempfile.mkdtemp(prefix=f".{base}.", suffix=".tmp",
-                                        dir=None if self.in_place else directory)
-        except OSError as exc:
-            raise OutputError(f"{target}: cannot write: {exc.strerror}") from None
+        self.staged = StagedDir(target, in_system_temp=self.in_place)
+        self.tmp = self.staged.path
         name = base[:-5] if kind == "mcap" and base.endswith(".mcap") else base
         self.bag = os.path.join(self.tmp, name or "bag")
         self.writer = Writer(self.bag, version=9, storage_plugin=StoragePlugin.MCAP)
@@ -92,16 +88,16 @@ class BagOutput:
 
     def commit(self) -> None:
         mcap = os.path.join(self.bag, os.path.basename(self.bag) + ".mcap")
+        if not self.in_place:
+            self.staged.publish(self.bag if self.kind == "rosbag2" else mcap)
+            return
         try:
-            if self.in_place:
-                with open(mcap, "rb") as src, open(self.target, "wb") as dst:
-                    shutil.copyfileobj(src, dst)
-            else:
-                os.replace(self.bag if self.kind == "rosbag2" else mcap, self.target)
+            with open(mcap, "rb") as src, open(self.target, "wb") as dst:
+                shutil.copyfileobj(src, dst)
         except OSError as exc:
             self.abort()
             raise OutputError(f"{self.target}: write failed: {exc.strerror}") from None
-        shutil.rmtree(self.tmp, ignore_errors=True)
+        self.staged.discard()
 
     def abort(self) -> None:
         writer, self.writer = getattr(self, "writer", None), None
@@ -110,4 +106,6 @@ class BagOutput:
                 writer.abort()
             except Exception:  # noqa: BLE001 - already failing: the files are removed below
                 pass
-        shutil.rmtree(self.tmp, ignore_errors=True)
+        staged = getattr(self, "staged", None)
+        if staged is not None:
+            staged.discard()

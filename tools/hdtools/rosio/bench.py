@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import native
+from ..safeio import Outputs
 from ..analysis import bench_speed
 from ..analysis.results import read_csv
 from . import bagout, messages, stream
@@ -140,9 +141,9 @@ def update_docs(doc: Path, lines: list[str]) -> None:
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
     new = head + BEGIN + "\n".join(lines) + "\n" + END + tail
-    tmp = doc.with_name(f".{doc.name}.tmp")
-    tmp.write_text(new)
-    os.replace(tmp, doc)
+    with Outputs() as out:
+        out.write_text(doc, new)
+        out.commit()
 
 
 def main(argv=None) -> int:

@@ -124,7 +124,7 @@ class MonitorOutputs:
         """VERSION and INFO items for the metadata (the parameters come with
         the monitor's own queries and every GET_PARAM answer seen)."""
         from .. import protocol
-        from ..cmd_device import _fmt_item
+        from ..canshared import fmt_item as _fmt_item
         from ..joint import Joint, NoAnswer
         self.recording.encoder.node = node
         if not (self.args.mcap or self.args.rosbag):

@@ -14,7 +14,7 @@ _VERSION_OPS = ("VERSION", "INFO")
 
 def items_from_acks(acks: list[dict]) -> dict[str, str]:
     """VERSION / INFO answers (decoded with choices) as {item name: text}."""
-    from ..cmd_device import _fmt_item
+    from ..canshared import fmt_item as _fmt_item
     out = {}
     for ack in acks:
         if str(ack["AckOpcode"]) in _VERSION_OPS and str(ack["AckResult"]) == "OK":
@@ -27,7 +27,7 @@ def items_from_acks(acks: list[dict]) -> dict[str, str]:
 
 
 def metadata(res: dict, joint: str) -> dict[str, str]:
-    from ..cmd_monitor import boot_report
+    from ..canshared import boot_report
     boots = [boot_report(_raw(b)) for b in res["boots"]]
     return stream.device_metadata(res.get("params", {}), boots, items_from_acks(res["acks"]),
                                   joint, res["node"])
