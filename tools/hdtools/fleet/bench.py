@@ -263,16 +263,13 @@ def markdown(res) -> str:
     L += ["", f"**Throughput** ({f['n_joints']} joints x {f['days']} logs of {f['log_s']:g} s at "
           f"200 Hz = {sp['rows'][0]['joint_hours']:.3g} joint-hours, "
           f"{sp['csv_bytes'] / 1e6:.0f} MB of CSV; `engine s` excludes the cluster's start):", "",
-          "| engine | workers | engine s | start s | joint-hours / min | per worker | vs direct | "
-          "peak RSS / worker [MB] |", "|---|---|---|---|---|---|---|---|"]
+          ]
     L += _speed_table(sp["rows"])
     rb = sp.get("robot")
     if rb:
         L += ["", f"The same logs as a robot writes them ({len(rb['columns'])} columns: "
               f"{', '.join('`%s`' % c for c in rb['columns'])}; {rb['csv_bytes'] / 1e6:.0f} MB, "
-              f"{rb['csv_bytes_per_joint_hour'] / 1e6:.1f} MB per joint-hour):", "",
-              "| engine | workers | engine s | start s | joint-hours / min | per worker | vs direct | "
-              "peak RSS / worker [MB] |", "|---|---|---|---|---|---|---|---|"]
+              f"{rb['csv_bytes_per_joint_hour'] / 1e6:.1f} MB per joint-hour):", ""]
         L += _speed_table(rb["rows"])
     L += ["", f"Each row the fastest of {REPEATS} interleaved runs. Load average "
           f"{res['load_average'][0]:.1f} at the start and {res['load_average'][1]:.1f} at the end "
@@ -307,7 +304,9 @@ def markdown(res) -> str:
 
 
 def _speed_table(rows) -> list[str]:
-    return [f"| {r['engine']} | {r['workers']} | {r['engine_s']:.2f} | {_f(r.get('startup_s'))} | "
+    return ["| engine | workers | engine s | start s | joint-hours / min | per worker | vs direct | "
+            "peak RSS / worker [MB] |", "|---|---|---|---|---|---|---|---|"] + [
+            f"| {r['engine']} | {r['workers']} | {r['engine_s']:.2f} | {_f(r.get('startup_s'))} | "
             f"{r['joint_hours_per_min']:.0f} | {r['joint_hours_per_min_per_worker']:.0f} | "
             f"{r['vs_direct']:.2f}x | {_f(r['peak_rss_mb_per_worker'], '{:.0f}')} |" for r in rows]
 
