@@ -59,7 +59,7 @@ int main(void)
     hd_can_ack_t ver = {HD_CMD_VERSION, 1, HD_CAN_RES_OK, HD_INFO_FIRMWARE_VERSION, 0.0f, 0x00010203u};
     hd_can_encode_ack(3, &ver, &a);
     frame("ACK_U32", &a);
-    hd_can_cmd_t c = {HD_CMD_SET_PARAM, 7, {HD_PARAM_GEAR_RATIO, 0}, 0.0f, 121.0f, 0u};
+    hd_can_cmd_t c = {HD_CMD_SET_PARAM, 7, {.set_param = {HD_PARAM_GEAR_RATIO, 121.0f}}};
     hd_can_encode_cmd(3, &c, &a);
     frame("CMD", &a);
     hd_can_feedforward_t ff = {-2.5f, 7u};
