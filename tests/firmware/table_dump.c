@@ -62,6 +62,19 @@ int main(void)
     hd_can_cmd_t c = {HD_CMD_SET_PARAM, 7, {.set_param = {HD_PARAM_GEAR_RATIO, 121.0f}}};
     hd_can_encode_cmd(3, &c, &a);
     frame("CMD", &a);
+    /* One command of each argument type (U, UQ, F32, F32_ANY, u32). */
+    hd_can_cmd_t cf = {HD_CMD_ADD_FIXED, 8, {.add_fixed = {123.45f, 2.5f}}};
+    hd_can_encode_cmd(3, &cf, &a);
+    frame("CMD_ADD_FIXED", &a);
+    hd_can_cmd_t cg = {HD_CMD_BLOCK_GET, 9, {.block_get = {5u, HD_BLOCK_FIELD_Q_NM2}}};
+    hd_can_encode_cmd(3, &cg, &a);
+    frame("CMD_BLOCK_GET", &a);
+    hd_can_cmd_t cp = {HD_CMD_PROFILE_PUT, 10, {.profile_put = {0x13u, 2u, -1.5f}}};
+    hd_can_encode_cmd(3, &cp, &a);
+    frame("CMD_PROFILE_PUT", &a);
+    hd_can_cmd_t cc = {HD_CMD_CALIB_SAVE, 11, {.calib_save = {1700000000u}}};
+    hd_can_encode_cmd(3, &cc, &a);
+    frame("CMD_CALIB_SAVE", &a);
     hd_can_feedforward_t ff = {-2.5f, 7u};
     hd_can_encode_feedforward(3, &ff, &a);
     frame("FEEDFORWARD", &a);

@@ -32,10 +32,34 @@ def f32(x: float) -> float:
     return struct.unpack("<f", struct.pack("<f", x))[0]
 
 
-def test_committed_dbc_and_doc_tables_are_the_generated_ones():
+def test_committed_dbc_c_codec_and_doc_tables_are_the_generated_ones():
     assert canproto.DBC_PATH.read_text() == protocol.generate_dbc(), \
         "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
-    assert protocol.stale_docs() == [], "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
+    assert protocol.stale_files() == [], \
+        "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
+
+
+def test_every_command_argument_and_frame_signal_fits_its_frame():
+    """No two signals of a frame (or of one command with the header) share a
+    bit, every one is inside the 8 bytes, and every opcode a host may send
+    that the DBC multiplexes has its arguments in the C union."""
+    def bits(sigs):
+        used = set()
+        for s in sigs:
+            span = set(range(s.start, s.start + s.bits))
+            assert not used & span, f"{s.owner}.{s.name} overlaps"
+            assert max(span) < 64, f"{s.owner}.{s.name} beyond 8 bytes"
+            used |= span
+    for fr in protocol.frames():
+        sigs = [s for s in protocol.frame_signals(fr.name) if s.mux not in ("U32_REPLY",)]
+        bits(sigs)
+    header = [s for s in protocol.frame_signals("CMD")]
+    for e in protocol.commands():
+        bits(header + list(protocol.command_args(e.name)))
+    h, _ = protocol.generate_c()
+    for e in protocol.commands():
+        if protocol.command_args(e.name):
+            assert f"hd_can_cmd_{e.name.lower()}_t {e.name.lower()};" in h
 
 
 def test_c_and_python_read_the_same_parameter_table(dump):
@@ -97,6 +121,15 @@ def test_c_encoder_bytes_decode_through_the_dbc(dump):
     cmd = decode("CMD", "CMD")
     assert cmd["SetParamId"] == protocol.param_by_key("gear_ratio").id
     assert cmd["SetParamValue"] == 121.0
+    add = decode("CMD_ADD_FIXED", "CMD")
+    assert (add["Opcode"], add["Token"], add["FixedQ"]) == (protocol.by_name(
+        protocol.opcodes(), "ADD_FIXED").code, 8, 2.5)
+    assert add["FixedFrequency"] == pytest.approx(123.45)
+    get = decode("CMD_BLOCK_GET", "CMD")
+    assert (get["BlockGetIndex"], get["BlockGetField"]) == (5, protocol.BLOCK_FIELDS.index("Q_NM2"))
+    put = decode("CMD_PROFILE_PUT", "CMD")
+    assert (put["ProfilePutLine"], put["ProfilePutOrder"], put["ProfilePutValue"]) == (0x13, 2, -1.5)
+    assert decode("CMD_CALIB_SAVE", "CMD")["CalibUnixTime"] == 1700000000
     ff = decode("FEEDFORWARD", "FEEDFORWARD")
     assert ff["FfTorque"] == -2.5 and ff["FfSeq"] == 7
     sp = decode("SETPOINT", "SETPOINT")
