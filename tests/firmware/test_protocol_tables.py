@@ -155,5 +155,27 @@ def test_python_checks_values_like_the_table():
         canproto.config_to_commands("motor_cpr = 01024\n")
     with pytest.raises(ValueError, match="given twice"):
         canproto.config_to_commands("r_nm2 = 1\nr_nm2 = 2\n")
-    with pytest.raises(ValueError, match="read only"):
+    with pytest.raises(ValueError, match="read-only"):
         canproto.config_to_commands("block_count = 2\n")
+
+
+def test_configuration_text_becomes_the_commands_of_its_keys():
+    """The firmware's parser (through cfgtext) reads the text; the SET_PARAM
+    frames carry the values as Python reads the decimals (float32), in the
+    text's order, blocks first, node_id last."""
+    keys = [("gear_ratio", "121"), ("node_id", "5"), ("r_nm2", "0.1"), ("offset", "on"),
+            ("motor_cpr", "16384"), ("calib_offset_v", "-0.3"), ("telemetry_rate_hz", "500"),
+            ("ctrl_torque_kp", "1.7e0"), ("filter", "off")]
+    text = "".join(f"{k} = {v}  # c\n" for k, v in keys[:3]) + "block = fixed 50 1e-4 off\n" + \
+        "".join(f"{k} {v}\n" for k, v in keys[3:])
+    db = canproto.load_db()
+    got = [db.decode_message(fid, data) for fid, data in canproto.config_to_commands(text, db)]
+    assert [str(g["Opcode"]) for g in got[:3]] == ["BLOCKS_CLEAR", "ADD_FIXED", "BLOCK_ENABLE"]
+    assert got[1]["FixedQ"] == f32(1e-4) and got[1]["FixedFrequency"] == 50
+    value = {"on": 1.0, "off": 0.0}
+    want = [(protocol.param_by_key(k).name, f32(value.get(v) if v in value else float(v)))
+            for k, v in keys if k != "node_id"] + [("NODE_ID", 5.0)]
+    assert [(str(g["SetParamId"]), g["SetParamValue"]) for g in got[3:]] == want
+    nine = "".join(f"block = motor {k} 1\n" for k in range(1, 10))
+    with pytest.raises(ValueError, match="line 9: too many blocks"):
+        canproto.config_to_commands(nine)
