@@ -1,6 +1,7 @@
 /* Prints what the C side makes of hd_params.def and hd_protocol.def, and a
  * few frames from the C encoders, one JSON object per line, for
  * test_protocol_tables.py to compare with the Python side and the DBC. */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -20,11 +21,18 @@ static void frame(const char *what, const hal_can_frame_t *f)
 
 int main(void)
 {
+    hd_fw_config_t defaults;
+    hd_fw_config_default(&defaults);
     for (size_t i = 0; i < hd_param_count(); i++) {
         const hd_param_info_t *p = hd_param_at(i);
+        char dflt[32] = "null"; /* LIB: the library's default */
+        if (!isnan(p->dflt)) {
+            snprintf(dflt, sizeof dflt, "%.17g", (double)p->dflt);
+        }
         printf("{\"param\": %u, \"name\": \"%s\", \"key\": \"%s\", \"type\": %u, \"flags\": %u, "
-               "\"lo\": %.17g, \"hi\": %.17g}\n",
-               p->id, p->name, p->key, p->type, p->flags, (double)p->lo, (double)p->hi);
+               "\"lo\": %.17g, \"hi\": %.17g, \"default\": %s, \"value\": %.17g}\n",
+               p->id, p->name, p->key, p->type, p->flags, (double)p->lo, (double)p->hi, dflt,
+               (double)hd_param_get(p, &defaults));
     }
     printf("{\"param_table_crc\": %lu}\n", (unsigned long)hd_param_table_crc());
     for (int c = 0; c < 256; c++) {

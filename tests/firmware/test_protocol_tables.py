@@ -71,6 +71,10 @@ def test_c_and_python_read_the_same_parameter_table(dump):
         assert TYPES[c["type"]] == p.type
         assert c["flags"] == sum(FLAGS[f] for f in p.flags), p.key
         assert (c["lo"], c["hi"]) == (f32(p.lo), f32(p.hi)), p.key
+        # the default column is what hd_fw_config_default gives (LIB: the library's)
+        assert c["default"] == (None if p.default is None else f32(p.default)), p.key
+        if p.default is not None:
+            assert c["value"] == f32(p.default), p.key
     crc = next(d["param_table_crc"] for d in dump if "param_table_crc" in d)
     assert crc == protocol.param_table_crc()
     # ids and keys unique, every writable row in the DBC's value table

@@ -22,7 +22,7 @@ class _ParamInfo(ctypes.Structure):
     """hd_param_info_t (firmware/hd_params.h)"""
     _fields_ = [("id", c_uint8), ("type", c_uint8), ("flags", c_uint8), ("offset", c_uint16),
                 ("lo", c_float), ("hi", c_float), ("key", c_char_p), ("name", c_char_p),
-                ("unit", c_char_p)]
+                ("unit", c_char_p), ("dflt", c_float)]
 
 
 class _Error(ctypes.Structure):

@@ -87,6 +87,7 @@ class Param:
     flags: frozenset   # LIVE REBUILD RO CONFIG CALIB LO_OPEN
     unit: str
     doc: str
+    default: float | None = None  # hd_fw_config_default's; None: the library's (LIB)
 
     @property
     def read_only(self) -> bool:
@@ -175,11 +176,12 @@ def retired_params() -> tuple[Entry, ...]:
 def params() -> tuple[Param, ...]:
     out = []
     for row in _rows(PARAMS_DEF, "HD_PARAM"):
-        if len(row) != 10:
-            raise DefError(f"hd_params.def: row {row[:3]} has {len(row)} columns, wants 10")
-        pid, name, key, typ, _field, lo, hi, flags, unit, doc = row
+        if len(row) != 11:
+            raise DefError(f"hd_params.def: row {row[:3]} has {len(row)} columns, wants 11")
+        pid, name, key, typ, _field, default, lo, hi, flags, unit, doc = row
         out.append(Param(_int(pid), name, key.strip('"'), typ, float(lo), float(hi),
-                         frozenset(f.strip() for f in flags.split("|")), unit.strip('"'), doc))
+                         frozenset(f.strip() for f in flags.split("|")), unit.strip('"'), doc,
+                         None if default == "LIB" else float(default)))
     reused = {p.id for p in out} & {r.code for r in retired_params()}
     if reused:
         raise DefError(f"hd_params.def: retired id(s) {sorted(reused)} reused")

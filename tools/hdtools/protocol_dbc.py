@@ -109,6 +109,14 @@ def _range(q) -> str:
     return f"{lo}{q.lo:g}, {q.hi:g}]"
 
 
+def _default(q) -> str:
+    if q.default is None:
+        return "library"  # the filter's recommended tuning, control/'s, ...
+    if q.type == "BOOL":
+        return "on" if q.default else "off"
+    return f"{q.default:g}"
+
+
 def _effect(q) -> str:
     kind = "read only" if q.read_only else ("next tick" if "LIVE" in q.flags else
                                             "model rebuilt, filter restarts")
@@ -157,10 +165,10 @@ def doc_tables(p) -> dict[str, str]:
     signal_header = ["frame", "signal", "where", "type", "range", "unit", "meaning"]
     reply = p.reply
     return {
-        "params": _md(["id", "key (config text)", "CAN name", "type", "range", "unit",
+        "params": _md(["id", "key (config text)", "CAN name", "type", "range", "default", "unit",
                        "takes effect; record", "meaning"],
-                      [[q.id, f"`{q.key}`", q.name, q.type, _range(q), q.unit, _effect(q), q.doc]
-                       for q in p.params()]),
+                      [[q.id, f"`{q.key}`", q.name, q.type, _range(q), _default(q), q.unit,
+                        _effect(q), q.doc] for q in p.params()]),
         "retired": _md(["id", "key", "why"],
                        [[r.code, f"`{r.name}`", r.doc] for r in p.retired_params()]),
         "faults": _md(["bit", "name", "meaning"], [[f.code, f.name, f.doc] for f in p.faults()]),
