@@ -406,6 +406,20 @@ size_t hd_config_text_config_size(void)
     return sizeof(hd_fw_config_t);
 }
 
+int hd_config_text_block(const hd_fw_config_t *cfg, unsigned i, unsigned *lock, float *order,
+                         float *q_nm2, unsigned *enabled)
+{
+    if (cfg == NULL || i >= cfg->kf.block_count || i >= HD_KF_MAX_BLOCKS) {
+        return -1;
+    }
+    const hd_kf_block_config_t *b = &cfg->kf.blocks[i];
+    *lock = b->lock;
+    *order = b->order;
+    *q_nm2 = b->q_nm2;
+    *enabled = b->enabled;
+    return 0;
+}
+
 int hd_config_text_parse_keys(const char *text, size_t len, hd_fw_config_t *cfg,
                               hd_cfgtxt_error_t *err, hd_cfgtxt_keys_t *keys)
 {

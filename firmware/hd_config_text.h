@@ -68,6 +68,10 @@ int hd_config_text_parse_keys(const char *text, size_t len, hd_fw_config_t *cfg,
                               hd_cfgtxt_error_t *err, hd_cfgtxt_keys_t *keys);
 /* sizeof(hd_fw_config_t), for a host that allocates one through ctypes. */
 size_t hd_config_text_config_size(void);
+/* Block i of cfg as a `block` line gives it: lock (hd_kf_lock_t), order or
+ * frequency, q, enabled.  -1 if there is no block i. */
+int hd_config_text_block(const hd_fw_config_t *cfg, unsigned i, unsigned *lock, float *order,
+                         float *q_nm2, unsigned *enabled);
 
 /* Decimal number parser used above (exposed for tests): the whole of
  * [s, s+n) must be one number such as "-1.5e-3".  Returns 0 or -1. */

@@ -49,6 +49,9 @@ def lib() -> ctypes.CDLL:
     L.hd_config_text_parse_keys.restype = c_int
     L.hd_config_text_parse_keys.argtypes = [c_char_p, c_size_t, ctypes.c_void_p, POINTER(_Error),
                                             POINTER(_keys_type())]
+    L.hd_config_text_block.restype = c_int
+    L.hd_config_text_block.argtypes = [ctypes.c_void_p, c_uint, POINTER(c_uint), POINTER(c_float),
+                                       POINTER(c_float), POINTER(c_uint)]
     L.hd_param_count.restype = c_size_t
     L.hd_param_count.argtypes = []
     L.hd_param_at.restype = POINTER(_ParamInfo)
@@ -78,12 +81,12 @@ class Parsed:
 
 
 def _blocks(cfg, L) -> list[Block]:
-    from .analysis import cfilter  # the layout-tested mirror of hd_kf_config_t
-    r_nm2 = L.hd_param_by_id(protocol.param_by_key("r_nm2").id).contents
-    kf_offset = r_nm2.offset - cfilter.KfConfig.r_nm2.offset  # of hd_fw_config_t.kf
-    kf = cfilter.KfConfig.from_buffer(cfg, kf_offset)
-    return [Block(LOCKS[b.lock], float(b.order), float(b.q_nm2), bool(b.enabled))
-            for b in kf.blocks[:kf.block_count]]
+    out = []
+    lock, enabled, order, q = c_uint(), c_uint(), c_float(), c_float()
+    while L.hd_config_text_block(cfg, len(out), ctypes.byref(lock), ctypes.byref(order),
+                                 ctypes.byref(q), ctypes.byref(enabled)) == 0:
+        out.append(Block(LOCKS[lock.value], float(order.value), float(q.value), bool(enabled.value)))
+    return out
 
 
 def parse(text: str) -> Parsed:
