@@ -280,7 +280,7 @@ static int parse_param(hd_fw_config_t *c, tok_t key, tok_t value, seen_t *seen,
     if (parse_value(p, value, &v) != 0) {
         return fail(err, HD_FW_ERR_SYNTAX, line,
                     p->type == HD_PT_BOOL  ? "value must be on or off"
-                    : p->type == HD_PT_F32 ? "value is not a finite decimal number"
+                    : p->type == HD_PT_F32 ? "value is not a number (a finite decimal)"
                                            : "value must be a whole decimal number without a leading zero");
     }
     hd_fw_err_t rc = hd_param_set(p, c, v);

@@ -100,6 +100,9 @@ def parse(text: str) -> Parsed:
     err, keys = _Error(), _keys_type()()
     if L.hd_config_text_parse_keys(data, len(data), cfg, ctypes.byref(err), ctypes.byref(keys)):
         why = err.message.decode()
+        if why == "unknown key":  # the C message is static: name the key
+            key = text.split("\n")[err.line - 1].split("#", 1)[0].split("=", 1)[0].split()
+            why += f" {key[0]!r}" if key else ""
         if err.first_line:
             why += f" (first on line {err.first_line})"
         if err.param_id:
