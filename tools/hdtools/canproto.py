@@ -40,9 +40,10 @@ def load_db(node_id: int = 1, strict: bool = True) -> cantools.database.can.Data
     return db
 
 
-# TELEM_A's torques at the int16 minimum (-327.68 N m) mean "not available"
-# (hd_can_proto.h); anything above half a count of it is a value.
-_TORQUE_NOT_AVAILABLE_ABOVE = -327.675
+# TELEM_A's torques at their integer minimum (-327.68 N m) mean "not
+# available" (hd_protocol.def, type I); anything above half a count of it is a value.
+_TORQUE = next(s for s in protocol.frame_signals("TELEM_A") if s.name == "TorqueRaw")
+_TORQUE_NOT_AVAILABLE_ABOVE = (-(1 << (_TORQUE.bits - 1)) + 0.5) * float(_TORQUE.scale)
 
 
 def torque_valid(telem_a: dict) -> bool:
