@@ -73,8 +73,8 @@ typedef enum {
 #include "hd_protocol.def"
 } hd_can_block_field_t;
 
-/* -2^(bits-1) in a scaled signed signal (HD_SIGNAL type I): "not available". */
-#define HD_CAN_INT16_NA INT16_MIN
+/* A scaled signed signal (HD_SIGNAL type I) saturates at +-(2^(bits-1) - 1);
+ * -2^(bits-1) is "not available". */
 #define HD_CAN_INT24_MAX 8388607
 
 /* CTRL_STATE's flags (CtrlFlags) */

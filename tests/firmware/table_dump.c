@@ -35,6 +35,9 @@ int main(void)
                (double)hd_param_get(p, &defaults));
     }
     printf("{\"param_table_crc\": %lu}\n", (unsigned long)hd_param_table_crc());
+    /* control/'s limits that the SETPOINT and GAINS rows document as ranges */
+    printf("{\"ctrl_kp_max\": %.17g, \"ctrl_kd_max\": %.17g, \"ctrl_modes\": %d}\n",
+           (double)HD_CTRL_KP_MAX_NM_RAD, (double)HD_CTRL_KD_MAX_NM_S_RAD, (int)HD_CTRL_MODE_COUNT);
     for (int c = 0; c < 256; c++) {
         if (strcmp(hd_can_opcode_str(c), "UNKNOWN_OPCODE") != 0) {
             printf("{\"opcode\": %d, \"name\": \"%s\"}\n", c, hd_can_opcode_str(c));

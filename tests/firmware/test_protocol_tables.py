@@ -84,6 +84,16 @@ def test_c_and_python_read_the_same_parameter_table(dump):
     assert {int(k): str(v) for k, v in choices.items()} == {p.id: p.name for p in py}
 
 
+def test_control_ranges_in_the_schema_are_control_s_limits(dump):
+    """The SETPOINT mode and GAINS ranges (hd_protocol.def) document limits
+    that control/hd_ctrl.h owns: a change there must show here."""
+    lim = next(d for d in dump if "ctrl_kp_max" in d)
+    sig = {s.name: s for s in protocol.signals()}
+    assert float(sig["GainKp"].hi) == lim["ctrl_kp_max"]
+    assert float(sig["GainKd"].hi) == lim["ctrl_kd_max"]
+    assert int(sig["SpMode"].hi) == lim["ctrl_modes"] - 1
+
+
 def test_c_and_python_read_the_same_vocabulary(dump):
     for kind, entries in (("opcode", protocol.opcodes()), ("result", protocol.results()),
                           ("fault", protocol.faults())):
