@@ -4,6 +4,8 @@
 #include <stddef.h>
 
 #define TWO_PI_F 6.28318530717958647692f
+#define PI_F 3.14159265358979323846f
+#define NOTCH_NYQUIST_SHARE 0.45f /* a notch above 0.45 / ts passes */
 
 /* isfinite without a libm call: x - x is 0 only for finite x. */
 static bool finite_f(float x)
@@ -32,10 +34,13 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .gear_ratio = 100.0f,
         .kt_nm_per_a = 0.06f,
         .feedback = HD_CTRL_FB_FILTERED,
-        .torque_kp = 1.0f,
-        .torque_ki_per_s = 30.0f,
+        .torque_kp = 1.27f,          /* tools/bench --only control: docs/control.md, "Tuning" */
+        .torque_ki_per_s = 40.1f,
         .torque_ff = 1.0f,
         .lowpass_hz = 50.0f,
+        .lowpass_order = 1u,
+        .notch_mask = 0u,
+        .notch_width_hz = 10.0f,
         .friction_nm = 0.0f,
         .friction_velocity_rad_s = 0.05f,
         .damp_nm_s_rad = 1.0f,
@@ -60,7 +65,9 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
         within(k->torque_kp, 0.0f, HD_CTRL_TORQUE_GAIN_MAX) &&
         within(k->torque_ki_per_s, 0.0f, HD_CTRL_KI_MAX_PER_S) &&
         within(k->torque_ff, 0.0f, 1.0f) && k->lowpass_hz > 0.0f &&
-        k->lowpass_hz < 0.5f / k->ts_s && within(k->friction_nm, 0.0f, 1000.0f) &&
+        k->lowpass_hz < 0.5f / k->ts_s &&
+        (k->lowpass_order == 1u || k->lowpass_order == 2u || k->lowpass_order == 4u) &&
+        within(k->notch_width_hz, 0.1f, 0.1f / k->ts_s) && within(k->friction_nm, 0.0f, 1000.0f) &&
         within(k->friction_velocity_rad_s, 1e-4f, 100.0f) &&
         within(k->damp_nm_s_rad, 0.0f, 1000.0f) && within(k->torque_limit_nm, 1e-3f, 1e4f) &&
         within(k->current_limit_a, 1e-3f, 1000.0f) &&
@@ -79,6 +86,61 @@ void hd_ctrl_reset(hd_ctrl_t *c)
     c->integral_nm = 0.0f;
     c->lowpass_nm = 0.0f;
     c->lowpass_primed = false;
+    c->raw_notched_nm = 0.0f;
+    for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
+        c->butter[i].s0 = c->butter[i].s1 = 0.0f;
+    }
+    for (unsigned i = 0; i < HD_CTRL_NOTCH_MAX; i++) {
+        c->notch[i].s0 = c->notch[i].s1 = 0.0f;
+    }
+}
+
+/* cos by its Taylor series (Horner, to x^18): |x| <= pi, error < 2e-7;
+ * no libm in control/. */
+static float cos_poly(float x)
+{
+    const float x2 = x * x;
+    float r = 1.0f;
+    for (int n = 18; n >= 2; n -= 2) {
+        r = 1.0f - x2 / (float)(n * (n - 1)) * r;
+    }
+    return r;
+}
+
+static float sin_poly(float x)
+{
+    const float x2 = x * x;
+    float r = 1.0f;
+    for (int n = 19; n >= 3; n -= 2) {
+        r = 1.0f - x2 / (float)(n * (n - 1)) * r;
+    }
+    return x * r;
+}
+
+/* A Butterworth low-pass section (bilinear; k = tan(pi fc ts), quality q). */
+static void butter_section(hd_ctrl_biquad_t *b, float k, float q)
+{
+    const float norm = 1.0f / (1.0f + k / q + k * k);
+    b->b0 = k * k * norm;
+    b->b1 = 2.0f * b->b0;
+    b->b2 = b->b0;
+    b->a1 = 2.0f * (k * k - 1.0f) * norm;
+    b->a2 = (1.0f - k / q + k * k) * norm;
+}
+
+static float biquad_step(hd_ctrl_biquad_t *b, float x)
+{
+    const float y = b->b0 * x + b->s0;
+    b->s0 = b->b1 * x - b->a1 * y + b->s1;
+    b->s1 = b->b2 * x - b->a2 * y;
+    return y;
+}
+
+/* The state a unity-DC-gain section holds in steady state at input x. */
+static void biquad_prime(hd_ctrl_biquad_t *b, float x)
+{
+    b->s1 = (b->b2 - b->a2) * x;
+    b->s0 = (1.0f - b->b0) * x;
 }
 
 int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
@@ -93,6 +155,18 @@ int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
     c->cfg = *cfg;
     const float wts = TWO_PI_F * cfg->lowpass_hz * cfg->ts_s;
     c->lowpass_alpha = wts / (1.0f + wts);
+    /* Butterworth sections: the pole pairs' quality factors, 1 / (2 cos)
+     * of their angles: order 2 one pair at 45 deg, order 4 at 22.5 and
+     * 67.5 deg. */
+    const float x = PI_F * cfg->lowpass_hz * cfg->ts_s;
+    const float k = sin_poly(x) / cos_poly(x);
+    if (cfg->lowpass_order == 2u) {
+        butter_section(&c->butter[0], k, 0.70710678f);
+    } else {
+        butter_section(&c->butter[0], k, 0.54119610f);
+        butter_section(&c->butter[1], k, 1.30656296f);
+    }
+    c->notch_r = 1.0f - PI_F * cfg->notch_width_hz * cfg->ts_s;
     hd_ctrl_reset(c);
     return HD_CTRL_OK;
 }
@@ -110,19 +184,78 @@ static bool uses_torque_loop(hd_ctrl_mode_t m)
     return m == HD_CTRL_TORQUE || m == HD_CTRL_IMPEDANCE || m == HD_CTRL_ZERO_TORQUE;
 }
 
-/* The low-pass runs every tick the raw torque is usable, so switching to it
- * starts from a settled state. */
+/* The notches' coefficients for this tick's speed: zeros on the unit
+ * circle at w0, poles at radius r, the numerator scaled to unity DC gain.
+ * false: the notch passes this tick (w0 below its width or near Nyquist). */
+static bool notch_tune(hd_ctrl_biquad_t *b, float w0, float r, float w_min)
+{
+    if (!(w0 >= w_min && w0 <= NOTCH_NYQUIST_SHARE * TWO_PI_F)) {
+        return false;
+    }
+    const float cw = cos_poly(w0);
+    const float g = (1.0f - 2.0f * r * cw + r * r) / (2.0f - 2.0f * cw);
+    b->b0 = g;
+    b->b1 = -2.0f * cw * g;
+    b->b2 = g;
+    b->a1 = -2.0f * r * cw;
+    b->a2 = r * r;
+    return true;
+}
+
+/* The raw torque through the order notches (bounded: at most
+ * HD_CTRL_NOTCH_MAX sections).  A passing notch keeps its state at the
+ * torque, so it engages without a transient. */
+static float notches(hd_ctrl_t *c, float raw, float v, bool prime)
+{
+    const hd_ctrl_config_t *k = &c->cfg;
+    const float w_motor = k->gear_ratio * (v < 0.0f ? -v : v) * k->ts_s; /* rad per tick */
+    const float w_min = TWO_PI_F * k->notch_width_hz * k->ts_s;
+    float x = raw;
+    for (unsigned i = 0; i < HD_CTRL_NOTCH_MAX; i++) {
+        if ((k->notch_mask & (1u << i)) == 0u) {
+            continue;
+        }
+        hd_ctrl_biquad_t *b = &c->notch[i];
+        if (!notch_tune(b, (float)(i + 1u) * w_motor, c->notch_r, w_min)) {
+            b->b0 = 1.0f, b->b1 = b->b2 = b->a1 = b->a2 = 0.0f;
+            biquad_prime(b, x);
+            continue;
+        }
+        if (prime) {
+            biquad_prime(b, x);
+        }
+        x = biquad_step(b, x);
+    }
+    return x;
+}
+
+/* The notches and the low-pass run every tick the raw torque is usable, so
+ * switching to them starts from a settled state. */
 static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
 {
-    if (!in->torque_valid || !finite_f(in->torque_raw_nm)) {
+    if (!in->torque_valid || !finite_f(in->torque_raw_nm) || !finite_f(in->velocity_rad_s)) {
         return;
     }
-    if (!c->lowpass_primed) {
-        c->lowpass_nm = in->torque_raw_nm;
+    const bool prime = !c->lowpass_primed;
+    const float x = notches(c, in->torque_raw_nm, in->velocity_rad_s, prime);
+    c->raw_notched_nm = x;
+    if (prime) {
+        c->lowpass_nm = x;
+        for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
+            biquad_prime(&c->butter[i], x);
+        }
         c->lowpass_primed = true;
         return;
     }
-    c->lowpass_nm += c->lowpass_alpha * (in->torque_raw_nm - c->lowpass_nm);
+    if (c->cfg.lowpass_order == 1u) {
+        c->lowpass_nm += c->lowpass_alpha * (x - c->lowpass_nm);
+    } else {
+        float y = biquad_step(&c->butter[0], x);
+        if (c->cfg.lowpass_order == 4u) {
+            y = biquad_step(&c->butter[1], y);
+        }
+        c->lowpass_nm = y;
+    }
 }
 
 /* The feedback torque, or false when the selected source is unusable. */
@@ -133,7 +266,10 @@ static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb
         *fb = in->torque_filtered_nm;
         break;
     case HD_CTRL_FB_RAW:
-        *fb = in->torque_raw_nm;
+        *fb = c->cfg.notch_mask != 0u ? c->raw_notched_nm : in->torque_raw_nm;
+        if (c->cfg.notch_mask != 0u && !c->lowpass_primed) {
+            return false;
+        }
         break;
     case HD_CTRL_FB_LOWPASS:
         *fb = c->lowpass_nm;

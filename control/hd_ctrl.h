@@ -25,8 +25,18 @@
  * torque loop of Albu-Schaeffer, Ott et al. (2007) without its motor-inertia
  * scaling (a later step; docs/control.md).
  * Feedback source (tau_fb): the filtered torque, the raw gauge torque, a
- * first-order low-pass of the raw torque (backward Euler, corner lowpass_hz),
- * or none: then u = tau_ref + friction, open loop through kt.
+ * low-pass of the raw torque (corner lowpass_hz; lowpass_order 1: first
+ * order, backward Euler; 2 or 4: Butterworth, bilinear with the corner
+ * pre-warped, as cascaded biquads), or none: then u = tau_ref + friction,
+ * open loop through kt.
+ * Order notches (notch_mask, bit k-1 = order k of the motor angle): the raw
+ * torque passes notches at k N |v| before RAW or LOWPASS feedback uses it,
+ * tracking the speed (motor speed taken as N times the output speed);
+ * -3 dB width notch_width_hz, unity gain at DC.  A notch whose frequency is
+ * below notch_width_hz or above 0.45 / ts passes the torque unchanged (a
+ * notch at DC would remove the torque itself; above, it would alias).
+ * Benchmarks compare these feedbacks (docs/control.md); the firmware's
+ * parameter table does not expose lowpass_order and the notches yet.
  *
  * Limits, applied last so no path exceeds them whatever the input:
  *   tau_ref within +-torque_limit_nm;
@@ -82,6 +92,9 @@ typedef enum {
 #define HD_CTRL_LIM_NONFINITE  0x10u
 #define HD_CTRL_LIM_FALLBACK   0x20u  /* the step ran a safer mode than asked */
 
+#define HD_CTRL_NOTCH_MAX 8u      /* notch_mask bits: orders 1..8 */
+#define HD_CTRL_BIQUAD_MAX 2u     /* a 4th-order Butterworth */
+
 /* Ranges hd_ctrl_config_check enforces (and a setpoint's kp/kd must meet). */
 #define HD_CTRL_KP_MAX_NM_RAD 2000.0f
 #define HD_CTRL_KD_MAX_NM_S_RAD 50.0f
@@ -98,6 +111,9 @@ typedef struct {
     float torque_ki_per_s;         /* ki_t */
     float torque_ff;               /* ff: share of tau_ref fed forward, 0..1 */
     float lowpass_hz;              /* HD_CTRL_FB_LOWPASS corner */
+    uint8_t lowpass_order;         /* 1, 2 or 4 (2, 4: Butterworth) */
+    uint8_t notch_mask;            /* bit k-1: a notch at motor order k on the raw torque */
+    float notch_width_hz;          /* each notch's -3 dB width */
     float friction_nm;             /* joint-side Coulomb friction compensated (0: off) */
     float friction_velocity_rad_s; /* v_eps: the compensation fades in over |v| < v_eps */
     float damp_nm_s_rad;           /* DAMP's damping */
@@ -136,12 +152,23 @@ typedef struct {
     hd_ctrl_mode_t mode;      /* the mode that ran */
 } hd_ctrl_output_t;
 
+/* Direct form II transposed: y = b0 x + s0; s0 = b1 x - a1 y + s1;
+ * s1 = b2 x - a2 y. */
+typedef struct {
+    float b0, b1, b2, a1, a2;
+    float s0, s1;
+} hd_ctrl_biquad_t;
+
 typedef struct {
     hd_ctrl_config_t cfg;
     float lowpass_alpha;      /* w ts / (1 + w ts) */
+    hd_ctrl_biquad_t butter[HD_CTRL_BIQUAD_MAX];
+    hd_ctrl_biquad_t notch[HD_CTRL_NOTCH_MAX];
+    float notch_r;            /* pole radius: 1 - pi width ts */
     float integral_nm;        /* I */
     float lowpass_nm;         /* the low-pass state */
     bool lowpass_primed;
+    float raw_notched_nm;     /* the raw torque after the notches, this tick */
 } hd_ctrl_t;
 
 /* Defaults of a 40 N m class joint (docs/control.md). */

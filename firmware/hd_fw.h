@@ -216,6 +216,7 @@ typedef struct {
     bool drive_on;                  /* what the drive was last told */
     uint32_t misses_seen;           /* counters.deadline_misses at the last tick */
     uint32_t miss_score;            /* +HD_FW_MISS_WEIGHT per missed tick, -1 per tick */
+    uint32_t bus_off_hold_ticks;    /* DAMP for this many more ticks (the last bus-off) */
     float angle_rad;                /* output angle since boot (compensated sum) */
     float angle_comp_rad;
     /* a refused SETPOINT / GAINS frame's ACK, sent by publish */

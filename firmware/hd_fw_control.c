@@ -12,7 +12,8 @@
  *     open bridge, beyond range), filter reset   (hd_ctrl's fallback)
  *   filter frozen                             none: the frozen block holds its
  *                                             estimate, the output stays usable
- *   bus-off, repeated deadline misses         DAMP while they last
+ *   bus-off, repeated deadline misses         DAMP while they last (bus-off: until
+ *                                             a send period passes without one)
  *   a bad setpoint                            refused (ACK + fault), the last
  *                                             good one stays and ages
  * Without a drive (hal.actuator absent) the stage does nothing at all: the
@@ -167,8 +168,17 @@ static hd_ctrl_mode_t safe_mode(hd_fw_t *fw, uint32_t faults, uint32_t *raised)
     if ((faults & HD_FAULT_ENC_FAULT) != 0u) {
         c->stop_latched = true;
     }
-    const bool damp = (faults & HD_FAULT_CAN_BUS_OFF) != 0u ||
-                      c->miss_score >= HD_FW_MISS_DAMP_SCORE;
+    /* A bus-off is seen only when a send fails, and sends come once per
+     * telemetry period (or heartbeat): DAMP holds until a period passes
+     * without one, else it would flicker with the sends. */
+    if ((faults & HD_FAULT_CAN_BUS_OFF) != 0u) {
+        const uint32_t period = hd_fw_live(fw)->telem_divider;
+        c->bus_off_hold_ticks = period > 0u ? period : HD_FW_HEARTBEAT_TICKS;
+    }
+    const bool damp = c->bus_off_hold_ticks > 0u || c->miss_score >= HD_FW_MISS_DAMP_SCORE;
+    if (c->bus_off_hold_ticks > 0u) {
+        c->bus_off_hold_ticks--;
+    }
     hd_ctrl_mode_t safe = m;
     if (c->stop_latched) {
         safe = HD_CTRL_STOP;

@@ -10,6 +10,8 @@
 
 #include "hal_mock.h"
 #include "hal_sim.h"
+#include "hal_simdyn.h"
+#include "hd_calib_record.h"
 #include "hd_config_text.h"
 #include "hd_fw.h"
 #include "host_nvm.h"
@@ -21,7 +23,9 @@
 
 struct hd_emu {
     hal_mock_t mock;         /* CAN, NVM, system */
-    hal_sim_t sim;           /* sensors, clock */
+    hal_sim_t sim;           /* sensors, clock (the kinematic joint) */
+    bool dynamic;            /* else: sensors, clock and drive from dyn */
+    hal_simdyn_t dyn;
     hal_t hal;
     hd_fw_t fw;
     hd_fw_config_t defaults; /* firmware defaults + scenario constants + config text */
@@ -64,6 +68,10 @@ static void on_tx(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
 
 static int store_nominal_calibration(hd_emu_t *e)
 {
+    if (e->dynamic) {
+        return host_provision_calibration(&e->hal, (float)e->dyn.sens.gain_nm_per_v,
+                                          (float)e->dyn.sens.offset_v);
+    }
     hd_sim_nominal_t nom;
     hal_sim_nominal(&e->sim, &nom);
     return host_provision_calibration(&e->hal, (float)nom.gain_nm_per_v, (float)nom.offset_v);
@@ -82,6 +90,41 @@ static int boot(hd_emu_t *e, uint32_t reset_cause)
     e->boots++;
     e->reboots_seen = e->mock.reboots;
     return 0;
+}
+
+/* The mock's CAN, NVM and system under the sensors bound before. */
+static void bind_mock(hd_emu_t *e)
+{
+    hal_mock_init(&e->mock);
+    e->mock.board_id = HD_EMU_BOARD_ID;
+    e->mock.reboot_supported = true;
+    e->mock.tx_store = false;
+    e->mock.tx_hook = on_tx;
+    e->mock.tx_hook_ctx = e;
+    hal_mock_bind(&e->mock, &e->hal);
+}
+
+/* Applies config_text to e->defaults, stores the calibration, boots;
+ * frees e on error. */
+static hd_emu_t *finish(hd_emu_t *e, const char *config_text, char *err, size_t err_len)
+{
+    if (config_text != NULL) {
+        hd_cfgtxt_error_t ce;
+        if (hd_config_text_parse(config_text, strlen(config_text), &e->defaults, &ce) !=
+            HD_FW_OK) {
+            if (err != NULL && err_len > 0u) {
+                snprintf(err, err_len, "config:%u: %s", ce.line, ce.message);
+            }
+            free(e);
+            return NULL;
+        }
+    }
+    if (store_nominal_calibration(e) != 0 || boot(e, HAL_RESET_POWER_ON) != 0) {
+        put_err(err, err_len, "the firmware did not start (configuration refused)");
+        free(e);
+        return NULL;
+    }
+    return e;
 }
 
 hd_emu_t *hd_emu_create(const char *scenario_text, const char *config_text, char *err,
@@ -105,13 +148,7 @@ hd_emu_t *hd_emu_create(const char *scenario_text, const char *config_text, char
         free(e);
         return NULL;
     }
-    hal_mock_init(&e->mock);
-    e->mock.board_id = HD_EMU_BOARD_ID;
-    e->mock.reboot_supported = true;
-    e->mock.tx_store = false;
-    e->mock.tx_hook = on_tx;
-    e->mock.tx_hook_ctx = e;
-    hal_mock_bind(&e->mock, &e->hal);
+    bind_mock(e);
     hal_sim_bind(&e->sim, &e->hal);
     e->hal.name = "emu";
 
@@ -119,23 +156,71 @@ hd_emu_t *hd_emu_create(const char *scenario_text, const char *config_text, char
     hd_sim_nominal_t nom;
     hal_sim_nominal(&e->sim, &nom);
     host_sim_defaults(&nom, &e->defaults);
-    if (config_text != NULL) {
-        hd_cfgtxt_error_t ce;
-        if (hd_config_text_parse(config_text, strlen(config_text), &e->defaults, &ce) !=
-            HD_FW_OK) {
-            if (err != NULL && err_len > 0u) {
-                snprintf(err, err_len, "config:%u: %s", ce.line, ce.message);
-            }
-            free(e);
-            return NULL;
-        }
+    return finish(e, config_text, err, err_len);
+}
+
+hd_emu_t *hd_emu_create_dynamic(const char *config_text, char *err, size_t err_len)
+{
+    hd_emu_t *e = calloc(1u, sizeof *e);
+    if (e == NULL) {
+        put_err(err, err_len, "out of memory");
+        return NULL;
     }
-    if (store_nominal_calibration(e) != 0 || boot(e, HAL_RESET_POWER_ON) != 0) {
-        put_err(err, err_len, "the firmware did not start (configuration refused)");
+    hd_sim_joint_params_t jp;
+    hd_sim_joint_default(&jp);
+    jp.payload_kg = 0.0;
+    jp.link_gravity_nm = 0.0;
+    jp.env = HD_SIM_ENV_SPRING; /* K = D = 0 until set: free */
+    hal_simdrive_config_t dc;
+    hal_simdrive_default(&dc);
+    hal_simdyn_sensor_t sens;
+    hal_simdyn_sensor_default(&sens);
+    sens.gain_nm_per_v = HD_CALIB_NOMINAL_GAIN_NM_PER_V; /* the data sheet's bridge */
+    sens.offset_v = 0.0;
+    if (hal_simdyn_init(&e->dyn, &jp, &dc, &sens, err, err_len) != 0) {
         free(e);
         return NULL;
     }
-    return e;
+    e->dynamic = true;
+    bind_mock(e);
+    hal_simdyn_bind(&e->dyn, &e->hal); /* sensors, clock, drive over the mock's */
+    e->hal.name = "emu-dynamic";
+    hd_fw_config_default(&e->defaults);
+    e->defaults.adc_volts_per_count = (float)sens.volts_per_count;
+    e->defaults.motor_cpr = sens.motor_cpr;
+    e->defaults.output_cpr = sens.output_cpr;
+    e->defaults.gear_ratio = (float)jp.gear_ratio;
+    return finish(e, config_text, err, err_len);
+}
+
+static bool nonneg(double x)
+{
+    return x >= 0.0 && x <= 1e12; /* false for NaN */
+}
+
+int hd_emu_set_environment(hd_emu_t *emu, double stiffness_nm_rad, double damping_nm_s_rad,
+                           double person_torque_nm)
+{
+    if (emu == NULL || !emu->dynamic || !nonneg(stiffness_nm_rad) ||
+        !nonneg(damping_nm_s_rad) || !(person_torque_nm > -1e12 && person_torque_nm < 1e12)) {
+        return -1;
+    }
+    emu->dyn.joint.p.env_stiffness_nm_rad = stiffness_nm_rad;
+    emu->dyn.joint.p.env_damping_nm_s_rad = damping_nm_s_rad;
+    emu->dyn.joint.person_torque_nm = person_torque_nm;
+    return 0;
+}
+
+int hd_emu_truth(const hd_emu_t *emu, hd_emu_truth_t *out)
+{
+    if (emu == NULL || out == NULL || !emu->dynamic) {
+        return -1;
+    }
+    const hd_sim_joint_truth_t *t = &emu->dyn.truth;
+    *out = (hd_emu_truth_t){t->t_s, t->output_torque_nm, t->motor_torque_nm,
+                            t->person_torque_nm, t->output_angle_rad, t->output_velocity_rad_s,
+                            emu->dyn.drive.current_a};
+    return 0;
 }
 
 void hd_emu_destroy(hd_emu_t *emu)
@@ -177,6 +262,9 @@ uint32_t hd_emu_tick(hd_emu_t *emu, uint32_t n)
         }
         emu->ticks++;
         (void)hd_fw_background(&emu->fw);
+        if (emu->dynamic) {
+            hal_simdyn_tick(&emu->dyn); /* the drive's tick, the joint over it */
+        }
         if (emu->mock.reboots != emu->reboots_seen) {
             /* REBOOT: the ACK is out; the board restarts before the next tick */
             (void)boot(emu, HAL_RESET_SOFTWARE);

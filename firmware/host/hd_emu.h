@@ -47,6 +47,36 @@ hd_emu_t *hd_emu_create(const char *scenario_text, const char *config_text, char
                         size_t err_len);
 void hd_emu_destroy(hd_emu_t *emu);
 
+/* A joint with a drive: the dynamic joint (sim/hd_sim_joint's defaults, a
+ * horizontal link: no payload, no gravity) behind the sensors and the
+ * simulated drive (hal/simdrive) as the actuator, so the firmware closes
+ * its control loop (issue 23).  The firmware is told its own defaults and
+ * the gauge's nominal calibration (stored in NVM), never the plant.  The
+ * output starts free; hd_emu_set_environment changes what it meets.
+ * config_text as for hd_emu_create.  Never ends. */
+hd_emu_t *hd_emu_create_dynamic(const char *config_text, char *err, size_t err_len);
+
+/* What the output of a dynamic joint meets from the next tick on: a spring
+ * to angle 0 (stiffness, damping; 0, 0: free) and a person's torque.
+ * Returns 0, or -1 for a joint without dynamics or a non-finite or
+ * negative value. */
+int hd_emu_set_environment(hd_emu_t *emu, double stiffness_nm_rad, double damping_nm_s_rad,
+                           double person_torque_nm);
+
+/* The simulation's truth at the end of the last tick (dynamic joint). */
+typedef struct {
+    double t_s;
+    double output_torque_nm;      /* the true flexspline torque */
+    double motor_torque_nm;       /* what the drive applied */
+    double person_torque_nm;
+    double output_angle_rad;
+    double output_velocity_rad_s;
+    double drive_current_a;       /* the motor's q-axis current */
+} hd_emu_truth_t;
+
+/* Returns 0 with *out filled, or -1 for a joint without dynamics. */
+int hd_emu_truth(const hd_emu_t *emu, hd_emu_truth_t *out);
+
 /* Runs up to n ticks (ISR then background each); frames queued with
  * hd_emu_push_rx reach the firmware's receive queue as it has room.
  * Returns the ticks run (fewer when the scenario ended). */

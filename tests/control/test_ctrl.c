@@ -19,6 +19,7 @@
 #include "unity.h"
 
 #define TS 1e-3
+#define PI_D 3.14159265358979323846
 
 void setUp(void) {}
 void tearDown(void) {}
@@ -354,6 +355,77 @@ static void test_property_limits_hold_for_any_input(void)
     TEST_ASSERT_GREATER_THAN(1000, clamped); /* the limit was exercised */
 }
 
+/* The feedback the law uses for a raw torque 10 + sin(w k) (filtered
+ * deliberately wrong, so only the raw path can produce it): the amplitude of
+ * the feedback's sine over ticks 2000..3999, by least squares on sin/cos. */
+static double feedback_gain(const hd_ctrl_config_t *k, double w_rad_per_tick, double v_rad_s)
+{
+    hd_ctrl_t c;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, k));
+    const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 10.0f};
+    double ss = 0.0, cc = 0.0, ys = 0.0, yc = 0.0;
+    for (int n = 0; n < 4000; n++) {
+        hd_ctrl_input_t in = input_of(0.0, 0.0, v_rad_s);
+        in.torque_raw_nm = (float)(10.0 + sin(w_rad_per_tick * n));
+        hd_ctrl_output_t o;
+        hd_ctrl_step(&c, &sp, &in, &o);
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_TORQUE, o.mode);
+        if (n >= 2000) {
+            const double si = sin(w_rad_per_tick * n), co = cos(w_rad_per_tick * n);
+            const double y = (double)o.torque_fb_nm - 10.0;
+            ss += si * si, cc += co * co, ys += y * si, yc += y * co;
+        }
+    }
+    return hypot(ys / ss, yc / cc);
+}
+
+/* The Butterworth low-pass against its closed form: bilinear with the
+ * corner pre-warped gives exactly |H| = 1/sqrt(2) at the corner for every
+ * order, |H|^2 = 1 / (1 + (tan(w/2) / tan(wc/2))^(2n)) elsewhere. */
+static void test_butterworth_feedback_closed_form(void)
+{
+    const double fc = 40.0, f[3] = {10.0, 40.0, 120.0};
+    const int orders[2] = {2, 4};
+    for (int o = 0; o < 2; o++) {
+        hd_ctrl_config_t k;
+        hd_ctrl_config_default(&k);
+        k.feedback = HD_CTRL_FB_LOWPASS;
+        k.lowpass_hz = (float)fc;
+        k.lowpass_order = (uint8_t)orders[o];
+        for (int i = 0; i < 3; i++) {
+            const double w = 2.0 * PI_D * f[i] * TS;
+            const double r = tan(w / 2.0) / tan(PI_D * fc * TS);
+            const double expect = 1.0 / sqrt(1.0 + pow(r, 2.0 * orders[o]));
+            const double got = feedback_gain(&k, w, 0.0);
+            printf("control: Butterworth order %d, %.0f Hz corner, at %.0f Hz: gain %.5f "
+                   "(closed form %.5f)\n", orders[o], fc, f[i], got, expect);
+            TEST_ASSERT_DOUBLE_WITHIN(2e-3, expect, got);
+        }
+    }
+}
+
+/* The order notch: a sine at 2x the motor angle (N v ts rad per tick)
+ * is removed, one at 3x passes (only orders 2 and 4 are notched), and at
+ * standstill the notch passes everything (its frequency is 0). */
+static void test_order_notch_tracks_the_speed(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_config_default(&k);
+    k.feedback = HD_CTRL_FB_RAW;
+    k.notch_mask = (1u << 1) | (1u << 3);
+    k.notch_width_hz = 5.0f;
+    const double v = 1.5, w_motor = (double)k.gear_ratio * v * TS;
+    const double at2 = feedback_gain(&k, 2.0 * w_motor, v);
+    const double at4 = feedback_gain(&k, 4.0 * w_motor, -v);
+    const double at3 = feedback_gain(&k, 3.0 * w_motor, v);
+    const double still = feedback_gain(&k, 2.0 * w_motor, 0.0);
+    printf("control: order notch at %.1f rad/s: gain at 2x %.5f, 4x %.5f, 3x %.4f; at "
+           "standstill %.4f\n", v, at2, at4, at3, still);
+    TEST_ASSERT_TRUE(at2 < 1e-2 && at4 < 1e-2);
+    TEST_ASSERT_DOUBLE_WITHIN(0.1, 1.0, at3);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-4, 1.0, still);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -364,5 +436,7 @@ int main(void)
     RUN_TEST(test_modes_and_fallbacks);
     RUN_TEST(test_velocity_and_position_limits);
     RUN_TEST(test_property_limits_hold_for_any_input);
+    RUN_TEST(test_butterworth_feedback_closed_form);
+    RUN_TEST(test_order_notch_tracks_the_speed);
     return UNITY_END();
 }

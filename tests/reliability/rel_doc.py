@@ -8,12 +8,13 @@ reliability tests measure (nothing typed):
                                       build, ~1 min) and write its block
 
 The tests (rel_fault_sensors, rel_fault_can, rel_fault_calib,
-rel_fault_filter_input) print one `measured: NAME key=value ...` line per
+rel_fault_filter_input, fw_control) print one `measured: NAME key=value ...` line per
 case (rel_measured.h) and hd_soak prints `key = value` lines; they run with
 the command lines CTest has for them.  Blocks:
 
   reliability-faults        the fault-injection table (firmware on the rig)
   reliability-filter-input  bad input straight into hd_pipeline
+  reliability-control       the control stage's fault reactions (fw_control)
   reliability-soak          hd_soak as rel_soak_1e6 runs it (no timing)
   reliability-soak-long     the 10^8 soak with its timing, date and machine:
                             written by --soak-long only, never checked
@@ -36,7 +37,8 @@ sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import protocol, summary  # noqa: E402  (fault and result names from the .def files)
 
 DOC = ROOT / "docs" / "reliability.md"
-FAULT_TESTS = ("rel_fault_sensors", "rel_fault_can", "rel_fault_calib", "rel_fault_filter_input")
+FAULT_TESTS = ("rel_fault_sensors", "rel_fault_can", "rel_fault_calib", "rel_fault_filter_input",
+               "fw_control")
 SOAK_TEST = "rel_soak_1e6"
 SOAK_LONG_ARGS = ["100000000", "--check-every", "10000"]
 REGENERATE = "tests/reliability/rel_doc.py --build build/host-debug"
@@ -299,6 +301,89 @@ def filter_block(measured: dict, used: set) -> str:
     return table(["input", "filter status: what happens", "recovery [ticks] (limit)"], rows)
 
 
+def reaction(m: dict[str, str], note: str = "") -> str:
+    return f"**{m['reaction_ticks']}**{note} (limit {m['limit_ticks']})"
+
+
+def resume(m: dict[str, str], what: str) -> str:
+    return f"{ticks(m['resume_ticks'])} {what}"
+
+
+# The control stage (fw_control): (case, fault, reaction, reaction time,
+# back to the asked mode).  The flag column is the case's `faults`.
+CONTROL_ROWS = [
+    ("ctrl_watchdog",
+     lambda m: f"no new setpoint for `ctrl_watchdog_ms` ({m['timeout_ms']} ms; a repeated "
+               "sequence number is not new)",
+     lambda m: f"DAMP, STOP `ctrl_damp_ms` ({m['damp_ms']} ms) later",
+     lambda m: f"DAMP **{m['damp_ticks']}**, STOP **{m['stop_ticks']}** after the last new "
+               "setpoint (limit +1)",
+     lambda m: "at the next new setpoint"),
+    ("ctrl_encoder_lost", lambda m: "motor encoder reports a fault",
+     lambda m: "STOP (drive disabled), latched", reaction,
+     lambda m: f"latched while the encoder is back ({m['latched_ticks']} ticks checked); "
+               f"{resume(m, 'after a STOP setpoint')}"),
+    ("ctrl_gauge_adc_error", lambda m: "gauge: ADC read error",
+     lambda m: "DAMP (open loop: the torque loop needs the gauge)", reaction,
+     lambda m: resume(m, "after the first good sample")),
+    ("ctrl_gauge_saturated", lambda m: "gauge saturated", lambda m: "same", reaction,
+     lambda m: resume(m, "after the first good sample")),
+    ("ctrl_gauge_open_bridge", lambda m: "gauge: open bridge", lambda m: "same", reaction,
+     lambda m: resume(m, "after the first good sample")),
+    ("ctrl_gauge_out_of_range", lambda m: "gauge beyond `torque_limit_nm`", lambda m: "same",
+     reaction, lambda m: resume(m, "after the first good sample")),
+    ("ctrl_filter_reset",
+     lambda m: "filter restart (its correction held at a tiny `correction_max_nm`)",
+     lambda m: "DAMP for the tick of the restart", reaction,
+     lambda m: resume(m, "after the restart")),
+    ("ctrl_filter_frozen",
+     lambda m: f"filter block frozen ({m['speed_rad_s']} rad/s: motor order 4 over Nyquist)",
+     lambda m: "none by design: the frozen block holds its estimate, TORQUE runs on",
+     lambda m: f"- ({m['frozen_ticks']} frozen ticks, {m['other_mode_ticks']} not in TORQUE)",
+     lambda m: "-"),
+    ("ctrl_drive_fault", lambda m: "the drive reports a fault",
+     lambda m: "STOP (drive disabled), latched", reaction,
+     lambda m: resume(m, "after a STOP setpoint")),
+    ("ctrl_drive_call_failed", lambda m: "a drive call fails",
+     lambda m: "same (the drive disabled in that tick)", reaction,
+     lambda m: resume(m, "after a STOP setpoint")),
+    ("ctrl_bus_off", lambda m: "CAN bus-off",
+     lambda m: "DAMP until a send period passes without a failed send",
+     lambda m: reaction(m, " (a failed send is seen by the next tick)"),
+     lambda m: f"{ticks(m['resume_ticks'])} after the bus is back (send period "
+               f"{m['send_period_ticks']} ticks)"),
+    ("ctrl_deadline_misses", lambda m: "repeated deadline misses (one alone: nothing)",
+     lambda m: "DAMP", lambda m: reaction(m, f" from miss {m['misses']}"),
+     lambda m: resume(m, "after the last miss")),
+    ("ctrl_setpoint_refused",
+     lambda m: f"setpoint out of range ({m['cases']} kinds: unknown mode, torque, position "
+               "window, not a number)",
+     lambda m: f"refused: ACK {results(','.join(dict.fromkeys(m['results'].split(','))))}, "
+               "the last good setpoint stays",
+     lambda m: f"never reaches the drive ({m['commands']} commands)", lambda m: "-"),
+    ("ctrl_current_limit",
+     lambda m: f"TORQUE {m['setpoint_nm']} N m against a gauge stuck at 0 (the loop winds up)",
+     lambda m: f"current held at the limit: largest {m['max_abs_a']} A, limit {m['limit_a']} A",
+     lambda m: "-", lambda m: "-"),
+    ("ctrl_any_input",
+     lambda m: f"{m['ticks']} ticks of random SETPOINT / GAINS frames ({m['frames']}), gauge "
+               "readings, sensor faults, deadline misses and speeds",
+     lambda m: f"largest command {m['max_abs_a']} A, limit {m['limit_a']} A, "
+               f"{m['non_finite']} non-finite",
+     lambda m: "-", lambda m: "-"),
+]
+
+
+def control_block(measured: dict, used: set) -> str:
+    rows = []
+    for name, fault, does, react, back in CONTROL_ROWS:
+        m = _used(measured, name, used)
+        rows.append([fault(m), does(m), faults(m["faults"]) if "faults" in m else "-",
+                     react(m), back(m)])
+    return table(["fault (injected)", "reaction (asserted)", "flag (bit)",
+                  "reaction [ticks = ms] (limit)", "back to the asked mode"], rows)
+
+
 SOAK_ROWS = [
     ("non-finite values", lambda s: s["non_finite"]),
     ("P asymmetric entries / not-PSD checks",
@@ -338,6 +423,7 @@ def render(measured: dict, soak: dict) -> dict[str, str]:
     used: set[str] = set()
     blocks = {"reliability-faults": faults_block(measured, used),
               "reliability-filter-input": filter_block(measured, used),
+              "reliability-control": control_block(measured, used),
               "reliability-soak": soak_block(soak, timing=False)}
     unused = sorted(set(measured) - used)
     if unused:

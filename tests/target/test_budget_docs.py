@@ -154,6 +154,45 @@ def test_mps2_summary():
     assert (s["flash_bytes"], s["stack_worst_bytes"]) == (40000, 2332)
 
 
+def fake_m4_control() -> dict:
+    """fake_m4 with the control sections (issue 23)."""
+    n = fake_m4()
+    c = n["instructions"]
+    for key, k in SIZES.items():
+        c[f"isrctrl:{key}"] = entry(k, 1500 + 100 * k, 2100 + 100 * k, 1, 3000 + 200 * k)
+        c[f"isrctrlcmd:{key}"] = entry(k, 1500 + 100 * k, 2000 + 100 * k, 1, 3000 + 200 * k)
+    c["isrctrl:default"] = entry(7, 3000, 3900, 4000, 6000)       # 2 cycles/insn
+    c["isrctrlcmd:default"] = entry(7, 3100, 3800, 4000, 4650)    # 1.5
+    c["isrctrl:max"] = entry(17, 4000, 5000, 1, 8000)             # 2
+    c["isrctrlcmd:max"] = entry(17, 4000, 4500, 1, 4000)          # 1
+    c["ctrl:default"] = entry(7, 250, 300, 400, 750)              # 3
+    return n
+
+
+def test_mps2_control_rows():
+    n = fake_m4_control()
+    lines = t.render_budget(n).splitlines()
+    assert "| hd_ctrl_step (the control law, every mode) | 300 | 9.0 | 0.9 % |" in lines
+    assert ("| the tick with control (a drive, 2 control frames in) | 3900 (1.50x the tick) "
+            "| 78.0 | 7.8 % |") in lines                                # 3900*2/100
+    assert ("| the tick with control and commands (2 in) | 3800 (1.46x the tick) | 57.0 "
+            "| 5.7 % |") in lines                                       # 3800*1.5/100
+    assert ("| 7 (firmware default) | 500 / 520 | 2000 / 2600 | 2400 / 3120 | 3000 / 3900 "
+            "| 3100 / 3800 | 6000 / 6004 | 1.20 |") in lines
+    md = "\n".join(lines)
+    assert ("The worst tick with control: 78.0 us = 7.8 % of the 1000 us tick with the "
+            "firmware's default filter (7 states), 100.0 us = 10.0 % with the largest "
+            "(17 states); the goal is at most 5 % (not met at the default).") in md
+    s = t.budget_summary(n)
+    assert s["ctrl_step"]["worst_us"] == 9.0 and s["ctrl_step"]["budget_fraction"] == 0.009
+    ctl = s["per_states"]["7"]["tick_with_control"]
+    assert (ctl["worst_us"], ctl["ratio_to_tick_max"], ctl["frames_in"]) == (78.0, 1.5, 2)
+    assert s["per_states"]["17"]["tick_with_control_and_commands"]["worst_us"] == 45.0
+    # without the control sections (an older bench image) the tables are as before
+    assert "hd_ctrl_step" not in t.render_budget(fake_m4())
+    assert "ctrl_step" not in t.budget_summary(fake_m4())
+
+
 def test_stm32f4_tables_and_summary():
     n = fake_f4()
     lines = f4.render(n).splitlines()

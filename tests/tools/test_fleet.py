@@ -23,7 +23,7 @@ import pytest
 
 from conftest import ROOT
 
-from hdtools.fleet import engine, job, simfleet, trends  # noqa: E402
+from hdtools.fleet import engine, job, record, simfleet, trends  # noqa: E402
 
 SEED = 7                # held out: the thresholds were looked at on seed 1
 OPTIONS = {"gear_ratio": 100.0, "loop": False}
@@ -254,6 +254,46 @@ def test_long_log_in_chunks_each_at_its_place(hdsim, tmp_path):
     assert sum(r["samples"] for r in rows) == w["samples"] == data.count(b"\n") - 1
     for r in rows:
         assert r["motor2_amp_nm"] == pytest.approx(w["motor2_amp_nm"], rel=0.05)
+
+
+def test_long_candump_log_in_chunks_keeps_every_sample_once(tmp_path):
+    """A 60 s candump -l log of the firmware (host runner on the simulated
+    joint) cut into 4 chunks: every chunk starts at a TELEM_A line, gets
+    the log's preamble (BOOT, parameter answers), and decodes to exactly the
+    whole log's telemetry rows in order (python-can + cantools decode each
+    part; the reference is the whole log's decode); each chunk sits at the
+    host time of its first frame."""
+    from hdtools import canproto, native
+    from hdtools.fleet import chunks
+    try:
+        host = native.find_file("hdjoint-host", target="hdjoint-host")
+    except (FileNotFoundError, subprocess.CalledProcessError):
+        pytest.skip("hdjoint-host not built")
+    log = tmp_path / "j005" / "2026-01-05T08-00-00.log"
+    log.parent.mkdir()
+    subprocess.run([str(host), "--sensors", f"sim:{ROOT / 'tests/tools/scenarios/motor6.ini'}",
+                    "--duration", "60", "--can", f"log:{log}"], check=True, capture_output=True)
+    size = log.stat().st_size
+    rngs = chunks.ranges(str(log), size // 4 + 1)
+    assert len(rngs) == 4
+    data = log.read_bytes()
+    assert all(chunks._is_telem_a(data[a:data.index(b"\n", a)]) for a, _ in rngs)
+    whole_log = canproto.decode_log(log, None)
+    whole = whole_log["telemetry"]
+    assert len(whole_log["boots"]) == 1       # the runner answers no parameters
+    parts, offsets = [], []
+    for rng in rngs:
+        with chunks.extracted(str(log), rng) as (tmp, where):
+            part = canproto.decode_log(tmp, None)
+            assert part["params"] == whole_log["params"] and len(part["boots"]) == 1
+            parts += part["telemetry"]
+            offsets.append(where["offset_s"])
+    key = ("SeqA", "TorqueRaw", "TorqueFiltered", "MotorVelocity")
+    assert [tuple(r[k] for k in key) for r in parts] == [tuple(r[k] for k in key) for r in whole]
+    host_first = [float(data[a:data.index(b")", a)].strip(b"(")) for a, _ in rngs]
+    assert offsets == pytest.approx([t - host_first[0] for t in host_first], abs=1e-9)
+    recs = [record.analyze_log(str(log), gear_ratio=100.0, byte_range=r) for r in rngs]
+    assert [r["chunk_offset_s"] for r in recs] == offsets
 
 
 def test_docs_thresholds_table_is_current():

@@ -22,7 +22,7 @@ from pathlib import Path
 from hdtools.safeio import HdError
 
 SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "bench", "monitor", "device", "profile",
-               "current", "fleet"]
+               "current", "fleet", "control"]
 EXIT_INTERNAL = 4
 
 

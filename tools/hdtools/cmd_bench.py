@@ -5,11 +5,14 @@ scenarios) and the real iiwa logs, the host compute benchmark
 (tests/bench/bench_compute) and the Cortex-M4 counts if tools/target exists;
 checks issue 12's goals against the numbers (bench/goals.py); prints the
 tables, writes OUT/results.json, OUT/results.md and OUT/bench_accuracy.png
-(OUT = out/bench).  --update-docs also writes the tables into docs/bench.md
+(OUT = out/bench; the control part, --only control: OUT/control.json).
+--update-docs also writes the tables into docs/bench.md
 (between the generated-results markers), results.json to
 docs/results/bench.json (the README headline reads it) and the plot to
-docs/img/bench_accuracy.png.  Every file is written under a temporary name
-and all are renamed together once all are complete.
+docs/img/bench_accuracy.png; the control part's (issue 23) go into
+docs/control.md and docs/results/control.json, and bench.md is left alone
+when only the random and control parts ran.  Every file is written under a
+temporary name and all are renamed together once all are complete.
 """
 from __future__ import annotations
 
@@ -26,11 +29,13 @@ DOC_JSON = ROOT / "docs" / "results" / "bench.json"
 DOC_PLOT = ROOT / "docs" / "img" / "bench_accuracy.png"
 RANDOM_DOC = ROOT / "docs" / "random-joints.md"
 RANDOM_JSON = ROOT / "docs" / "results" / "random.json"
+CONTROL_DOC = ROOT / "docs" / "control.md"
+CONTROL_JSON = ROOT / "docs" / "results" / "control.json"
 BEGIN = "<!-- bench:results:begin -->"
 END = "<!-- bench:results:end -->"
 
 
-PARTS = ["accuracy", "slow", "random", "real", "host", "target"]
+PARTS = ["accuracy", "slow", "random", "real", "host", "target", "control"]
 
 
 def register(subparsers) -> None:
@@ -45,24 +50,30 @@ def register(subparsers) -> None:
     p.add_argument("--random-joints", type=int, default=32, metavar="N",
                    help="joints of the random-joint part (default 32; --quick: 4)")
     p.add_argument("--quick", action="store_true",
-                   help="tiny sizes (smoke test): short runs, 2 real segments, few reps")
+                   help="tiny sizes (smoke test): short runs, 2 real segments, few reps; the "
+                        "control part only with --only control")
     p.add_argument("--update-docs", action="store_true",
                    help="write the tables into docs/bench.md and the plot into docs/img/")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from .bench import accuracy, compute, goals, real, report
+    from .bench import accuracy, compute, control_report, goals, real, report
     if args.update_docs and args.quick:
         raise UsageError("--update-docs writes the documented numbers: run without --quick")
     only, n_random = args.only, args.random_joints
     if only:
         args.skip = [x for x in PARTS if x not in only]
+    elif args.quick and "control" not in args.skip:
+        args.skip = args.skip + ["control"]   # --quick: the control part only with --only control
     if not 1 <= n_random <= 1000:
         raise UsageError(f"--random-joints must be 1..1000 (got {n_random})")
     # bench.md holds every part but the random joints' (docs/random-joints.md)
-    doc_text = read_doc() if args.update_docs and set(only) != {"random"} else None
+    own_docs = bool(only) and set(only) <= {"random", "control"}  # parts with docs of their own
+    doc_text = read_doc() if args.update_docs and not own_docs else None
     random_text = read_doc(RANDOM_DOC) if args.update_docs and "random" not in args.skip else None
+    control_text = (read_doc(CONTROL_DOC, control_report.BEGIN, control_report.END)
+                    if args.update_docs and "control" not in args.skip else None)
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -99,6 +110,11 @@ def run(args) -> int:
         else:
             results["real"] = None
             print(f"  no logs in {real.DATA_DIR}", file=sys.stderr)
+    if "control" not in args.skip:
+        from .bench import control
+        print("control benchmark (the torque loop on the dynamic joint)...", file=sys.stderr)
+        results["control"] = control.run(quick=bool(args.quick),
+                                         log=lambda s: print("  " + s, file=sys.stderr))
     results["compute"] = {}
     if "host" not in args.skip:
         print("host compute benchmark...", file=sys.stderr)
@@ -123,13 +139,25 @@ def run(args) -> int:
             print(f"{n:>6}  {kf or '-':>10}  {dense or '-':>10}  {ratio}  {r.get('isr', '-'):>9}")
     elif tgt:
         print(f"\nCortex-M4 target: {tgt.get('status')}: {tgt.get('note', '')}")
-    js = report.to_json(results)
+    control_md = None
+    if "control" in results:
+        ctabs = control_report.tables(results["control"])
+        print("\n" + control_report.text(ctabs))
+        control_md = f"_{header}_\n\n" + control_report.markdown(ctabs)
+    js = report.to_json({k: v for k, v in results.items() if k != "control"})
     md = f"_{header}_\n" + report.markdown(tabs)
     plot = args.out / "bench_accuracy.png"
     written = [args.out / "results.json", args.out / "results.md"]
     with Outputs() as out:
         out.write_text(written[0], js)
         out.write_text(written[1], md)
+        if control_md is not None:
+            written.append(args.out / "control.json")
+            out.write_text(written[-1], control_report.to_json(results["control"]))
+        if control_text is not None:
+            out.write_text(CONTROL_DOC, control_report.splice(control_text, control_md))
+            out.write_text(CONTROL_JSON, control_report.to_json(results["control"]))
+            written += [CONTROL_DOC, CONTROL_JSON]
         png = None
         if "accuracy" in results:
             with out.path(plot) as tmp:
@@ -155,18 +183,18 @@ def run(args) -> int:
     return 0
 
 
-def read_doc(doc: Path | None = None) -> str:
+def read_doc(doc: Path | None = None, begin: str = BEGIN, end: str = END) -> str:
     """A generated doc, docs/bench.md by default (checked before the
     benchmark runs: its markers)."""
     doc = DOC if doc is None else doc
     try:
         text = doc.read_text()
     except FileNotFoundError:
-        return f"# Benchmarks\n\n{BEGIN}\n{END}\n"
+        return f"# Benchmarks\n\n{begin}\n{end}\n"
     except OSError as exc:
         raise UsageError(f"{doc}: cannot read: {exc.strerror}") from None
-    if BEGIN not in text or END not in text:
-        raise UsageError(f"{doc}: the generated-results markers {BEGIN} / {END} are missing")
+    if begin not in text or end not in text:
+        raise UsageError(f"{doc}: the generated-results markers {begin} / {end} are missing")
     return text
 
 

@@ -8,6 +8,9 @@ optionally attached to a python-can bus in a thread.
     bus = can.Bus(interface="virtual", channel="t1")
     with Emulator() as joint, joint.attach("virtual", "t1"):
         ...                                    # the joint answers on channel t1
+    with Emulator(dynamic=True) as joint:      # a drive and the dynamic joint:
+        joint.set_environment(stiffness_nm_rad=200.0)   # the control loop closes
+        joint.tick(); joint.truth().output_torque_nm
 
 Attached, the emulator runs its ticks at real time (or `speed` times that),
 sends what the firmware transmits onto the bus and hands the firmware every
@@ -33,6 +36,13 @@ HAL_RESET_SOFTWARE = 0x04
 TICK_US = 1000
 
 
+class Truth(ctypes.Structure):
+    """hd_emu_truth_t: the dynamic joint's state at the end of the last tick."""
+    _fields_ = [(n, ctypes.c_double) for n in (
+        "t_s", "output_torque_nm", "motor_torque_nm", "person_torque_nm", "output_angle_rad",
+        "output_velocity_rad_s", "drive_current_a")]
+
+
 class Frame(ctypes.Structure):
     _fields_ = [("t_us", ctypes.c_uint64), ("id", ctypes.c_uint32), ("flags", ctypes.c_uint8),
                 ("len", ctypes.c_uint8), ("data", ctypes.c_uint8 * 8)]
@@ -50,6 +60,13 @@ def _lib():
         lib.hd_emu_create.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
                                       ctypes.c_size_t]
         lib.hd_emu_destroy.argtypes = [P]
+        lib.hd_emu_create_dynamic.restype = P
+        lib.hd_emu_create_dynamic.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t]
+        lib.hd_emu_set_environment.restype = ctypes.c_int
+        lib.hd_emu_set_environment.argtypes = [P, ctypes.c_double, ctypes.c_double,
+                                               ctypes.c_double]
+        lib.hd_emu_truth.restype = ctypes.c_int
+        lib.hd_emu_truth.argtypes = [P, ctypes.POINTER(Truth)]
         lib.hd_emu_tick.restype = ctypes.c_uint32
         lib.hd_emu_tick.argtypes = [P, ctypes.c_uint32]
         lib.hd_emu_push_rx.restype = ctypes.c_int
@@ -99,12 +116,18 @@ def from_message(msg: can.Message) -> Frame | None:
 class Emulator:
     """One emulated joint (see the module doc)."""
 
-    def __init__(self, scenario: str | None = "duration_s = 3600", config: str | None = None):
+    def __init__(self, scenario: str | None = "duration_s = 3600", config: str | None = None,
+                 dynamic: bool = False):
+        """dynamic: the dynamic joint with a drive (hd_emu_create_dynamic;
+        the scenario is not used)."""
         err = ctypes.create_string_buffer(600)
         self._lib = _lib()
-        self._h = self._lib.hd_emu_create(scenario.encode() if scenario is not None else None,
-                                          config.encode() if config is not None else None,
-                                          err, len(err))
+        cfg = config.encode() if config is not None else None
+        if dynamic:
+            self._h = self._lib.hd_emu_create_dynamic(cfg, err, len(err))
+        else:
+            self._h = self._lib.hd_emu_create(scenario.encode() if scenario is not None else None,
+                                              cfg, err, len(err))
         if not self._h:
             raise ValueError(err.value.decode(errors="replace"))
         self._lock = threading.Lock()
@@ -150,6 +173,22 @@ class Emulator:
         ptr = self._lib.hd_emu_nvm(self._h, ctypes.byref(size))
         return (ctypes.c_uint8 * size.value).from_address(ctypes.addressof(ptr.contents))
 
+    def set_environment(self, stiffness_nm_rad: float = 0.0, damping_nm_s_rad: float = 0.0,
+                        person_torque_nm: float = 0.0) -> None:
+        """What the dynamic joint's output meets from the next tick on."""
+        with self._lock:
+            rc = self._lib.hd_emu_set_environment(self._h, stiffness_nm_rad, damping_nm_s_rad,
+                                                  person_torque_nm)
+        if rc != 0:
+            raise ValueError("set_environment: not a dynamic joint, or a bad value")
+
+    def truth(self) -> Truth:
+        t = Truth()
+        with self._lock:
+            if self._lib.hd_emu_truth(self._h, ctypes.byref(t)) != 0:
+                raise ValueError("truth: not a dynamic joint")
+        return t
+
     @property
     def ticks(self) -> int:
         return int(self._lib.hd_emu_ticks(self._h))
@@ -180,17 +219,19 @@ class Emulator:
 
     # ----------------------------------------------------------- on a bus
     def attach(self, interface: str = "virtual", channel: str = "hdjoint-emu",
-               speed: float = 1.0, **bus_kwargs) -> _Attached:
+               speed: float = 1.0, on_chunk=None, **bus_kwargs) -> _Attached:
         """Runs the joint on a python-can bus in a thread until the returned
-        context ends (`with joint.attach(...):`)."""
-        return _Attached(self, interface, channel, speed, bus_kwargs)
+        context ends (`with joint.attach(...):`).  on_chunk(emulator), if
+        given, is called in that thread after every few ticks (a test
+        recording the truth)."""
+        return _Attached(self, interface, channel, speed, bus_kwargs, on_chunk)
 
 
 class _Attached:
     CHUNK_TICKS = 2
 
-    def __init__(self, emu: Emulator, interface, channel, speed, bus_kwargs):
-        self.emu, self.speed = emu, speed
+    def __init__(self, emu: Emulator, interface, channel, speed, bus_kwargs, on_chunk=None):
+        self.emu, self.speed, self.on_chunk = emu, speed, on_chunk
         self.bus = can.Bus(interface=interface, channel=channel, **bus_kwargs)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="hd-emu", daemon=True)
@@ -230,6 +271,8 @@ class _Attached:
                     continue
                 ran = self.emu.tick(n)
                 done += n
+                if self.on_chunk is not None:
+                    self.on_chunk(self.emu)
                 for m in self.emu.pop_all():
                     self.bus.send(m)
                 if ran < n:                     # the scenario ended

@@ -7,6 +7,7 @@ tools write (nothing typed):
   docs/results/analyze.json   tools/hdsense analyze --results-doc docs/analyze-results.md
   docs/results/corpus.json    tests/corpus/run_corpus.py --doc docs/reliability.md
   docs/results/fleet.json     cd tools && python -m hdtools.fleet.bench --write
+  docs/results/control.json   tools/bench --only control --update-docs
 
   python -m hdtools.headline --write    rewrite the README block
   python -m hdtools.headline --check    exit 1 if the README block is stale
@@ -27,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
 README = ROOT / "README.md"
 BEGIN, END = "<!-- BEGIN generated:headline -->", "<!-- END generated:headline -->"
-SOURCES = ("demo", "bench", "random", "budget", "analyze", "corpus", "fleet")
+SOURCES = ("demo", "bench", "random", "budget", "analyze", "corpus", "fleet", "control")
 
 
 class HeadlineError(Exception):
@@ -236,11 +237,16 @@ def fleet_rows(f: dict) -> list[tuple[str, str, str]]:
          src)]
 
 
+def control_rows(c: dict) -> list[tuple[str, str, str]]:
+    from .bench.control_report import headline_rows
+    return headline_rows(c)
+
+
 def render(results: dict) -> str:
     rows = (demo_rows(results["demo"]) + bench_rows(results["bench"])
             + random_rows(results["random"]) + budget_rows(results["budget"])
             + analyze_rows(results["analyze"]) + corpus_rows(results["corpus"])
-            + fleet_rows(results["fleet"]))
+            + fleet_rows(results["fleet"]) + control_rows(results["control"]))
     lines = ["| what | measured | source |", "|---|---|---|"]
     lines += [f"| {w} | {m} | {s} |" for w, m, s in rows]
     return "\n".join(lines)

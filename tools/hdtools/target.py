@@ -7,6 +7,10 @@
                                   run the firmware image on a raw sample stream
   tools/target compare (IN.hdraw | --scenario INI [--duration S])
                                   host build vs QEMU image: bit-identical?
+  tools/target closed-loop [--ticks N]
+                                  the image closing its control loop against
+                                  the host's dynamic plant in lockstep (a step
+                                  test) vs the host build: bit-identical?
   tools/target budget [--markdown] [--json FILE]
                                   flash, RAM, worst-case stack, instruction
                                   counts per filter update / ISR, cycle estimate
@@ -61,7 +65,8 @@ QEMU_TIMEOUT_S = 120
 BOARDS = {
     "mps2-an386": dict(env="HD_TARGET_BUILD", build="cortex-m4", cmake_board="mps2_an386",
                        rel="firmware/board/mps2_an386", machine="mps2-an386",
-                       run="hd_image", bench="hd_bench", targets=["hd_image", "hd_bench"]),
+                       run="hd_image", bench="hd_bench",
+                       targets=["hd_image", "hd_bench", "hd_ctrl_image"]),
     "netduinoplus2": dict(env="HD_TARGET_BUILD_STM32F4", build="stm32f4", cmake_board="stm32f4",
                           rel="firmware/board/stm32f4", machine="netduinoplus2",
                           run="hd_nd2", bench="hd_stm32f4_bench",
@@ -803,6 +808,13 @@ def headline_table(n: dict) -> str:
     parts += [("the tick (hd_fw_isr)", row["tick"], ""),
               (f"the tick with commands ({cmd['frames_in']} in, {cmd['acks_out']} ACK out)", cmd,
                f" ({cmd['ratio_to_tick_max']:.2f}x the tick)")]
+    if "ctrl_step" in s:
+        ctl, ctlcmd = row["tick_with_control"], row["tick_with_control_and_commands"]
+        parts += [("hd_ctrl_step (the control law, every mode)", s["ctrl_step"], ""),
+                  (f"the tick with control (a drive, {ctl['frames_in']} control frames in)", ctl,
+                   f" ({ctl['ratio_to_tick_max']:.2f}x the tick)"),
+                  (f"the tick with control and commands ({cmd['frames_in']} in)", ctlcmd,
+                   f" ({ctlcmd['ratio_to_tick_max']:.2f}x the tick)")]
     return md_table([f"{states} states (firmware default)", "instructions (max)",
                      f"estimated worst-case us at {n['clock_mhz']} MHz",
                      f"share of the {TICK_PERIOD_US} us tick"],
@@ -845,6 +857,9 @@ def render_budget(n: dict) -> str:
     cmd = command_label(n)
     kinds = [("kf", "hd_kf_step"), ("isr", "ISR (hd_fw_isr)"), ("isrcmd", cmd),
              ("dense", "dense textbook KF")]
+    control = f"isrctrl:{MODELS[0][0]}" in ins
+    if control:
+        kinds[3:3] = [("isrctrl", "ISR + control"), ("isrctrlcmd", "ISR + control + commands")]
     insn_rows, cycle_rows = [], []
     for key, note in MODELS:
         states = f"{ins[f'kf:{key}']['states']}{note}"
@@ -880,6 +895,28 @@ def render_budget(n: dict) -> str:
             "change the background prepared and sends at most HD_FW_ACKS_PER_TICK = "
             f"{n['tick_limits']['acks']} ACK.  Other command mixes are not enumerated: this is "
             "a measured load, not a proof of the worst case."]
+    if control:
+        c = ins["ctrl:default"]
+        worst = {key: max(worst_us(ins[f"{k}:{key}"], mhz) for k in ("isrctrl", "isrctrlcmd"))
+                 for key in ("default", "max")}
+        out += [f"\nControl (issue 23): 'ISR + control' is the tick on a board with a drive: "
+                "the control stage (setpoint checks, watchdog and fault reactions, "
+                "control/hd_ctrl's law, the drive command) runs every tick, with "
+                f"HD_FW_RX_PER_TICK = {n['tick_limits']['rx']} control frames arriving every "
+                "tick (a TORQUE SETPOINT and a GAINS frame, decoded and checked by the tick) "
+                "and CTRL_STATE sent with the telemetry; 'ISR + control + commands' runs "
+                "TORQUE with the command frames above instead.  hd_ctrl_step alone, cycling "
+                "its modes over inputs that reach the velocity, position and current limits: "
+                f"{c['mean']:.0f} / {c['max']} instructions (mean / max), "
+                f"{c['cycles_best']:.0f}-{c['cycles_worst']:.0f} cycles, "
+                f"{worst_us(c, mhz):.2f} us at {mhz} MHz.  The worst tick with control: "
+                f"{worst['default']:.1f} us = {100 * worst['default'] / TICK_PERIOD_US:.1f} % of "
+                f"the {TICK_PERIOD_US} us tick with the firmware's default filter "
+                f"({ins['kf:default']['states']} states), {worst['max']:.1f} us = "
+                f"{100 * worst['max'] / TICK_PERIOD_US:.1f} % with the largest "
+                f"({ins['kf:max']['states']} states); the goal is at most 5 % "
+                f"({'met' if worst['default'] <= 0.05 * TICK_PERIOD_US else 'not met'} at the "
+                "default)."]
     if n["kf_paths"]:
         rows = []
         for key, note in MODELS:
@@ -927,7 +964,15 @@ def budget_summary(n: dict) -> dict:
                                        ratio_to_tick_max=round(cmd["max"] / isr["max"], 2),
                                        frames_in=n["tick_limits"]["rx"],
                                        acks_out=n["tick_limits"]["acks"])}
-    return {"image": "hd_image.elf (instructions: hd_bench.elf)",
+        if f"isrctrl:{key}" in ins:
+            for name, kind in (("tick_with_control", "isrctrl"),
+                               ("tick_with_control_and_commands", "isrctrlcmd")):
+                c = ins[f"{kind}:{key}"]
+                per_states[str(kf["states"])][name] = dict(
+                    timing(c, mhz), ratio_to_tick_max=round(c["max"] / isr["max"], 2),
+                    frames_in=n["tick_limits"]["rx"])
+    control = {"ctrl_step": timing(ins["ctrl:default"], mhz)} if "ctrl:default" in ins else {}
+    return {**control,"image": "hd_image.elf (instructions: hd_bench.elf)",
             "flash_bytes": n["flash_bytes"], "ram_bytes": n["ram_bytes"],
             "stack_worst_bytes": n["stack_worst_bytes"],
             "stack_reserved_bytes": n["stack_reserved_bytes"],
@@ -1100,6 +1145,11 @@ def main(argv=None) -> int:
     c.add_argument("--duration", type=float, help="override the scenario's duration_s")
     c.add_argument("--host-build", help="host build tree with target_hostref, "
                    "hdjoint-host and hdsim (default: build/target-host, built on demand)")
+    # hdtools.target_stm32f4 and hdtools.target_closed_loop use this module's
+    # helpers and board state: when run as __main__ (the launcher), it is that module.
+    sys.modules.setdefault("hdtools.target", sys.modules[__name__])
+    from hdtools import target_closed_loop
+    target_closed_loop.add_parser(sub, [on])
     b = sub.add_parser("budget", parents=[on], help="print the budget tables (markdown)")
     b.add_argument("--markdown", action="store_true", help="(the default format)")
     b.add_argument("--json", help="also write the numbers to this JSON file")
@@ -1118,9 +1168,6 @@ def main(argv=None) -> int:
     f.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     a = ap.parse_args(argv)
     try:
-        # hdtools.target_stm32f4 uses this module's helpers and board state:
-        # when run as __main__ (the launcher), it is that module.
-        sys.modules.setdefault("hdtools.target", sys.modules[__name__])
         from hdtools import target_stm32f4
         if a.cmd == "flash":
             return target_stm32f4.cmd_flash(a)
@@ -1142,6 +1189,10 @@ def main(argv=None) -> int:
             if bool(a.stream) == bool(a.scenario):
                 ap.error("compare needs a stream or --scenario")
             return cmd_compare(a)
+        if a.cmd == "closed-loop":
+            if a.board != "mps2-an386":
+                raise TargetError("closed-loop runs on mps2-an386 only")
+            return target_closed_loop.cmd_closed_loop(a)
         if a.cmd == "budget":
             if a.board != "mps2-an386":
                 return target_stm32f4.cmd_budget(a)

@@ -18,6 +18,15 @@
  *               each tick takes frames, applies the change the background
  *               prepared and sends up to HD_FW_ACKS_PER_TICK ACKs; the model
  *               builds are not counted because they are not in the tick
+ *   isrctrl:NAME hd_fw_isr on a board with a drive (a recording actuator):
+ *               the control stage runs every tick, with HD_FW_RX_PER_TICK
+ *               control frames arriving every tick (a TORQUE SETPOINT and a
+ *               GAINS frame, both decoded and checked by the tick itself)
+ *   isrctrlcmd:NAME  the same board running TORQUE (one SETPOINT at tick 0)
+ *               with the isrcmd command frames on every other tick
+ *   ctrl:default hd_ctrl_step alone, cycling TORQUE, IMPEDANCE, ZERO_TORQUE
+ *               and DAMP over inputs that reach the velocity, position and
+ *               current limits
  *   dense:NAME  the dense textbook float32 filter, same model and inputs
  *               (tests/bench/dense_kf_f32.c, the compute benchmark's peer)
  *   kffrozen:NAME, kflost:NAME, kfclamp:NAME, kfreset:NAME, kfworst:NAME,
@@ -53,6 +62,7 @@
 #include "hd_can_proto.h"
 #include "hd_fw.h"
 #include "hd_kf.h"
+#include "hd_lockstep.h"
 #include "hd_trig.h"
 #include "semihost.h"
 
@@ -77,6 +87,7 @@ static const model_t MODELS[] = {
 };
 
 static hd_fw_t g_fw;
+static hd_ls_drive_t g_drive;
 static hal_mock_t g_mock;
 static hal_t g_hal;
 static hd_kf_t g_kf;
@@ -227,10 +238,33 @@ static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
     }
 }
 
-static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
+static void push_frame(const hal_can_frame_t *f)
+{
+    (void)hal_mock_push_rx(&g_mock, f);
+}
+
+/* The control frames of tick k: a TORQUE SETPOINT and a GAINS frame. */
+static void push_control(const hd_fw_config_t *cfg, uint32_t k)
+{
+    const hd_can_setpoint_t sp = {HD_CTRL_TORQUE, (uint8_t)k, 2.0f + 0.01f * (float)(k % 50u),
+                                  0.0f, 0.0f};
+    hal_can_frame_t f;
+    hd_can_encode_setpoint(cfg->node_id, &sp, &f);
+    push_frame(&f);
+    const hd_can_gains_t g = {50.0f + (float)(k % 7u), 1.0f};
+    hd_can_encode_gains(cfg->node_id, &g, &f);
+    push_frame(&f);
+}
+
+/* control: a drive in the HAL (the control stage runs); with commands,
+ * one SETPOINT at tick 0 and the command frames on the other ticks. */
+static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick, bool control)
 {
     hal_mock_init(&g_mock);
     hal_mock_bind(&g_mock, &g_hal);
+    if (control) {
+        hd_ls_bind_drive(&g_drive, &g_hal);
+    }
     g_mock.auto_advance_us = 0u;
     g_mock.tx_store = false; /* frames are "sent" (counted), as to a CAN mailbox */
     if (hd_fw_init(&g_fw, &g_hal, cfg) != HD_FW_OK) {
@@ -244,7 +278,10 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
         float torque = test_torque_nm(k, angle);
         int32_t counts = (int32_t)(torque * volts_per_nm / cfg->adc_volts_per_count);
         (void)hal_mock_push(&g_mock, counts, (uint32_t)(int32_t)counts_f);
-        for (unsigned c = 0; c < commands_per_tick; c++) {
+        if (control && (commands_per_tick == 0u || k == 0u)) {
+            push_control(cfg, k);
+        }
+        for (unsigned c = 0; c < ((control && k == 0u) ? 0u : commands_per_tick); c++) {
             hd_can_cmd_t cmd;
             memset(&cmd, 0, sizeof cmd);
             cmd.token = (uint8_t)c;
@@ -276,6 +313,34 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick)
     }
 }
 
+/* hd_ctrl_step alone: the modes in turn, speeds and angles that reach the
+ * velocity limit, the position window and the current limit. */
+static void bench_ctrl(const hd_fw_config_t *fw_cfg)
+{
+    static const hd_ctrl_mode_t MODES_RUN[] = {HD_CTRL_TORQUE, HD_CTRL_IMPEDANCE,
+                                               HD_CTRL_ZERO_TORQUE, HD_CTRL_DAMP};
+    static hd_ctrl_t ctrl;
+    hd_ctrl_config_t cfg;
+    hd_fw_ctrl_config(fw_cfg, &cfg);
+    cfg.position_min_rad = -0.5f;
+    cfg.position_max_rad = 0.5f;
+    if (hd_ctrl_init(&ctrl, &cfg) != HD_CTRL_OK) {
+        sh_exit(BOARD_EXIT_INIT);
+    }
+    for (uint32_t k = 0; k < CALLS; k++) {
+        const float u = (float)(k % 16u) / 16.0f; /* 0 .. 15/16 */
+        const hd_ctrl_setpoint_t sp = {MODES_RUN[k % 4u], 30.0f * u - 10.0f, 0.8f * u - 0.2f,
+                                       0.5f, 200.0f * u, 2.0f};
+        const hd_ctrl_input_t in = {.torque_filtered_nm = 5.0f * u, .torque_raw_nm = 5.5f * u,
+                                    .torque_valid = true, .angle_rad = 1.2f * u - 0.6f,
+                                    .velocity_rad_s = 12.0f * u - 6.0f};
+        hd_ctrl_output_t out;
+        hd_mark_begin();
+        hd_ctrl_step(&ctrl, &sp, &in, &out);
+        hd_mark_end();
+    }
+}
+
 int main(void)
 {
     hd_mark_calibration(calibration_section);
@@ -290,11 +355,19 @@ int main(void)
         hd_mark_section();
 
         section("isr", MODELS[m].name, states);
-        bench_isr(&cfg, 0u);
+        bench_isr(&cfg, 0u, false);
         hd_mark_section();
 
         section("isrcmd", MODELS[m].name, states);
-        bench_isr(&cfg, HD_FW_RX_PER_TICK);
+        bench_isr(&cfg, HD_FW_RX_PER_TICK, false);
+        hd_mark_section();
+
+        section("isrctrl", MODELS[m].name, states);
+        bench_isr(&cfg, 0u, true);
+        hd_mark_section();
+
+        section("isrctrlcmd", MODELS[m].name, states);
+        bench_isr(&cfg, HD_FW_RX_PER_TICK, true);
         hd_mark_section();
 
         section("dense", MODELS[m].name, states);
@@ -309,6 +382,11 @@ int main(void)
             hd_mark_section();
         }
     }
+    hd_fw_config_t dflt;
+    hd_fw_config_default(&dflt);
+    section("ctrl", "default", 2u * dflt.kf.block_count + (dflt.kf.offset_enabled ? 1u : 0u));
+    bench_ctrl(&dflt);
+    hd_mark_section();
     sh_puts("bench: done\n");
     return BOARD_EXIT_OK;
 }

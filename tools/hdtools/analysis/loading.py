@@ -381,13 +381,14 @@ def _new_stats(n):
 
 
 def load(path, fs_hz: float | None = None, time_unit: str | None = None,
-         angle_unit: str | None = None, joint: str | None = None) -> Data:
-    """joint: which JointState joint of a bag (MCAP, rosbag2; rosio.bagin)."""
+         angle_unit: str | None = None, joint: str | None = None, window_ns=None) -> Data:
+    """joint: which JointState joint of a bag (MCAP, rosbag2; rosio.bagin);
+    window_ns: the bag's messages in [start, stop) log time only."""
     from ..rosio import bagin
     stats = _new_stats(0)
     bag_notes = []
     if bagin.is_bag(path):
-        cols, bag_notes = bagin.read(path, joint)
+        cols, bag_notes = bagin.read(path, joint, window_ns)
         source = "bag"
     else:
         path = check_path(path)

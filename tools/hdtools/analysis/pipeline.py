@@ -290,13 +290,13 @@ def _merge(effects, gear_ratio):
 
 def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), inertia_kgm2=0.0,
             fs_hz=None, out_dir=None, json_path=None, node_id=1, log=print, time_unit=None,
-            angle_unit=None, joint=None):
+            angle_unit=None, joint=None, window_ns=None):
     t0 = time.perf_counter()
     rp.REPLAYED["samples"] = 0
     outputs = rep.Outputs(out_dir, json_path)      # refuses unwritable places now
     if gear_ratio is not None and not gear_ratio >= 1:
         raise loading.InputError(f"--gear-ratio must be >= 1 (got {gear_ratio})")
-    data = loading.load(path, fs_hz, time_unit, angle_unit, joint)
+    data = loading.load(path, fs_hz, time_unit, angle_unit, joint, window_ns)
     for n in data.notes:
         log(n)
     g = gear_of(data, gear_ratio, log)

@@ -128,21 +128,38 @@ def _ray(root, n, ray_python):
     return dict(s, analysed=s["logs"], max_rss_mb_per_worker=[])
 
 
-def speed(tmp, hdsim, ray_python=None) -> dict:
-    root = Path(tmp) / "speed"
-    simfleet.generate(root, hdsim, **SPEED_FLEET)
-    csv_bytes = sum(f.stat().st_size for f in root.rglob("*.csv"))
-    configs = [("direct (no engine)", 1, lambda i: _timed(root, Path(tmp) / f"d{i}", direct=True))]
-    configs += [("Dask LocalCluster", n, lambda i, n=n: _dask(root, Path(tmp) / f"k{n}_{i}", n))
-                for n in (1, 2)]
-    if ray_python:
-        configs += [("Ray", n, lambda i, n=n: _ray(root, n, ray_python)) for n in (1, 2)]
+# What a robot's own 200 Hz log holds: the analysis' columns, no simulation truth
+# (hdsim's CSV adds 9 columns of truth and counts the analysis never reads).
+ROBOT_COLUMNS = ("t_s", "motor_angle_rad", "output_angle_rad", "torque_nm",
+                 "torque_feedforward_nm")
+
+
+def robot_logs(src: Path, dst: Path) -> None:
+    """The fleet's logs again with ROBOT_COLUMNS only, the values' text
+    unchanged (the same numbers, fewer bytes to parse)."""
+    for f in sorted(src.rglob("*.csv")):
+        out = dst / f.relative_to(src)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with open(f) as fh, open(out, "w") as oh:
+            head = fh.readline().rstrip("\n").split(",")
+            idx = [head.index(c) for c in ROBOT_COLUMNS]
+            oh.write(",".join(ROBOT_COLUMNS) + "\n")
+            oh.writelines(",".join(r[i] for i in idx) + "\n"
+                          for r in (line.rstrip("\n").split(",") for line in fh))
+
+
+def _best_of(configs) -> dict:
     best = {}
     for i in range(REPEATS):
         for name, n, run in configs:
             s = run(i)
             if (name, n) not in best or s["engine_s"] < best[(name, n)]["engine_s"]:
                 best[(name, n)] = s
+    return best
+
+
+def _speed_rows(best, root) -> dict:
+    csv_bytes = sum(f.stat().st_size for f in root.rglob("*.csv"))
     d = best[("direct (no engine)", 1)]
     rows = []
     for (name, n), s in best.items():
@@ -151,11 +168,33 @@ def speed(tmp, hdsim, ray_python=None) -> dict:
         rows.append(r)
     one = next(r for r in rows if r["engine"] == "Dask LocalCluster" and r["workers"] == 1)
     two = next(r for r in rows if r["engine"] == "Dask LocalCluster" and r["workers"] == 2)
-    return {"fleet": SPEED_FLEET, "csv_bytes": csv_bytes, "rows": rows,
+    return {"csv_bytes": csv_bytes, "rows": rows,
             "dask_overhead_1_worker": one["engine_s"] / d["engine_s"] - 1,
             "dask_speedup_2_workers": one["engine_s"] / two["engine_s"],
             "direct_s_per_joint_hour": d["engine_s"] / d["joint_hours"],
             "csv_bytes_per_joint_hour": csv_bytes / d["joint_hours"]}
+
+
+def _configs(root, tmp, tag, ray_python=None):
+    configs = [("direct (no engine)", 1,
+                lambda i: _timed(root, Path(tmp) / f"{tag}d{i}", direct=True))]
+    configs += [("Dask LocalCluster", n, lambda i, n=n: _dask(root, Path(tmp) / f"{tag}k{n}_{i}", n))
+                for n in (1, 2)]
+    if ray_python:
+        configs += [("Ray", n, lambda i, n=n: _ray(root, n, ray_python)) for n in (1, 2)]
+    return configs
+
+
+def speed(tmp, hdsim, ray_python=None) -> dict:
+    """The simulator's CSVs (with Ray when given), then the same logs as a
+    robot writes them (ROBOT_COLUMNS: the "robot" part)."""
+    root, robot = Path(tmp) / "speed", Path(tmp) / "speed_robot"
+    simfleet.generate(root, hdsim, **SPEED_FLEET)
+    robot_logs(root, robot)
+    out = {"fleet": SPEED_FLEET, **_speed_rows(_best_of(_configs(root, tmp, "", ray_python)), root)}
+    out["robot"] = {"columns": list(ROBOT_COLUMNS),
+                    **_speed_rows(_best_of(_configs(robot, tmp, "r")), robot)}
+    return out
 
 
 def memory(tmp, hdsim) -> dict:
@@ -226,10 +265,15 @@ def markdown(res) -> str:
           f"{sp['csv_bytes'] / 1e6:.0f} MB of CSV; `engine s` excludes the cluster's start):", "",
           "| engine | workers | engine s | start s | joint-hours / min | per worker | vs direct | "
           "peak RSS / worker [MB] |", "|---|---|---|---|---|---|---|---|"]
-    for r in sp["rows"]:
-        L.append(f"| {r['engine']} | {r['workers']} | {r['engine_s']:.2f} | {_f(r.get('startup_s'))} | "
-                 f"{r['joint_hours_per_min']:.0f} | {r['joint_hours_per_min_per_worker']:.0f} | "
-                 f"{r['vs_direct']:.2f}x | {_f(r['peak_rss_mb_per_worker'], '{:.0f}')} |")
+    L += _speed_table(sp["rows"])
+    rb = sp.get("robot")
+    if rb:
+        L += ["", f"The same logs as a robot writes them ({len(rb['columns'])} columns: "
+              f"{', '.join('`%s`' % c for c in rb['columns'])}; {rb['csv_bytes'] / 1e6:.0f} MB, "
+              f"{rb['csv_bytes_per_joint_hour'] / 1e6:.1f} MB per joint-hour):", "",
+              "| engine | workers | engine s | start s | joint-hours / min | per worker | vs direct | "
+              "peak RSS / worker [MB] |", "|---|---|---|---|---|---|---|---|"]
+        L += _speed_table(rb["rows"])
     L += ["", f"Each row the fastest of {REPEATS} interleaved runs. Load average "
           f"{res['load_average'][0]:.1f} at the start and {res['load_average'][1]:.1f} at the end "
           f"on {os.cpu_count()} cores: other work shares the machine, so rows of the same work "
@@ -237,7 +281,9 @@ def markdown(res) -> str:
           "not speed).", "",
           f"Dask's overhead with 1 worker against the direct call: "
           f"**{100 * sp['dask_overhead_1_worker']:+.1f} %**; 2 workers against 1: "
-          f"**{sp['dask_speedup_2_workers']:.2f}x** (this machine has 2 cores, shared).", ""]
+          f"**{sp['dask_speedup_2_workers']:.2f}x** (this machine has 2 cores, shared)"
+          + (f"; on the robot's logs {100 * rb['dask_overhead_1_worker']:+.1f} % and "
+             f"**{rb['dask_speedup_2_workers']:.2f}x**." if rb else "."), ""]
     m = res["memory"]
     L += [f"**Memory per worker** on one {m['log_s'] / 3600:g} h log at 200 Hz "
           f"({m['csv_bytes'] / 1e6:.0f} MB of CSV), one LocalCluster worker:", "",
@@ -260,6 +306,15 @@ def markdown(res) -> str:
     return "\n".join(L)
 
 
+def _speed_table(rows) -> list[str]:
+    return [f"| {r['engine']} | {r['workers']} | {r['engine_s']:.2f} | {_f(r.get('startup_s'))} | "
+            f"{r['joint_hours_per_min']:.0f} | {r['joint_hours_per_min_per_worker']:.0f} | "
+            f"{r['vs_direct']:.2f}x | {_f(r['peak_rss_mb_per_worker'], '{:.0f}')} |" for r in rows]
+
+
+PARTS = ("detection", "speed", "memory")
+
+
 def _splice(text, begin, end, body):
     a, b = text.index(begin) + len(begin), text.index(end)
     return text[:a] + "\n" + body + "\n" + text[b:]
@@ -271,15 +326,31 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m hdtools.fleet.bench", description=__doc__)
     p.add_argument("--write", action="store_true", help="write docs/fleet.md and fleet.json")
     p.add_argument("--ray-python", help="a Python with ray installed (comparison only)")
+    p.add_argument("--parts", default=",".join(PARTS),
+                   help="which parts to measure (the others are kept from fleet.json): "
+                        + ", ".join(PARTS))
     a = p.parse_args(argv)
+    parts = [x for x in a.parts.split(",") if x]
+    if not parts or set(parts) - set(PARTS):
+        p.error(f"--parts: a comma-separated list of {', '.join(PARTS)}")
+    kept = {}
+    if set(PARTS) - set(parts):
+        try:
+            kept = json.loads(RESULT.read_text())
+        except (OSError, ValueError) as exc:
+            p.error(f"--parts without all of them needs {RESULT.name}: {exc}")
     hdsim = native.executable("hdsim")
     load_start = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="hdfleet-bench-") as tmp:
         res = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}"
-               f", {os.cpu_count()} cores",
-               "detection": {"tune": [detection(s, tmp, hdsim) for s in TUNE_SEEDS],
-                             "report": [detection(s, tmp, hdsim) for s in REPORT_SEEDS]},
-               "speed": speed(tmp, hdsim, a.ray_python), "memory": memory(tmp, hdsim)}
+               f", {os.cpu_count()} cores", **{k: kept[k] for k in PARTS if k not in parts}}
+        if "detection" in parts:
+            res["detection"] = {"tune": [detection(s, tmp, hdsim) for s in TUNE_SEEDS],
+                                "report": [detection(s, tmp, hdsim) for s in REPORT_SEEDS]}
+        if "speed" in parts:
+            res["speed"] = speed(tmp, hdsim, a.ray_python)
+        if "memory" in parts:
+            res["memory"] = memory(tmp, hdsim)
     res["estimate"] = estimate(res["speed"])
     res["load_average"] = [load_start, os.getloadavg()[0]]
     md = markdown(res)

@@ -35,9 +35,10 @@ class EngineError(HdError):
     code = 1
 
 
-def task(path: str, options: dict, byte_range=None):
+def task(path: str, options: dict, part=None):
     """(values or None, refusal message or None, stats) for one log or one
-    chunk of it; a bad log is a refusal, never an exception (the run goes on)."""
+    part of it (record.analyze_log's byte_range / window_ns / joint); a bad
+    log is a refusal, never an exception (the run goes on)."""
     from threadpoolctl import threadpool_limits
     from ..analysis.cfilter import FilterError
     from ..safeio import UsageError
@@ -47,7 +48,7 @@ def task(path: str, options: dict, byte_range=None):
         # One BLAS thread wherever the task runs: a threaded dot product sums
         # in another order, and the record must not depend on the worker.
         with threadpool_limits(limits=1):
-            values = record.analyze_log(path, byte_range=byte_range,
+            values = record.analyze_log(path, **(part or {}),
                                         **{k: v for k, v in options.items() if k != "chunk_bytes"})
     except (UsageError, FilterError) as exc:
         problem = " | ".join(str(exc).splitlines()) or type(exc).__name__
@@ -124,12 +125,12 @@ def _bar(total, quiet):
 
 
 def run(client, jobs, options, on_result, quiet=False):
-    """jobs: [(key, path, byte range or None)].  Calls on_result(key, values, problem, stats) as
+    """jobs: [(key, path, part or None)] (task's part).  Calls on_result(key, values, problem, stats) as
     each task finishes, in completion order."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
-    futures = {client.submit(task, path, options, rng, key=f"hdfleet-{key}", pure=False): key
-               for key, path, rng in jobs}
+    futures = {client.submit(task, path, options, part, key=f"hdfleet-{key}", pure=False): key
+               for key, path, part in jobs}
     with _bar(len(futures), quiet) as bar:
         for fut in as_completed(list(futures), loop=client.loop):
             key = futures[fut]
@@ -150,6 +151,6 @@ def run(client, jobs, options, on_result, quiet=False):
 def run_direct(jobs, options, on_result, quiet=False):
     """The same tasks in this process, in order (no engine)."""
     with _bar(len(jobs), quiet) as bar:
-        for key, path, rng in jobs:
-            on_result(key, *task(path, options, rng))
+        for key, path, part in jobs:
+            on_result(key, *task(path, options, part))
             bar.update(1)

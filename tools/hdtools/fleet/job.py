@@ -7,7 +7,7 @@ import math
 import time
 from pathlib import Path
 
-from . import catalog, chunks, engine, report, store as st, trends
+from . import catalog, chunks, engine, record, report, store as st, trends
 
 
 def _row(ref, chunk, key, values, problem):
@@ -37,9 +37,9 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
     keys, jobs, by_key, unknown = [], [], {}, 0
     for ref in refs:
         base = catalog.content_key(ref, options)
-        parts = None if ref.problem else _ranges(ref.path, options)
-        for i, rng in enumerate(parts or [None]):
-            key = base if parts is None else f"{base}-{i}"
+        parts = None if ref.problem else chunks.parts(ref, options["chunk_bytes"])
+        for i, part in enumerate(parts or [None]):
+            key = base if parts is None or len(parts) == 1 else f"{base}-{i}"
             keys.append(key)
             by_key[key] = (ref, i)
             if store.has(key):
@@ -48,7 +48,7 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
                 store.put(_row(ref, 0, key, None, ref.problem))
                 unknown += 1
             else:
-                jobs.append((key, ref.path, rng))
+                jobs.append((key, ref.path, part))
     stats = []
 
     def on_result(key, values, problem, s):
@@ -79,6 +79,10 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
         per_path[r["path"]] = per_path.get(r["path"], 0) + 1
     refused = [{"path": r["path"] + (f" chunk {r['chunk']}" if per_path[r["path"]] > 1 else ""),
                 "message": r["message"]} for r in rows if r["status"] != "ok"]
+    if options["gear_ratio"] is None:
+        ok, odd = gear_outliers(ok)
+        refused += [{"path": r["path"] + (f" chunk {r['chunk']}" if per_path[r["path"]] > 1 else ""),
+                     "message": why} for r, why in odd]
     joint_rows = trends.joints(ok, th)
     done = len(jobs) + unknown
     summary = {"logs": len({r["path"] for r in rows}), "records": len(rows), "analysed": done, "skipped_up_to_date": len(rows) - done,
@@ -95,11 +99,34 @@ def run(inputs, store_dir, options, th, workers=2, memory="2GiB", scheduler=None
     return summary
 
 
-def _ranges(path, options):
-    try:
-        return chunks.ranges(path, options["chunk_bytes"])
-    except OSError:
-        return None          # the task refuses the log with the loader's message
+def gear_outliers(ok):
+    """Without --gear-ratio each log's ratio is its own (inferred); a log
+    whose ratio is not that of most of its joint's logs is another joint
+    type (a mislabelled log): (rows kept, [(row, why)] left out of the
+    trends).  A joint whose logs have no majority ratio is left out whole."""
+    tol = record.GEAR_TOLERANCE
+    by_joint: dict[str, list] = {}
+    for r in ok:
+        by_joint.setdefault(r["joint"], []).append(r)
+    kept, odd = [], []
+    for rows in by_joint.values():
+        def near(a, b):
+            return abs(a["gear_ratio"] - b["gear_ratio"]) <= tol * b["gear_ratio"]
+        best = max(rows, key=lambda r: sum(near(o, r) for o in rows))
+        if 2 * sum(near(o, best) for o in rows) > len(rows):
+            for r in rows:
+                if near(r, best):
+                    kept.append(r)
+                else:
+                    odd.append((r, f"gear ratio {r['gear_ratio']:.4g} ({r['gear_source']}), most "
+                                   f"of joint {r['joint']}'s logs {best['gear_ratio']:.4g}: another "
+                                   "joint type, left out of its trends"))
+        else:
+            seen = ", ".join(sorted({f"{r['gear_ratio']:.4g}" for r in rows}))
+            odd += [(r, f"joint {r['joint']}'s logs disagree on the gear ratio ({seen}): give "
+                        "--gear-ratio") for r in rows]
+    order = {id(r): i for i, r in enumerate(ok)}
+    return sorted(kept, key=lambda r: order[id(r)]), odd
 
 
 def _rss_by_worker(stats):

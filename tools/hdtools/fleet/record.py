@@ -132,26 +132,36 @@ def _quiet(*_a):
 
 
 def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), loop=False,
-                byte_range=None):
-    """The record's values for one log, or for the chunk of its data rows in
-    byte_range (chunks.py); loading.InputError on bad input."""
+                byte_range=None, window_ns=None, joint=None):
+    """The record's values for one log, for the chunk of its data rows in
+    byte_range, or for a bag's messages in window_ns (chunks.py); joint: the
+    bag's joint to read (None: its only one).  loading.InputError on bad
+    input."""
     if byte_range is None:
-        rec, _ = _analyze(path, gear_ratio, motor_orders, output_orders, loop)
-        rec["chunk_offset_s"] = 0.0
+        rec, _ = _analyze(path, gear_ratio, motor_orders, output_orders, loop,
+                          joint=joint, window_ns=window_ns)
+        rec["chunk_offset_s"] = 0.0 if window_ns is None else _window_offset_s(path, window_ns)
         return rec
-    with chunks.extracted(path, byte_range) as (tmp, first_t):
+    with chunks.extracted(path, byte_range) as (tmp, where):
         try:
             rec, data = _analyze(tmp, gear_ratio, motor_orders, output_orders, loop)
         except loading.InputError as exc:
             raise loading.InputError(str(exc).replace(tmp, str(path))) from None
     scale = loading.TIME_SCALE.get(data.units.get("time", "s"), 1.0)
-    rec["chunk_offset_s"] = (float(data.pieces[0].t_s[0]) - first_t * scale
+    first_t = where.get("first_t")
+    rec["chunk_offset_s"] = (where["offset_s"] if "offset_s" in where else
+                             float(data.pieces[0].t_s[0]) - first_t * scale
                              if first_t is not None else math.nan)
     return rec
 
 
-def _analyze(path, gear_ratio, motor_orders, output_orders, loop):
-    data = loading.load(path)
+def _window_offset_s(path, window_ns):
+    from ..rosio import bagin
+    return (window_ns[0] - bagin.index(path)["start_ns"]) * 1e-9
+
+
+def _analyze(path, gear_ratio, motor_orders, output_orders, loop, joint=None, window_ns=None):
+    data = loading.load(path, joint=joint, window_ns=window_ns)
     g = pipeline.gear_of(data, None, _quiet)
     if gear_ratio is not None:
         if abs(g["value"] - gear_ratio) > GEAR_TOLERANCE * gear_ratio and g["source"] != "assumed":
@@ -183,7 +193,8 @@ def _analyze(path, gear_ratio, motor_orders, output_orders, loop):
            "loop_out_of_sample_innovation_after_nm": math.nan}
     if loop:
         rep = pipeline.analyze(path, gear_ratio=g["value"], motor_orders=motor_orders,
-                               output_orders=output_orders, log=_quiet)
+                               output_orders=output_orders, log=_quiet, joint=joint,
+                               window_ns=window_ns)
         rec["loop_run"] = True
         rec["loop_added"] = "; ".join(pipeline.label(e) for e in rep["effects"] if e["added"])
         rec["loop_out_of_sample_innovation_after_nm"] = float(

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from array import array
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -63,21 +64,31 @@ def _why(exc: Exception) -> str:
     return text.replace("; please report issue.", "").replace(" please report issue.", "")[:200]
 
 
-def read(path, joint: str | None) -> tuple[dict, list[str]]:
-    """(columns, notes) for the joint (None: the bag's only joint)."""
-    path = Path(path)
+@contextmanager
+def _opened(path: Path, what: str):
+    """An open reader; any failure of the storage or the CDR decoder while
+    it is used becomes one BagError line."""
     reader = _open(path)
     try:
-        return _read(reader, path, joint)
+        yield reader
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - a truncated chunk, a bad CDR payload
-        raise BagError(f"{path}: cannot read the bag's messages: {_why(exc)}") from None
+        raise BagError(f"{path}: cannot read the bag's {what}: {_why(exc)}") from None
     finally:
         try:
             reader.close()
         except Exception:  # noqa: BLE001 - nothing left to save
             pass
+
+
+def read(path, joint: str | None, window_ns=None) -> tuple[dict, list[str]]:
+    """(columns, notes) for the joint (None: the bag's only joint).
+    window_ns: (start, stop), the messages whose log time is in
+    [start, stop) only (a chunk of a long bag, hdtools.fleet.chunks)."""
+    path = Path(path)
+    with _opened(path, "messages") as reader:
+        return _read(reader, path, joint, window_ns)
 
 
 def _joint_connections(reader, path):
@@ -104,7 +115,23 @@ def _contract_topics(reader) -> tuple[dict, dict]:
     return good, bad
 
 
-def _read(reader, path: Path, joint: str | None):
+def index(path) -> dict:
+    """What a fleet needs to know of a bag without reading its messages
+    (hdtools.fleet.catalog): its joints (those of its contract channels,
+    and those the first JointState message names), the log times of its
+    first and last message [ns], and its size in bytes."""
+    path = Path(path)
+    with _opened(path, "index") as reader:
+        joints = {j for j, _ in _contract_topics(reader)[0].values()}
+        for conn, _stamp, raw in reader.messages(_joint_connections(reader, path)):
+            joints.update(reader.deserialize(raw, conn.msgtype).name)
+            break
+        files = [path] if path.is_file() else [f for f in path.iterdir() if f.is_file()]
+        return {"joints": sorted(joints), "start_ns": int(reader.start_time),
+                "end_ns": int(reader.end_time), "bytes": sum(f.stat().st_size for f in files)}
+
+
+def _read(reader, path: Path, joint: str | None, window_ns=None):
     """One pass over the bag (the storage parses every record of a chunk
     once per pass): JointState for the joint, every contract channel."""
     js_conns = _joint_connections(reader, path)
@@ -115,7 +142,8 @@ def _read(reader, path: Path, joint: str | None):
     present: set[str] = set()
     index_of: dict[tuple, int | None] = {}
     want = joint
-    for conn, stamp, raw in reader.messages(js_conns + extra):
+    start, stop = window_ns or (None, None)
+    for conn, stamp, raw in reader.messages(js_conns + extra, start=start, stop=stop):
         if conn.topic in good:
             t, v = series[good[conn.topic]]
             t.append(stamp)

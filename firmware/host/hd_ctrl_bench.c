@@ -1,0 +1,348 @@
+/*
+ * hdctrl-bench: the firmware's closed torque loop on the host against the
+ * dynamic joint (hal/simdyn: sim/hd_sim_joint behind the sensors,
+ * hal/simdrive as the drive), as tests/firmware/test_fw_closed_loop.c runs
+ * it, for the control benchmark (tools/hdtools/bench/control*.py).
+ *
+ *   hdctrl-bench --input IN --out OUT.csv [options]
+ *
+ * IN has one line per tick: "setpoint_nm inject_a speed_rad_s".  setpoint_nm
+ * is the SETPOINT frame's torque (TORQUE: the torque; IMPEDANCE: tau_ff);
+ * speed_rad_s is the dynamometer's speed (--load dyno); inject_a
+ * is added to the current the firmware commands before the drive sees it:
+ * the loop broken at the plant input for the margin measurement (the
+ * firmware's own command is logged apart, so L = -cmd / drive per
+ * frequency).  OUT gets one row per tick of commands and the simulation's
+ * truth (the header names the columns).
+ *
+ * The load on the output (--load):
+ *   dyno   a velocity servo (PI on the true output speed, like a
+ *          dynamometer: --dyno-kv, --dyno-ki) holding the input's speed:
+ *          the mean speed is exact, at 0 it holds the position
+ *   free   nothing but --person-nm, a constant torque of a person
+ *   wall   a stiff wall at --wall-rad (--wall-stiffness, --wall-damping),
+ *          plus --person-nm
+ * --preroll N: the first N ticks run ZERO_TORQUE with the dynamometer on
+ * the input's speed whatever the load (the joint back-driven, so that the
+ * filter has seen it move before the scene starts).
+ * Every other parameter is the firmware's default and the simulated joint's
+ * default: the firmware is told nothing about the plant.
+ * Exit 0 with OUT whole, or one line on stderr and 1 (2: usage).
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hal_mock.h"
+#include "hal_simdyn.h"
+#include "hd_calib_record.h"
+#include "hd_fw.h"
+#include "hd_hostio.h"
+
+#define MAX_TICKS 400000u
+#define MAX_INPUT_BYTES (64u * 1024u * 1024u)
+
+typedef struct {
+    const char *input, *out;
+    int mode;
+    int feedback;
+    double kp, ki, ff, lowpass_hz, notch_width_hz;
+    int lowpass_order, notch_mask;
+    int load;           /* 0 dyno, 1 free, 2 wall */
+    double dyno_kv, dyno_ki, person_nm;
+    double wall_rad, wall_k, wall_d;
+    double imp_kp, imp_kd, imp_q_rad;
+    unsigned seed;
+    size_t preroll;
+} opts_t;
+
+static hal_mock_t mock; /* the CAN part only */
+static hal_simdyn_t dyn;
+static hal_t hal;
+static hd_fw_t fw;
+
+/* The break point: what the firmware commands, and the injected current. */
+static hal_actuator_t drive_port;
+static double inject_a, cmd_a;
+
+static int cmd_current(void *ctx, float current_a)
+{
+    (void)ctx;
+    cmd_a = (double)current_a;
+    return drive_port.command_current(drive_port.ctx, (float)(cmd_a + inject_a));
+}
+
+static int fail(const char *msg, const char *what)
+{
+    fprintf(stderr, "hdctrl-bench: %s%s%s\n", msg, what ? ": " : "", what ? what : "");
+    return 1;
+}
+
+static int pick(const char *v, const char *const *names, int n)
+{
+    for (int i = 0; i < n; i++) {
+        if (strcmp(v, names[i]) == 0) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+static int number(const char *v, double *out)
+{
+    char *end;
+    errno = 0;
+    *out = strtod(v, &end);
+    return (errno != 0 || end == v || *end != '\0' || !isfinite(*out)) ? -1 : 0;
+}
+
+static int parse(int argc, char **argv, opts_t *o)
+{
+    static const char *const modes[] = {"stop", "damp", "torque", "impedance", "zero_torque"};
+    static const char *const fbs[] = {"filtered", "raw", "lowpass", "none"};
+    static const char *const loads[] = {"dyno", "free", "wall"};
+    const hd_ctrl_config_t *d = NULL;
+    static hd_ctrl_config_t def;
+    hd_ctrl_config_default(&def);
+    d = &def;
+    *o = (opts_t){.mode = HD_CTRL_TORQUE, .feedback = d->feedback, .kp = d->torque_kp,
+                  .ki = d->torque_ki_per_s, .ff = d->torque_ff, .lowpass_hz = d->lowpass_hz,
+                  .notch_width_hz = d->notch_width_hz, .lowpass_order = d->lowpass_order,
+                  .notch_mask = d->notch_mask, .dyno_kv = 50.0, .dyno_ki = 5000.0,
+                  .wall_k = 2e4, .wall_d = 5.0, .imp_kd = 0.0, .seed = 0x5EEDu};
+    for (int i = 1; i < argc; i++) {
+        const char *k = argv[i];
+        if (i + 1 >= argc) {
+            fprintf(stderr, "hdctrl-bench: %s needs a value\n", k);
+            return -1;
+        }
+        const char *v = argv[++i];
+        double x = 0.0;
+        const bool num = number(v, &x) == 0;
+        struct { const char *name; double *dst; } nums[] = {
+            {"--kp", &o->kp}, {"--ki", &o->ki}, {"--ff", &o->ff},
+            {"--lowpass-hz", &o->lowpass_hz}, {"--notch-width-hz", &o->notch_width_hz},
+            {"--dyno-kv", &o->dyno_kv}, {"--dyno-ki", &o->dyno_ki},
+            {"--person-nm", &o->person_nm}, {"--wall-rad", &o->wall_rad},
+            {"--wall-stiffness", &o->wall_k}, {"--wall-damping", &o->wall_d},
+            {"--imp-kp", &o->imp_kp}, {"--imp-kd", &o->imp_kd}, {"--imp-q", &o->imp_q_rad}};
+        bool done = false;
+        for (size_t j = 0; j < sizeof nums / sizeof nums[0]; j++) {
+            if (strcmp(k, nums[j].name) == 0) {
+                if (!num) {
+                    fprintf(stderr, "hdctrl-bench: %s: not a number: %s\n", k, v);
+                    return -1;
+                }
+                *nums[j].dst = x;
+                done = true;
+            }
+        }
+        if (done) {
+            continue;
+        }
+        if (strcmp(k, "--input") == 0) {
+            o->input = v;
+        } else if (strcmp(k, "--out") == 0) {
+            o->out = v;
+        } else if (strcmp(k, "--mode") == 0 && (o->mode = pick(v, modes, 5)) >= 0) {
+        } else if (strcmp(k, "--feedback") == 0 && (o->feedback = pick(v, fbs, 4)) >= 0) {
+        } else if (strcmp(k, "--load") == 0 && (o->load = pick(v, loads, 3)) >= 0) {
+        } else if (strcmp(k, "--lowpass-order") == 0 && num) {
+            o->lowpass_order = (int)x;
+        } else if (strcmp(k, "--notch-mask") == 0 && num && x >= 0 && x <= 255) {
+            o->notch_mask = (int)x;
+        } else if (strcmp(k, "--preroll") == 0 && num && x >= 0 && x <= MAX_TICKS) {
+            o->preroll = (size_t)x;
+        } else if (strcmp(k, "--seed") == 0 && num && x >= 0 && x < 4294967296.0) {
+            o->seed = (unsigned)x;
+        } else {
+            fprintf(stderr, "hdctrl-bench: bad option or value: %s %s\n", k, v);
+            return -1;
+        }
+    }
+    if (o->input == NULL || o->out == NULL) {
+        fprintf(stderr, "usage: hdctrl-bench --input IN --out OUT.csv [--mode M] [--feedback F] "
+                        "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
+                        "--notch-width-hz] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
+                        "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
+                        "--imp-q] [--preroll N] [--seed]\n");
+        return -1;
+    }
+    return 0;
+}
+
+#define COLS 3u
+
+/* The input's columns; *n ticks.  Returns NULL (+ message) on error. */
+static double *read_input(const char *path, size_t *n)
+{
+    char err[160];
+    size_t len = 0;
+    char *text = hd_hostio_read_file(path, MAX_INPUT_BYTES, &len, err, sizeof err);
+    if (text == NULL) {
+        fprintf(stderr, "hdctrl-bench: %s\n", err);
+        return NULL;
+    }
+    double *v = malloc(COLS * MAX_TICKS * sizeof *v);
+    size_t k = 0;
+    char *p = text;
+    while (v != NULL && *p != '\0') {
+        for (unsigned c = 0; c < COLS; c++) {
+            char *end;
+            const double a = strtod(p, &end);
+            if (end == p || k >= MAX_TICKS || !isfinite(a)) {
+                fprintf(stderr, "hdctrl-bench: %s: line %zu: want %u finite numbers (at most "
+                                "%u lines)\n", path, k + 1u, COLS, MAX_TICKS);
+                free(text);
+                free(v);
+                return NULL;
+            }
+            p = end;
+            v[COLS * k + c] = a;
+        }
+        k++;
+        while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') {
+            p++;
+        }
+    }
+    const bool bad = v == NULL || *p != '\0' || k == 0u;
+    free(text);
+    if (bad) {
+        fprintf(stderr, "hdctrl-bench: %s: not lines of \"setpoint_nm inject_a speed_rad_s\"\n",
+                path);
+        free(v);
+        return NULL;
+    }
+    *n = k;
+    return v;
+}
+
+static int setup(const opts_t *o, hd_fw_config_t *cfg)
+{
+    hd_sim_joint_params_t jp;
+    hd_sim_joint_default(&jp);
+    jp.payload_kg = 0.0;
+    jp.link_gravity_nm = 0.0;
+    if (o->load == 2) {
+        jp.env = HD_SIM_ENV_WALL;
+        jp.env_position_rad = o->wall_rad;
+        jp.env_stiffness_nm_rad = o->wall_k;
+        jp.env_damping_nm_s_rad = o->wall_d;
+    }
+    hal_simdrive_config_t dc;
+    hal_simdrive_default(&dc);
+    hal_simdyn_sensor_t sc;
+    hal_simdyn_sensor_default(&sc);
+    sc.offset_v = 0.0; /* the firmware's default calibration: no record stored */
+    sc.gain_nm_per_v = HD_CALIB_NOMINAL_GAIN_NM_PER_V;
+    sc.seed = o->seed;
+    char err[120];
+    if (hal_simdyn_init(&dyn, &jp, &dc, &sc, err, sizeof err) != 0) {
+        return fail("simulated joint", err);
+    }
+    hal = (hal_t){0};
+    hal_mock_init(&mock);
+    hal_mock_bind_can(&mock, &hal.can);
+    mock.tx_store = false;
+    hal_simdyn_bind(&dyn, &hal);
+    drive_port = hal.actuator;
+    hal.actuator.command_current = cmd_current;
+    hd_fw_config_default(cfg);
+    hd_ctrl_config_t *k = &cfg->ctrl;
+    k->feedback = (uint8_t)o->feedback;
+    k->torque_kp = (float)o->kp;
+    k->torque_ki_per_s = (float)o->ki;
+    k->torque_ff = (float)o->ff;
+    k->lowpass_hz = (float)o->lowpass_hz;
+    k->lowpass_order = (uint8_t)o->lowpass_order;
+    k->notch_mask = (uint8_t)o->notch_mask;
+    k->notch_width_hz = (float)o->notch_width_hz;
+    const int rc = hd_fw_init(&fw, &hal, cfg);
+    if (rc != HD_FW_OK) {
+        return fail("firmware configuration rejected", hd_fw_err_str(rc));
+    }
+    const hd_can_gains_t g = {(float)o->imp_kp, (float)o->imp_kd};
+    hal_can_frame_t f;
+    hd_can_encode_gains(cfg->node_id, &g, &f);
+    return hal_mock_push_rx(&mock, &f) == 0 ? 0 : fail("CAN receive queue full", NULL);
+}
+
+static int run(const opts_t *o, const double *in, size_t n, hd_out_t *out)
+{
+    hd_fw_config_t cfg;
+    if (setup(o, &cfg) != 0) {
+        return 1;
+    }
+    hd_out_printf(out, "tick,setpoint_nm,inject_a,cmd_a,true_torque_nm,gauge_nm,raw_nm,"
+                       "filtered_nm,fb_nm,torque_ref_nm,motor_angle_rad,output_angle_rad,"
+                       "output_velocity_rad_s,person_nm,env_nm,mode\n");
+    double dyno_int = 0.0;
+    for (size_t k = 0; k < n; k++) {
+        const bool pre = k < o->preroll;
+        const hd_can_setpoint_t sp = {.mode = pre ? (uint8_t)HD_CTRL_ZERO_TORQUE : (uint8_t)o->mode,
+                                      .seq = (uint8_t)k,
+                                      .torque_nm = (float)in[COLS * k],
+                                      .position_rad = (float)o->imp_q_rad,
+                                      .velocity_rad_s = 0.0f};
+        hal_can_frame_t f;
+        hd_can_encode_setpoint(cfg.node_id, &sp, &f);
+        if (hal_mock_push_rx(&mock, &f) != 0) {
+            return fail("CAN receive queue full", NULL);
+        }
+        inject_a = in[COLS * k + 1u];
+        cmd_a = 0.0;
+        hd_fw_isr(&fw);
+        hd_fw_background(&fw);
+        const double v = dyn.joint.x.output_velocity_rad_s;
+        double person = o->person_nm;
+        if (o->load == 0 || pre) {
+            const double target = in[COLS * k + 2u];
+            dyno_int += o->dyno_ki * (target - v) * dyn.joint.p.ts_s;
+            person = o->dyno_kv * (target - v) + dyno_int;
+        }
+        dyn.joint.person_torque_nm = person;
+        const hd_fw_sample_t *s = &fw.last;
+        const hd_ctrl_output_t *c = &fw.control.out;
+        hal_simdyn_tick(&dyn);
+        const hd_sim_joint_truth_t *t = &dyn.truth;
+        hd_out_printf(out, "%zu,%.5g,%.6g,%.6g,%.7g,%.7g,%.7g,%.7g,%.7g,%.7g,%.9g,%.9g,%.7g,%.7g,"
+                           "%.7g,%d\n",
+                      k, in[COLS * k], inject_a, cmd_a, t->output_torque_nm, t->gauge_torque_nm,
+                      (double)s->torque_raw_nm, (double)s->torque_filtered_nm,
+                      (double)c->torque_fb_nm, (double)c->torque_ref_nm, t->motor_angle_rad,
+                      t->output_angle_rad, t->output_velocity_rad_s, t->person_torque_nm,
+                      t->env_torque_nm, (int)c->mode);
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    opts_t o;
+    if (parse(argc, argv, &o) != 0) {
+        return 2;
+    }
+    size_t n = 0;
+    double *in = read_input(o.input, &n);
+    if (in == NULL) {
+        return 1;
+    }
+    hd_out_t out;
+    char err[200];
+    if (hd_out_open(&out, o.out, false, err, sizeof err) != 0) {
+        free(in);
+        return fail(err, NULL);
+    }
+    const int rc = run(&o, in, n, &out);
+    free(in);
+    if (rc != 0) {
+        hd_out_abort(&out);
+        return rc;
+    }
+    if (hd_out_commit(&out, err, sizeof err) != 0) {
+        return fail(err, NULL);
+    }
+    return 0;
+}

@@ -1,0 +1,102 @@
+"""The control benchmark's loop measurement (tools/hdtools/bench/
+control_loop.py) against loops with a closed-form L:
+
+  * margins() on L(jw) = K exp(-jwT) / (1 + jw tau): the crossover
+    sqrt(K^2 - 1) / tau, PM = 180 - wc T - atan(wc tau), and GM at the
+    root of w T + atan(w tau) = pi (scipy's brentq on the closed form);
+  * the injection measurement (multisine, whole periods, L = -CMD / X) on a
+    discrete first-order plant with a delay under a PI, simulated here
+    tick by tick: the measured lines equal C(z) P(z) in closed form, and
+    its margins those of the closed form on a dense grid;
+  * pi_response against the law's recursion (u = kp e + I, I += ki ts e);
+  * bandwidth_hz of a first-order response: its corner.
+"""
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import brentq
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tools"))
+
+from hdtools.bench import control_loop as cl  # noqa: E402
+from hdtools.bench import control_tune as ct  # noqa: E402
+
+
+def test_margins_of_first_order_plus_delay():
+    k, t_s, tau = 4.0, 2e-3, 0.01
+    f = np.geomspace(0.5, 2000.0, 4000)
+    w = 2 * math.pi * f
+    loop = k * np.exp(-1j * w * t_s) / (1 + 1j * w * tau)
+    m = cl.margins(f, loop)
+    wc = math.sqrt(k * k - 1) / tau
+    pm = 180.0 - math.degrees(wc * t_s + math.atan(wc * tau))
+    w180 = brentq(lambda x: x * t_s + math.atan(x * tau) - math.pi, 1.0, 1e5)
+    gm = -20 * math.log10(k / math.sqrt(1 + (w180 * tau) ** 2))
+    assert abs(m["crossover_hz"] - wc / (2 * math.pi)) < 0.01 * wc / (2 * math.pi)
+    assert abs(m["pm_deg"] - pm) < 0.2
+    assert abs(m["gm_db"] - gm) < 0.05
+    assert abs(m["phase_crossover_hz"] - w180 / (2 * math.pi)) < 0.01 * w180 / (2 * math.pi)
+
+
+def test_no_crossover_is_infinite_margin():
+    f = np.geomspace(1, 100, 50)
+    m = cl.margins(f, 0.1 / (1 + 1j * f / 10))
+    assert m["pm_deg"] == math.inf and m["gm_db"] == math.inf and m["crossover_hz"] is None
+
+
+def _simulate_loop(inject, kp, ki, a, b, delay):
+    """y_k = a y_(k-1) + b x_(k-delay); the law's PI on e = -y (setpoint 0);
+    x = cmd + inject.  Returns (cmd, x)."""
+    n = len(inject)
+    y, x, cmd = np.zeros(n), np.zeros(n), np.zeros(n)
+    integ = 0.0
+    for k in range(n):
+        y[k] = (a * y[k - 1] if k else 0.0) + (b * x[k - delay] if k >= delay else 0.0)
+        e = -y[k]
+        cmd[k] = kp * e + integ
+        integ += ki * cl.TS_S * e
+        x[k] = cmd[k] + inject[k]
+    return cmd, x
+
+
+def test_injection_measures_the_closed_form_loop():
+    kp, ki, a, delay = 3.0, 60.0, math.exp(-cl.TS_S / 0.004), 2
+    b = 1 - a
+    one, bins = cl.multisine()
+    cmd, x = _simulate_loop(np.tile(one, 3), kp, ki, a, b, delay)
+    measured = -cl.line_spectrum(cmd, cl.MS_PERIOD, bins) / cl.line_spectrum(x, cl.MS_PERIOD, bins)
+    f = bins / (cl.MS_PERIOD * cl.TS_S)
+
+    def closed(freq):
+        z = np.exp(1j * 2 * math.pi * freq * cl.TS_S)
+        return cl.pi_response(freq, kp, ki) * b * z ** (-delay) / (1 - a / z)
+    assert np.max(np.abs(measured / closed(f) - 1)) < 1e-6
+    dense = np.geomspace(f[0], f[-1], 5000)
+    m_meas, m_true = cl.margins(f, measured), cl.margins(dense, closed(dense))
+    assert abs(m_meas["pm_deg"] - m_true["pm_deg"]) < 2.0
+    assert abs(m_meas["gm_db"] - m_true["gm_db"]) < 0.5
+
+
+def test_pi_response_is_the_laws_recursion():
+    kp, ki, f = 0.8, 50.0, 7.0
+    n = 4000
+    e = np.sin(2 * math.pi * f * cl.TS_S * np.arange(n))
+    u, integ = np.zeros(n), 0.0
+    for k in range(n):
+        u[k] = kp * e[k] + integ
+        integ += ki * cl.TS_S * e[k]
+    u -= u[n // 2:].mean()   # the integral's constant from the start
+    t = np.arange(n // 2, n)
+    basis = np.exp(1j * 2 * math.pi * f * cl.TS_S * t)
+    gain = (u[t] @ basis.conj()) / (e[t] @ basis.conj())
+    assert abs(gain / cl.pi_response(f, kp, ki) - 1) < 1e-3
+
+
+def test_bandwidth_of_a_first_order_response():
+    f = np.geomspace(1, 200, 300)
+    assert abs(ct.bandwidth_hz(f, 1 / (1 + 1j * f / 25.0)) - 25.0) < 0.25
+    assert ct.bandwidth_hz(f, 0.5 + 0 * f) is None
+    assert ct.bandwidth_hz(f, 1 + 0 * f) == math.inf
