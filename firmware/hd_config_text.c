@@ -234,10 +234,7 @@ static int parse_block(hd_fw_config_t *c, const tok_t *v, size_t nv, bool *block
 }
 
 /* Lines on which each table row was set (0 = not yet), for duplicates. */
-typedef struct {
-    bool blocks_seen;
-    unsigned line_of[HD_PARAM_ROWS];
-} seen_t;
+typedef hd_cfgtxt_keys_t seen_t;
 
 static int parse_value(const hd_param_info_t *p, tok_t t, float *v)
 {
@@ -283,7 +280,7 @@ static int parse_param(hd_fw_config_t *c, tok_t key, tok_t value, seen_t *seen,
     if (parse_value(p, value, &v) != 0) {
         return fail(err, HD_FW_ERR_SYNTAX, line,
                     p->type == HD_PT_BOOL  ? "value must be on or off"
-                    : p->type == HD_PT_F32 ? "value is not a finite decimal number"
+                    : p->type == HD_PT_F32 ? "value is not a number (a finite decimal)"
                                            : "value must be a whole decimal number without a leading zero");
     }
     hd_fw_err_t rc = hd_param_set(p, c, v);
@@ -390,7 +387,7 @@ static int parse_line(hd_fw_config_t *c, const char *s, size_t n, seen_t *seen,
         return fail(err, HD_FW_ERR_SYNTAX, line, "too many values");
     }
     if (tok_eq(key, "block")) {
-        return parse_block(c, v, nv, &seen->blocks_seen, err, line);
+        return parse_block(c, v, nv, &seen->blocks, err, line);
     }
     if (nv != 1u) {
         return fail(err, HD_FW_ERR_SYNTAX, line, "this key takes one value");
@@ -400,6 +397,31 @@ static int parse_line(hd_fw_config_t *c, const char *s, size_t n, seen_t *seen,
 
 int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
                          hd_cfgtxt_error_t *err)
+{
+    return hd_config_text_parse_keys(text, len, cfg, err, NULL);
+}
+
+size_t hd_config_text_config_size(void)
+{
+    return sizeof(hd_fw_config_t);
+}
+
+int hd_config_text_block(const hd_fw_config_t *cfg, unsigned i, unsigned *lock, float *order,
+                         float *q_nm2, unsigned *enabled)
+{
+    if (cfg == NULL || i >= cfg->kf.block_count || i >= HD_KF_MAX_BLOCKS) {
+        return -1;
+    }
+    const hd_kf_block_config_t *b = &cfg->kf.blocks[i];
+    *lock = b->lock;
+    *order = b->order;
+    *q_nm2 = b->q_nm2;
+    *enabled = b->enabled;
+    return 0;
+}
+
+int hd_config_text_parse_keys(const char *text, size_t len, hd_fw_config_t *cfg,
+                              hd_cfgtxt_error_t *err, hd_cfgtxt_keys_t *keys)
 {
     if (cfg == NULL || (text == NULL && len > 0u)) {
         return fail(err, HD_FW_ERR_NULL, 0u, "null argument");
@@ -440,6 +462,9 @@ int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
         return frc;
     }
     *cfg = work;
+    if (keys != NULL) {
+        *keys = seen;
+    }
     fail(err, HD_FW_OK, 0u, "ok");
     return HD_FW_OK;
 }

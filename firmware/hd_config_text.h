@@ -30,6 +30,7 @@
 #include <stddef.h>
 
 #include "hd_fw.h"
+#include "hd_params.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -51,6 +52,26 @@ typedef struct {
  * Returns HD_FW_OK, or an hd_fw_err_t with *cfg unchanged; err may be NULL. */
 int hd_config_text_parse(const char *text, size_t len, hd_fw_config_t *cfg,
                          hd_cfgtxt_error_t *err);
+
+/* The keys a text gave: line_of[i] is the line of parameter row i
+ * (hd_param_at(i)), 0 if the text does not set it; blocks: it has a block line
+ * (so the blocks of the result replace the base's). */
+typedef struct {
+    bool blocks;
+    unsigned line_of[HD_PARAM_ROWS];
+} hd_cfgtxt_keys_t;
+
+/* hd_config_text_parse, and on success what the text gave in *keys (may be
+ * NULL): a host turns exactly those into commands (tools/hdtools/cfgtext.py
+ * calls it through ctypes, so the tools parse as the firmware does). */
+int hd_config_text_parse_keys(const char *text, size_t len, hd_fw_config_t *cfg,
+                              hd_cfgtxt_error_t *err, hd_cfgtxt_keys_t *keys);
+/* sizeof(hd_fw_config_t), for a host that allocates one through ctypes. */
+size_t hd_config_text_config_size(void);
+/* Block i of cfg as a `block` line gives it: lock (hd_kf_lock_t), order or
+ * frequency, q, enabled.  -1 if there is no block i. */
+int hd_config_text_block(const hd_fw_config_t *cfg, unsigned i, unsigned *lock, float *order,
+                         float *q_nm2, unsigned *enabled);
 
 /* Decimal number parser used above (exposed for tests): the whole of
  * [s, s+n) must be one number such as "-1.5e-3".  Returns 0 or -1. */

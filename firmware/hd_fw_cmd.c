@@ -106,8 +106,17 @@ static void add_block(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
     hd_fw_settings_t next = *hd_fw_live(fw);
     hd_kf_config_t *kf = &next.cfg.kf;
-    if (!(cmd->order > 0.0f) || !(cmd->value >= 0.0f) ||
-        (cmd->opcode == HD_CMD_ADD_FIXED && cmd->order >= 0.5f / HD_FW_TS_S)) {
+    float order = cmd->arg.add_fixed.frequency_hz;
+    float q_nm2 = cmd->arg.add_fixed.q_nm2;
+    if (cmd->opcode == HD_CMD_ADD_MOTOR) {
+        order = cmd->arg.add_motor.order;
+        q_nm2 = cmd->arg.add_motor.q_nm2;
+    } else if (cmd->opcode == HD_CMD_ADD_OUTPUT) {
+        order = cmd->arg.add_output.order;
+        q_nm2 = cmd->arg.add_output.q_nm2;
+    }
+    if (!(order > 0.0f) || !(q_nm2 >= 0.0f) ||
+        (cmd->opcode == HD_CMD_ADD_FIXED && order >= 0.5f / HD_FW_TS_S)) {
         r->result = HD_CAN_RES_OUT_OF_RANGE;
         return;
     }
@@ -118,8 +127,8 @@ static void add_block(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     hd_kf_block_config_t *b = &kf->blocks[kf->block_count];
     b->lock = (uint8_t)(cmd->opcode - HD_CMD_ADD_MOTOR); /* MOTOR, OUTPUT, FIXED in order */
     b->enabled = 1u;
-    b->order = cmd->order;
-    b->q_nm2 = cmd->value;
+    b->order = order;
+    b->q_nm2 = q_nm2;
     r->aux = kf->block_count;
     kf->block_count++;
     r->result = commit(fw, &next, true);
@@ -130,17 +139,18 @@ static void add_block(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 static void block_enable(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
     hd_fw_settings_t next = *hd_fw_live(fw);
-    uint8_t i = cmd->arg_u8[0];
+    const hd_can_cmd_block_enable_t *a = &cmd->arg.block_enable;
+    const uint8_t i = a->index;
     r->aux = i;
     if (i >= next.cfg.kf.block_count) {
         r->result = HD_CAN_RES_BAD_INDEX;
         return;
     }
-    if (cmd->arg_u8[1] > 1u) {
+    if (a->enable > 1u) {
         r->result = HD_CAN_RES_OUT_OF_RANGE;
         return;
     }
-    next.cfg.kf.blocks[i].enabled = cmd->arg_u8[1];
+    next.cfg.kf.blocks[i].enabled = a->enable;
     if (hd_fw_config_check(&next.cfg, NULL) != HD_FW_OK) {
         r->result = HD_CAN_RES_REJECTED;
         return;
@@ -148,7 +158,7 @@ static void block_enable(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     hd_fw_settings_t *spare = hd_fw_spare(fw);
     *spare = next;
     hd_fw_derive(spare);
-    post(fw, HD_FW_REQ_SETTINGS | HD_FW_REQ_BLOCK, i, cmd->arg_u8[1]);
+    post(fw, HD_FW_REQ_SETTINGS | HD_FW_REQ_BLOCK, i, a->enable);
 }
 
 /* BLOCK_GET: one field of a configured block, so a host can read a model
@@ -156,18 +166,18 @@ static void block_enable(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 static void block_get(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
     const hd_kf_config_t *kf = &hd_fw_live(fw)->cfg.kf;
-    const uint8_t i = cmd->arg_u8[0];
+    const uint8_t i = cmd->arg.block_get.index;
     r->aux = i;
     if (i >= kf->block_count) {
         r->result = HD_CAN_RES_BAD_INDEX;
         return;
     }
     const hd_kf_block_config_t *b = &kf->blocks[i];
-    switch (cmd->arg_u8[1]) {
-    case 0u: r->value = (float)b->lock; break;
-    case 1u: r->value = b->order; break;
-    case 2u: r->value = b->q_nm2; break;
-    case 3u: r->value = (float)b->enabled; break;
+    switch (cmd->arg.block_get.field) {
+    case HD_BLOCK_FIELD_LOCK: r->value = (float)b->lock; break;
+    case HD_BLOCK_FIELD_ORDER: r->value = b->order; break;
+    case HD_BLOCK_FIELD_Q_NM2: r->value = b->q_nm2; break;
+    case HD_BLOCK_FIELD_ENABLED: r->value = (float)b->enabled; break;
     default: r->result = HD_CAN_RES_OUT_OF_RANGE; break;
     }
 }
@@ -204,7 +214,7 @@ static void calib_job(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
     hd_fw_settings_t next = *hd_fw_live(fw);
     r->result = (cmd->opcode == HD_CMD_CALIB_SAVE)
-                    ? hd_fw_calib_save(fw, cmd->arg_u32, &next)
+                    ? hd_fw_calib_save(fw, cmd->arg.calib_save.calibrated_unix_s, &next)
                     : hd_fw_calib_load(fw, &next, &r->aux, &r->value);
     if (r->result == HD_CAN_RES_OK) {
         r->result = commit(fw, &next, false);
@@ -257,7 +267,8 @@ static void config_job(hd_fw_t *fw, uint8_t opcode, reply_t *r)
 
 static void info(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
-    uint8_t item = cmd->arg_u8[0];
+    const uint8_t item = (cmd->opcode == HD_CMD_VERSION) ? cmd->arg.version.item
+                                                         : cmd->arg.info.item;
     r->aux = item;
     /* VERSION answers the items below 16, INFO the rest. */
     bool mine = (cmd->opcode == HD_CMD_VERSION) ? item < 16u : item >= 16u;
@@ -296,13 +307,13 @@ static bool upload_complete(const hd_fw_t *fw)
 /* Lines arrive in order, a before b: line 0's a starts a new upload. */
 static void profile_put(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
-    const uint8_t b2 = cmd->arg_u8[0];
+    const hd_can_cmd_profile_put_t *a = &cmd->arg.profile_put;
+    const uint8_t b2 = a->line;
     const unsigned i = b2 & PUT_INDEX_MASK;
     const bool is_b = (b2 & PUT_B) != 0u;
     const uint8_t lock = (b2 & PUT_OUTPUT) != 0u ? HD_KF_LOCK_OUTPUT : HD_KF_LOCK_MOTOR;
-    const uint8_t order = cmd->arg_u8[1];
-    float v;
-    memcpy(&v, &cmd->arg_u32, sizeof v); /* the f32 at bytes 4..7 */
+    const uint8_t order = a->order;
+    const float v = a->value_nm; /* not checked by the decoder: after the index, below */
     r->aux = b2;
     r->value = v;
     const float lim = hd_fw_live(fw)->cfg.torque_limit_nm;
@@ -343,9 +354,15 @@ static void profile_put(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 /* PROFILE_SAVE / LOAD's source byte: 0 the filter or the record, 1 the
  * upload (which must be complete).  Returns false with r->result set if
  * the command cannot go on. */
+static uint8_t source_of(const hd_can_cmd_t *cmd)
+{
+    return cmd->opcode == HD_CMD_PROFILE_SAVE ? cmd->arg.profile_save.source
+                                              : cmd->arg.profile_load.source;
+}
+
 static bool profile_source(const hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
 {
-    const uint8_t source = cmd->arg_u8[0];
+    const uint8_t source = source_of(cmd);
     if (source > 1u) {
         r->result = HD_CAN_RES_OUT_OF_RANGE;
         return false;
@@ -362,7 +379,7 @@ static void profile_save(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, rep
     if (!profile_source(fw, cmd, r)) {
         return;
     }
-    if (cmd->arg_u8[0] == 1u) {
+    if (source_of(cmd) == 1u) {
         hd_fw_settings_t next = *hd_fw_live(fw);
         r->value = (float)fw->bg.upload.line_count;
         r->result = hd_fw_profile_save(fw, &fw->bg.upload, &next, &r->aux);
@@ -387,7 +404,7 @@ static void profile_load(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     if (!profile_source(fw, cmd, r)) {
         return;
     }
-    if (cmd->arg_u8[0] == 1u) {
+    if (source_of(cmd) == 1u) {
         fw->bg.profile = fw->bg.upload;
         r->aux = next.profile_status;
         r->value = (float)fw->bg.profile.line_count;
@@ -455,15 +472,17 @@ static bool finish_profile_save(hd_fw_t *fw)
 static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
 {
     switch (cmd->opcode) {
-    case HD_CMD_FILTER_ENABLE: set_param(fw, HD_PARAM_FILTER_ENABLED, cmd->arg_u8[0], r); break;
+    case HD_CMD_FILTER_ENABLE:
+        set_param(fw, HD_PARAM_FILTER_ENABLED, cmd->arg.filter_enable.enable, r);
+        break;
     case HD_CMD_ADD_MOTOR:
     case HD_CMD_ADD_OUTPUT:
     case HD_CMD_ADD_FIXED: add_block(fw, cmd, r); break;
     case HD_CMD_BLOCK_ENABLE: block_enable(fw, cmd, r); break;
     case HD_CMD_BLOCKS_CLEAR: blocks_clear(fw, r); break;
     case HD_CMD_BLOCK_GET: block_get(fw, cmd, r); break;
-    case HD_CMD_SET_PARAM: set_param(fw, cmd->arg_u8[0], cmd->value, r); break;
-    case HD_CMD_GET_PARAM: get_param(fw, cmd->arg_u8[0], r); break;
+    case HD_CMD_SET_PARAM: set_param(fw, cmd->arg.set_param.id, cmd->arg.set_param.value, r); break;
+    case HD_CMD_GET_PARAM: get_param(fw, cmd->arg.get_param.id, r); break;
     case HD_CMD_TARE: tare(fw, r); break;
     case HD_CMD_CALIB_SAVE:
     case HD_CMD_CALIB_LOAD: calib_job(fw, cmd, r); break;

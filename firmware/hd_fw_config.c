@@ -1,6 +1,7 @@
 /* hd_fw_config: see hd_fw_config.h. */
 #include "hd_fw_config.h"
 
+#include <math.h> /* isnan, NAN: compiler builtins, no libm call */
 #include <string.h>
 
 #include "hd_calib_record.h"
@@ -17,31 +18,20 @@ void hd_fw_ctrl_config(const hd_fw_config_t *cfg, hd_ctrl_config_t *out)
 void hd_fw_config_default(hd_fw_config_t *cfg)
 {
     memset(cfg, 0, sizeof *cfg);
+    /* the libraries' defaults: the LIB rows */
     hd_kf_config_recommended(&cfg->kf, HD_FW_TS_S, HD_FW_DEFAULT_NOISE_NM,
                              HD_FW_DEFAULT_RIPPLE_SETTLE_S, HD_FW_DEFAULT_OFFSET_SETTLE_S);
     hd_expected_config_default(&cfg->expected);
-    cfg->kf.correction_max_nm = HD_FW_DEFAULT_CORRECTION_MAX_NM;
     cfg->track_bandwidth_hz = HD_TRACK_DEFAULT_BANDWIDTH_HZ;
-    cfg->gear_ratio = 100.0f;
-    cfg->motor_cpr = 4096u;
-    cfg->output_cpr = 4096u;
-    cfg->adc_volts_per_count = 10.0f / 32768.0f;
-    cfg->torque_limit_nm = 200.0f;
-    cfg->max_motor_speed_rad_s = 1000.0f;
     cfg->calib_gain_nm_per_v = HD_CALIB_NOMINAL_GAIN_NM_PER_V;
-    cfg->calib_offset_v = 0.0f;
-    cfg->telemetry_rate_hz = 1000u;
-    cfg->angle_telemetry_every = 10u;
-    cfg->node_id = 1u;
-    cfg->filter_enabled = 1u;
-    cfg->feedforward_timeout_ms = 0u;
-    cfg->current_filter_hz = HD_FW_DEFAULT_CURRENT_FILTER_HZ;
-    cfg->feedforward_ramp_ms = HD_FW_DEFAULT_FF_RAMP_MS;
-    cfg->learning_mode = HD_FW_LEARN_OPERATING;
-    cfg->operating_output_learn_scale = HD_FW_DEFAULT_OPERATING_LEARN_SCALE;
     hd_ctrl_config_default(&cfg->ctrl); /* control/'s defaults */
-    cfg->ctrl_watchdog_ms = HD_FW_DEFAULT_CTRL_WATCHDOG_MS;
-    cfg->ctrl_damp_ms = HD_FW_DEFAULT_CTRL_DAMP_MS;
+    /* every other row's default column (in range: fw_config_text checks) */
+    for (size_t i = 0; i < hd_param_count(); i++) {
+        const hd_param_info_t *p = hd_param_at(i);
+        if (!isnan(p->dflt)) {
+            (void)hd_param_set(p, cfg, p->dflt);
+        }
+    }
 }
 
 void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out)

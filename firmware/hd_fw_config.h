@@ -26,19 +26,10 @@ extern "C" {
 #define HD_FW_DEFAULT_NOISE_NM 0.02f
 #define HD_FW_DEFAULT_RIPPLE_SETTLE_S 0.05f
 #define HD_FW_DEFAULT_OFFSET_SETTLE_S 0.02f
-/* Slow-torque defaults, from the measurements in docs/slow-torque.md. */
-#define HD_FW_DEFAULT_FF_RAMP_MS 500u
-#define HD_FW_DEFAULT_OPERATING_LEARN_SCALE 0.0f
-#define HD_FW_DEFAULT_CURRENT_FILTER_HZ 10.0f
-/* No strain-wave gear of this class carries 8 N m of ripple: a correction
- * beyond it is a wrong estimate (hdsense analyze writes the joint's own). */
-#define HD_FW_DEFAULT_CORRECTION_MAX_NM 8.0f
+/* The other defaults are the default column of hd_params.def. */
 /* ripple_load_coeff_per_nm x torque_limit_nm at most this (a line 101x its
  * zero-load amplitude at the limit). */
 #define HD_FW_MAX_LOAD_GROWTH 100.0f
-
-#define HD_FW_DEFAULT_CTRL_WATCHDOG_MS 100u /* as moteus */
-#define HD_FW_DEFAULT_CTRL_DAMP_MS 500u
 
 typedef struct {
     hd_kf_config_t kf;              /* ts_s must be HD_FW_TS_S */

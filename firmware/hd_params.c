@@ -19,6 +19,7 @@
 #define CONFIG HD_PF_CONFIG
 #define CALIB HD_PF_CALIB
 #define LO_OPEN HD_PF_LO_OPEN
+#define LIB NAN
 
 #define SIZE_OF_F32 4u
 #define SIZE_OF_U32 4u
@@ -27,13 +28,14 @@
 #define SIZE_OF_BOOL 1u
 
 /* A row's type must match its field's size. */
-#define HD_PARAM(id, NAME, key, type, field, lo, hi, flags, unit, doc) \
+#define HD_PARAM(id, NAME, key, type, field, dflt, lo, hi, flags, unit, doc) \
     _Static_assert(sizeof(((hd_fw_config_t *)0)->field) == SIZE_OF_##type, #NAME ": type/field size");
 #include "hd_params.def"
 
 static const hd_param_info_t TABLE[] = {
-#define HD_PARAM(id, NAME, key, type, field, lo, hi, flags, unit, doc) \
-    {id, type, (flags), (uint16_t)offsetof(hd_fw_config_t, field), (float)(lo), (float)(hi), key, #NAME, unit},
+#define HD_PARAM(id, NAME, key, type, field, dflt, lo, hi, flags, unit, doc) \
+    {id, type, (flags), (uint16_t)offsetof(hd_fw_config_t, field), (float)(lo), (float)(hi), key, #NAME, unit, \
+     (float)(dflt)},
 #include "hd_params.def"
 };
 
@@ -48,6 +50,7 @@ static const hd_param_info_t TABLE[] = {
 #undef CONFIG
 #undef CALIB
 #undef LO_OPEN
+#undef LIB
 
 #define TABLE_ROWS (sizeof TABLE / sizeof TABLE[0])
 _Static_assert(TABLE_ROWS == HD_PARAM_ROWS, "HD_PARAM_ROWS counts the table's rows");

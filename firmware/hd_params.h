@@ -50,6 +50,7 @@ typedef struct {
     const char *key;   /* configuration-text key */
     const char *name;  /* NAME column */
     const char *unit;
+    float dflt;        /* hd_fw_config_default's value; NaN: the library's (LIB) */
 } hd_param_info_t;
 
 size_t hd_param_count(void);

@@ -73,10 +73,6 @@ def test_installed_package_reads_its_own_copies(installed, tmp_path):
     assert "site-packages" in path and str(ROOT) not in path
     assert int(count) == sum(1 for line in (ROOT / "firmware" / "hd_params.def").read_text()
                              .splitlines() if line.startswith("HD_PARAM("))
-    cfg = tmp_path / "m.cfg"
-    cfg.write_text("r_nm2 = 0.0004\nblock = motor 2 1e-7\n")
-    r = run(installed, installed / "bin" / "hdsense", "canlog", "commands", cfg)
-    assert r.returncode == 0 and len(r.stdout.splitlines()) == 3, r.stderr
     # a bus with no joint: one line, exit 5, no traceback
     r = run(installed, installed / "bin" / "hdsense", "device", "-i", "virtual", "nobody",
             "--timeout", "0.1", "version")
@@ -91,6 +87,12 @@ def test_installed_package_finds_the_c_libraries(installed):
     r = run(installed, py, "-c", "from hdtools import emu; j = emu.Emulator(); "
             "print(len(j.run_frames(10)))", env={"HD_BUILD_DIR": build})
     assert r.returncode == 0 and int(r.stdout) >= 20, r.stderr
+    # a configuration text, read by the firmware's parser in those libraries
+    cfg = installed / "m.cfg"
+    cfg.write_text("r_nm2 = 0.0004\nblock = motor 2 1e-7\n")
+    r = run(installed, installed / "bin" / "hdsense", "canlog", "commands", cfg,
+            env={"HD_BUILD_DIR": build})
+    assert r.returncode == 0 and len(r.stdout.splitlines()) == 3, r.stderr
     # no build directory and no source tree: says what to set
     r = run(installed, py, "-c", "from hdtools import native\ntry:\n native.build_dir()\n"
             "except FileNotFoundError as e:\n print(e)")

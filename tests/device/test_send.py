@@ -115,13 +115,22 @@ def test_not_saved_does_not_survive_a_reboot(analyzed, joint, channel, capsys):
 
 
 def test_refusals_are_reported_and_nothing_is_saved(joint, channel, capsys, tmp_path):
-    # nine blocks: the firmware has room for eight (NO_SPACE), the ranges are fine
-    cfg = tmp_path / "nine.cfg"
-    cfg.write_text("r_nm2 = 0.001\n" + "".join(f"block = motor {k} 1e-7\n" for k in range(1, 10)))
+    # nine blocks: the firmware has room for eight.  Its parser (which the
+    # tools run) refuses such a text; sent as frames, the joint answers NO_SPACE
+    nine = "r_nm2 = 0.001\n" + "".join(f"block = motor {k} 1e-7\n" for k in range(1, 10))
+    text_cfg = tmp_path / "nine.cfg"
+    text_cfg.write_text(nine)
+    db = canproto.load_db()
+    cfg = tmp_path / "nine.can"
+    cfg.write_text("".join(canproto.cansend_str(f) + "\n" for f in canproto.config_to_commands(
+        nine.replace("block = motor 9 1e-7\n", "")) + [canproto.command(
+            db, "ADD_MOTOR", MotorOrder=9, MotorQ=1e-7)]))
     cmd_id = canproto.BASE_IDS["CMD"] + 1
     bad_can = tmp_path / "bad.can"      # SET_PARAM r_nm2 = -1, past the host-side checks
     bad_can.write_text(f"{cmd_id:08X}#20000100" + struct.pack("<f", -1.0).hex().upper() + "\n")
     with joint().attach("virtual", channel):
+        rc, out, err = run_cli(capsys, "send", "-i", "virtual", channel, text_cfg)
+        assert rc == 2 and "line 10: too many blocks" in err
         rc, out, err = run_cli(capsys, "send", "-i", "virtual", channel, cfg)
         assert rc == 1
         refused = [l for l in out.splitlines() if l.startswith("refused:")]

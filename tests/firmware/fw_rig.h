@@ -121,14 +121,12 @@ static inline uint32_t last_faults(void)
     return t.faults;
 }
 
-/* Sends one command and returns its ACK (0xEE everywhere if none came). */
-static inline hd_can_ack_t send_cmd(const hd_can_cmd_t *c)
+/* Sends one command frame and returns its ACK (0xEE everywhere if none came). */
+static inline hd_can_ack_t send_frame(const hal_can_frame_t *f)
 {
-    hal_can_frame_t f;
     uint8_t node = live_cfg()->node_id;
-    hd_can_encode_cmd(node, c, &f);
     uint32_t before = hal_mock_tx_count(&mock);
-    hal_mock_push_rx(&mock, &f);
+    hal_mock_push_rx(&mock, f);
     run(2, 1000, 1); /* tick: queued; background: executed; tick: ACK out */
     hd_can_ack_t a;
     memset(&a, 0xEE, sizeof a);
@@ -141,22 +139,33 @@ static inline hd_can_ack_t send_cmd(const hd_can_cmd_t *c)
     return a;
 }
 
+static inline hd_can_ack_t send_cmd(const hd_can_cmd_t *c)
+{
+    hal_can_frame_t f;
+    hd_can_encode_cmd(live_cfg()->node_id, c, &f);
+    return send_frame(&f);
+}
+
 static inline hd_can_ack_t set_param(int id, float v)
 {
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_SET_PARAM;
     c.token = 0x33;
-    c.arg_u8[0] = (uint8_t)id;
-    c.value = v;
+    c.arg.set_param.id = (uint8_t)id;
+    c.arg.set_param.value = v;
     return send_cmd(&c);
 }
 
+/* A command whose one argument is the u8 at byte 2 (docs/protocol.md), or
+ * none: the byte is written as it is, whatever the opcode. */
 static inline hd_can_ack_t simple_cmd(uint8_t opcode, uint8_t arg)
 {
     hd_can_cmd_t c = {0};
     c.opcode = opcode;
-    c.arg_u8[0] = arg;
-    return send_cmd(&c);
+    hal_can_frame_t f;
+    hd_can_encode_cmd(live_cfg()->node_id, &c, &f);
+    f.data[2] = arg;
+    return send_frame(&f);
 }
 
 #endif /* FW_RIG_H */

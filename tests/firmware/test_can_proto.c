@@ -74,8 +74,8 @@ static void test_command_bytes_match_the_documented_example(void)
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_ADD_MOTOR;
     c.token = 7;
-    c.order = 2.0f;
-    c.value = 1000.0f;
+    c.arg.add_motor.order = 2.0f;
+    c.arg.add_motor.q_nm2 = 1000.0f;
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &c, &f);
     const uint8_t e[8] = {0x10, 0x07, 0xC8, 0x00, 0x00, 0x00, 0x7A, 0x44};
@@ -85,43 +85,90 @@ static void test_command_bytes_match_the_documented_example(void)
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
     TEST_ASSERT_EQUAL_UINT8(HD_CMD_ADD_MOTOR, d.opcode);
     TEST_ASSERT_EQUAL_UINT8(7, d.token);
-    TEST_ASSERT_EQUAL_FLOAT(2.0f, d.order);
-    TEST_ASSERT_EQUAL_FLOAT(1000.0f, d.value);
+    TEST_ASSERT_EQUAL_FLOAT(2.0f, d.arg.add_motor.order);
+    TEST_ASSERT_EQUAL_FLOAT(1000.0f, d.arg.add_motor.q_nm2);
+}
+
+static void test_command_argument_bytes(void)
+{
+    /* Hand-computed from docs/protocol.md's argument table. */
+    hd_can_cmd_t c = {0};
+    hal_can_frame_t f;
+    c.opcode = HD_CMD_ADD_FIXED;
+    c.token = 1;
+    c.arg.add_fixed.frequency_hz = 499.996f; /* x100 rounds to 50000 = 0xC350 */
+    c.arg.add_fixed.q_nm2 = -2.0f;           /* 0xC0000000 */
+    hd_can_encode_cmd(1, &c, &f);
+    const uint8_t ef[8] = {0x12, 0x01, 0x50, 0xC3, 0x00, 0x00, 0x00, 0xC0};
+    TEST_ASSERT_EQUAL_MEMORY(ef, f.data, 8);
+    c.arg.add_fixed.frequency_hz = 700.0f;   /* clamps at 0xFFFF */
+    hd_can_encode_cmd(1, &c, &f);
+    TEST_ASSERT_EQUAL_HEX8(0xFF, f.data[2]);
+    TEST_ASSERT_EQUAL_HEX8(0xFF, f.data[3]);
+    c = (hd_can_cmd_t){0};
+    c.opcode = HD_CMD_BLOCK_GET;
+    c.token = 0xAB;
+    c.arg.block_get.index = 5;
+    c.arg.block_get.field = HD_BLOCK_FIELD_Q_NM2;
+    hd_can_encode_cmd(1, &c, &f);
+    const uint8_t eg[8] = {0x15, 0xAB, 0x05, 0x02, 0x00, 0x00, 0x00, 0x00};
+    TEST_ASSERT_EQUAL_MEMORY(eg, f.data, 8);
+    c = (hd_can_cmd_t){0};
+    c.opcode = HD_CMD_PROFILE_PUT;
+    c.arg.profile_put.line = 0x13;   /* line 3, b */
+    c.arg.profile_put.order = 2;
+    c.arg.profile_put.value_nm = NAN; /* passed on: the handler refuses it */
+    hd_can_encode_cmd(1, &c, &f);
+    TEST_ASSERT_EQUAL_HEX8(0x13, f.data[2]);
+    TEST_ASSERT_EQUAL_HEX8(0x02, f.data[3]);
+    hd_can_cmd_t d;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_TRUE(isnan(d.arg.profile_put.value_nm));
 }
 
 static void test_command_round_trips(void)
 {
-    const uint8_t ops[] = {HD_CMD_FILTER_ENABLE, HD_CMD_BLOCK_ENABLE, HD_CMD_BLOCKS_CLEAR,
-                           HD_CMD_SET_PARAM, HD_CMD_GET_PARAM, HD_CMD_TARE,
-                           HD_CMD_CALIB_LOAD, HD_CMD_FILTER_RESET};
-    for (unsigned i = 0; i < sizeof ops; i++) {
+    const uint8_t bare[] = {HD_CMD_BLOCKS_CLEAR, HD_CMD_TARE, HD_CMD_CALIB_LOAD,
+                            HD_CMD_FILTER_RESET, HD_CMD_CONFIG_SAVE, HD_CMD_REBOOT};
+    hal_can_frame_t f;
+    hd_can_cmd_t d;
+    for (unsigned i = 0; i < sizeof bare; i++) {
         hd_can_cmd_t c = {0};
-        c.opcode = ops[i];
+        c.opcode = bare[i];
         c.token = (uint8_t)(i * 37u);
-        c.arg_u8[0] = 2;
-        c.arg_u8[1] = 1;
-        c.value = -0.125f;
-        hal_can_frame_t f;
         hd_can_encode_cmd(9, &c, &f);
-        hd_can_cmd_t d;
         TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
         TEST_ASSERT_EQUAL_UINT8(c.opcode, d.opcode);
         TEST_ASSERT_EQUAL_UINT8(c.token, d.token);
-        TEST_ASSERT_EQUAL_UINT8(2, d.arg_u8[0]);
-        TEST_ASSERT_EQUAL_UINT8(1, d.arg_u8[1]);
+        const uint8_t zero[6] = {0};
+        TEST_ASSERT_EQUAL_MEMORY(zero, &f.data[2], 6);
     }
     hd_can_cmd_t c = {0};
+    c.opcode = HD_CMD_BLOCK_ENABLE;
+    c.arg.block_enable.index = 2;
+    c.arg.block_enable.enable = 1;
+    hd_can_encode_cmd(9, &c, &f);
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT8(2, d.arg.block_enable.index);
+    TEST_ASSERT_EQUAL_UINT8(1, d.arg.block_enable.enable);
+    c = (hd_can_cmd_t){0};
+    c.opcode = HD_CMD_SET_PARAM;
+    c.arg.set_param.id = 2;
+    c.arg.set_param.value = -0.125f;
+    hd_can_encode_cmd(9, &c, &f);
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT8(2, d.arg.set_param.id);
+    TEST_ASSERT_EQUAL_FLOAT(-0.125f, d.arg.set_param.value);
+    c = (hd_can_cmd_t){0};
     c.opcode = HD_CMD_CALIB_SAVE;
-    c.arg_u32 = 1700000000u;
-    hal_can_frame_t f;
+    c.arg.calib_save.calibrated_unix_s = 1700000000u;
     hd_can_encode_cmd(1, &c, &f);
     TEST_ASSERT_EQUAL_HEX8(0x00, f.data[4]); /* 1700000000 = 0x6553F100 */
     TEST_ASSERT_EQUAL_HEX8(0xF1, f.data[5]);
     TEST_ASSERT_EQUAL_HEX8(0x53, f.data[6]);
     TEST_ASSERT_EQUAL_HEX8(0x65, f.data[7]);
-    hd_can_cmd_t d;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_OK, hd_can_decode_cmd(&f, &d));
-    TEST_ASSERT_EQUAL_UINT32(1700000000u, d.arg_u32);
+    TEST_ASSERT_EQUAL_UINT32(1700000000u, d.arg.calib_save.calibrated_unix_s);
 }
 
 static void test_malformed_commands_are_classified(void)
@@ -129,8 +176,8 @@ static void test_malformed_commands_are_classified(void)
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_SET_PARAM;
     c.token = 42;
-    c.arg_u8[0] = HD_PARAM_R_NM2;
-    c.value = 1.0f;
+    c.arg.set_param.id = HD_PARAM_R_NM2;
+    c.arg.set_param.value = 1.0f;
     hal_can_frame_t good;
     hd_can_encode_cmd(1, &c, &good);
     hd_can_cmd_t d;
@@ -139,9 +186,16 @@ static void test_malformed_commands_are_classified(void)
     f.len = 5;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_LENGTH, hd_can_decode_cmd(&f, &d));
     TEST_ASSERT_EQUAL_UINT8(42, d.token); /* still echoed */
+    TEST_ASSERT_EQUAL_UINT8(0, d.arg.set_param.id); /* arguments only when OK */
+    f = good;
+    f.len = 1;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_LENGTH, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT8(HD_CMD_SET_PARAM, d.opcode);
+    TEST_ASSERT_EQUAL_UINT8(0, d.token); /* not in the frame */
     f = good;
     f.len = 0;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_LENGTH, hd_can_decode_cmd(&f, &d));
+    TEST_ASSERT_EQUAL_UINT8(0, d.opcode);
     f = good;
     f.flags = HAL_CAN_FLAG_EXT | HAL_CAN_FLAG_RTR;
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
@@ -150,6 +204,9 @@ static void test_malformed_commands_are_classified(void)
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_BAD_FRAME, hd_can_decode_cmd(&f, &d));
     f = good;
     f.data[0] = 0x99;
+    TEST_ASSERT_EQUAL_INT(HD_CAN_RES_UNKNOWN_OPCODE, hd_can_decode_cmd(&f, &d));
+    f = good;
+    f.data[0] = HD_CMD_SETPOINT_REFUSED; /* an answer, not a command */
     TEST_ASSERT_EQUAL_INT(HD_CAN_RES_UNKNOWN_OPCODE, hd_can_decode_cmd(&f, &d));
     f = good;
     hd_le_put_f32(&f.data[4], NAN);
@@ -272,6 +329,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_telem_bytes_match_the_documented_layout);
     RUN_TEST(test_telem_saturates_and_marks_not_available);
     RUN_TEST(test_command_bytes_match_the_documented_example);
+    RUN_TEST(test_command_argument_bytes);
     RUN_TEST(test_command_round_trips);
     RUN_TEST(test_malformed_commands_are_classified);
     RUN_TEST(test_ack_and_heartbeat_layouts);

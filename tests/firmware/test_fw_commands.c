@@ -25,7 +25,7 @@ static void test_set_and_get_parameters(void)
     TEST_ASSERT_EQUAL_FLOAT(0.5f, live_pipe()->kf.cfg.r_nm2); /* the running filter uses it */
     hd_can_cmd_t g = {0};
     g.opcode = HD_CMD_GET_PARAM;
-    g.arg_u8[0] = HD_PARAM_R_NM2;
+    g.arg.get_param.id = HD_PARAM_R_NM2;
     a = send_cmd(&g);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     TEST_ASSERT_EQUAL_FLOAT(0.5f, a.value);
@@ -111,18 +111,19 @@ static void test_filter_blocks_by_command(void)
     unsigned n0 = live_cfg()->kf.block_count;
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_ADD_FIXED;
-    c.order = 50.0f;
-    c.value = 1e-4f;
+    c.arg.add_fixed.frequency_hz = 50.0f;
+    c.arg.add_fixed.q_nm2 = 1e-4f;
     hd_can_ack_t a = send_cmd(&c);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     TEST_ASSERT_EQUAL_UINT8(n0, a.aux);
     TEST_ASSERT_EQUAL_UINT8(n0 + 1, live_cfg()->kf.block_count);
     TEST_ASSERT_EQUAL_UINT8(HD_KF_LOCK_FIXED, live_cfg()->kf.blocks[n0].lock);
     TEST_ASSERT_EQUAL_FLOAT(50.0f, live_cfg()->kf.blocks[n0].order);
-    c.order = 600.0f; /* over Nyquist */
+    c.arg.add_fixed.frequency_hz = 600.0f; /* over Nyquist */
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, send_cmd(&c).result);
     c.opcode = HD_CMD_ADD_MOTOR;
-    c.order = 6.0f;
+    c.arg.add_motor.order = 6.0f;
+    c.arg.add_motor.q_nm2 = 1e-4f;
     while (live_cfg()->kf.block_count < HD_KF_MAX_BLOCKS) {
         TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, send_cmd(&c).result);
     }
@@ -132,31 +133,31 @@ static void test_filter_blocks_by_command(void)
 
     hd_can_cmd_t e = {0};
     e.opcode = HD_CMD_BLOCK_ENABLE;
-    e.arg_u8[0] = 1;
-    e.arg_u8[1] = 0;
+    e.arg.block_enable.index = 1;
+    e.arg.block_enable.enable = 0;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, send_cmd(&e).result);
     TEST_ASSERT_EQUAL_UINT8(0, live_cfg()->kf.blocks[1].enabled);
     TEST_ASSERT_EQUAL_UINT8(0, live_pipe()->kf.cfg.blocks[1].enabled); /* the running filter too */
-    e.arg_u8[0] = 8;
+    e.arg.block_enable.index = 8;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, send_cmd(&e).result);
 
     /* read back, field by field (BLOCK_GET) */
     hd_can_cmd_t g = {0};
     g.opcode = HD_CMD_BLOCK_GET;
-    g.arg_u8[0] = (uint8_t)n0;
-    g.arg_u8[1] = 1u; /* order */
+    g.arg.block_get.index = (uint8_t)n0;
+    g.arg.block_get.field = 1u; /* order */
     TEST_ASSERT_EQUAL_FLOAT(50.0f, send_cmd(&g).value);
-    g.arg_u8[1] = 0u; /* lock */
+    g.arg.block_get.field = 0u; /* lock */
     TEST_ASSERT_EQUAL_FLOAT((float)HD_KF_LOCK_FIXED, send_cmd(&g).value);
-    g.arg_u8[1] = 2u; /* q */
+    g.arg.block_get.field = 2u; /* q */
     TEST_ASSERT_EQUAL_FLOAT(1e-4f, send_cmd(&g).value);
-    g.arg_u8[0] = 1u;
-    g.arg_u8[1] = 3u; /* enabled: block 1 was disabled above */
+    g.arg.block_get.index = 1u;
+    g.arg.block_get.field = 3u; /* enabled: block 1 was disabled above */
     TEST_ASSERT_EQUAL_FLOAT(0.0f, send_cmd(&g).value);
-    g.arg_u8[1] = 4u;
+    g.arg.block_get.field = 4u;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, send_cmd(&g).result);
-    g.arg_u8[0] = HD_KF_MAX_BLOCKS;
-    g.arg_u8[1] = 0u;
+    g.arg.block_get.index = HD_KF_MAX_BLOCKS;
+    g.arg.block_get.field = 0u;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, send_cmd(&g).result);
 
     hd_can_cmd_t clr = {0};
@@ -216,7 +217,7 @@ static void test_calibration_save_and_load_by_command(void)
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_CALIB_SAVE;
     c.token = 9;
-    c.arg_u32 = 1700000000u;
+    c.arg.calib_save.calibrated_unix_s = 1700000000u;
     hd_can_ack_t a = send_cmd(&c); /* send_cmd runs hd_fw_background */
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     TEST_ASSERT_EQUAL_UINT8(HD_CMD_CALIB_SAVE, a.opcode);
@@ -305,11 +306,12 @@ static void test_random_frames_never_corrupt_the_state(void)
 static hal_can_frame_t r_frame(uint8_t opcode)
 {
     hd_can_cmd_t c = {0};
-    c.opcode = opcode;
-    c.arg_u8[0] = HD_PARAM_R_NM2;
-    c.value = 0.25f;
+    c.opcode = HD_CMD_SET_PARAM;
+    c.arg.set_param.id = HD_PARAM_R_NM2;
+    c.arg.set_param.value = 0.25f;
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &c, &f);
+    f.data[0] = opcode; /* byte 0: the opcode */
     return f;
 }
 
@@ -488,8 +490,8 @@ static void test_configuration_survives_a_reboot(void)
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, set_param(HD_PARAM_TELEMETRY_RATE_HZ, 200.0f).result);
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_ADD_MOTOR;
-    c.order = 6.0f;
-    c.value = 2e-7f;
+    c.arg.add_motor.order = 6.0f;
+    c.arg.add_motor.q_nm2 = 2e-7f;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, send_cmd(&c).result);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, simple_cmd(HD_CMD_CONFIG_SAVE, 0).result);
     hd_fw_config_t saved = *live_cfg();
@@ -514,8 +516,8 @@ static void test_save_right_after_a_change_saves_the_change(void)
     hd_can_cmd_t c = {0};
     hal_can_frame_t f;
     c.opcode = HD_CMD_SET_PARAM;
-    c.arg_u8[0] = HD_PARAM_GEAR_RATIO;
-    c.value = 121.0f;
+    c.arg.set_param.id = HD_PARAM_GEAR_RATIO;
+    c.arg.set_param.value = 121.0f;
     hd_can_encode_cmd(1, &c, &f);
     hal_mock_push_rx(&mock, &f);
     c.opcode = HD_CMD_CONFIG_SAVE; /* in the same tick, right behind it */
@@ -611,8 +613,8 @@ static void test_block_toggle_keeps_the_other_estimates(void)
     TEST_ASSERT_TRUE(x0 * x0 + x1 * x1 > 0.01f); /* it learned something */
     hd_can_cmd_t e = {0};
     e.opcode = HD_CMD_BLOCK_ENABLE;
-    e.arg_u8[0] = 1; /* order 4 off */
-    e.arg_u8[1] = 0;
+    e.arg.block_enable.index = 1; /* order 4 off */
+    e.arg.block_enable.enable = 0;
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &e, &f);
     hd_fw_handle_frame(&fw, &f);

@@ -535,9 +535,9 @@ static hd_can_ack_t put(unsigned index, bool b, bool output, uint8_t order, floa
 {
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_PROFILE_PUT;
-    c.arg_u8[0] = (uint8_t)(index | (b ? 0x10u : 0u) | (output ? 0x20u : 0u));
-    c.arg_u8[1] = order;
-    c.value = v;
+    c.arg.profile_put.line = (uint8_t)(index | (b ? 0x10u : 0u) | (output ? 0x20u : 0u));
+    c.arg.profile_put.order = order;
+    c.arg.profile_put.value_nm = v;
     return send_cmd(&c);
 }
 
@@ -602,7 +602,7 @@ static void test_upload_load_save_and_clear(void)
     upload(LINES, 3);
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_PROFILE_LOAD;
-    c.arg_u8[0] = 1; /* the uploaded lines, into the running filter */
+    c.arg.profile_load.source = 1; /* the uploaded lines, into the running filter */
     hd_can_ack_t a = cmd_ticks(&c);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     TEST_ASSERT_EQUAL_FLOAT(3.0f, a.value);
@@ -610,6 +610,7 @@ static void test_upload_load_save_and_clear(void)
     TEST_ASSERT_DOUBLE_WITHIN(2e-5, predicted(LINES, 3, motor, outc, true), (double)last()->ripple_nm);
     /* saved as uploaded */
     c.opcode = HD_CMD_PROFILE_SAVE;
+    c.arg.profile_save.source = 1;
     a = send_cmd(&c);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     TEST_ASSERT_EQUAL_UINT8(HD_RECORD_OK, a.aux);
@@ -648,8 +649,8 @@ static void test_restarts_start_from_the_profile(void)
     /* a rebuild: the new filter takes the profile at its first sample */
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_SET_PARAM;
-    c.arg_u8[0] = HD_PARAM_R_NM2;
-    c.value = 0.01f;
+    c.arg.set_param.id = HD_PARAM_R_NM2;
+    c.arg.set_param.value = 0.01f;
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &c, &f);
     hal_mock_push_rx(&mock, &f);
@@ -702,8 +703,8 @@ static void test_bad_uploads_are_refused(void)
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, put(8, false, false, 2, 0.1f).result);
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_PROFILE_PUT;
-    c.arg_u8[0] = 0x40;
-    c.arg_u8[1] = 2;
+    c.arg.profile_put.line = 0x40;
+    c.arg.profile_put.order = 2;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, send_cmd(&c).result);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, put(0, true, false, 2, 0.1f).result); /* b first */
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, put(0, false, false, 0, 0.1f).result);
@@ -714,15 +715,17 @@ static void test_bad_uploads_are_refused(void)
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, put(0, true, true, 2, 0.1f).result);  /* other lock */
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_BAD_INDEX, put(1, false, false, 4, 0.1f).result); /* line 0 open */
     /* incomplete: nothing to load or save */
+    c = (hd_can_cmd_t){0};
     c.opcode = HD_CMD_PROFILE_LOAD;
-    c.arg_u8[0] = 1;
-    c.arg_u8[1] = 0;
+    c.arg.profile_load.source = 1;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_NO_DATA, send_cmd(&c).result);
     c.opcode = HD_CMD_PROFILE_SAVE;
+    c.arg.profile_save.source = 1;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_NO_DATA, send_cmd(&c).result);
-    c.arg_u8[0] = 2;
+    c.arg.profile_save.source = 2;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, send_cmd(&c).result);
     c.opcode = HD_CMD_PROFILE_LOAD;
+    c.arg.profile_load.source = 2;
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OUT_OF_RANGE, send_cmd(&c).result);
 }
 

@@ -28,10 +28,34 @@ def f32(x: float) -> float:
     return struct.unpack("<f", struct.pack("<f", x))[0]
 
 
-def test_committed_dbc_and_doc_tables_are_the_generated_ones():
+def test_committed_dbc_c_codec_and_doc_tables_are_the_generated_ones():
     assert canproto.DBC_PATH.read_text() == protocol.generate_dbc(), \
         "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
-    assert protocol.stale_docs() == [], "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
+    assert protocol.stale_files() == [], \
+        "run: (cd tools && ../.venv/bin/python -m hdtools.protocol --write)"
+
+
+def test_every_command_argument_and_frame_signal_fits_its_frame():
+    """No two signals of a frame (or of one command with the header) share a
+    bit, every one is inside the 8 bytes, and every opcode a host may send
+    that the DBC multiplexes has its arguments in the C union."""
+    def bits(sigs):
+        used = set()
+        for s in sigs:
+            span = set(range(s.start, s.start + s.bits))
+            assert not used & span, f"{s.owner}.{s.name} overlaps"
+            assert max(span) < 64, f"{s.owner}.{s.name} beyond 8 bytes"
+            used |= span
+    for fr in protocol.frames():
+        sigs = [s for s in protocol.frame_signals(fr.name) if s.mux not in ("U32_REPLY",)]
+        bits(sigs)
+    header = [s for s in protocol.frame_signals("CMD")]
+    for e in protocol.commands():
+        bits(header + list(protocol.command_args(e.name)))
+    h, _ = protocol.generate_c()
+    for e in protocol.commands():
+        if protocol.command_args(e.name):
+            assert f"hd_can_cmd_{e.name.lower()}_t {e.name.lower()};" in h
 
 
 def test_c_and_python_read_the_same_parameter_table(dump):
@@ -43,6 +67,10 @@ def test_c_and_python_read_the_same_parameter_table(dump):
         assert TYPES[c["type"]] == p.type
         assert c["flags"] == sum(FLAGS[f] for f in p.flags), p.key
         assert (c["lo"], c["hi"]) == (f32(p.lo), f32(p.hi)), p.key
+        # the default column is what hd_fw_config_default gives (LIB: the library's)
+        assert c["default"] == (None if p.default is None else f32(p.default)), p.key
+        if p.default is not None:
+            assert c["value"] == f32(p.default), p.key
     crc = next(d["param_table_crc"] for d in dump if "param_table_crc" in d)
     assert crc == protocol.param_table_crc()
     # ids and keys unique, every writable row in the DBC's value table
@@ -50,6 +78,16 @@ def test_c_and_python_read_the_same_parameter_table(dump):
     db = canproto.load_db()
     choices = db.get_message_by_name("CMD").get_signal_by_name("SetParamId").choices
     assert {int(k): str(v) for k, v in choices.items()} == {p.id: p.name for p in py}
+
+
+def test_control_ranges_in_the_schema_are_control_s_limits(dump):
+    """The SETPOINT mode and GAINS ranges (hd_protocol.def) document limits
+    that control/hd_ctrl.h owns: a change there must show here."""
+    lim = next(d for d in dump if "ctrl_kp_max" in d)
+    sig = {s.name: s for s in protocol.signals()}
+    assert float(sig["GainKp"].hi) == lim["ctrl_kp_max"]
+    assert float(sig["GainKd"].hi) == lim["ctrl_kd_max"]
+    assert int(sig["SpMode"].hi) == lim["ctrl_modes"] - 1
 
 
 def test_c_and_python_read_the_same_vocabulary(dump):
@@ -93,6 +131,15 @@ def test_c_encoder_bytes_decode_through_the_dbc(dump):
     cmd = decode("CMD", "CMD")
     assert cmd["SetParamId"] == protocol.param_by_key("gear_ratio").id
     assert cmd["SetParamValue"] == 121.0
+    add = decode("CMD_ADD_FIXED", "CMD")
+    assert (add["Opcode"], add["Token"], add["FixedQ"]) == (protocol.by_name(
+        protocol.opcodes(), "ADD_FIXED").code, 8, 2.5)
+    assert add["FixedFrequency"] == pytest.approx(123.45)
+    get = decode("CMD_BLOCK_GET", "CMD")
+    assert (get["BlockGetIndex"], get["BlockGetField"]) == (5, protocol.BLOCK_FIELDS.index("Q_NM2"))
+    put = decode("CMD_PROFILE_PUT", "CMD")
+    assert (put["ProfilePutLine"], put["ProfilePutOrder"], put["ProfilePutValue"]) == (0x13, 2, -1.5)
+    assert decode("CMD_CALIB_SAVE", "CMD")["CalibUnixTime"] == 1700000000
     ff = decode("FEEDFORWARD", "FEEDFORWARD")
     assert ff["FfTorque"] == -2.5 and ff["FfSeq"] == 7
     sp = decode("SETPOINT", "SETPOINT")
@@ -118,5 +165,27 @@ def test_python_checks_values_like_the_table():
         canproto.config_to_commands("motor_cpr = 01024\n")
     with pytest.raises(ValueError, match="given twice"):
         canproto.config_to_commands("r_nm2 = 1\nr_nm2 = 2\n")
-    with pytest.raises(ValueError, match="read only"):
+    with pytest.raises(ValueError, match="read-only"):
         canproto.config_to_commands("block_count = 2\n")
+
+
+def test_configuration_text_becomes_the_commands_of_its_keys():
+    """The firmware's parser (through cfgtext) reads the text; the SET_PARAM
+    frames carry the values as Python reads the decimals (float32), in the
+    text's order, blocks first, node_id last."""
+    keys = [("gear_ratio", "121"), ("node_id", "5"), ("r_nm2", "0.1"), ("offset", "on"),
+            ("motor_cpr", "16384"), ("calib_offset_v", "-0.3"), ("telemetry_rate_hz", "500"),
+            ("ctrl_torque_kp", "1.7e0"), ("filter", "off")]
+    text = "".join(f"{k} = {v}  # c\n" for k, v in keys[:3]) + "block = fixed 50 1e-4 off\n" + \
+        "".join(f"{k} {v}\n" for k, v in keys[3:])
+    db = canproto.load_db()
+    got = [db.decode_message(fid, data) for fid, data in canproto.config_to_commands(text, db)]
+    assert [str(g["Opcode"]) for g in got[:3]] == ["BLOCKS_CLEAR", "ADD_FIXED", "BLOCK_ENABLE"]
+    assert got[1]["FixedQ"] == f32(1e-4) and got[1]["FixedFrequency"] == 50
+    value = {"on": 1.0, "off": 0.0}
+    want = [(protocol.param_by_key(k).name, f32(value.get(v) if v in value else float(v)))
+            for k, v in keys if k != "node_id"] + [("NODE_ID", 5.0)]
+    assert [(str(g["SetParamId"]), g["SetParamValue"]) for g in got[3:]] == want
+    nine = "".join(f"block = motor {k} 1\n" for k in range(1, 10))
+    with pytest.raises(ValueError, match="line 9: too many blocks"):
+        canproto.config_to_commands(nine)

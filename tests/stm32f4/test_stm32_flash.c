@@ -229,8 +229,8 @@ static hd_can_ack_t set_gain(float gain, uint8_t token)
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_SET_PARAM;
     c.token = token;
-    c.arg_u8[0] = HD_PARAM_CALIB_GAIN_NM_PER_V;
-    c.value = gain;
+    c.arg.set_param.id = HD_PARAM_CALIB_GAIN_NM_PER_V;
+    c.arg.set_param.value = gain;
     return command(&c);
 }
 
@@ -239,7 +239,7 @@ static hd_can_ack_t save(uint8_t token)
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_CALIB_SAVE;
     c.token = token;
-    c.arg_u32 = 1700000000u;
+    c.arg.calib_save.calibrated_unix_s = 1700000000u;
     return command(&c);
 }
 
@@ -249,7 +249,7 @@ static float saved_gain_after_reboot(void)
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_GET_PARAM;
     c.token = 77u;
-    c.arg_u8[0] = HD_PARAM_CALIB_GAIN_NM_PER_V;
+    c.arg.get_param.id = HD_PARAM_CALIB_GAIN_NM_PER_V;
     hd_can_ack_t a = command(&c);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     return a.value;

@@ -63,4 +63,5 @@ def test_device_set_bad_value_names_the_key_not_a_line(monkeypatch, capsys):
     monkeypatch.setattr(cmd_device, "open_bus", lambda *a, **k: FailingBus(0))
     rc = cli.main(["device", "vcan0", "set", "r_nm2", "abc"])
     err = capsys.readouterr().err
-    assert rc == 2 and err.strip() == "hdsense device: r_nm2: 'abc' is not a number"
+    assert rc == 2 and err.strip() == \
+        "hdsense device: r_nm2 = abc: value is not a number (a finite decimal)"

@@ -286,21 +286,21 @@ typedef struct {
 
 static command_t g_cmds[] = {
     /* gear_ratio = 100 in the scenario file: read back over CAN */
-    {{.opcode = HD_CMD_GET_PARAM, .token = 1, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
+    {{.opcode = HD_CMD_GET_PARAM, .token = 1, .arg.get_param = {HD_PARAM_GEAR_RATIO}},
      NODE, 8, 1, HD_CAN_RES_OK, 1, 100.0f, "GET_PARAM gear_ratio", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_SET_PARAM, .token = 2, .arg_u8 = {HD_PARAM_R_NM2, 0}, .value = 0.5f},
+    {{.opcode = HD_CMD_SET_PARAM, .token = 2, .arg.set_param = {HD_PARAM_R_NM2, 0.5f}},
      NODE, 8, 1, HD_CAN_RES_OK, 1, 0.5f, "SET_PARAM r_nm2 = 0.5", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_GET_PARAM, .token = 3, .arg_u8 = {HD_PARAM_R_NM2, 0}},
+    {{.opcode = HD_CMD_GET_PARAM, .token = 3, .arg.get_param = {HD_PARAM_R_NM2}},
      NODE, 8, 1, HD_CAN_RES_OK, 1, 0.5f, "GET_PARAM r_nm2", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_SET_PARAM, .token = 4, .arg_u8 = {HD_PARAM_R_NM2, 0}, .value = -1.0f},
+    {{.opcode = HD_CMD_SET_PARAM, .token = 4, .arg.set_param = {HD_PARAM_R_NM2, -1.0f}},
      NODE, 8, 1, HD_CAN_RES_OUT_OF_RANGE, 0, 0.0f, "SET_PARAM r_nm2 = -1", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_GET_PARAM, .token = 5, .arg_u8 = {99, 0}},
+    {{.opcode = HD_CMD_GET_PARAM, .token = 5, .arg.get_param = {99}},
      NODE, 8, 1, HD_CAN_RES_UNKNOWN_PARAM, 0, 0.0f, "GET_PARAM id 99", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_GET_PARAM, .token = 6, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
+    {{.opcode = HD_CMD_GET_PARAM, .token = 6, .arg.get_param = {HD_PARAM_GEAR_RATIO}},
      NODE + 1u, 8, 0, 0, 0, 0.0f, "GET_PARAM to node 2 (filtered)", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_GET_PARAM, .token = 7, .arg_u8 = {HD_PARAM_GEAR_RATIO, 0}},
+    {{.opcode = HD_CMD_GET_PARAM, .token = 7, .arg.get_param = {HD_PARAM_GEAR_RATIO}},
      NODE, 2, 1, HD_CAN_RES_BAD_LENGTH, 0, 0.0f, "2-byte command", 0, {0, 0, 0, 0, 0.0f, 0u}},
-    {{.opcode = HD_CMD_GET_PARAM, .token = 8, .arg_u8 = {HD_PARAM_TELEMETRY_RATE_HZ, 0}},
+    {{.opcode = HD_CMD_GET_PARAM, .token = 8, .arg.get_param = {HD_PARAM_TELEMETRY_RATE_HZ}},
      NODE, 8, 1, HD_CAN_RES_OK, 1, 1000.0f, "GET_PARAM telemetry_rate_hz", 0, {0, 0, 0, 0, 0.0f, 0u}},
 };
 #define N_CMDS ((int)(sizeof g_cmds / sizeof g_cmds[0]))

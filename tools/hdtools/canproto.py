@@ -4,8 +4,9 @@ The DBC (generated from firmware/hd_protocol.def by hdtools.protocol)
 describes node 1; load_db(node_id) moves every identifier to another node
 (identifier = 0x01D00000 | type << 8 | node_id, 29-bit).  Helpers build
 command frames (as (frame_id, bytes) pairs or `cansend` strings) and turn a
-firmware configuration text file (docs/firmware.md) into the equivalent
-commands: every key of the parameter table (firmware/hd_params.def) has one.
+firmware configuration text file (docs/firmware.md, parsed by the firmware's
+own parser: hdtools.cfgtext) into the equivalent commands: every key of the
+parameter table (firmware/hd_params.def) has one.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import cantools
 
-from . import protocol
+from . import cfgtext, protocol
 
 ROOT = protocol.ROOT
 DBC_PATH = protocol.DBC_PATH
@@ -39,9 +40,10 @@ def load_db(node_id: int = 1, strict: bool = True) -> cantools.database.can.Data
     return db
 
 
-# TELEM_A's torques at the int16 minimum (-327.68 N m) mean "not available"
-# (hd_can_proto.h); anything above half a count of it is a value.
-_TORQUE_NOT_AVAILABLE_ABOVE = -327.675
+# TELEM_A's torques at their integer minimum (-327.68 N m) mean "not
+# available" (hd_protocol.def, type I); anything above half a count of it is a value.
+_TORQUE = next(s for s in protocol.frame_signals("TELEM_A") if s.name == "TorqueRaw")
+_TORQUE_NOT_AVAILABLE_ABOVE = (-(1 << (_TORQUE.bits - 1)) + 0.5) * float(_TORQUE.scale)
 
 
 def torque_valid(telem_a: dict) -> bool:
@@ -70,7 +72,7 @@ def cansend_str(frame: tuple[int, bytes]) -> str:
 
 
 # ADD_MOTOR / ADD_OUTPUT / ADD_FIXED carry the order (or frequency) as a
-# uint16 of hundredths (DBC_LAYOUT: MotorOrder 16 bits, scale 0.01).
+# uint16 of hundredths (hd_protocol.def: HD_ARG MotorOrder, UQ 16 bits, 0.01).
 ORDER_MIN, ORDER_MAX = 0.01, 0xFFFF / 100.0
 
 
@@ -78,98 +80,47 @@ def order_representable(order: float) -> bool:
     return 0 < round(order * 100) <= 0xFFFF
 
 
-_ON = ("on", "1", "yes")
-_OFF = ("off", "0", "no")
-
-
 def param_value(param: protocol.Param, text: str) -> float:
     """A configuration-text value as the firmware's parser reads it
-    (ValueError naming the key, not the line)."""
-    if param.type == "BOOL":
-        if text in _ON:
-            return 1.0
-        if text in _OFF:
-            return 0.0
-        raise ValueError(f"{param.key} must be on or off, got {text!r}")
-    if param.integer and (not text.isdigit() or (len(text) > 1 and text[0] == "0")):
-        raise ValueError(f"{param.key} must be a whole decimal number without a "
-                         f"leading zero, got {text!r}")
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{param.key}: {text!r} is not a number") from None
-    why = param.check(value)
-    if why is not None:
-        raise ValueError(f"{param.key} = {text}: {why}")
-    return value
+    (ValueError naming the key, not the line): hdtools.cfgtext."""
+    return cfgtext.param_value(param, text)
 
 
 def config_to_commands(text: str, db=None, token: int = 0) -> list[tuple[int, bytes]]:
     """The CAN commands equivalent to a configuration text file.
 
-    Blocks become BLOCKS_CLEAR + ADD_* (+ BLOCK_ENABLE 0 for `off` blocks);
-    every other key is a row of the parameter table and becomes SET_PARAM.
-    Values are checked against the table's ranges (ValueError names the
-    line); the firmware checks the model as a whole when it applies it.
-    node_id, if present, is sent last so the other commands reach the old id.
+    The firmware's own parser reads the text (hdtools.cfgtext: on top of the
+    defaults, so its errors, with their line, are the joint's).  Blocks
+    become BLOCKS_CLEAR + ADD_* (+ BLOCK_ENABLE 0 for `off` blocks); every
+    other key is a row of the parameter table and becomes SET_PARAM with the
+    value the firmware parsed.  node_id, if present, is sent last so the
+    other commands reach the old id.
     """
     db = db or load_db()
+    parsed = cfgtext.parse(text)
     cmds: list[tuple[int, bytes]] = []
-    blocks: list[tuple[str, float, float, int]] = []
     node_cmd = None
-    seen: dict[str, int] = {}
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        key, _, rest = line.partition("=") if "=" in line else line.partition(" ")
-        key = key.strip()
-        values = rest.split()
-        if not values:
-            raise ValueError(f"line {lineno}: missing value")
-        if key == "block":
-            if len(values) not in (3, 4) or values[0] not in ("motor", "output", "fixed"):
-                raise ValueError(f"line {lineno}: block needs: motor|output|fixed ORDER Q [on|off]")
-            enabled = 1
-            if len(values) == 4:
-                if values[3] not in _ON + _OFF:
-                    raise ValueError(f"line {lineno}: block state must be on or off")
-                enabled = int(values[3] in _ON)
-            blocks.append((values[0], float(values[1]), float(values[2]), enabled))
-            continue
-        try:
-            param = protocol.param_by_key(key)
-        except KeyError:
-            raise ValueError(f"line {lineno}: unknown key {key!r}") from None
-        if param.read_only:
-            raise ValueError(f"line {lineno}: {key} is read only")
-        if key in seen:
-            raise ValueError(f"line {lineno}: {key} given twice (first on line {seen[key]})")
-        seen[key] = lineno
-        if len(values) != 1:
-            raise ValueError(f"line {lineno}: {key} takes one value")
-        try:
-            value = param_value(param, values[0])
-        except ValueError as exc:
-            raise ValueError(f"line {lineno}: {exc}") from None
+    for _line, param, value in parsed.values:
         frame = command(db, "SET_PARAM", token, SetParamId=param.name, SetParamValue=value)
-        if key == "node_id":
+        if param.key == "node_id":
             node_cmd = frame
         else:
             cmds.append(frame)
-    if blocks:
+    if parsed.blocks is not None:
         block_cmds = [command(db, "BLOCKS_CLEAR", token)]
-        for index, (kind, order, q, enabled) in enumerate(blocks):
-            if not order_representable(order):
-                raise ValueError(f"block {kind} {order:g}: order not representable on CAN "
+        for index, b in enumerate(parsed.blocks):
+            if not order_representable(b.order):
+                raise ValueError(f"block {b.kind} {b.order:g}: order not representable on CAN "
                                  f"({ORDER_MIN:g} .. {ORDER_MAX:g})")
-            if kind == "motor":
-                block_cmds.append(command(db, "ADD_MOTOR", token, MotorOrder=order, MotorQ=q))
-            elif kind == "output":
-                block_cmds.append(command(db, "ADD_OUTPUT", token, OutputOrder=order, OutputQ=q))
+            if b.kind == "motor":
+                block_cmds.append(command(db, "ADD_MOTOR", token, MotorOrder=b.order, MotorQ=b.q_nm2))
+            elif b.kind == "output":
+                block_cmds.append(command(db, "ADD_OUTPUT", token, OutputOrder=b.order,
+                                          OutputQ=b.q_nm2))
             else:
-                block_cmds.append(command(db, "ADD_FIXED", token, FixedFrequency=order, FixedQ=q))
-            if not enabled:
+                block_cmds.append(command(db, "ADD_FIXED", token, FixedFrequency=b.order,
+                                          FixedQ=b.q_nm2))
+            if not b.enabled:
                 block_cmds.append(command(db, "BLOCK_ENABLE", token, BlockIndex=index,
                                           BlockEnable=0))
         cmds = block_cmds + cmds

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import re
-import struct
 import sys
 import time
 
@@ -96,35 +95,41 @@ def describe(db, data: bytes) -> str:
     d = db.get_message_by_name("CMD").decode(data, decode_choices=True)
     op = str(d["Opcode"])
     if op == "SET_PARAM":
-        p = protocol.param_by_id(data[2])
+        raw = db.get_message_by_name("CMD").decode(data, decode_choices=False)
+        p = protocol.param_by_id(raw["SetParamId"])
         return f"SET_PARAM {p.key} = {d['SetParamValue']:.9g}"
     args = ", ".join(f"{k} {v:.9g}" if isinstance(v, float) else f"{k} {v}"
                      for k, v in d.items() if k not in ("Opcode", "Token"))
     return f"{op} {args}".strip()
 
 
-def expectations(payloads: list[bytes]) -> tuple[dict[int, float], list | None]:
+def expectations(payloads: list[bytes], db=None) -> tuple[dict[int, float], list | None]:
     """What reading back must show: {param id: float32 value} of the
     SET_PARAMs (and FILTER_ENABLE), and, when the model clears the blocks
     first, each block as [lock, order, q_nm2, enabled] in BLOCK_GET's field
-    order (None otherwise)."""
+    order (None otherwise).  The frames are read through the DBC; an order
+    is its raw count divided as the firmware divides it (float32)."""
+    msg = (db or canproto.load_db()).get_message_by_name("CMD")
     want: dict[int, float] = {}
     blocks = None
-    codes = {e.name: e.code for e in protocol.opcodes()}
-    adds = {codes["ADD_MOTOR"]: 0, codes["ADD_OUTPUT"]: 1, codes["ADD_FIXED"]: 2}
+    adds = {"ADD_MOTOR": (0, "MotorOrder", "MotorQ"), "ADD_OUTPUT": (1, "OutputOrder", "OutputQ"),
+            "ADD_FIXED": (2, "FixedFrequency", "FixedQ")}
     for data in payloads:
-        op = data[0]
-        if op == codes["SET_PARAM"]:
-            want[data[2]] = struct.unpack("<f", data[4:8])[0]
-        elif op == codes["FILTER_ENABLE"]:
-            want[protocol.param_by_key("filter").id] = float(data[2])
-        elif op == codes["BLOCKS_CLEAR"]:
+        d = msg.decode(data, decode_choices=False, scaling=False)
+        op = name_of(protocol.opcodes(), d["Opcode"])
+        if op == "SET_PARAM":
+            want[d["SetParamId"]] = f32(d["SetParamValue"])
+        elif op == "FILTER_ENABLE":
+            want[protocol.param_by_key("filter").id] = float(d["FilterEnable"])
+        elif op == "BLOCKS_CLEAR":
             blocks = []
         elif op in adds and blocks is not None:
-            order = f32(struct.unpack("<H", data[2:4])[0] / 100.0)
-            blocks.append([float(adds[op]), order, struct.unpack("<f", data[4:8])[0], 1.0])
-        elif op == codes["BLOCK_ENABLE"] and blocks is not None and data[2] < len(blocks):
-            blocks[data[2]][3] = float(data[3])
+            lock, order, q = adds[op]
+            arg = next(a for a in protocol.command_args(op) if a.name == order)
+            divisor = f32(round(1 / float(arg.scale)))
+            blocks.append([float(lock), f32(f32(d[order]) / divisor), f32(d[q]), 1.0])
+        elif op == "BLOCK_ENABLE" and blocks is not None and d["BlockIndex"] < len(blocks):
+            blocks[d["BlockIndex"]][3] = float(d["BlockEnable"])
     return want, blocks
 
 

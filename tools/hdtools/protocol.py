@@ -23,11 +23,14 @@ from functools import lru_cache
 from pathlib import Path
 
 from . import paths  # noqa: E402 - the source tree or the installed copies
+from . import protocol_c, protocol_dbc
 
 ROOT = paths.source_root() or paths.PACKAGE
 PROTOCOL_DEF = paths.firmware_file("hd_protocol.def")
 PARAMS_DEF = paths.firmware_file("hd_params.def")
 DBC_PATH = paths.firmware_file("hdjoint.dbc")
+GEN_H = paths.firmware_file("hd_can_gen.h")
+GEN_C = paths.firmware_file("hd_can_gen.c")
 FIRMWARE = PARAMS_DEF.parent
 
 ID_PREFIX = 0x01D00000
@@ -84,6 +87,7 @@ class Param:
     flags: frozenset   # LIVE REBUILD RO CONFIG CALIB LO_OPEN
     unit: str
     doc: str
+    default: float | None = None  # hd_fw_config_default's; None: the library's (LIB)
 
     @property
     def read_only(self) -> bool:
@@ -172,11 +176,12 @@ def retired_params() -> tuple[Entry, ...]:
 def params() -> tuple[Param, ...]:
     out = []
     for row in _rows(PARAMS_DEF, "HD_PARAM"):
-        if len(row) != 10:
-            raise DefError(f"hd_params.def: row {row[:3]} has {len(row)} columns, wants 10")
-        pid, name, key, typ, _field, lo, hi, flags, unit, doc = row
+        if len(row) != 11:
+            raise DefError(f"hd_params.def: row {row[:3]} has {len(row)} columns, wants 11")
+        pid, name, key, typ, _field, default, lo, hi, flags, unit, doc = row
         out.append(Param(_int(pid), name, key.strip('"'), typ, float(lo), float(hi),
-                         frozenset(f.strip() for f in flags.split("|")), unit.strip('"'), doc))
+                         frozenset(f.strip() for f in flags.split("|")), unit.strip('"'), doc,
+                         None if default == "LIB" else float(default)))
     reused = {p.id for p in out} & {r.code for r in retired_params()}
     if reused:
         raise DefError(f"hd_params.def: retired id(s) {sorted(reused)} reused")
@@ -237,263 +242,172 @@ def param_table_crc() -> int:
     return crc
 
 
+# ------------------------------------------------------- frame layouts
+# HD_SIGNAL / HD_ARG / HD_REPLY rows of hd_protocol.def: every signal of every
+# frame and every command's arguments and reply.  The DBC, the C codec
+# (hdtools.protocol_c) and the doc tables are generated from them.
+SIGNAL_TYPES = ("U", "I", "UQ", "F32", "F32_ANY")
+
+
+@dataclass(frozen=True)
+class Signal:
+    owner: str        # frame (HD_SIGNAL) or opcode (HD_ARG) name
+    name: str         # DBC name
+    field: str        # C struct member
+    start: int
+    bits: int
+    type: str         # SIGNAL_TYPES
+    scale: str        # as written (the DBC and C take the text)
+    lo: str
+    hi: str
+    unit: str
+    values: str       # value table or comment key, "" if none
+    mux: str          # "", "M", "F32_REPLY", "U32_REPLY"; an HD_ARG: its opcode
+    doc: str
+
+    @property
+    def signed(self) -> bool:
+        return self.type in ("I", "F32", "F32_ANY")
+
+    @property
+    def is_float(self) -> bool:
+        return self.type in ("F32", "F32_ANY")
+
+
+@dataclass(frozen=True)
+class Reply:
+    opcode: str
+    type: str         # F32 | U32
+    aux: str
+    value: str
+    unit: str
+
+
+def _signal(row: list[str], owner_is_opcode: bool) -> Signal:
+    if owner_is_opcode:
+        if len(row) != 12:
+            raise DefError(f"hd_protocol.def: HD_ARG {row[:2]} has {len(row)} columns, wants 12")
+        row = row[:11] + [row[0]] + row[11:]
+    elif len(row) != 13:
+        raise DefError(f"hd_protocol.def: HD_SIGNAL {row[:2]} has {len(row)} columns, wants 13")
+    owner, name, field, start, bits, typ, scale, lo, hi, unit, values, mux, doc = row
+    if typ not in SIGNAL_TYPES:
+        raise DefError(f"hd_protocol.def: {owner}.{name}: type {typ!r} not one of {SIGNAL_TYPES}")
+    sig = Signal(owner, name, field, _int(start), _int(bits), typ, scale, lo, hi,
+                 unit.strip('"'), values, mux, doc)
+    if sig.start < 0 or sig.bits < 1 or sig.start + sig.bits > 64 or \
+            (sig.is_float and sig.bits != 32):
+        raise DefError(f"hd_protocol.def: {owner}.{name}: bits {sig.start}+{sig.bits}")
+    return sig
+
+
+@lru_cache(maxsize=None)
+def signals() -> tuple[Signal, ...]:
+    """Every HD_SIGNAL row (frame signals, the command's arguments excluded)."""
+    names = {f.name for f in frames()}
+    out = tuple(_signal(r, False) for r in _rows(PROTOCOL_DEF, "HD_SIGNAL"))
+    bad = [s.owner for s in out if s.owner not in names]
+    if bad:
+        raise DefError(f"hd_protocol.def: HD_SIGNAL of unknown frame(s) {sorted(set(bad))}")
+    return out
+
+
+@lru_cache(maxsize=None)
+def args() -> tuple[Signal, ...]:
+    """Every HD_ARG row: a command's arguments in CMD, multiplexed by its opcode."""
+    names = {e.name for e in opcodes()}
+    out = tuple(_signal(r, True) for r in _rows(PROTOCOL_DEF, "HD_ARG"))
+    bad = [s.owner for s in out if s.owner not in names]
+    if bad:
+        raise DefError(f"hd_protocol.def: HD_ARG of unknown opcode(s) {sorted(set(bad))}")
+    return out
+
+
+def frame_signals(name: str) -> tuple[Signal, ...]:
+    return tuple(s for s in signals() if s.owner == name)
+
+
+def command_args(opcode: str) -> tuple[Signal, ...]:
+    return tuple(s for s in args() if s.owner == opcode)
+
+
+@lru_cache(maxsize=None)
+def replies() -> dict[str, Reply]:
+    out = {}
+    for row in _rows(PROTOCOL_DEF, "HD_REPLY"):
+        if len(row) != 5 or row[1] not in ("F32", "U32"):
+            raise DefError(f"hd_protocol.def: HD_REPLY {row[:2]}: wants (opcode, F32|U32, aux, "
+                           f"value, unit)")
+        out[row[0]] = Reply(row[0], row[1], row[2], row[3], row[4].strip('"'))
+    return out
+
+
+def reply(opcode: str) -> Reply:
+    """What the ACK of a command carries (aux and value 0 without a row)."""
+    return replies().get(opcode, Reply(opcode, "F32", "-", "-", ""))
+
+
+# Opcodes from 0x80 are answers without a command (hd_protocol.def).
+ANSWER_ONLY_FROM = 0x80
+
+
+def commands() -> tuple[Entry, ...]:
+    """The opcodes a host may send."""
+    return tuple(e for e in opcodes() if e.code < ANSWER_ONLY_FROM)
+
+
+@lru_cache(maxsize=None)
+def block_fields() -> tuple[Entry, ...]:
+    return _entries("HD_BLOCK_FIELD")
+
+
 # --------------------------------------------------------------------- DBC
-# Signals per frame: (name, start bit, length, signed, scale, offset, min, max,
-# unit, value table key or None, multiplexer spec or "").  Little-endian.
 F32_MAX = "3.4E+038"
-DBC_LAYOUT = {
-    "SETPOINT": [
-        ("SpMode", 0, 8, False, 1, 0, 0, 4, "", None, "", ""),
-        ("SpSeq", 8, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("SpTorque", 16, 16, True, 0.002, 0, -65.534, 65.534, "Nm", None, "", ""),
-        ("SpPosition", 32, 16, True, 0.001, 0, -32.767, 32.767, "rad", None, "", ""),
-        ("SpVelocity", 48, 16, True, 0.001, 0, -32.767, 32.767, "rad/s", None, "", ""),
-    ],
-    "GAINS": [
-        ("GainKp", 0, 32, True, 1, 0, 0, 2000, "Nm/rad", None, "", "float"),
-        ("GainKd", 32, 32, True, 1, 0, 0, 50, "Nm s/rad", None, "", "float"),
-    ],
-    "CTRL_STATE": [
-        ("CtrlModeAsked", 0, 4, False, 1, 0, 0, 15, "", None, "", ""),
-        ("CtrlModeRun", 4, 4, False, 1, 0, 0, 15, "", None, "", ""),
-        ("CtrlLimits", 8, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("CtrlTorqueRef", 16, 16, True, 0.01, 0, -327.68, 327.67, "Nm", None, "", ""),
-        ("CtrlCurrent", 32, 16, True, 0.001, 0, -32.768, 32.767, "A", None, "", ""),
-        ("CtrlSeq", 48, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("CtrlFlags", 56, 8, False, 1, 0, 0, 255, "", None, "", ""),
-    ],
-    "FEEDFORWARD": [
-        ("FfTorque", 0, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "Nm", None, "", "float"),
-        ("FfSeq", 32, 8, False, 1, 0, 0, 255, "", None, "", ""),
-    ],
-    "TELEM_A": [
-        ("TorqueFiltered", 0, 16, True, 0.01, 0, -327.68, 327.67, "Nm", None, "", ""),
-        ("TorqueRaw", 16, 16, True, 0.01, 0, -327.68, 327.67, "Nm", None, "", ""),
-        ("Ripple", 32, 16, True, 0.001, 0, -32.768, 32.767, "Nm", None, "", ""),
-        ("SeqA", 48, 8, False, 1, 0, 0, 255, "", None, "", ""),
-    ],
-    "TELEM_B": [
-        ("MotorVelocity", 0, 24, True, 0.001, 0, -8388.608, 8388.607, "rad/s", None, "", ""),
-        ("Faults", 24, 24, False, 1, 0, 0, 16777215, "", None, "", ""),
-        ("KfStatus", 48, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("SeqB", 56, 8, False, 1, 0, 0, 255, "", None, "", ""),
-    ],
-    "TELEM_C": [
-        ("MotorCounts", 0, 32, False, 1, 0, 0, 4294967295, "counts", None, "", ""),
-        ("OutputCounts", 32, 23, False, 1, 0, 0, 8388607, "counts", None, "", ""),
-        ("OutputPresent", 55, 1, False, 1, 0, 0, 1, "", None, "", ""),
-        ("SeqC", 56, 8, False, 1, 0, 0, 255, "", None, "", ""),
-    ],
-    "CMD": [
-        ("Opcode", 0, 8, False, 1, 0, 0, 255, "", "opcode", "M", ""),
-        ("Token", 8, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("FilterEnable", 16, 8, False, 1, 0, 0, 1, "", None, "FILTER_ENABLE", ""),
-        ("MotorOrder", 16, 16, False, 0.01, 0, 0.01, 655.35, "1/rev", None, "ADD_MOTOR", ""),
-        ("MotorQ", 32, 32, True, 1, 0, 0, F32_MAX, "Nm^2", None, "ADD_MOTOR", "float"),
-        ("OutputOrder", 16, 16, False, 0.01, 0, 0.01, 655.35, "1/rev", None, "ADD_OUTPUT", ""),
-        ("OutputQ", 32, 32, True, 1, 0, 0, F32_MAX, "Nm^2", None, "ADD_OUTPUT", "float"),
-        ("FixedFrequency", 16, 16, False, 0.01, 0, 0.01, 499.99, "Hz", None, "ADD_FIXED", ""),
-        ("FixedQ", 32, 32, True, 1, 0, 0, F32_MAX, "Nm^2", None, "ADD_FIXED", "float"),
-        ("BlockIndex", 16, 8, False, 1, 0, 0, 7, "", None, "BLOCK_ENABLE", ""),
-        ("BlockEnable", 24, 8, False, 1, 0, 0, 1, "", None, "BLOCK_ENABLE", ""),
-        ("BlockGetIndex", 16, 8, False, 1, 0, 0, 7, "", None, "BLOCK_GET", ""),
-        ("BlockGetField", 24, 8, False, 1, 0, 0, 3, "", "block_field", "BLOCK_GET", ""),
-        ("SetParamId", 16, 8, False, 1, 0, 1, 255, "", "param", "SET_PARAM", ""),
-        ("SetParamValue", 32, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "", None, "SET_PARAM", "float"),
-        ("GetParamId", 16, 8, False, 1, 0, 1, 255, "", "param", "GET_PARAM", ""),
-        ("CalibUnixTime", 32, 32, False, 1, 0, 0, 4294967295, "s", None, "CALIB_SAVE", ""),
-        ("VersionItem", 16, 8, False, 1, 0, 0, 15, "", "info", "VERSION", ""),
-        ("InfoItem", 16, 8, False, 1, 0, 16, 255, "", "info", "INFO", ""),
-        ("ProfileSaveSource", 16, 8, False, 1, 0, 0, 1, "", None, "PROFILE_SAVE", ""),
-        ("ProfileLoadSource", 16, 8, False, 1, 0, 0, 1, "", None, "PROFILE_LOAD", ""),
-        ("ProfilePutLine", 16, 8, False, 1, 0, 0, 63, "", None, "PROFILE_PUT", ""),
-        ("ProfilePutOrder", 24, 8, False, 1, 0, 1, 255, "", None, "PROFILE_PUT", ""),
-        ("ProfilePutValue", 32, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "Nm", None,
-         "PROFILE_PUT", "float"),
-    ],
-    "ACK": [
-        ("AckOpcode", 0, 8, False, 1, 0, 0, 255, "", "opcode", "M", ""),
-        ("AckToken", 8, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("AckResult", 16, 8, False, 1, 0, 0, 255, "", "result", "", ""),
-        ("AckAux", 24, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("AckValue", 32, 32, True, 1, 0, f"-{F32_MAX}", F32_MAX, "", None, "FLOAT_ACKS", "float"),
-        ("AckValueU32", 32, 32, False, 1, 0, 0, 4294967295, "", None, "U32_ACKS", ""),
-    ],
-    "HEARTBEAT": [
-        ("State", 0, 8, False, 1, 0, 0, 3, "", "state", "", ""),
-        ("HbFaults", 8, 24, False, 1, 0, 0, 16777215, "", None, "", ""),
-        ("DeadlineMisses", 32, 16, False, 1, 0, 0, 65535, "", None, "", ""),
-        ("CalibStatus", 48, 4, False, 1, 0, 0, 15, "", "record", "", ""),
-        ("ConfigStatus", 52, 4, False, 1, 0, 0, 15, "", "record", "", ""),
-        ("ProfileStatus", 56, 8, False, 1, 0, 0, 255, "", "record", "", ""),
-    ],
-    "BOOT": [
-        ("ResetCause", 0, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("FaultRecord", 8, 1, False, 1, 0, 0, 1, "", None, "", ""),
-        ("ConfigFromRecord", 9, 1, False, 1, 0, 0, 1, "", None, "", ""),
-        ("FaultPc", 16, 32, False, 1, 0, 0, 4294967295, "", None, "", ""),
-        ("ProtocolVersion", 48, 8, False, 1, 0, 0, 255, "", None, "", ""),
-        ("BootConfigStatus", 56, 8, False, 1, 0, 0, 255, "", "record", "", ""),
-    ],
-}
-
-U32_ACK_OPCODES = ("VERSION", "INFO")
-BLOCK_FIELDS = ("LOCK", "ORDER", "Q_NM2", "ENABLED")   # BLOCK_GET's field byte (hd_fw_cmd.c)
-KF_STATUS_DOC = "1 frozen, 2 bad input, 4 reset, 8 P clamped, 16 offset jump"
-
-
-def _fmt(v) -> str:
-    if isinstance(v, str):
-        return v
-    return format(v, ".10g") if isinstance(v, float) else str(v)
-
-
-def _value_table(key: str) -> dict[int, str]:
-    if key == "opcode":
-        return {e.code: e.name for e in opcodes()}
-    if key == "result":
-        return {e.code: e.name for e in results()}
-    if key == "state":
-        return {e.code: e.name for e in states()}
-    if key == "record":
-        return {e.code: e.name for e in record_statuses()}
-    if key == "info":
-        return {e.code: e.name for e in info_items()}
-    if key == "param":
-        return {p.id: p.name for p in params()}
-    if key == "block_field":
-        return dict(enumerate(BLOCK_FIELDS))
-    raise KeyError(key)
-
-
-def _mux_ranges(spec: str) -> list[tuple[int, int]]:
-    """Opcode ranges a multiplexed ACK value signal covers."""
-    u32 = sorted(by_name(opcodes(), n).code for n in U32_ACK_OPCODES)
-    if spec == "U32_ACKS":
-        return [(c, c) for c in u32]
-    ranges, lo = [], 0
-    for c in u32:
-        if c > lo:
-            ranges.append((lo, c - 1))
-        lo = c + 1
-    ranges.append((lo, 255))
-    return ranges
+U32_ACK_OPCODES = tuple(e.name for e in opcodes() if reply(e.name).type == "U32")
+BLOCK_FIELDS = tuple(e.name for e in block_fields())   # BLOCK_GET's field byte
 
 
 def generate_dbc() -> str:
-    """firmware/hdjoint.dbc for node 1, from the .def files and DBC_LAYOUT."""
-    node = 1
-    out = ['VERSION "hdjoint protocol 2"', "", "", "NS_ :", "\tCM_", "\tBA_DEF_", "\tBA_",
-           "\tVAL_", "\tSIG_VALTYPE_", "\tSG_MUL_VAL_", "", "BS_:", "", "BU_: HOST JOINT", "", ""]
-    comments, vals, valtypes, muls = [], [], [], []
-    for fr in frames():
-        dbc_id = EXT_FLAG_DBC | fr.can_id(node)
-        sender, receiver = ("JOINT", "HOST") if fr.direction == "tx" else ("HOST", "JOINT")
-        out.append(f"BO_ {dbc_id} {fr.name}: {fr.dlc} {sender}")
-        comments.append(f'CM_ BO_ {dbc_id} "{fr.doc}.";')
-        for (name, start, length, signed, scale, offset, lo, hi, unit, table, mux,
-             kind) in DBC_LAYOUT[fr.name]:
-            if mux == "M":
-                m = " M"
-            elif mux in ("U32_ACKS", "FLOAT_ACKS"):
-                ranges = _mux_ranges(mux)
-                m = f" m{ranges[0][0]}"
-                if len(ranges) > 1 or ranges[0][0] != ranges[0][1]:
-                    spans = ", ".join(f"{a}-{b}" for a, b in ranges)
-                    muls.append(f"SG_MUL_VAL_ {dbc_id} {name} AckOpcode {spans};")
-            elif mux:
-                m = f" m{by_name(opcodes(), mux).code}"
-            else:
-                m = ""
-            sign = "-" if signed else "+"
-            out.append(f" SG_ {name}{m} : {start}|{length}@1{sign} ({_fmt(scale)},{_fmt(offset)}) "
-                       f"[{_fmt(lo)}|{_fmt(hi)}] \"{unit}\" {receiver}")
-            if kind == "float":
-                valtypes.append(f"SIG_VALTYPE_ {dbc_id} {name} : 1;")
-            if table:
-                items = " ".join(f'{k} "{v}"' for k, v in sorted(_value_table(table).items()))
-                vals.append(f"VAL_ {dbc_id} {name} {items} ;")
-            if name in ("Faults", "HbFaults"):
-                bits = ", ".join(f"{f.code} {f.name}" for f in faults())
-                comments.append(f'CM_ SG_ {dbc_id} {name} "HD_FAULT_* bits: {bits}.";')
-            if name == "KfStatus":
-                comments.append(f'CM_ SG_ {dbc_id} {name} "HD_KF_STATUS_* bits: {KF_STATUS_DOC}.";')
-        out.append("")
-    out += ["", 'CM_ "Harmonic-drive joint torque sensor, node 1: identifier = 0x01D00000 | '
-                'type << 8 | node_id (29-bit). Generated by python -m hdtools.protocol '
-                '--write-dbc from firmware/hd_protocol.def and hd_params.def; see '
-                'docs/protocol.md.";']
-    out += comments + [""] + vals + [""] + valtypes + [""] + muls
-    return "\n".join(out) + "\n"
+    """firmware/hdjoint.dbc for node 1, from the .def files."""
+    return protocol_dbc.generate_dbc(sys.modules[__name__])
 
 
-# ------------------------------------------------------------ doc tables
-# Markdown tables generated from the .def files, kept in docs/*.md between
-#   <!-- BEGIN generated:NAME -->  and  <!-- END generated:NAME -->
 DOCS = ROOT / "docs"
 
 
-def _md(header: list[str], rows: list[list]) -> str:
-    def cell(v) -> str:
-        return str(v).replace("|", "\\|")
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(cell(v) for v in r) + " |" for r in rows]
-    return "\n".join(out)
-
-
-def _range(p: Param) -> str:
-    if p.type == "BOOL":
-        return "on / off"
-    lo = "(" if "LO_OPEN" in p.flags else "["
-    return f"{lo}{p.lo:g}, {p.hi:g}]"
-
-
-def _effect(p: Param) -> str:
-    kind = "read only" if p.read_only else ("next tick" if "LIVE" in p.flags else
-                                            "model rebuilt, filter restarts")
-    store = "config" if "CONFIG" in p.flags else ("calibration" if "CALIB" in p.flags else "-")
-    return f"{kind}; {store}"
-
-
 def doc_tables() -> dict[str, str]:
-    return {
-        "params": _md(["id", "key (config text)", "CAN name", "type", "range", "unit",
-                       "takes effect; record", "meaning"],
-                      [[p.id, f"`{p.key}`", p.name, p.type, _range(p), p.unit, _effect(p), p.doc]
-                       for p in params()]),
-        "retired": _md(["id", "key", "why"],
-                       [[r.code, f"`{r.name}`", r.doc] for r in retired_params()]),
-        "faults": _md(["bit", "name", "meaning"], [[f.code, f.name, f.doc] for f in faults()]),
-        "opcodes": _md(["opcode", "name", "arguments / answer"],
-                       [[f"0x{e.code:02X}", e.name, e.doc] for e in opcodes()]),
-        "results": _md(["code", "name", "meaning"], [[e.code, e.name, e.doc] for e in results()]),
-        "frames": _md(["type", "identifier (node 1)", "name", "direction", "content"],
-                      [[f"0x{f.type:02X}", f"0x{f.can_id(1):08X}", f.name,
-                        "joint -> host" if f.direction == "tx" else "host -> joint", f.doc]
-                       for f in frames()]),
-        "records": _md(["code", "status", "meaning"],
-                       [[e.code, e.name, e.doc] for e in record_statuses()]),
-        "info": _md(["item", "name", "meaning"], [[e.code, e.name, e.doc] for e in info_items()]),
-    }
-
-
-_BLOCK = re.compile(r"(<!-- BEGIN generated:(\w+) -->\n)(?:.*?\n)?(<!-- END generated:\2 -->)", re.S)
+    """The generated tables of docs/*.md, by block name."""
+    return protocol_dbc.doc_tables(sys.modules[__name__])
 
 
 def render_docs(text: str) -> str:
     """text with every generated block replaced by its current table."""
-    tables = doc_tables()
-
-    def sub(m):
-        name = m.group(2)
-        if name not in tables:
-            raise DefError(f"unknown generated block {name!r}")
-        return m.group(1) + tables[name] + "\n" + m.group(3)
-    return _BLOCK.sub(sub, text)
+    try:
+        return protocol_dbc.render_docs(text, doc_tables())
+    except ValueError as exc:
+        raise DefError(str(exc)) from None
 
 
 def stale_docs() -> list[Path]:
     return [p for p in sorted(DOCS.glob("*.md")) if render_docs(p.read_text()) != p.read_text()]
+
+
+def generate_c() -> tuple[str, str]:
+    """firmware/hd_can_gen.h and hd_can_gen.c (hdtools.protocol_c)."""
+    return protocol_c.generate(frames(), frame_signals, commands(), command_args,
+                               U32_ACK_OPCODES)
+
+
+def generated_files() -> dict[Path, str]:
+    """Every file generated from the .def files, with its current text."""
+    h, c = generate_c()
+    return {DBC_PATH: generate_dbc(), GEN_H: h, GEN_C: c}
+
+
+def stale_files() -> list[Path]:
+    """Generated files (and docs) that differ from what the .def files give."""
+    return [p for p, text in generated_files().items()
+            if not p.exists() or p.read_text() != text] + stale_docs()
 
 
 def _write(path: Path, text: str) -> None:
@@ -504,30 +418,37 @@ def _write(path: Path, text: str) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m hdtools.protocol",
-                                 description="Generate or check firmware/hdjoint.dbc and the "
-                                             "generated tables in docs/*.md.")
+                                 description="Generate or check what comes from "
+                                             "firmware/hd_protocol.def and hd_params.def: the DBC, "
+                                             "the C codec and the tables in docs/*.md.")
     ap.add_argument("--write", action="store_true",
-                    help="rewrite firmware/hdjoint.dbc and the docs' generated tables")
+                    help="rewrite firmware/hdjoint.dbc, hd_can_gen.[ch] and the docs' tables")
     ap.add_argument("--write-dbc", action="store_true", help="rewrite firmware/hdjoint.dbc only")
     ap.add_argument("--check", action="store_true",
-                    help="exit 1 if the DBC or a doc table differs from the generated one")
+                    help="exit 1 if a generated file or doc table differs from the generated one")
     a = ap.parse_args(argv)
-    text = generate_dbc()
-    if a.write or a.write_dbc:
-        _write(DBC_PATH, text)
-        if a.write:
-            for p in stale_docs():
-                _write(p, render_docs(p.read_text()))
-        return 0
-    if a.check:
-        bad = ([DBC_PATH] if DBC_PATH.read_text() != text else []) + stale_docs()
-        if bad:
-            print(f"{', '.join(str(p.relative_to(ROOT)) for p in bad)} out of date: "
-                  f"run (cd tools && ../.venv/bin/python -m hdtools.protocol --write)",
-                  file=sys.stderr)
-            return 1
-        return 0
-    sys.stdout.write(text)
+    try:
+        if a.write or a.write_dbc:
+            files = generated_files()
+            for path, text in files.items():
+                if a.write or path == DBC_PATH:
+                    _write(path, text)
+            if a.write:
+                for p in stale_docs():
+                    _write(p, render_docs(p.read_text()))
+            return 0
+        if a.check:
+            bad = stale_files()
+            if bad:
+                print(f"{', '.join(str(p.relative_to(ROOT)) for p in bad)} out of date: "
+                      f"run (cd tools && ../.venv/bin/python -m hdtools.protocol --write)",
+                      file=sys.stderr)
+                return 1
+            return 0
+        sys.stdout.write(generate_dbc())
+    except (OSError, DefError) as exc:
+        print(f"hdtools.protocol: {exc}", file=sys.stderr)
+        return 1
     return 0
 
 

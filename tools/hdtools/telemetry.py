@@ -29,11 +29,14 @@ import math
 
 import numpy as np
 
+from . import protocol
+
 TICK_HZ = 1000                   # HD_FW_TS_US = 1000 (firmware/hd_fw_config.h; a test checks)
 TICK_S = 1.0 / TICK_HZ
-SEQ_MOD = 256
-MOTOR_COUNTS_MOD = 1 << 32
-OUTPUT_COUNTS_MOD = 1 << 23      # HD_CAN_OUTPUT_COUNTS_MASK + 1
+_TELEM_C = {s.name: s for s in protocol.frame_signals("TELEM_C")}
+SEQ_MOD = 1 << _TELEM_C["SeqC"].bits
+MOTOR_COUNTS_MOD = 1 << _TELEM_C["MotorCounts"].bits
+OUTPUT_COUNTS_MOD = 1 << _TELEM_C["OutputCounts"].bits   # the low bits TELEM_C carries
 SNAP_TOLERANCE = 0.02            # an estimate within 2 % of whole ticks is snapped
 
 

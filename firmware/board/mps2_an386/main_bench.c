@@ -287,12 +287,12 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick, boo
             cmd.token = (uint8_t)c;
             if (c == 0u) {
                 cmd.opcode = HD_CMD_BLOCK_ENABLE; /* applied by the tick itself */
-                cmd.arg_u8[0] = 0u;
-                cmd.arg_u8[1] = (uint8_t)(k & 1u);
+                cmd.arg.block_enable.index = 0u;
+                cmd.arg.block_enable.enable = (uint8_t)(k & 1u);
             } else {
                 cmd.opcode = HD_CMD_SET_PARAM;
-                cmd.arg_u8[0] = HD_PARAM_R_NM2;
-                cmd.value = cfg->kf.r_nm2; /* a rebuild of the same model */
+                cmd.arg.set_param.id = HD_PARAM_R_NM2;
+                cmd.arg.set_param.value = cfg->kf.r_nm2; /* a rebuild of the same model */
             }
             hal_can_frame_t f;
             hd_can_encode_cmd(cfg->node_id, &cmd, &f);

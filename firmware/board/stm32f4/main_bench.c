@@ -142,7 +142,7 @@ static void command_in_fifo(void)
     hd_can_cmd_t c;
     memset(&c, 0, sizeof c);
     c.opcode = HD_CMD_GET_PARAM;
-    c.arg_u8[0] = 1u;
+    c.arg.get_param.id = 1u;
     hal_can_frame_t f;
     hd_can_encode_cmd(1u, &c, &f);
     r_can.RX[0].RIR = ((f.id & 0x1FFFFFFFu) << STM32_CAN_IR_EXID_POS) | STM32_CAN_IR_IDE;

@@ -26,10 +26,10 @@ from ctypes import POINTER, c_float, c_int, c_size_t, c_uint, c_uint8, c_uint32
 
 import numpy as np
 
-from .. import native
+from .. import native, profile_record
 
 # Compile-time capacity of filter/hd_kf.h (HD_KF_MAX_BLOCKS default).
-MAX_BLOCKS = 8
+MAX_BLOCKS = profile_record.MAX_LINES  # read from filter/hd_kf.h, not typed again
 MAX_STATES = 2 * MAX_BLOCKS + 1
 MAX_POWER = 8  # HD_KF_MAX_POWER
 PHASORS = 2 * (MAX_POWER + 1) + MAX_BLOCKS
