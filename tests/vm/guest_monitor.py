@@ -230,6 +230,9 @@ def main() -> int:
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--duration", default="2")
     a = ap.parse_args()
+    # The tools take the C library from the runner's build tree (hdtools.native
+    # never builds, and the VM's environment has no HD_BUILD_DIR).
+    os.environ.setdefault("HD_BUILD_DIR", str(Path(a.runner).resolve().parents[2]))
     RUN.mkdir(parents=True, exist_ok=True)
     times: dict[str, float] = {}
     rcs: dict[str, int | None] = {}
