@@ -137,7 +137,8 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
     if (!is_nonneg(cfg->offset_jump_nm) || !is_nonneg(cfg->q_motion_ref_rad) ||
         !is_nonneg(cfg->ripple_load_coeff_per_nm) ||
         cfg->ripple_load_coeff_per_nm > HD_KF_MAX_LOAD_COEFF_PER_NM ||
-        !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2) {
+        !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2 ||
+        !is_nonneg(cfg->offset_drift_q_nm2) || cfg->offset_drift_q_nm2 > cfg->p_max_nm2) {
         return HD_KF_ERR_NOISE;
     }
     if (cfg->p0_nm2 > HD_KF_MAX_P0_OVER_R * cfg->r_nm2 ||
@@ -316,6 +317,11 @@ static void build_layout(hd_kf_t *kf)
     kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     kf->jump_rearm_steps = steps_of(HD_KF_JUMP_REARM_S, kf->cfg.ts_s);
     kf->limit_restart_steps = steps_of(HD_KF_LIMIT_RESTART_S, kf->cfg.ts_s);
+    {
+        const float a = kf->cfg.ts_s / HD_KF_DRIFT_WINDOW_S;
+        kf->drift_alpha = a < 1.0f ? a : 1.0f;
+    }
+    kf->drift_hold_total = steps_of(HD_KF_DRIFT_HOLD_S, kf->cfg.ts_s);
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
         build_slot(kf, i);
         enabled += kf->slot[i].enabled;
@@ -370,6 +376,9 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
     kf->load_scale = 1.0f;
+    kf->drift_mean_nm = 0.0f;
+    kf->drift_var_nm2 = kf->cfg.r_nm2;
+    kf->drift_hold_steps = kf->drift_hold_total; /* unknown until shown constant */
 }
 
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
@@ -400,6 +409,7 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     kf->p_negative_count = 0u;
     kf->jump_held_count = 0u;
     kf->limit_count = 0u;
+    kf->drift_count = 0u;
     return HD_KF_OK;
 }
 

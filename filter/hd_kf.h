@@ -59,7 +59,14 @@
  *     until HD_KF_JUMP_REARM_S of steps in a row have stayed within it;
  *     each step beyond it restarts that count, and one beyond it with no
  *     jump left is HD_KF_STATUS_UNMODELLED, counted in jump_held_count (an
- *     effect the model lacks, not a load step).
+ *     effect the model lacks, not a load step);
+ *   - offset drift: with offset_drift_q_nm2 > offset_q_nm2 (an offset told
+ *     to be slow because the load is known), an innovation whose running
+ *     mean stands beyond HD_KF_DRIFT_SIGMA of its spread says the load
+ *     moves after all: for HD_KF_DRIFT_HOLD_S from then the offset's q per
+ *     step is offset_drift_q_nm2 (drift_count counts those steps).  Left to
+ *     the slow offset, a slowly turning block takes the load instead, a
+ *     ramp of slope s as an amplitude s / omega.
  *
  * Invariants kept every step:
  *   - P (the posterior's) is stored once (packed upper triangle), so it is
@@ -138,6 +145,15 @@ extern "C" {
 #define HD_KF_JUMP_BURST 2u
 #define HD_KF_JUMP_REARM_S 0.2f
 
+/* Offset drift gate (offset_drift_q_nm2 > offset_q_nm2): the innovation's
+ * running mean m over HD_KF_DRIFT_WINDOW_S, against its running mean
+ * square v (a = ts / window): m^2 (2 - a) > HD_KF_DRIFT_SIGMA^2 a v, i.e.
+ * m beyond that many sigma of the running mean of white innovations,
+ * holds the gate for HD_KF_DRIFT_HOLD_S. */
+#define HD_KF_DRIFT_WINDOW_S 0.1f
+#define HD_KF_DRIFT_SIGMA 4.0f
+#define HD_KF_DRIFT_HOLD_S 1.0f
+
 /* A filter whose steps at correction_max_nm outnumber the others by this
  * long restarts (hd_kf_reset) [s]. */
 #define HD_KF_LIMIT_RESTART_S 0.1f
@@ -185,6 +201,9 @@ typedef struct {
     float correction_max_nm;       /* > 0: the published correction (T_meas minus the
                                       filtered torque) is held within +-this, and a filter
                                       that keeps reaching it restarts; 0: off */
+    float offset_drift_q_nm2;      /* > offset_q_nm2: the offset's q per step while the
+                                      drift gate holds (an offset slowed for a known load
+                                      that the innovations say moves); 0: gate off */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -301,6 +320,12 @@ typedef struct {
     uint32_t limit_restart_steps;             /* HD_KF_LIMIT_RESTART_S in steps (at least 1) */
     uint32_t limit_steps;                     /* steps at the limit less those below it */
     uint32_t limit_count;                     /* steps with the correction held */
+    float drift_alpha;                        /* ts / HD_KF_DRIFT_WINDOW_S */
+    float drift_mean_nm;                      /* running mean of the innovation */
+    float drift_var_nm2;                      /* running mean of its square */
+    uint32_t drift_hold_total;                /* HD_KF_DRIFT_HOLD_S in steps */
+    uint32_t drift_hold_steps;                /* steps left at offset_drift_q_nm2 */
+    uint32_t drift_count;                     /* steps at offset_drift_q_nm2 */
 } hd_kf_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,

@@ -335,6 +335,28 @@ KF_INLINE uint32_t offset_jump(hd_kf_t *kf, float e, float s_var)
     return HD_KF_STATUS_OFFSET_JUMP;
 }
 
+/* Offset drift gate (hd_kf.h): the innovation's running mean and mean
+ * square take e; a mean beyond HD_KF_DRIFT_SIGMA of the running mean's
+ * spread (re)starts the hold, during which the offset's q is
+ * offset_drift_q_nm2.  Returns the step's q. */
+KF_INLINE float offset_drift(hd_kf_t *kf, float e, float q_off)
+{
+    const float a = kf->drift_alpha;
+    const float m = kf->drift_mean_nm + a * (e - kf->drift_mean_nm);
+    const float v = kf->drift_var_nm2 + a * (e * e - kf->drift_var_nm2);
+    kf->drift_mean_nm = m;
+    kf->drift_var_nm2 = v;
+    if (m * m * (2.0f - a) > HD_KF_DRIFT_SIGMA * HD_KF_DRIFT_SIGMA * a * v) {
+        kf->drift_hold_steps = kf->drift_hold_total;
+    }
+    if (kf->drift_hold_steps == 0u) {
+        return q_off;
+    }
+    kf->drift_hold_steps--;
+    kf->drift_count++;
+    return kf->cfg.offset_drift_q_nm2;
+}
+
 /* The correction limit: a correction beyond +-correction_max_nm is
  * published at the limit (ripple_nm then carries the published one).
  * limit_steps counts up at the limit and down below it (a wrong estimate
@@ -494,17 +516,24 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
         kf->offset_primed = 1u;
     }
     const float offset = kf->x[o]; /* 0 when the offset is disabled */
-    float s_var = measurement_var(kf, in->torque_expected_var_nm2) +
-                  cross_covariance(kf->p, h, q, kf->offset_q_nm2, g, nb);
     const float innovation = y - ripple - offset;
+    const bool drift_gated = valid && kf->cfg.offset_enabled &&
+                             kf->cfg.offset_drift_q_nm2 > kf->offset_q_nm2;
+    const float q_off = UNLIKELY(drift_gated) ? offset_drift(kf, innovation, kf->offset_q_nm2)
+                                              : kf->offset_q_nm2;
+    float s_var = measurement_var(kf, in->torque_expected_var_nm2) +
+                  cross_covariance(kf->p, h, q, q_off, g, nb);
     const uint32_t gate = valid ? offset_jump(kf, innovation, s_var) : 0u;
     status |= gate;
     if (UNLIKELY(gate == HD_KF_STATUS_OFFSET_JUMP)) {
-        /* an offset jump widens the offset's variance first */
+        /* an offset jump widens the offset's variance first; the jump takes
+         * the innovation, the drift gate starts again */
         const float e2 = innovation * innovation;
         kf->p[packed_entries(nb) - 1u] += e2;
         g[o] += e2;
         s_var += e2;
+        kf->drift_mean_nm = 0.0f;
+        kf->drift_var_nm2 = kf->cfg.r_nm2;
     }
 
     /* ---- outputs */
@@ -528,8 +557,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
      * when some state is not: then neither are the new states */
     const float finite_probe = ripple + offset + s_var + k_e;
     bound_probe_t probe;
-    correct(kf->p, kf->x, g, f, q, inv_s, k_e, kf->offset_q_nm2, nb, sum.partial, sum.frozen,
-            &probe);
+    correct(kf->p, kf->x, g, f, q, inv_s, k_e, q_off, nb, sum.partial, sum.frozen, &probe);
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
     normalize_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1]); /* (1, 0) if unused: kept */

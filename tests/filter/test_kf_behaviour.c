@@ -983,6 +983,60 @@ static void test_recommended_load_step_goes_to_offset(void)
     TEST_ASSERT_GREATER_THAN_FLOAT(GATE_OFF_BOUND_X * e_on, e_off);
 }
 
+/* ---- a slow load the offset is told to be slower than ----------------------
+ * Commissioning mode (hd_fw_config.h: the offset's q x 0.01, for a known
+ * load) on a log with an unknown slow load: a 1.5 N m, 0.03 Hz sine from
+ * zero (slopes up to 0.28 N m/s), at 0.4 rad/s output, T_exp = 0.  A
+ * slowly turning output block represents a load ramp of slope s by an
+ * amplitude s / omega: left to the blocks, the load came out as ripple
+ * (filtered error 0.52 N m against 0.48 raw without the gate).
+ * Spec: with the offset slowed and the drift gate at the offset's own
+ * rate (what commissioning mode configures), the filtered error is below
+ * the raw error and the gate held (drift_count > 0); with the offset at
+ * its own rate throughout, too. */
+static const double k_drift_t[] = {0, 0.5, 20};
+static const double k_drift_w[] = {0, 40, 40};
+static double slow_load_error(float offset_q_scale, bool drift_gate, double *raw,
+                              uint32_t *drift_steps)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.02f);
+    cfg.offset_drift_q_nm2 = drift_gate ? cfg.offset_q_nm2 : 0.0f;
+    cfg.offset_q_nm2 *= offset_q_scale;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    scen_t s = {{k_drift_t, k_drift_w, 3}, 0.4, 0.3, 0.5, 0.02, 0.0, 1.5, 0.03, 0.0, 20.0,
+                0.0, 0.0};
+    run_scenario(&kf, &s, &g_run);
+    const size_t from = (size_t)(1.0 / TS_S);
+    double se = 0.0, sr = 0.0;
+    for (size_t k = from; k < g_run.n; k++) {
+        se += (g_run.filtered[k] - g_run.t_true[k]) * (g_run.filtered[k] - g_run.t_true[k]);
+        sr += (g_run.t_meas[k] - g_run.t_true[k]) * (g_run.t_meas[k] - g_run.t_true[k]);
+    }
+    *raw = sqrt(sr / (double)(g_run.n - from));
+    *drift_steps = kf.drift_count;
+    return sqrt(se / (double)(g_run.n - from));
+}
+
+static void test_slow_load_goes_to_offset_in_every_mode(void)
+{
+    double raw, raw_slow;
+    uint32_t drift, drift_slow;
+    const double err = slow_load_error(0.01f, true, &raw, &drift);
+    const double err_slow = slow_load_error(0.01f, false, &raw_slow, &drift_slow);
+    uint32_t drift_own;
+    double raw_own;
+    const double err_own = slow_load_error(1.0f, false, &raw_own, &drift_own);
+    msg("1.5 N m 0.03 Hz load, filtered error over raw: offset slowed + drift gate %.4f / %.4f "
+        "N m (gate held %u steps), slowed alone %.4f, own rate %.4f", err, raw,
+        (unsigned)drift, err_slow, err_own);
+    TEST_ASSERT_GREATER_THAN_UINT32(0u, drift);
+    TEST_ASSERT_EQUAL_UINT32(0u, drift_slow);
+    TEST_ASSERT_LESS_THAN_DOUBLE(raw, err);
+    TEST_ASSERT_LESS_THAN_DOUBLE(raw_own, err_own);
+}
+
 /* ---- an effect the model lacks, above the jump gate ------------------------
  * A motor order 3 line of 0.7 N m (the gate is at 0.5 N m) that no block
  * models, at 0.3-0.8 rad/s output with reversals.  It is no load step: the
@@ -1414,6 +1468,8 @@ static void test_load_coeff_config_check(void)
     hd_kf_config_t cfg;
     valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = -0.1f;     expect_err(&cfg, HD_KF_ERR_NOISE, "k < 0");
     valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = -1e-30f;   expect_err(&cfg, HD_KF_ERR_NOISE, "k tiny < 0");
+    valid_cfg(&cfg); cfg.offset_drift_q_nm2 = -1e-6f;   expect_err(&cfg, HD_KF_ERR_NOISE, "drift q < 0");
+    valid_cfg(&cfg); cfg.offset_drift_q_nm2 = 2e6f;     expect_err(&cfg, HD_KF_ERR_NOISE, "drift q > p_max");
     valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = NAN;       expect_err(&cfg, HD_KF_ERR_NOISE, "k NaN");
     valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = INFINITY;  expect_err(&cfg, HD_KF_ERR_NOISE, "k +inf");
     valid_cfg(&cfg); cfg.ripple_load_coeff_per_nm = -INFINITY; expect_err(&cfg, HD_KF_ERR_NOISE, "k -inf");
@@ -1688,6 +1744,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_block_toggle_with_offset_keeps_states_bitwise);
     RUN_TEST(test_recommended_load_step_goes_to_offset);
     RUN_TEST(test_unmodelled_line_above_gate_takes_one_burst);
+    RUN_TEST(test_slow_load_goes_to_offset_in_every_mode);
     RUN_TEST(test_jump_gate_rearms_for_the_next_step);
     RUN_TEST(test_correction_limit_holds_and_restarts);
     RUN_TEST(test_load_coeff_step_predicts_ripple);

@@ -121,11 +121,36 @@ def test_generator_is_deterministic_and_in_range():
     assert not set(randjoint.TUNE_SEEDS) & set(randjoint.REPORT_SEEDS)
 
 
+def test_load_modulated_joint_is_the_same_joint():
+    """Load-modulated lines (issue 21, item 5): the coefficient is drawn in
+    its documented range, from its own stream (the joint is otherwise the
+    same), and is written to both scenario files; a joint without it has
+    no such key (hdsim's default, 0)."""
+    lo, hi = randjoint.RANGES["ripple_load_coeff_per_nm"]
+    coeffs = set()
+    for s in CI_SEEDS:
+        bare, loaded = randjoint.draw(s), randjoint.draw(s, loaded=True)
+        c = loaded.ripple_load_coeff_per_nm
+        assert lo <= c <= hi
+        coeffs.add(c)
+        key = f"ripple_load_coeff_per_nm = {c:.6g}"
+        for made, plain in ((loaded.commissioning_ini(), bare.commissioning_ini()),
+                            (loaded.operating_ini(), bare.operating_ini())):
+            lines = made.splitlines()
+            assert lines.count(key) == 1
+            lines.remove(key)
+            assert lines == plain.splitlines()
+        assert "ripple_load_coeff_per_nm" not in bare.operating_ini()
+        assert [ln.ini() for ln in bare.lines] == [ln.ini() for ln in loaded.lines]
+        assert randjoint.draw(s, True, True).ripple_load_coeff_per_nm == c
+    assert len(coeffs) == len(CI_SEEDS)
+
+
 def test_scenario_files_load(hdsim, tmp_path):
     """The generated files are valid hdsim scenarios (the simulator parses
     them strictly: an unknown key or a bad profile is an error)."""
     import subprocess
-    com, op = randjoint.write(randjoint.draw(CI_SEEDS[0], True), tmp_path)
+    com, op = randjoint.write(randjoint.draw(CI_SEEDS[0], True, loaded=True), tmp_path)
     for ini in (com, op):
         p = subprocess.run([str(hdsim), str(ini), "--nominal"], capture_output=True, text=True)
         assert p.returncode == 0, p.stderr

@@ -73,7 +73,8 @@ class KfConfig(ctypes.Structure):
                 ("offset_jump_nm", c_float),
                 ("ripple_load_coeff_per_nm", c_float),
                 ("output_learn_scale", c_float),
-                ("correction_max_nm", c_float)]
+                ("correction_max_nm", c_float),
+                ("offset_drift_q_nm2", c_float)]
 
     # Fields the analysis model carries one-to-one (see model.Model).
     SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
@@ -140,7 +141,13 @@ class KfState(ctypes.Structure):
                 ("jump_held_count", c_uint32),
                 ("limit_restart_steps", c_uint32),
                 ("limit_steps", c_uint32),
-                ("limit_count", c_uint32)]
+                ("limit_count", c_uint32),
+                ("drift_alpha", c_float),
+                ("drift_mean_nm", c_float),
+                ("drift_var_nm2", c_float),
+                ("drift_hold_total", c_uint32),
+                ("drift_hold_steps", c_uint32),
+                ("drift_count", c_uint32)]
 
 
 class Track(ctypes.Structure):

@@ -6,7 +6,8 @@ A joint is drawn from a seed with numpy's PCG64: every range is in RANGES
 (one place; docs/random-joints.md's range table is rendered from it).  The
 declared lines are the firmware's default model (motor orders 2 and 4,
 output order 1), each with a uniform phase; an undeclared effect (one of
-UNDECLARED) is added only when asked for.
+UNDECLARED) is added only when asked for, and so are load-modulated lines
+(a drawn ripple_load_coeff_per_nm).
 
 Seeds: the fixes of issue 21 were developed on TUNE_SEEDS; the benchmark
 reports REPORT_SEEDS (disjoint), and the CI test runs a few of those.
@@ -37,6 +38,10 @@ RANGES = {
     "load_sine_period_s": (4.0, 40.0),
     "load_step_nm": (-1.5, 1.5),
     "undeclared_amplitude_nm": (0.2, 0.6),
+    # load-modulated lines (when drawn): every motor and output line grows
+    # as 1 + c |T_true| (hdsim's law, docs/sim.md); 0.1 doubles a line at
+    # 10 N m, about the largest load an operating plan here reaches
+    "ripple_load_coeff_per_nm": (0.02, 0.1),
 }
 ENCODER_CPRS = (4096, 16384)
 LOAD_SINES = (1, 3)                 # how many slow load sines, inclusive
@@ -86,13 +91,15 @@ class Joint:
     load_sines: list                   # [(N m, s, rad)]
     load_step: tuple                   # (t_s, N m)
     undeclared: Line | None = None
+    ripple_load_coeff_per_nm: float = 0.0
     extra: dict = field(default_factory=dict)
 
     @property
     def name(self) -> str:
         u = "" if self.undeclared is None else (
             f"+{self.undeclared.kind}{self.undeclared.order:g}")
-        return f"j{self.seed}{u}"
+        c = self.ripple_load_coeff_per_nm
+        return f"j{self.seed}{u}" + (f"+load{c:.3f}" if c > 0 else "")
 
     def joint_lines(self) -> list[str]:
         """The joint itself (what stays from commissioning to operation)."""
@@ -104,6 +111,8 @@ class Joint:
                f"encoder_cpr = {self.motor_cpr}",
                f"output_encoder_cpr = {self.output_cpr}", *FIXED_LINES]
         out += [ln.ini() for ln in self.lines]
+        if self.ripple_load_coeff_per_nm > 0:
+            out.append(f"ripple_load_coeff_per_nm = {self.ripple_load_coeff_per_nm:.6g}")
         if self.undeclared is not None:
             out.append(self.undeclared.ini())
         return out
@@ -155,6 +164,8 @@ class Joint:
              "commission_speed_rad_s": self.commission_speed_rad_s}
         if self.undeclared is not None:
             d["undeclared"] = vars(self.undeclared)
+        if self.ripple_load_coeff_per_nm > 0:
+            d["ripple_load_coeff_per_nm"] = self.ripple_load_coeff_per_nm
         return d
 
 
@@ -191,9 +202,10 @@ def _load_sines(rng) -> list:
             for _ in range(int(rng.integers(LOAD_SINES[0], LOAD_SINES[1] + 1)))]
 
 
-def draw(seed: int, undeclared: bool | int = False) -> Joint:
+def draw(seed: int, undeclared: bool | int = False, loaded: bool = False) -> Joint:
     """The joint of this seed; undeclared: False (declared lines only), True
-    (one undeclared effect drawn from UNDECLARED) or an index into it."""
+    (one undeclared effect drawn from UNDECLARED) or an index into it;
+    loaded: its lines grow with the load (a drawn ripple_load_coeff_per_nm)."""
     rng = np.random.Generator(np.random.PCG64(seed))
     lines = [Line(k, o, _u(rng, "line_amplitude_nm"), float(rng.uniform(-math.pi, math.pi)))
              for k, o in DECLARED]
@@ -214,6 +226,9 @@ def draw(seed: int, undeclared: bool | int = False) -> Joint:
         kind, order = UNDECLARED[idx]
         j.undeclared = Line(kind, float(order), _u(u_rng, "undeclared_amplitude_nm"),
                             float(u_rng.uniform(-math.pi, math.pi)))
+    if loaded:
+        j.ripple_load_coeff_per_nm = _u(np.random.Generator(np.random.PCG64([seed, 23])),
+                                        "ripple_load_coeff_per_nm")
     return j
 
 
@@ -239,4 +254,6 @@ def ranges_table() -> list[str]:
     rows.append(f"| undeclared effect (one, when drawn) | "
                 f"{', '.join(f'{k} {o:g}' + (' Hz' if k == 'fixed' else '') for k, o in UNDECLARED)}"
                 " |")
+    rows.append("| load-modulated lines (when drawn) | every motor and output line times "
+                "1 + `ripple_load_coeff_per_nm` \\|T_true\\| (hdsim) |")
     return rows

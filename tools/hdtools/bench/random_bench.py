@@ -147,18 +147,18 @@ def distribution(runs: list[dict], path: str) -> dict:
             "worst_error_over_raw": float(max(x["error_rms_nm"] / x["raw_rms_nm"] for x in r))}
 
 
-def run(seeds, undeclared: bool, paths=PATHS, log=None) -> dict:
+def run(seeds, undeclared: bool, paths=PATHS, log=None, loaded: bool = False) -> dict:
     """The benchmark over these seeds; {"runs": [...], "paths": {path: distribution}}."""
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
         for s in seeds:
-            j = randjoint.draw(int(s), undeclared)
+            j = randjoint.draw(int(s), undeclared, loaded)
             runs.append(run_joint(j, Path(tmp) / j.name, paths))
             if log:
                 log(j.name + ": " + ", ".join(f"{p} {v['ratio_to_floor']:.2f}x"
                                               for p, v in runs[-1]["paths"].items()))
     return {"seeds": [int(s) for s in seeds], "undeclared": bool(undeclared),
-            "runs": runs, "paths": {p: distribution(runs, p) for p in paths}}
+            "loaded": bool(loaded), "runs": runs, "paths": {p: distribution(runs, p) for p in paths}}
 
 
 def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> dict:
@@ -171,17 +171,21 @@ def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> d
 
 
 QUICK_PATHS = ("self", "adaptive")     # tools/bench --quick: a smoke run
+# Load-modulated lines: the product path and the analysis loops.
+LOADED_PATHS = ("self", "analyze", "analyze_op")
 
 
 def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
     """The benchmark: n_joints report seeds, declared effects only and with
-    one undeclared effect each, on these paths; plus the CI sample's record."""
+    one undeclared effect each, on these paths, and with load-modulated
+    lines on LOADED_PATHS; plus the CI sample's record."""
     seeds = list(randjoint.REPORT_SEEDS[:n_joints])
     out = {"seeds": f"REPORT_SEEDS[:{n_joints}] = {seeds[0]}..{seeds[-1]}",
            "tuned_on": f"TUNE_SEEDS ({randjoint.TUNE_SEEDS.start}..{randjoint.TUNE_SEEDS.stop - 1})",
            "goal_ratio": GOAL_RATIO}
     for key, und in (("declared", False), ("undeclared", True)):
         out[key] = run(seeds, und, paths, log)
+    out["loaded"] = run(seeds, False, [p for p in paths if p in LOADED_PATHS], log, loaded=True)
     if ci_sample:
         out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
     return out

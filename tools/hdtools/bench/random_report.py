@@ -16,7 +16,10 @@ LABELS = {
     "operating": "learning mode 1 (operating, the default), no profile",
 }
 GOALS = (("declared", "self", 0.98), ("undeclared", "analyze", 0.90),
-         ("undeclared", "analyze_op", 0.90))
+         ("undeclared", "analyze_op", 0.90), ("loaded", "self", 0.90))
+PARTS = (("declared", "Declared effects only"),
+         ("undeclared", "One undeclared effect per joint"),
+         ("loaded", "Load-modulated lines (declared effects, every line times 1 + c |T|)"))
 
 
 def _row(path, d):
@@ -31,25 +34,25 @@ def markdown(res: dict) -> str:
     out = [f"Joints {res['seeds']}; the fixes were developed on {res['tuned_on']}, disjoint.",
            "", "### Drawing ranges (`tools/hdtools/bench/randjoint.py`)", ""]
     out += randjoint.ranges_table()
-    for key, title in (("declared", "Declared effects only"),
-                       ("undeclared", "One undeclared effect per joint")):
+    for key, title in PARTS:
+        if key not in res:
+            continue
         out += ["", f"### {title}", "",
                 f"Error RMS after the first second over the noise floor; within = at most "
                 f"{GOAL_RATIO:g}x; worse than raw = filtered error above the raw measurement's.",
                 "", "| path | what | runs | median | 90th pct | worst | within | worse than raw |",
                 "|---|---|---|---|---|---|---|---|"]
-        out += [_row(p, res[key]["paths"].get(p, {})) for p in PATHS]
+        out += [_row(p, res[key]["paths"][p]) for p in PATHS if p in res[key]["paths"]]
     out += ["", "### Goals", "", "| goal | measured | met |", "|---|---|---|"]
     for key, path, frac in GOALS:
-        d = res[key]["paths"].get(path, {})
+        d = res.get(key, {"paths": {}})["paths"].get(path, {})
         got = d.get("fraction_within_goal", 0.0)
         out.append(f"| {key}, {path}: within {GOAL_RATIO:g}x in >= {100 * frac:.0f} % | "
                    f"{100 * got:.0f} % ({d.get('within_goal', 0)} of {d.get('runs', 0)}) | "
                    f"{'yes' if got >= frac else 'no'} |")
-    worse = sum(res[k]["paths"][p].get("worse_than_raw", 0) for k in ("declared", "undeclared")
-                for p in PATHS)
-    runs = sum(res[k]["paths"][p].get("runs", 0) for k in ("declared", "undeclared")
-               for p in PATHS)
+    parts = [res[k]["paths"] for k, _ in PARTS if k in res]
+    worse = sum(d.get("worse_than_raw", 0) for part in parts for d in part.values())
+    runs = sum(d.get("runs", 0) for part in parts for d in part.values())
     out.append(f"| filtered <= raw in 100 % of runs, every mode | {runs - worse} of {runs} | "
                f"{'yes' if worse == 0 else 'no'} |")
     return "\n".join(out) + "\n"
