@@ -12,19 +12,27 @@ static int32_t sext(uint32_t raw, unsigned bits)
     const uint32_t sign = 1u << (bits - 1u);
     return (int32_t)(raw ^ sign) - (int32_t)sign;
 }
+/* Two 32-bit halves with constant shifts: a loop over a 64-bit
+ * variable shift costs the Cortex-M4 a libgcc-style sequence per byte. */
+static uint32_t load_u32(const uint8_t *d)
+{
+    return (uint32_t)d[0] | (uint32_t)d[1] << 8 | (uint32_t)d[2] << 16 | (uint32_t)d[3] << 24;
+}
 static uint64_t load_word(const uint8_t *d)
 {
-    uint64_t w = 0u;
-    for (unsigned i = 0; i < HD_CAN_DLC; i++) {
-        w |= (uint64_t)d[i] << (8u * i);
-    }
-    return w;
+    return (uint64_t)load_u32(d) | (uint64_t)load_u32(d + 4) << 32;
+}
+static void store_u32(uint8_t *d, uint32_t u)
+{
+    d[0] = (uint8_t)u;
+    d[1] = (uint8_t)(u >> 8);
+    d[2] = (uint8_t)(u >> 16);
+    d[3] = (uint8_t)(u >> 24);
 }
 static void store_word(uint8_t *d, uint64_t w)
 {
-    for (unsigned i = 0; i < HD_CAN_DLC; i++) {
-        d[i] = (uint8_t)(w >> (8u * i));
-    }
+    store_u32(d, (uint32_t)w);
+    store_u32(d + 4, (uint32_t)(w >> 32));
 }
 
 bool hd_can_is_command(uint8_t opcode)
