@@ -135,3 +135,15 @@ def test_ctest_names_are_area_module():
     assert len(names) > 50
     bad = [n for n in names if not re.fullmatch(rf"({'|'.join(AREAS)})_[a-z0-9_${{}}]+", n)]
     assert bad == [], f"CTest names not <area>_<module>: {bad}"
+
+
+def test_firmware_file_table_names_every_source():
+    """docs/firmware.md's file table names every firmware/*.c and *.def (it
+    lacked three stage files once)."""
+    import re
+    text = (ROOT / "docs" / "firmware.md").read_text()
+    table = text[:text.index("## Two contexts")]
+    named = set(re.findall(r"`([A-Za-z0-9_]+\.(?:c|def))`", table))
+    files = {p.name for p in (ROOT / "firmware").glob("*.c")} | \
+        {p.name for p in (ROOT / "firmware").glob("*.def")}
+    assert files - named == set(), f"docs/firmware.md's file table lacks {sorted(files - named)}"
