@@ -3,10 +3,9 @@
 #include <stddef.h>
 
 #include "hd_kf_frames.h"
+#include "hd_kf_gates.h"
 #include "hd_kf_internal.h"
 #include "hd_trig.h"
-
-#define JUMP_MIN_SIGMA 4.0f
 
 /* The motion fraction min(1, |angle| / q_motion_ref_rad); 1 when off. */
 static float motion_fraction(const hd_kf_t *kf, float angle_rad)
@@ -307,79 +306,6 @@ KF_INLINE float measurement_var(const hd_kf_t *kf, float expected_var_nm2)
 {
     const float v = expected_var_nm2 > 0.0f ? expected_var_nm2 : 0.0f; /* NaN: 0 */
     return kf->cfg.r_nm2 + (v < HD_KF_MAX_EXPECTED_VAR_NM2 ? v : HD_KF_MAX_EXPECTED_VAR_NM2);
-}
-
-/* Offset-jump gate: e beyond offset_jump_nm and 4 sigma, at most
- * HD_KF_JUMP_BURST jumps per event: each step beyond the gate restarts
- * the quiet count, and the jumps come back once jump_rearm_steps steps in
- * a row stayed within it; a step beyond it with none left is counted.
- * Returns HD_KF_STATUS_OFFSET_JUMP, HD_KF_STATUS_UNMODELLED or 0. */
-KF_INLINE uint32_t offset_jump(hd_kf_t *kf, float e, float s_var)
-{
-    const float jump_nm = kf->cfg.offset_jump_nm;
-    const float e2 = e * e;
-    const bool beyond = kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
-                        e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
-    if (!beyond) {
-        if (kf->jump_hold_steps > 0u && --kf->jump_hold_steps == 0u) {
-            kf->jump_credit = HD_KF_JUMP_BURST;
-        }
-        return 0u;
-    }
-    kf->jump_hold_steps = kf->jump_rearm_steps;
-    if (kf->jump_credit == 0u) {
-        kf->jump_held_count++;
-        return HD_KF_STATUS_UNMODELLED;
-    }
-    kf->jump_credit--;
-    return HD_KF_STATUS_OFFSET_JUMP;
-}
-
-/* Offset drift gate (hd_kf.h): the innovation's running mean and mean
- * square take e; a mean beyond HD_KF_DRIFT_SIGMA of the running mean's
- * spread (re)starts the hold, during which the offset's q is
- * offset_drift_q_nm2.  Returns the step's q. */
-KF_INLINE float offset_drift(hd_kf_t *kf, float e, float q_off)
-{
-    const float a = kf->drift_alpha;
-    const float m = kf->drift_mean_nm + a * (e - kf->drift_mean_nm);
-    const float v = kf->drift_var_nm2 + a * (e * e - kf->drift_var_nm2);
-    kf->drift_mean_nm = m;
-    kf->drift_var_nm2 = v;
-    if (m * m * (2.0f - a) > HD_KF_DRIFT_SIGMA * HD_KF_DRIFT_SIGMA * a * v) {
-        kf->drift_hold_steps = kf->drift_hold_total;
-    }
-    if (kf->drift_hold_steps == 0u) {
-        return q_off;
-    }
-    kf->drift_hold_steps--;
-    kf->drift_count++;
-    return kf->cfg.offset_drift_q_nm2;
-}
-
-/* The correction limit: a correction beyond +-correction_max_nm is
- * published at the limit (ripple_nm then carries the published one).
- * limit_steps counts up at the limit and down below it (a wrong estimate
- * oscillates, crossing zero twice a cycle): once the steps at the limit
- * outnumber the others by limit_restart_steps, the filter restarts after
- * the step.  A non-finite correction is left to the final check. */
-static uint32_t limit_correction(hd_kf_t *kf, float meas_nm, float correction,
-                                 hd_kf_output_t *out, float *filtered, bool *restart)
-{
-    const float lim = kf->cfg.correction_max_nm;
-    if (!(correction > lim || correction < -lim)) {
-        kf->limit_steps -= kf->limit_steps > 0u ? 1u : 0u;
-        return 0u;
-    }
-    const float held = correction > lim ? lim : -lim;
-    *filtered = meas_nm - held;
-    out->ripple_nm = held - (kf->cfg.offset_is_sensor_error ? out->offset_nm : 0.0f);
-    kf->limit_count++;
-    if (++kf->limit_steps >= kf->limit_restart_steps) {
-        kf->limit_steps = 0u;
-        *restart = true;
-    }
-    return HD_KF_STATUS_LIMITED;
 }
 
 /* The output phasor's powers (rare: output orders above 1), out of line. */
