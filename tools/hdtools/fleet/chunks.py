@@ -30,7 +30,8 @@ def parts(ref, chunk_bytes=CHUNK_BYTES):
         n = max(1, -(-ref.bag["bytes"] // chunk_bytes))
         t0, t1 = ref.bag["start_ns"], ref.bag["end_ns"] + 1
         cuts = [t0 + (t1 - t0) * i // n for i in range(n + 1)]
-        out = [{"window_ns": (a, b)} if n > 1 else {} for a, b in zip(cuts, cuts[1:])]
+        out = [{"window_ns": (a, b), "origin_ns": t0} if n > 1 else {}
+               for a, b in zip(cuts, cuts[1:])]
         if ref.bag_joint:
             for o in out:
                 o["joint"] = ref.bag_joint

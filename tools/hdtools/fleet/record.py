@@ -132,15 +132,16 @@ def _quiet(*_a):
 
 
 def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), loop=False,
-                byte_range=None, window_ns=None, joint=None):
+                byte_range=None, window_ns=None, origin_ns=0, joint=None):
     """The record's values for one log, for the chunk of its data rows in
-    byte_range, or for a bag's messages in window_ns (chunks.py); joint: the
+    byte_range, or for a bag's messages in window_ns (chunks.py; origin_ns:
+    the bag's first message, where the chunk offsets count from); joint: the
     bag's joint to read (None: its only one).  loading.InputError on bad
     input."""
     if byte_range is None:
         rec, _ = _analyze(path, gear_ratio, motor_orders, output_orders, loop,
                           joint=joint, window_ns=window_ns)
-        rec["chunk_offset_s"] = 0.0 if window_ns is None else _window_offset_s(path, window_ns)
+        rec["chunk_offset_s"] = 0.0 if window_ns is None else (window_ns[0] - origin_ns) * 1e-9
         return rec
     with chunks.extracted(path, byte_range) as (tmp, where):
         try:
@@ -153,11 +154,6 @@ def analyze_log(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), 
                              float(data.pieces[0].t_s[0]) - first_t * scale
                              if first_t is not None else math.nan)
     return rec
-
-
-def _window_offset_s(path, window_ns):
-    from ..rosio import bagin
-    return (window_ns[0] - bagin.index(path)["start_ns"]) * 1e-9
 
 
 def _analyze(path, gear_ratio, motor_orders, output_orders, loop, joint=None, window_ns=None):
