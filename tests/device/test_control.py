@@ -75,11 +75,11 @@ def test_tables_match_the_headers():
     assert re.search(rf"HD_CTRL_MODE_COUNT = {len(cmd_control.MODES)},", ctrl)
     lims = {n: int(v, 16) for n, v in re.findall(r"#define HD_CTRL_LIM_(\w+)\s+0x([0-9A-Fa-f]+)u",
                                                  ctrl)}
-    assert lims == {n: b for b, n in cmd_control.LIMITS}
+    assert lims == {n: b for b, n in cmd_control.CTRL_LIMITS.items()}
     proto = (ROOT / "firmware" / "hd_can_proto.h").read_text()
     flags = {n: int(v, 16) for n, v in
              re.findall(r"#define HD_CAN_CTRL_FLAG_(\w+)\s+0x([0-9A-Fa-f]+)u", proto)}
-    assert flags == {n: b for b, n in cmd_control.FLAGS}
+    assert flags == {n: b for b, n in cmd_control.CTRL_FLAGS.items()}
 
 
 # ------------------------------------------------------------ on the bus

@@ -42,16 +42,13 @@ import can
 from . import protocol, safeio
 from .cmd_calib import _finite    # a finite float, or argparse's one-line error
 from .canshared import add_bus_arguments, node_id as _node
+from .monitor_state import CTRL_FLAGS, CTRL_LIMITS, CTRL_MODES, bit_names
 from .joint import BusError, NoAnswer, open_bus
 from .safeio import HdError, UsageError
 
-# control/hd_ctrl.h's hd_ctrl_mode_t and HD_CTRL_LIM_*, hd_can_proto.h's
-# HD_CAN_CTRL_FLAG_*: the protocol schema does not carry them (yet);
-# tests/device/test_control.py checks these against the headers.
-MODES = ("STOP", "DAMP", "TORQUE", "IMPEDANCE", "ZERO_TORQUE")
-LIMITS = ((0x01, "TORQUE"), (0x02, "VELOCITY"), (0x04, "POSITION"), (0x08, "CURRENT"),
-          (0x10, "NONFINITE"), (0x20, "FALLBACK"))
-FLAGS = ((0x01, "ENABLED"), (0x02, "WATCHDOG"), (0x04, "LATCHED"), (0x08, "NO_DRIVE"))
+# The names where the firmware defines them (monitor_state reads control/hd_ctrl.h
+# and hd_can_proto.h; the protocol schema does not carry them yet).
+MODES = tuple(CTRL_MODES[i] for i in sorted(CTRL_MODES))
 SIGNAL_OF = {"torque": "SpTorque", "position": "SpPosition", "velocity": "SpVelocity",
              "kp": "GainKp", "kd": "GainKd"}
 CSV_COLUMNS = ("t_s", "setpoint_nm", "torque_ref_nm", "current_a", "mode_run", "limits",
@@ -60,10 +57,6 @@ CSV_COLUMNS = ("t_s", "setpoint_nm", "torque_ref_nm", "current_a", "mode_run", "
 
 class Refused(HdError):
     code = 1
-
-
-def bits_str(value: int, names) -> str:
-    return "|".join(n for bit, n in names if value & bit) or "-"
 
 
 # ------------------------------------------------------------ the joint
@@ -249,8 +242,8 @@ def _state_lines(r: Record, torque: Record | None) -> list[str]:
     st = r.state
     lines = [f"mode_asked = {mode_name(st['CtrlModeAsked'])}",
              f"mode_run = {mode_name(st['CtrlModeRun'])}",
-             f"limits = {bits_str(int(st['CtrlLimits']), LIMITS)}",
-             f"flags = {bits_str(int(st['CtrlFlags']), FLAGS)}",
+             f"limits = {bit_names(int(st['CtrlLimits']), CTRL_LIMITS)}",
+             f"flags = {bit_names(int(st['CtrlFlags']), CTRL_FLAGS)}",
              f"torque_ref_nm = {st['CtrlTorqueRef']:.2f}",
              f"current_a = {st['CtrlCurrent']:.3f}"]
     if torque is not None:
