@@ -1,13 +1,13 @@
-"""Issue 12's goals as the benchmark checks them (tools/hdtools/bench/goals.py)
-and `tools/bench --update-docs` (tools/hdtools/cmd_bench.py): on results
+"""Issue 12's goals as the benchmark checks them (tools/hdmaint/bench/goals.py)
+and `tools/bench --update-docs` (tools/hdmaint/bench/cli.py): on results
 made up here, whose worst cases are known by construction."""
 import argparse
 import json
 
 import pytest
 
-from hdtools import cmd_bench
-from hdtools.bench import goals, report
+from hdmaint.bench import cli as cmd_bench
+from hdmaint.bench import goals, report
 from hdtools.safeio import OutputError, UsageError
 
 

@@ -1,11 +1,11 @@
-"""tools/bench's Cortex-M4 part (hdtools.bench.compute.target) takes the
+"""tools/bench's Cortex-M4 part (hdmaint.bench.compute.target) takes the
 numbers from the budget code of tools/target (hdmaint.budget) in-process: the rows it
 reports are the budget's, and a setup problem or a failed check is reported
 as a status, never raised."""
 
 from hdmaint import budget as budget_tool
 from hdmaint.board import TargetError
-from hdtools.bench import compute
+from hdmaint.bench import compute
 
 BUDGET = {
     "flash_bytes": 40000, "ram_bytes": 80000, "stack_reserved_bytes": 8192,

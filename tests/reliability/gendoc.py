@@ -127,7 +127,7 @@ def build_info(build: Path) -> str:
 def machine() -> str:
     """Date, processor and core count, for tables of numbers that vary
     from run to run (not checked)."""
-    from hdtools.bench.compute import cpu_model
+    from hdmaint.bench.compute import cpu_model
     load = ""
     if hasattr(os, "getloadavg"):
         load = f", load average {os.getloadavg()[0]:.1f} at the start"

@@ -116,6 +116,13 @@ def test_no_import_cycle_in_the_tools():
     assert found == [], f"import cycles in tools/hdtools, tools/hdmaint: {found}"
 
 
+def test_the_installed_package_never_imports_the_maintainer_tools():
+    graph = import_graph(*PACKAGES)
+    found = sorted(f"{m} -> {t}" for m, ts in graph.items() if m.startswith("hdtools")
+                   for t in ts if t.startswith("hdmaint"))
+    assert found == [], f"hdtools imports hdmaint (not in the wheel): {found}"
+
+
 def test_no_module_over_the_line_limit():
     sizes = {str(p.relative_to(package.parent)): len(p.read_text().splitlines())
              for package in PACKAGES for p in package.rglob("*.py")}

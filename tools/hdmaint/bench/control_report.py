@@ -142,7 +142,7 @@ def text(tabs) -> str:
 
 
 def headline_rows(c: dict) -> list[tuple[str, str, str]]:
-    """The README's row (tools/hdtools/headline.py)."""
+    """The README's row (tools/hdmaint/headline.py)."""
     g = {x["goal"].split(" ")[0]: x for x in c["goals"]}
     bw = next(x for x in c["goals"] if x["goal"].startswith("bandwidth"))
     f = c["rows"]["filtered"]["speeds"]

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis import cfilter
+from hdtools.analysis import cfilter
 from . import metrics, peers
 from .joint import (encoder_angles, firmware_commissioning, ini_value, joint_key, nominal,
                     run_firmware, simulate, with_motion, compose_config)
@@ -214,7 +214,7 @@ def paper_filtered(ts_s, misalignment, torque, d_motor, d_output, feedforward=No
 def residual_config(model: dict, ts_s: float):
     """(KfConfig, ExpectedConfig, tracker bandwidth) from the model JSON of
     `hdsense analyze` (hdtools.analysis.model)."""
-    from ..analysis import model as amodel
+    from hdtools.analysis import model as amodel
     fields = {k: v for k, v in model.items() if k in amodel.Model.__dataclass_fields__}
     fields["blocks"] = [amodel.Block(**b) for b in model.get("blocks", [])]
     m = amodel.Model(**fields)

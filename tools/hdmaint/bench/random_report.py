@@ -1,5 +1,5 @@
 """docs/random-joints.md's generated part: the drawing ranges and the
-random-joint benchmark's distributions (hdtools.bench.random_bench), as
+random-joint benchmark's distributions (hdmaint.bench.random_bench), as
 Markdown, from the results the benchmark wrote."""
 from __future__ import annotations
 

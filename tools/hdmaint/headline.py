@@ -9,8 +9,8 @@ tools write (nothing typed):
   docs/results/fleet.json     cd tools && python -m hdtools.fleet.bench --write
   docs/results/control.json   tools/bench --only control --update-docs
 
-  python -m hdtools.headline --write    rewrite the README block
-  python -m hdtools.headline --check    exit 1 if the README block is stale
+  python -m hdmaint.headline --write    rewrite the README block
+  python -m hdmaint.headline --check    exit 1 if the README block is stale
 
 The block sits between `<!-- BEGIN generated:headline -->` and
 `<!-- END generated:headline -->`; tests/tools/test_headline.py runs --check.
@@ -22,7 +22,7 @@ import json
 import sys
 from pathlib import Path
 
-from .safeio import OutputError, Outputs
+from hdtools.safeio import OutputError, Outputs
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
@@ -261,7 +261,7 @@ def splice(text: str, block: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m hdtools.headline",
+    ap = argparse.ArgumentParser(prog="python -m hdmaint.headline",
                                  description="render the README's headline numbers")
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--write", action="store_true")
@@ -279,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         if new != text:
             print("README.md headline is stale: run `cd tools && ../.venv/bin/python -m "
-                  "hdtools.headline --write`", file=sys.stderr)
+                  "hdmaint.headline --write`", file=sys.stderr)
             return 1
         return 0
     try:

@@ -8,7 +8,7 @@ import platform
 import subprocess
 from pathlib import Path
 
-from .. import native
+from hdtools import native
 
 
 def cpu_model() -> str:

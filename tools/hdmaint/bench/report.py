@@ -150,7 +150,7 @@ def _slow_get(slow, sc, row, key):
 
 
 def slow_tables(slow: dict | None) -> list:
-    """The slow-torque benchmark (tools/hdtools/bench/slow.py)."""
+    """The slow-torque benchmark (tools/hdmaint/bench/slow.py)."""
     if not slow:
         return []
     scs = list(slow["scenarios"])  # in the order of slow.SCENARIOS
