@@ -28,6 +28,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import native  # noqa: E402
 from hdtools.calibtool import csvio  # noqa: E402
 from hdtools.calibtool import lib as L  # noqa: E402
+from hdtools.safeio import Outputs  # noqa: E402
 
 DOC = ROOT / "docs" / "calibration.md"
 BEGIN, END = "<!-- calib:measured:begin -->", "<!-- calib:measured:end -->"
@@ -145,7 +146,9 @@ def update(check: bool, figs: list[dict] | None = None) -> int:
     new = f"{head}{BEGIN}\n{block(figs)}\n{END}{tail}"
     if check:
         return 0 if new == text else 1
-    DOC.write_text(new)
+    with Outputs() as out:       # atomically: never half a page
+        out.write_text(DOC, new)
+        out.commit()
     return 0
 
 

@@ -368,10 +368,16 @@ def write_doc(path: Path, cases: list[Case], check: bool) -> int:
         print(f"{path}: corpus table up to date ({len(cases)} cases)")
         return 0
     summary_path.parent.mkdir(parents=True, exist_ok=True)
-    for target, content in ((path, new), (summary_path, summary)):
-        tmp = target.with_name(f".{target.name}.tmp")
-        tmp.write_text(content)
-        os.replace(tmp, target)
+    sys.path.insert(0, str(ROOT / "tools"))     # hdtools.safeio, this checkout's
+    from hdtools.safeio import OutputError, Outputs
+    try:
+        with Outputs() as out:              # both or neither
+            out.write_text(path, new)
+            out.write_text(summary_path, summary)
+            out.commit()
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 1
     print(f"{path}: corpus table written ({len(cases)} cases), and {summary_path}")
     return 0
 

@@ -80,8 +80,7 @@ def replace_blocks(text: str, blocks: dict[str, str], where: str) -> str:
 
 
 def update_doc(path: Path, blocks: dict[str, str], check: bool, regenerate: str) -> str:
-    """Writes the blocks into path atomically (a temporary file in the same
-    folder, then a rename), or with check=True raises GenDocError naming
+    """Writes the blocks into path atomically (hdtools.safeio), or with check=True raises GenDocError naming
     `regenerate` when the file differs.  Returns a one-line report."""
     try:
         old = path.read_text()
@@ -95,13 +94,13 @@ def update_doc(path: Path, blocks: dict[str, str], check: bool, regenerate: str)
             raise GenDocError(f"{path}: generated block(s) {', '.join(stale)} out of date "
                               f"with what the tests just measured: run {regenerate}")
         return f"{path}: {names} up to date"
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    from hdtools.safeio import OutputError, Outputs
     try:
-        tmp.write_text(new)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise GenDocError(f"{path}: cannot write: {exc.strerror}") from None
+        with Outputs() as out:
+            out.write_text(path, new)
+            out.commit()
+    except OutputError as exc:
+        raise GenDocError(str(exc)) from None
     return f"{path}: {names} written"
 
 

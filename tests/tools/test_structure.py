@@ -153,3 +153,24 @@ def test_firmware_file_table_names_every_source():
     files = {p.name for p in (ROOT / "firmware").glob("*.c")} | \
         {p.name for p in (ROOT / "firmware").glob("*.def")}
     assert files - named == set(), f"docs/firmware.md's file table lacks {sorted(files - named)}"
+
+
+# Files that rename or make temporary files for another reason than writing
+# an output atomically: a scratch copy removed after use, a test fixture.
+RENAME_ALLOWED = {
+    "tools/hdtools/safeio.py": "the one atomic writer",
+    "tools/hdtools/fleet/chunks.py": "a scratch log of one chunk, removed after the job",
+    "tests/corpus/make_inputs.py": "builds a fixture bag (a test input, not an output)",
+}
+
+
+def test_every_atomic_write_goes_through_safeio():
+    """os.replace / rename / mkstemp appear only in hdtools.safeio (and the
+    allowed non-output uses): a doc generator or tool with its own
+    temporary-file-and-rename is a second copy of it."""
+    pattern = re.compile(r"\bos\.(?:replace|rename)\(|\.rename\(|\bmkstemp\(|\btmp\.replace\(")
+    found = sorted(str(p.relative_to(ROOT)) for top in ("tools", "tests") for p in
+                   (ROOT / top).rglob("*.py") if pattern.search(p.read_text()))
+    assert [f for f in found if f not in RENAME_ALLOWED] == [], \
+        "atomic writers beside hdtools.safeio"
+    assert [f for f in RENAME_ALLOWED if f not in found] == [], "stale RENAME_ALLOWED entries"

@@ -5,11 +5,11 @@ STM32F4 port's measure is stm32f4.py).  Standard library only."""
 from __future__ import annotations
 
 import json
-import os
 import re
 import statistics
-import tempfile
 from pathlib import Path
+
+from hdtools.safeio import OutputError, Outputs
 
 from .board import ROOT, Board, TargetError, build_images, need, sh, symbols
 from .m4_cycles import cycle_estimate, disassembly
@@ -217,34 +217,17 @@ def budget(board: Board) -> dict:
 # ------------------------------------------------ budget: the tables (pure)
 
 
-def umask() -> int:
-    mask = os.umask(0o22)
-    os.umask(mask)
-    return mask
-
-
 def write_files(outputs: list) -> None:
-    """Writes [(path, text)] all or none: every text to a temporary file
-    beside its target, then renames them over the targets.  A target that
-    exists and is not a regular file (/dev/null, a FIFO) is written
-    directly, never replaced."""
-    temps, path = [], None
+    """Writes [(path, text)] all or none (hdtools.safeio.Outputs: temporary
+    files beside the targets, renamed together; a target that is not a
+    regular file, /dev/null or a FIFO, is written directly)."""
     try:
-        for path, text in outputs:
-            if path.exists() and not path.is_file():
-                path.write_text(text)
-                continue
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-            temps.append((Path(tmp), path))
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-            os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~umask())
-        for tmp, path in temps:
-            os.replace(tmp, path)
-    except OSError as exc:
-        for tmp, _ in temps:
-            tmp.unlink(missing_ok=True)
-        raise TargetError(f"cannot write {path}: {exc.strerror or exc}") from None
+        with Outputs() as out:
+            for path, text in outputs:
+                out.write_text(path, text)
+            out.commit()
+    except OutputError as exc:
+        raise TargetError(str(exc)) from None
 
 
 def write_json(dest: Path, numbers: dict) -> None:
