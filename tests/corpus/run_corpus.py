@@ -73,8 +73,7 @@ ROOT = HERE.parents[1]
 C_TOOLS = {"hdjoint-host": "firmware/host/hdjoint-host", "hdsim": "sim/hdsim",
            "hdsim-campaign": "sim/hdsim-campaign"}
 OLD_LINE = "OLD CONTENT\n"
-DOC_BEGIN = "<!-- corpus:classes:begin -->"
-DOC_END = "<!-- corpus:classes:end -->"
+DOC_BLOCK = "corpus-classes"    # hdtools.docblock
 CLASS_TEXT = {
     "host-output": "hdjoint-host outputs: full disk, /dev/full, unwritable paths, signals, NVM persistence",
     "host-args": "hdjoint-host command line and --cmd frames",
@@ -350,14 +349,16 @@ def doc_table(cases: list[Case]) -> str:
 
 
 def write_doc(path: Path, cases: list[Case], check: bool) -> int:
+    sys.path.insert(0, str(ROOT / "tools"))     # hdtools.docblock and safeio, this checkout's
+    from hdtools import docblock
+    from hdtools.safeio import OutputError, Outputs, UsageError
     text = path.read_text()
-    if DOC_BEGIN not in text or DOC_END not in text:
-        print(f"{path}: no {DOC_BEGIN} ... {DOC_END} block", file=sys.stderr)
+    try:
+        new = docblock.splice(text, DOC_BLOCK, "<!-- written by tests/corpus/run_corpus.py --doc; "
+                              f"do not edit -->\n{doc_table(cases)}", str(path))
+    except UsageError as exc:
+        print(exc, file=sys.stderr)
         return 1
-    head, rest = text.split(DOC_BEGIN, 1)
-    _, tail = rest.split(DOC_END, 1)
-    new = (f"{head}{DOC_BEGIN}\n<!-- written by tests/corpus/run_corpus.py --doc; do not edit -->\n"
-           f"{doc_table(cases)}\n{DOC_END}{tail}")
     summary_path = path.resolve().parent / "results" / "corpus.json"
     summary = json.dumps(corpus_summary(cases), indent=1) + "\n"
     if check:
@@ -368,8 +369,6 @@ def write_doc(path: Path, cases: list[Case], check: bool) -> int:
         print(f"{path}: corpus table up to date ({len(cases)} cases)")
         return 0
     summary_path.parent.mkdir(parents=True, exist_ok=True)
-    sys.path.insert(0, str(ROOT / "tools"))     # hdtools.safeio, this checkout's
-    from hdtools.safeio import OutputError, Outputs
     try:
         with Outputs() as out:              # both or neither
             out.write_text(path, new)

@@ -25,7 +25,7 @@ from hdmaint import stm32f4 as f4
 from hdmaint.board import TargetError
 
 MHZ = 100
-BEGIN, END = "<!-- target:budget:begin -->", "<!-- target:budget:end -->"
+BEGIN, END = "<!-- BEGIN generated:target-budget -->", "<!-- END generated:target-budget -->"
 PATHS = ("kfpartial", "kffrozen", "kflost", "kfclamp", "kfreset", "kfworst")
 SIZES = {"4": 4, "6": 6, "8": 8, "default": 7, "max": 17}
 

@@ -9,12 +9,16 @@ import subprocess
 import sys
 from pathlib import Path
 
+from hdtools import docblock
+from hdtools.safeio import UsageError
+
 from . import stm32f4
 from .board import BOARDS, ROOT, Board, TargetError
 from .budget import TICK_PERIOD_US, budget, write_files, write_json
 from .budget_render import budget_summary, render_budget
 
-DOC_BEGIN, DOC_END = "<!-- target:budget:begin -->", "<!-- target:budget:end -->"
+BLOCK = "target-budget"
+DOC_BEGIN, DOC_END = docblock.markers(BLOCK)
 DOC_NOTE = "<!-- written by tools/target budget --update-docs; do not edit -->"
 
 
@@ -22,12 +26,10 @@ def replace_block(text: str, body: str, name: str) -> str:
     """text with everything between its budget markers replaced by body;
     TargetError (naming the document) unless each marker occurs once, in
     order."""
-    if text.count(DOC_BEGIN) != 1 or text.count(DOC_END) != 1 or \
-            text.index(DOC_BEGIN) > text.index(DOC_END):
-        raise TargetError(f"{name}: needs one {DOC_BEGIN} line and one {DOC_END} line after it")
-    pre, rest = text.split(DOC_BEGIN, 1)
-    post = rest.split(DOC_END, 1)[1]
-    return f"{pre}{DOC_BEGIN}\n{DOC_NOTE}\n\n{body}\n\n{DOC_END}{post}"
+    try:
+        return docblock.splice(text, BLOCK, f"{DOC_NOTE}\n\n{body}\n", name)
+    except UsageError as exc:
+        raise TargetError(str(exc)) from None
 
 
 def doc_paths(docs: Path) -> dict:

@@ -22,12 +22,13 @@ import json
 import sys
 from pathlib import Path
 
-from hdtools.safeio import OutputError, Outputs
+from hdtools import docblock
+from hdtools.safeio import OutputError, Outputs, UsageError
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
 README = ROOT / "README.md"
-BEGIN, END = "<!-- BEGIN generated:headline -->", "<!-- END generated:headline -->"
+BEGIN, END = docblock.markers("headline")
 SOURCES = ("demo", "bench", "random", "budget", "analyze", "corpus", "fleet", "control")
 
 
@@ -253,11 +254,10 @@ def render(results: dict) -> str:
 
 
 def splice(text: str, block: str) -> str:
-    if BEGIN not in text or END not in text:
-        raise HeadlineError(f"{README}: no {BEGIN} ... {END} block")
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    return f"{head}{BEGIN}\n{block}\n{END}{tail}"
+    try:
+        return docblock.splice(text, "headline", block, str(README))
+    except UsageError as exc:
+        raise HeadlineError(str(exc)) from None
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,8 +16,8 @@
                                   counts per filter update / ISR, cycle estimate
   tools/target budget --update-docs [--docs DIR]
                                   both ports' budgets into docs/target.md,
-                                  docs/stm32f4.md (between <!-- target:budget:begin
-                                  --> and <!-- target:budget:end -->) and
+                                  docs/stm32f4.md (block target-budget,
+                                  hdtools.docblock) and
                                   docs/results/budget.json, all or none
   tools/target count ELF [ARG...] instruction counts between the markers of
                                   any image that uses them (hd_mark.h)

@@ -22,6 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from hdtools import docblock
 from hdtools.safeio import OutputError, Outputs, UsageError
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -32,8 +33,8 @@ RANDOM_DOC = ROOT / "docs" / "random-joints.md"
 RANDOM_JSON = ROOT / "docs" / "results" / "random.json"
 CONTROL_DOC = ROOT / "docs" / "control.md"
 CONTROL_JSON = ROOT / "docs" / "results" / "control.json"
-BEGIN = "<!-- bench:results:begin -->"
-END = "<!-- bench:results:end -->"
+BLOCK = "bench-results"           # in bench.md and random-joints.md
+BEGIN, END = docblock.markers(BLOCK)
 
 
 PARTS = ["accuracy", "slow", "random", "real", "host", "target", "control"]
@@ -202,6 +203,4 @@ def read_doc(doc: Path | None = None, begin: str = BEGIN, end: str = END) -> str
 
 def splice(text: str, md: str) -> str:
     """text with the part between the markers replaced by md."""
-    pre, rest = text.split(BEGIN, 1)
-    post = rest.split(END, 1)[1]
-    return f"{pre}{BEGIN}\n{md}\n{END}{post}"
+    return docblock.splice(text, BLOCK, md, "the bench document")

@@ -6,8 +6,10 @@ from __future__ import annotations
 import json
 import math
 
-BEGIN = "<!-- control:results:begin -->"
-END = "<!-- control:results:end -->"
+from hdtools import docblock
+
+BLOCK = "control-results"
+BEGIN, END = docblock.markers(BLOCK)
 
 
 def clean(x):
@@ -163,6 +165,4 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
 
 
 def splice(text_: str, md: str) -> str:
-    pre, rest = text_.split(BEGIN, 1)
-    post = rest.split(END, 1)[1]
-    return f"{pre}{BEGIN}\n{md}\n{END}{post}"
+    return docblock.splice(text_, BLOCK, md, "docs/control.md")

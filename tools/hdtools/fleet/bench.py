@@ -25,14 +25,14 @@ import tempfile
 import time
 from pathlib import Path
 
+from .. import docblock
 from ..safeio import Outputs
 from . import job, simfleet, trends
 
 ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "fleet.md"
 RESULT = ROOT / "docs" / "results" / "fleet.json"
-BEGIN, END = "<!-- fleet:measured:begin -->", "<!-- fleet:measured:end -->"
-TH_BEGIN, TH_END = "<!-- fleet:thresholds:begin -->", "<!-- fleet:thresholds:end -->"
+MEASURED, THRESHOLDS = "fleet-measured", "fleet-thresholds"      # hdtools.docblock blocks
 TUNE_SEEDS = (1, 2)
 REPORT_SEEDS = (3, 4)
 DETECT_FLEET = {"n_joints": 12, "days": 14, "logs_per_day": 2, "log_s": 60.0}
@@ -314,11 +314,6 @@ def _speed_table(rows) -> list[str]:
 PARTS = ("detection", "speed", "memory")
 
 
-def _splice(text, begin, end, body):
-    a, b = text.index(begin) + len(begin), text.index(end)
-    return text[:a] + "\n" + body + "\n" + text[b:]
-
-
 def main(argv=None) -> int:
     import argparse
     from .. import native
@@ -355,8 +350,8 @@ def main(argv=None) -> int:
     md = markdown(res)
     print(md)
     if a.write:
-        text = _splice(DOC.read_text(), BEGIN, END, md)
-        text = _splice(text, TH_BEGIN, TH_END, thresholds_table())
+        text = docblock.splice(DOC.read_text(), MEASURED, md, str(DOC))
+        text = docblock.splice(text, THRESHOLDS, thresholds_table(), str(DOC))
         with Outputs() as out:
             out.write_text(DOC, text)
             out.write_text(RESULT, json.dumps(res, indent=1) + "\n")

@@ -22,13 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import native
+from .. import docblock, native
 from ..safeio import Outputs
 from ..analysis import bench_speed
 from ..analysis.results import read_csv
 from . import bagout, messages, stream
 
-BEGIN, END = "<!-- BEGIN ros2:bench -->\n", "<!-- END ros2:bench -->"
+BLOCK = "ros2-bench"     # hdtools.docblock
 
 
 def _samples(cols: dict):
@@ -137,10 +137,7 @@ def run(duration_s: float) -> list[str]:
 
 
 def update_docs(doc: Path, lines: list[str]) -> None:
-    text = doc.read_text()
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    new = head + BEGIN + "\n".join(lines) + "\n" + END + tail
+    new = docblock.splice(doc.read_text(), BLOCK, "\n".join(lines), str(doc))
     with Outputs() as out:
         out.write_text(doc, new)
         out.commit()
