@@ -118,7 +118,7 @@ def test_update_docs_writes_the_doc_and_the_same_json(tmp_path, docs):
     assert "goals" in json.loads(out_json)
     text = docs.read_text()
     assert text.startswith("# head\n\n" + cmd_bench.BEGIN) and text.endswith("\n## tail\n")
-    assert "old" not in text and "Goals of issue 12" in text
+    assert "old" not in text and "The slow-torque goals" in text
     assert (tmp_path / "out" / "results.md").read_text() in text
     assert not [p for p in tmp_path.rglob("*.tmp")]
 

@@ -108,3 +108,36 @@ def test_run_stops_at_the_first_failing_generator(monkeypatch, tmp_path, capsys)
     err = capsys.readouterr().err
     assert re.search(r"fails failed \(exit status 3\)", err)
     assert docgen.run(["later"], vm=True) == 0 and mark.exists()
+
+
+def prose(text: str) -> str:
+    """text without its generated blocks (what people typed)."""
+    for name in docblock.names(text):
+        begin, end = docblock.markers(name)
+        text = text[:text.index(begin)] + text[text.index(end) + len(end):]
+    return text
+
+
+def test_no_issue_numbers_in_typed_docs():
+    """History lives in docs/decisions/ and git, not in "issue N" asides."""
+    found = [f"{rel}: {m.group(0)}" for rel, text in docs().items()
+             for m in re.finditer(r"(?i)\bissues? \d+", prose(text))]
+    found += [f"{p.relative_to(ROOT)}: {m.group(0)}"
+              for p in sorted((ROOT / "docs" / "decisions").glob("*.md"))
+              for m in re.finditer(r"(?i)\bissues? \d+", p.read_text())]
+    assert found == []
+
+
+def test_relative_links_resolve():
+    pages = docgen.documents() + sorted((ROOT / "docs" / "decisions").glob("*.md")) + \
+        [ROOT / "CONTRIBUTING.md"]
+    broken = []
+    for page in pages:
+        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            path = target.split("#", 1)[0]
+            if not path or re.match(r"[a-z]+:", path):
+                continue
+            if not (page.parent / path).exists():
+                broken.append(f"{page.relative_to(ROOT)}: {target}")
+    assert broken == []

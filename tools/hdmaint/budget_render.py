@@ -133,7 +133,7 @@ def render_budget(n: dict) -> str:
         c = ins["ctrl:default"]
         worst = {key: max(worst_us(ins[f"{k}:{key}"], mhz) for k in ("isrctrl", "isrctrlcmd"))
                  for key in ("default", "max")}
-        out += [f"\nControl (issue 23): 'ISR + control' is the tick on a board with a drive: "
+        out += [f"\nControl: 'ISR + control' is the tick on a board with a drive: "
                 "the control stage (setpoint checks, watchdog and fault reactions, "
                 "control/hd_ctrl's law, the drive command) runs every tick, with "
                 f"HD_FW_RX_PER_TICK = {n['tick_limits']['rx']} control frames arriving every "

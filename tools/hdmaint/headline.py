@@ -122,7 +122,7 @@ def bench_rows(b: dict) -> list[tuple[str, str, str]]:
             f"Filter step on this host, 7 states ({b['machine']['cpu']})",
             f"{kf:.0f} ns ({1e3 / kf:.1f} M updates/s)"
             + "".join(f"; {label} {by[k]['ns_median'] / kf:.1f}x slower"
-                      for k, label in (("hd_kf_step_v0", "the step before issue 16"),
+                      for k, label in (("hd_kf_step_v0", "the step before its rewrite"),
                                        ("dense_f32", "a dense float32 filter")) if k in by),
             src))
     return rows
@@ -211,7 +211,7 @@ def corpus_rows(c: dict) -> list[tuple[str, str, str]]:
         f"Hostile inputs to every CLI (`tests/corpus`, run in CI; the C tools' cases also "
         f"under ASan/UBSan): {classes}",
         f"{c['cases']} cases, each a whole output or one line on stderr and a documented exit "
-        f"code ({c['failed_before']} failed before issue 18)",
+        f"code ({c['failed_before']} failed before the corpus, at d9ce5d9)",
         _link("corpus") + ", [reliability.md](docs/reliability.md)")]
 
 
