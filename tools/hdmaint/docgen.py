@@ -114,15 +114,15 @@ GENERATORS = (
               "CI sample is what `analyze_random_joints` holds the firmware to",
               {"docs/bench.md": ("bench-results",), "docs/control.md": ("control-results",),
                "docs/random-joints.md": ("bench-results",)}),
-    Generator("fleet", (PY, "-m", "hdtools.fleet.bench", "--write"),
+    Generator("fleet", (PY, "-m", "hdmaint.fleet_bench", "--write"),
               "[fleet.md](fleet.md) (measured section), `results/fleet.json`",
-              "`cd tools && ../.venv/bin/python -m hdtools.fleet.bench --write [--ray-python PY]` "
+              "`cd tools && ../.venv/bin/python -m hdmaint.fleet_bench --write [--ray-python PY]` "
               "(~5 min)", "a benchmark: numbers of one run; the thresholds table: `fleet`",
               {"docs/fleet.md": ("fleet-measured", "fleet-thresholds")}),
-    Generator("ros2", (PY, "-m", "hdtools.rosio.bench", "--update-docs", "docs/ros2.md"),
+    Generator("ros2", (PY, "-m", "hdmaint.ros2_bench", "--update-docs", "docs/ros2.md"),
               "[ros2.md](ros2.md) (Benchmarks)",
               "`HD_BUILD_DIR=build/host-release PYTHONPATH=tools .venv/bin/python -m "
-              "hdtools.rosio.bench --update-docs docs/ros2.md` (~10 min; not in "
+              "hdmaint.ros2_bench --update-docs docs/ros2.md` (~10 min; not in "
               "`tools/update-docs`)", "a benchmark: date and machine in the block, not checked",
               {"docs/ros2.md": ("ros2-bench",)}, in_all=False),
     Generator("docgen", (PY, "-m", "hdmaint.docgen", "--write-table"),

@@ -6,7 +6,7 @@ tools write (nothing typed):
   docs/results/budget.json    tools/target budget --update-docs
   docs/results/analyze.json   tools/hdsense analyze --results-doc docs/analyze-results.md
   docs/results/corpus.json    tests/corpus/run_corpus.py --doc docs/reliability.md
-  docs/results/fleet.json     cd tools && python -m hdtools.fleet.bench --write
+  docs/results/fleet.json     cd tools && python -m hdmaint.fleet_bench --write
   docs/results/control.json   tools/bench --only control --update-docs
 
   python -m hdmaint.headline --write    rewrite the README block
