@@ -70,7 +70,8 @@ def test_the_wheel_carries_the_user_cli_only(installed):
     hdsense has no bench subcommand."""
     r = run(installed, installed / "bin" / "python", "-c",
             "import importlib.util as u; print([m for m in ('hdmaint', 'hdtools.bench', "
-            "'hdtools.target', 'hdtools.headline', 'hdtools.cmd_bench') if u.find_spec(m)])")
+            "'hdtools.target', 'hdtools.headline', 'hdtools.cmd_bench', 'hdtools.fleet.bench', "
+            "'hdtools.rosio.bench') if u.find_spec(m)])")
     assert r.returncode == 0 and r.stdout.strip() == "[]", r.stdout + r.stderr
     r = run(installed, installed / "bin" / "hdsense", "bench", "--help")
     assert r.returncode == 2 and "invalid choice: 'bench'" in r.stderr, r.stderr

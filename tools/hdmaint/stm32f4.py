@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .board import BOARDS, ROOT, Board, TargetError, build_images, need, run_qemu, sh, symbols
 from .budget import (ALLOCATORS, MCU_CLOCKS_MHZ, TICK_PERIOD_US, check_failures,
-                     section_counts, section_sizes, stack_numbers, worst_us, write_json)
+                     section_counts, section_sizes, stack_numbers, worst_us)
 from .budget_render import md_table, stack_table, timing
 from .m4_cycles import disassembly
 from .qemu_run import labelled_sections
@@ -181,16 +181,6 @@ def summary(n: dict) -> dict:
             "interrupts": {k: dict(timing(c, n["clock_mhz"]), states=c["states"],
                                    what=SECTION_TEXT.get(k, k))
                            for k, c in n["interrupts"].items()}}
-
-
-def cmd_budget(board: Board, a) -> int:
-    numbers = measure(board)
-    print(render(numbers))
-    if a.json:
-        write_json(Path(a.json), numbers)
-    for failure in numbers["failures"]:
-        print(f"\nFAIL: {failure}")
-    return 1 if numbers["failures"] else 0
 
 
 # ------------------------------------------------------------------ flash

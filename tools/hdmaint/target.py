@@ -110,8 +110,6 @@ def main(argv=None) -> int:
                 raise TargetError("closed-loop runs on mps2-an386 only")
             return closed_loop.cmd_closed_loop(board, a)
         if a.cmd == "budget":
-            if board.name != "mps2-an386":
-                return stm32f4.cmd_budget(board, a)
             return cmd_budget(board, a)
         return qemu_run.cmd_count(board, a)
     except TargetError as exc:
