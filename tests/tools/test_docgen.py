@@ -141,3 +141,15 @@ def test_relative_links_resolve():
             if not (page.parent / path).exists():
                 broken.append(f"{page.relative_to(ROOT)}: {target}")
     assert broken == []
+
+
+def test_paths_named_in_typed_docs_exist():
+    """A `tools/...` or `tests/...` path in prose names a file of the tree (a
+    moved module leaves no stale name behind; globs must match something)."""
+    missing = []
+    for rel, text in docs().items():
+        for path in re.findall(r"`((?:tools|tests)/[\w./*-]+)`", prose(text)):
+            path = path.rstrip(".")
+            if not any(ROOT.glob(path)) and not any(ROOT.glob(path + ".*")):  # or its source
+                missing.append(f"{rel}: {path}")
+    assert missing == []
