@@ -34,7 +34,7 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .gear_ratio = 100.0f,
         .kt_nm_per_a = 0.06f,
         .feedback = HD_CTRL_FB_FILTERED,
-        .torque_kp = 1.27f,          /* tools/bench --only control: docs/control.md, "Tuning" */
+        .torque_kp = 1.27f,          /* tools/bench --only control: docs/results/control.md, "Tuning" */
         .torque_ki_per_s = 40.1f,
         .torque_ff = 1.0f,
         .lowpass_hz = 50.0f,

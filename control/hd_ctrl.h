@@ -23,7 +23,7 @@
  * A PI on the torque error with the setpoint fed forward: the structure of
  * the torque controllers of Taghirad & Belanger's refs [5], [10] and the
  * torque loop of Albu-Schaeffer, Ott et al. (2007) without its motor-inertia
- * scaling (a later step; docs/control.md).
+ * scaling (a later step; docs/results/control.md).
  * Feedback source (tau_fb): the filtered torque, the raw gauge torque, a
  * low-pass of the raw torque (corner lowpass_hz; lowpass_order 1: first
  * order, backward Euler; 2 or 4: Butterworth, bilinear with the corner
@@ -35,7 +35,7 @@
  * -3 dB width notch_width_hz, unity gain at DC.  A notch whose frequency is
  * below notch_width_hz or above 0.45 / ts passes the torque unchanged (a
  * notch at DC would remove the torque itself; above, it would alias).
- * Benchmarks compare these feedbacks (docs/control.md); the firmware's
+ * Benchmarks compare these feedbacks (docs/results/control.md); the firmware's
  * parameter table does not expose lowpass_order and the notches yet.
  *
  * Limits, applied last so no path exceeds them whatever the input:
@@ -171,7 +171,7 @@ typedef struct {
     float raw_notched_nm;     /* the raw torque after the notches, this tick */
 } hd_ctrl_t;
 
-/* Defaults of a 40 N m class joint (docs/control.md). */
+/* Defaults of a 40 N m class joint (docs/results/control.md). */
 void hd_ctrl_config_default(hd_ctrl_config_t *cfg);
 
 /* HD_CTRL_OK or HD_CTRL_ERR_CONFIG (every value finite, in range). */

@@ -17,7 +17,7 @@
  *
  * The two talk through single-producer single-consumer queues and one
  * request mailbox (hd_fw_request_t); every shared field has exactly one
- * writer (docs/firmware.md, "Two contexts").  On the host both are called
+ * writer (docs/design/firmware.md, "Two contexts").  On the host both are called
  * from one thread, tick then background.
  *
  * All state lives in hd_fw_t, which the caller allocates (statically on the
@@ -171,7 +171,7 @@ typedef struct {
     bool boot_sent;
     volatile uint8_t state;         /* hd_fw_state_t */
     volatile bool ended;            /* the sensors reported HAL_ERR_END */
-    /* feed-forward (docs/slow-torque.md) */
+    /* feed-forward (docs/design/slow-torque.md) */
     bool ff_have;                   /* a frame was accepted since boot */
     uint8_t ff_seq;                 /* of the last accepted frame */
     float ff_nm;                    /* its value */

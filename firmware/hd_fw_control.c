@@ -4,7 +4,7 @@
  *   never reaches the law) -> safe mode (watchdog, fault reactions) -> the
  *   law (control/hd_ctrl: modes, torque loop, limits applied last) -> drive.
  *
- * Fault reactions (docs/firmware.md, "Control"):
+ * Fault reactions (docs/design/firmware.md, "Control"):
  *   no new setpoint for ctrl_watchdog_ms      DAMP, then STOP after ctrl_damp_ms
  *   motor encoder lost (ENC_FAULT)            STOP, latched until a STOP setpoint
  *   drive fault or a failed drive call        STOP, latched until a STOP setpoint

@@ -207,7 +207,7 @@ uint32_t hd_fw_sense(hd_fw_t *fw, uint64_t t_us, hd_fw_sample_t *s, bool *ended)
 
 /* The feed-forward in T_exp: the latched value while fresh; once older than
  * the timeout, FF_STALE and a ramp to zero over feedforward_ramp_ms from the
- * last value (docs/slow-torque.md, "Feed-forward"). */
+ * last value (docs/design/slow-torque.md, "Feed-forward"). */
 float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults)
 {
     const hd_fw_config_t *c = &hd_fw_live(fw)->cfg;
@@ -237,7 +237,7 @@ float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults)
  * same two first-order stages.  T_exp is the slow torque: unfiltered, the
  * drive's current noise (N kt times tens of mA) and the rotor's inertia
  * torque against a lagging acceleration estimate would enter the filter's
- * innovation (docs/slow-torque.md, "Motor current"). */
+ * innovation (docs/design/slow-torque.md, "Motor current"). */
 float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s,
                               float *var_nm2)
 {
@@ -270,7 +270,7 @@ float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_s
     /* The low-pass lags a changing torque by lag x its change per tick:
      * that much of T_exp is wrong while it changes (starts, stops, payload
      * steps), and the filter is told so instead of learning it as ripple
-     * (docs/slow-torque.md, "Motor current"). */
+     * (docs/design/slow-torque.md, "Motor current"). */
     const float lag_nm = first ? 0.0f : set->current_lag_ticks * (t - k->cur_torque_nm);
     *var_nm2 = lag_nm * lag_nm;
     k->cur_torque_nm = t;

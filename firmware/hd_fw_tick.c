@@ -158,7 +158,7 @@ static float angle_of(uint32_t pos, float rad_per_count)
 }
 
 /* Lines whose angle this joint knows: output-locked ones need the output
- * encoder (docs/slow-torque.md, "Absolute angles"). */
+ * encoder (docs/design/slow-torque.md, "Absolute angles"). */
 static void known_lines(const hd_fw_tick_state_t *k, const hd_kf_profile_t *in,
                         hd_kf_profile_t *out)
 {

@@ -3,7 +3,7 @@
 learning_mode 2 + PROFILE_SAVE on a separate run of each distinct joint,
 then run in operating mode from that profile.  Short runs (--quick sizes):
 the output is checked for form and for what the firmware was told, not for
-accuracy (the benchmark prints numbers; docs/bench.md)."""
+accuracy (the benchmark prints numbers; docs/results/bench.md)."""
 import math
 
 from hdmaint.bench import accuracy, joint, report

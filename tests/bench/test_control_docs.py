@@ -2,7 +2,7 @@
 written by `tools/bench --only control --update-docs`):
   * the law's default torque gains (control/hd_ctrl.c) are the gains the
     bench's tuning found for the filtered feedback;
-  * the generated section of docs/control.md is the tables of that JSON."""
+  * the generated section of docs/results/control.md is the tables of that JSON."""
 import json
 import re
 from pathlib import Path
@@ -27,7 +27,7 @@ def test_default_gains_are_the_tuned_ones():
 
 
 def test_doc_section_is_the_results_tables():
-    text = (ROOT / "docs" / "control.md").read_text()
+    text = (ROOT / "docs" / "results" / "control.md").read_text()
     section = text.split(control_report.BEGIN, 1)[1].split(control_report.END, 1)[0]
     header, body = section.strip("\n").split("\n\n", 1)
     assert header.startswith("_hdsense bench, ")

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The calibration numbers of docs/calibration.md, measured: simulated
+"""The calibration numbers of docs/how-to/calibration.md, measured: simulated
 campaigns (hdsim-campaign) through the calibration library (libhdcalib via
 hdtools.calibtool), written between the markers of the "Measured numbers"
 section.  tests/calib/test_calib_tool.py checks that the document holds
@@ -31,7 +31,7 @@ from hdtools.calibtool import lib as L  # noqa: E402
 from hdtools import docblock  # noqa: E402
 from hdtools.safeio import Outputs  # noqa: E402
 
-DOC = ROOT / "docs" / "calibration.md"
+DOC = ROOT / "docs" / "how-to" / "calibration.md"
 BLOCK = "calib-measured"   # hdtools.docblock
 TRUE_GAIN, TRUE_SPREAD, N_EXP, N_CAMPAIGNS = 6.60, 0.02, 8, 300
 ROWS = [("--spread 0.02 --seed 1", ["--spread", "0.02", "--seed", "1"]),

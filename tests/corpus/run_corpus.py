@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The hostile-input corpus: every CLI of the project against inputs that
 must give exit 0 with whole outputs, or one line on stderr and a documented
-non-zero status (docs/reliability.md, "Exit status").
+non-zero status (docs/results/reliability.md, "Exit status").
 
 Each case is a small file tests/corpus/<class>/<name>.case (key = value
 lines, '#' comments) next to its input files:
@@ -48,7 +48,7 @@ asan build) and hdsense (class "py": needs the plain build's shared
 libraries).  Usage:
 
   run_corpus.py --build BUILD [--root ROOT] [--only c|py] [-k TEXT] [-v]
-  run_corpus.py --doc docs/reliability.md [--check]   the class table
+  run_corpus.py --doc docs/results/reliability.md [--check]   the class table
   run_corpus.py --build OLD_BUILD --root OLD_ROOT --mark-before
 """
 from __future__ import annotations
@@ -359,7 +359,7 @@ def write_doc(path: Path, cases: list[Case], check: bool) -> int:
     except UsageError as exc:
         print(exc, file=sys.stderr)
         return 1
-    summary_path = path.resolve().parent / "results" / "corpus.json"
+    summary_path = path.resolve().parent / "corpus.json"    # the page sits in docs/results/
     summary = json.dumps(corpus_summary(cases), indent=1) + "\n"
     if check:
         if new != text or not summary_path.is_file() or summary_path.read_text() != summary:
@@ -385,7 +385,7 @@ def corpus_summary(cases: list[Case]) -> dict:
     """docs/results/corpus.json, the README headline's source: how many
     hostile inputs, in how many classes, and how many the tools failed
     before issue 18 (each case's `before` line)."""
-    return {"tool": "tests/corpus/run_corpus.py --doc docs/reliability.md",
+    return {"tool": "tests/corpus/run_corpus.py --doc docs/results/reliability.md",
             "cases": len(cases), "classes": len({c.klass for c in cases}),
             "per_class": {k: sum(c.klass == k for c in cases)
                           for k in sorted({c.klass for c in cases},

@@ -1,4 +1,4 @@
-/* Host timing of the tick at its profile boundaries (docs/slow-torque.md,
+/* Host timing of the tick at its profile boundaries (docs/design/slow-torque.md,
  * "Cost"): the median time of hd_fw_isr on plain ticks, on ticks that import
  * a profile (boot, PROFILE_LOAD, restarts) and on ticks that take a
  * PROFILE_SAVE snapshot, measured in the same run on the mock HAL with the

@@ -1,4 +1,4 @@
-/* Slow torque in the firmware (issue 12, docs/slow-torque.md), on the mock
+/* Slow torque in the firmware (issue 12, docs/design/slow-torque.md), on the mock
  * HAL: the feed-forward frame (latched, stale, ramp, every rejection), the
  * motor-current channel, and the profile record (boot import at the
  * absolute angle of the first sample, every refusal, upload, load, save,
@@ -836,7 +836,7 @@ static void test_operating_mode_freezes_output_lines(void)
  * each sample's own increment before predicting it, so it keeps predicting
  * the ripple at each sample's angle through the change (before it turned
  * by the increment passed with the previous sample and lagged by order x
- * the change: 0.12 N m here, docs/slow-torque.md "Increment prediction"). */
+ * the change: 0.12 N m here, docs/design/slow-torque.md "Increment prediction"). */
 static void test_the_filter_keeps_the_phase_through_a_speed_change(void)
 {
     with_output = true;

@@ -4,7 +4,7 @@ tests/vm/vm_doc.py).
 A generated block sits in a Markdown file between hdtools.docblock's
 markers (`<!-- BEGIN generated:NAME -->`, `<!-- END generated:NAME -->`);
 NAME has a hyphen (`reliability-faults`), so hdtools.protocol, which
-renders its own `\\w+` blocks in every docs/*.md, leaves these alone.
+renders its own `\\w+` blocks in every docs/**/*.md, leaves these alone.
 The measuring programs are run with the command lines CTest has for them
 (`ctest --show-only=json-v1`), so a table is what the CTest test measures.
 """

@@ -4,7 +4,7 @@ cross build, no QEMU: the renderers are pure functions of a budget dict).
 
 A small hand-made budget (a clock of 100 MHz so that microseconds are easy
 to check by hand) goes through the renderers; every expected cell below is
-computed here from the definitions in docs/target.md (us = max instructions
+computed here from the definitions in docs/results/target.md (us = max instructions
 x worst-case cycles per instruction / MHz; share = us / 1000 us), never read
 back from the code.  --update-docs must keep everything outside its markers,
 write all three files or none, and refuse a page without markers with one
@@ -230,8 +230,10 @@ def test_replace_block_keeps_the_rest():
 def docs_dir(tmp_path: Path) -> Path:
     docs = tmp_path / "docs"
     (docs / "results").mkdir(parents=True)
-    (docs / "target.md").write_text(f"# Target\n\n## Budget\n\n{BEGIN}\n{END}\n\n## Files\n")
-    (docs / "stm32f4.md").write_text(f"# STM32F4\n\n{BEGIN}\nold\n{END}\ntail\n")
+    (docs / "how-to").mkdir()
+    (docs / "results" / "target.md").write_text(
+        f"# Target\n\n## Budget\n\n{BEGIN}\n{END}\n\n## Files\n")
+    (docs / "how-to" / "stm32f4.md").write_text(f"# STM32F4\n\n{BEGIN}\nold\n{END}\ntail\n")
     return docs
 
 
@@ -240,33 +242,33 @@ SOURCE = {"commit": "0123456789ab", "uncommitted_changes": False}
 
 def test_update_docs_writes_all_three(tmp_path):
     docs = docs_dir(tmp_path)
-    (docs / "target.md").chmod(0o644)
+    (docs / "results" / "target.md").chmod(0o644)
     budget_docs.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
-    assert (docs / "target.md").stat().st_mode & 0o777 == 0o644     # not the temp file's 0600
-    target = (docs / "target.md").read_text()
+    # not the temp file's 0600
+    assert (docs / "results" / "target.md").stat().st_mode & 0o777 == 0o644
+    target = (docs / "results" / "target.md").read_text()
     assert target.startswith("# Target\n\n## Budget\n\n" + BEGIN) and \
         target.endswith(END + "\n\n## Files\n")
     assert "| the tick (hd_fw_isr) | 2600 | 39.0 | 3.9 % |" in target
     assert "Measured at commit 0123456789ab;" in target
-    stm = (docs / "stm32f4.md").read_text()
+    stm = (docs / "how-to" / "stm32f4.md").read_text()
     assert "| 2300 / 3000 | 3400-4600 | 60.0 | 6.0 % |" in stm and "\nold\n" not in stm
     assert stm.endswith(END + "\ntail\n")
     b = json.loads((docs / "results" / "budget.json").read_text())
     assert b["source"] == SOURCE and b["tick_period_us"] == 1000
     assert b["mps2-an386"]["per_states"]["7"]["tick_with_commands"]["ratio_to_tick_max"] == 1.2
     assert b["stm32f4"]["images"]["hd_mini_cheetah"]["flash_bytes"] == 53976
-    assert sorted(p.name for p in docs.rglob("*")) == ["budget.json", "results",
+    assert sorted(p.name for p in docs.rglob("*")) == ["budget.json", "how-to", "results",
                                                        "stm32f4.md", "target.md"]
 
 
 def test_update_docs_all_or_none(tmp_path):
     docs = docs_dir(tmp_path)
-    (docs / "results").rmdir()
-    (docs / "results").write_text("a file where the folder should be\n")
-    before = {p: p.read_bytes() for p in docs.iterdir()}
+    (docs / "results" / "budget.json").mkdir()      # a folder where the file should be
+    before = {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()}
     with pytest.raises(TargetError, match="budget.json: cannot write"):
         budget_docs.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
-    assert {p: p.read_bytes() for p in docs.iterdir()} == before      # no page half-updated
+    assert {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()} == before  # no page half-updated
 
 
 def run_target(*args):
@@ -276,7 +278,7 @@ def run_target(*args):
 
 def test_update_docs_refuses_a_page_without_markers(tmp_path):
     docs = docs_dir(tmp_path)
-    (docs / "stm32f4.md").write_text("# STM32F4\n\nno markers here\n")
+    (docs / "how-to" / "stm32f4.md").write_text("# STM32F4\n\nno markers here\n")
     before = {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()}
     r = run_target("budget", "--update-docs", "--docs", docs)
     assert r.returncode == 2 and r.stdout == ""

@@ -77,7 +77,7 @@ def test_closed_loop_lockstep_bit_identical(built):
     assert r.returncode == 0, out
     assert "1000 ticks in lockstep" in out and "bit-identical to the host build" in out, out
     # the torque loop ran (TORQUE); a fault reaction's tick may show DAMP (a filter restart
-    # before the step does: docs/reliability.md, control table)
+    # before the step does: docs/results/reliability.md, control table)
     modes = re.search(r"modes run \[([0-9, ]+)\]", out)
     assert modes and 2 in [int(m) for m in modes.group(1).split(",")], out
 

@@ -1,5 +1,5 @@
 """The C tree's layering, read from its #include lines: no header cycle, and
-dependencies pointing one way (docs/firmware.md):
+dependencies pointing one way (docs/design/firmware.md):
 
   filter/ calib/ control/   pure: each other and the C library's pure headers
   hal/hal.h                 the interface: the pure layers only

@@ -1,8 +1,8 @@
 """One doc generator registry and one marker syntax (tools/hdmaint/docgen.py,
 tools/hdtools/docblock.py; no build needed): every generated block of
-docs/*.md and README.md is in the one syntax and written by exactly one
+docs/**/*.md and README.md is in the one syntax and written by exactly one
 registered generator (hdtools.protocol's tables included), every registered
-block is there, docs/testing.md's table is the registry's, and splicing,
+block is there, docs/reference/testing.md's table is the registry's, and splicing,
 migrating and running behave as written out by hand below."""
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from hdtools import docblock
 from hdtools.safeio import UsageError
 
 # Hand-written blocks that tests check against the code (not generated).
-CHECKED = {"docs/ros2.md": {"<!-- BEGIN ros2:topics -->", "<!-- END ros2:topics -->",
+CHECKED = {"docs/how-to/ros2.md": {"<!-- BEGIN ros2:topics -->", "<!-- END ros2:topics -->",
                             "<!-- BEGIN ros2:contract -->", "<!-- END ros2:contract -->",
                             "<!-- BEGIN ros2_control:interfaces -->",
                             "<!-- END ros2_control:interfaces -->",
@@ -51,7 +51,7 @@ def test_every_block_has_one_generator_and_every_registered_block_is_there():
 
 
 def test_testing_md_table_is_the_registry():
-    text = (ROOT / "docs" / "testing.md").read_text()
+    text = (ROOT / "docs" / "reference" / "testing.md").read_text()
     assert docblock.body(text, "docgen-generators", "testing.md") == docgen.table(), \
         "run (cd tools && ../.venv/bin/python -m hdmaint.docgen --write-table)"
 

@@ -1,5 +1,5 @@
 """The shape of tools/hdtools (the installed package), tools/hdmaint (the
-maintainer tools beside it) and of the CTest names (docs/testing.md): no
+maintainer tools beside it) and of the CTest names (docs/reference/testing.md): no
 import cycle among their modules (every import counted, also those inside
 functions), hdtools never importing hdmaint (the wheel carries hdtools
 only), no module over MAX_LINES lines but the ones listed with the change
@@ -144,15 +144,15 @@ def test_ctest_names_are_area_module():
 
 
 def test_firmware_file_table_names_every_source():
-    """docs/firmware.md's file table names every firmware/*.c and *.def (it
+    """docs/design/firmware.md's file table names every firmware/*.c and *.def (it
     lacked three stage files once)."""
     import re
-    text = (ROOT / "docs" / "firmware.md").read_text()
+    text = (ROOT / "docs" / "design" / "firmware.md").read_text()
     table = text[:text.index("## Two contexts")]
     named = set(re.findall(r"`([A-Za-z0-9_]+\.(?:c|def))`", table))
     files = {p.name for p in (ROOT / "firmware").glob("*.c")} | \
         {p.name for p in (ROOT / "firmware").glob("*.def")}
-    assert files - named == set(), f"docs/firmware.md's file table lacks {sorted(files - named)}"
+    assert files - named == set(), f"docs/design/firmware.md's file table lacks {sorted(files - named)}"
 
 
 # Files that rename or make temporary files for another reason than writing

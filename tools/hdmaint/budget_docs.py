@@ -1,5 +1,5 @@
 """tools/target budget --update-docs: both ports' budgets into
-docs/target.md, docs/stm32f4.md (between their markers) and
+docs/results/target.md, docs/how-to/stm32f4.md (between their markers) and
 docs/results/budget.json, all or none; and tools/target budget (print,
 --json).  Standard library only."""
 from __future__ import annotations
@@ -33,7 +33,8 @@ def replace_block(text: str, body: str, name: str) -> str:
 
 
 def doc_paths(docs: Path) -> dict:
-    return {"mps2-an386": docs / "target.md", "stm32f4": docs / "stm32f4.md",
+    return {"mps2-an386": docs / "results" / "target.md",
+            "stm32f4": docs / "how-to" / "stm32f4.md",
             "json": docs / "results" / "budget.json"}
 
 
@@ -74,9 +75,10 @@ def write_budget_docs(docs: Path, m4: dict, f4: dict, source: dict) -> list:
     markers) and results/budget.json under docs, all or none.  Returns the
     paths written."""
     paths, texts = doc_paths(docs), read_docs(docs)
+    # Both pages sit one folder below docs/, so one relative link serves both.
     where = (f"Measured at commit {source['commit']}"
              + (" with uncommitted changes" if source["uncommitted_changes"] else "")
-             + "; the numbers: [results/budget.json](results/budget.json).")
+             + "; the numbers: [results/budget.json](../results/budget.json).")
     summary = {"generated_by": "tools/target budget --update-docs", "source": source,
                "tick_period_us": TICK_PERIOD_US, "clock_mhz": m4["clock_mhz"],
                "mps2-an386": budget_summary(m4), "stm32f4": stm32f4.summary(f4)}

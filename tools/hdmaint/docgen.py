@@ -6,9 +6,9 @@ command keeps working alone.
   python -m hdmaint.docgen --list              the generators, in order
   python -m hdmaint.docgen [--no-vm] [--only NAME ...]
                                                run them (tools/update-docs)
-  python -m hdmaint.docgen --write-table       docs/testing.md's table of them
+  python -m hdmaint.docgen --write-table       docs/reference/testing.md's table of them
   python -m hdmaint.docgen --migrate-markers   rewrite older marker syntaxes
-                                               in docs/*.md and README.md
+                                               in docs/**/*.md and README.md
 
 Standard library only.
 """
@@ -33,9 +33,9 @@ PY = ".venv/bin/python"
 class Generator:
     name: str
     argv: tuple                 # run from the top of the tree, tools/ on PYTHONPATH
-    what: str                   # docs/testing.md: the document (markdown)
-    shown: str                  # docs/testing.md: the command as a user types it
-    checked: str                # docs/testing.md: what keeps it from going stale
+    what: str                   # docs/reference/testing.md: the document (markdown)
+    shown: str                  # docs/reference/testing.md: the command as a user types it
+    checked: str                # docs/reference/testing.md: what keeps it from going stale
     blocks: dict = field(default_factory=dict)   # {doc relative to the root: (block, ...)}
     vm: bool = False            # boots VMs (skipped by --no-vm)
     in_all: bool = True         # run by tools/update-docs
@@ -45,89 +45,89 @@ class Generator:
 PROTOCOL = "protocol"
 GENERATORS = (
     Generator("protocol", (PY, "-m", "hdtools.protocol", "--write"),
-              "parameter, fault, command, frame and record tables in [firmware.md](firmware.md), "
+              "parameter, fault, command, frame and record tables in [firmware.md](../design/firmware.md), "
               "[protocol.md](protocol.md), [records.md](records.md); `firmware/hdjoint.dbc`",
               "`cd tools && ../.venv/bin/python -m hdtools.protocol --write`",
               "`fw_protocol_tables`"),
     Generator("calib", (PY, "tests/calib/calib_doc.py"),
-              "[calibration.md](calibration.md) (measured section)", "`tests/calib/calib_doc.py`",
-              "`calib_tool`", {"docs/calibration.md": ("calib-measured",)}),
-    Generator("corpus", (PY, "tests/corpus/run_corpus.py", "--doc", "docs/reliability.md"),
-              "[reliability.md](reliability.md) (corpus table), `results/corpus.json`",
-              "`tests/corpus/run_corpus.py --doc docs/reliability.md`", "`corpus_doc`",
-              {"docs/reliability.md": ("corpus-classes",)}),
+              "[calibration.md](../how-to/calibration.md) (measured section)", "`tests/calib/calib_doc.py`",
+              "`calib_tool`", {"docs/how-to/calibration.md": ("calib-measured",)}),
+    Generator("corpus", (PY, "tests/corpus/run_corpus.py", "--doc", "docs/results/reliability.md"),
+              "[reliability.md](../results/reliability.md) (corpus table), `docs/results/corpus.json`",
+              "`tests/corpus/run_corpus.py --doc docs/results/reliability.md`", "`corpus_doc`",
+              {"docs/results/reliability.md": ("corpus-classes",)}),
     Generator("filter", (PY, "tests/filter/filter_doc.py", "--build", "build/host-debug"),
-              "[filter-tests.md](filter-tests.md) (every measured table)",
+              "[filter-tests.md](../results/filter-tests.md) (every measured table)",
               "`tests/filter/filter_doc.py --build build/host-debug` (runs the filter tests)",
               "`filter_doc`",
-              {"docs/filter-tests.md": ("filter-behaviour", "filter-numerics", "filter-reference",
+              {"docs/results/filter-tests.md": ("filter-behaviour", "filter-numerics", "filter-reference",
                                         "filter-shift", "filter-trig-track")}),
     Generator("rig", (PY, "tests/reliability/rig_identify.py"),
               "`tests/reliability/rig_expected.cfg` (the fault rig's expected-torque model: "
               "regenerate it before the reliability tables, which depend on it)",
               "`.venv/bin/python tests/reliability/rig_identify.py`", "`rel_rig_identified`"),
     Generator("reliability", (PY, "tests/reliability/rel_doc.py", "--build", "build/host-debug"),
-              "[reliability.md](reliability.md) (fault-injection, filter-input, control-reaction "
+              "[reliability.md](../results/reliability.md) (fault-injection, filter-input, control-reaction "
               "and 10^6 soak tables)",
               "`tests/reliability/rel_doc.py --build build/host-debug` (runs `rel_fault_*`, "
               "`fw_control`, `rel_soak_1e6`)", "`rel_doc`",
-              {"docs/reliability.md": ("reliability-control", "reliability-faults",
+              {"docs/results/reliability.md": ("reliability-control", "reliability-faults",
                                        "reliability-filter-input", "reliability-soak")}),
     Generator("soak-long", (PY, "tests/reliability/rel_doc.py", "--soak-long",
                             "build/host-release"),
-              "[reliability.md](reliability.md) (10^8 soak)",
+              "[reliability.md](../results/reliability.md) (10^8 soak)",
               "`tests/reliability/rel_doc.py --soak-long build/host-release` (~1 min)",
               "a benchmark: date and machine in the block, not checked",
-              {"docs/reliability.md": ("reliability-soak-long",)}),
+              {"docs/results/reliability.md": ("reliability-soak-long",)}),
     Generator("vm", (PY, "tests/vm/vm_doc.py", "--build", "build/host-debug"),
-              "[socketcan.md](socketcan.md) (VM measurements)",
+              "[socketcan.md](../how-to/socketcan.md) (VM measurements)",
               "`tests/vm/vm_doc.py --build build/host-debug` (boots each VM test, `vm_socketcan` "
               "and `vm_monitor`, 3 times)",
               "wall times under TCG: date and machine in the blocks, not checked; the parsing: "
               "`vm_socketcan_decode`, `vm_monitor_decode`",
-              {"docs/socketcan.md": ("socketcan-vm", "socketcan-vm-monitor")}, vm=True),
+              {"docs/how-to/socketcan.md": ("socketcan-vm", "socketcan-vm-monitor")}, vm=True),
     Generator("budget", ("tools/target", "budget", "--update-docs"),
-              "budget tables in [target.md](target.md) and [stm32f4.md](stm32f4.md), "
-              "`results/budget.json`", "`tools/target budget --update-docs`",
+              "budget tables in [target.md](../results/target.md) and [stm32f4.md](../how-to/stm32f4.md), "
+              "`docs/results/budget.json`", "`tools/target budget --update-docs`",
               "numbers of one run, not checked; the rendering: `target_budget_docs`",
-              {"docs/target.md": ("target-budget",), "docs/stm32f4.md": ("target-budget",)}),
+              {"docs/results/target.md": ("target-budget",), "docs/how-to/stm32f4.md": ("target-budget",)}),
     Generator("demo", ("tools/demo", "--update-docs"),
-              "`results/demo.json`, `img/demo.png`, `results/demo_control.json`, "
-              "`img/demo_control.png` (the closed-loop part)", "`tools/demo --update-docs`",
+              "`docs/results/demo.json`, `docs/img/demo.png`, `docs/results/demo_control.json`, "
+              "`docs/img/demo_control.png` (the closed-loop part)", "`tools/demo --update-docs`",
               "numbers of one run; the closed-loop part's claims (transparency against the "
               "drive-off baseline, the step's true torque): `device_tools` "
               "(`tests/device/test_demo_control.py`)"),
-    Generator("analyze", ("tools/hdsense", "analyze", "--results-doc", "docs/analyze-results.md",
+    Generator("analyze", ("tools/hdsense", "analyze", "--results-doc", "docs/results/analyze-results.md",
                           "--bench-hour"),
-              "[analyze-results.md](analyze-results.md), `results/analyze.json`",
-              "`tools/hdsense analyze --results-doc docs/analyze-results.md`",
+              "[analyze-results.md](../results/analyze-results.md), `docs/results/analyze.json`",
+              "`tools/hdsense analyze --results-doc docs/results/analyze-results.md`",
               "`analyze_sim`, `analyze_geometry`, `analyze_iiwa`",
-              {"docs/analyze-results.md": ("analyze-suite", "analyze-bands", "analyze-slow",
+              {"docs/results/analyze-results.md": ("analyze-suite", "analyze-bands", "analyze-slow",
                                            "analyze-slow-bands", "analyze-iiwa")}),
     Generator("bench", ("tools/bench", "--update-docs"),
-              "[bench.md](bench.md), `results/bench.json`; [control.md](control.md) (Results), "
-              "`results/control.json`; [random-joints.md](random-joints.md), "
-              "`results/random.json`",
+              "[bench.md](../results/bench.md), `docs/results/bench.json`; [control.md](../results/control.md) (Results), "
+              "`docs/results/control.json`; [random-joints.md](../results/random-joints.md), "
+              "`docs/results/random.json`",
               "`tools/bench --update-docs` (one part: `--only control`, `--only random`)",
               "benchmarks: numbers of one run, not checked, but `bench_control_docs` checks the "
               "control section and the default gains against the JSON, and the random joints' "
               "CI sample is what `analyze_random_joints` holds the firmware to",
-              {"docs/bench.md": ("bench-results",), "docs/control.md": ("control-results",),
-               "docs/random-joints.md": ("bench-results",)}),
+              {"docs/results/bench.md": ("bench-results",), "docs/results/control.md": ("control-results",),
+               "docs/results/random-joints.md": ("bench-results",)}),
     Generator("fleet", (PY, "-m", "hdmaint.fleet_bench", "--write"),
-              "[fleet.md](fleet.md) (measured section), `results/fleet.json`",
+              "[fleet.md](../results/fleet.md) (measured section), `docs/results/fleet.json`",
               "`cd tools && ../.venv/bin/python -m hdmaint.fleet_bench --write [--ray-python PY]` "
               "(~5 min)", "a benchmark: numbers of one run; the thresholds table: `fleet`",
-              {"docs/fleet.md": ("fleet-measured", "fleet-thresholds")}),
-    Generator("ros2", (PY, "-m", "hdmaint.ros2_bench", "--update-docs", "docs/ros2.md"),
-              "[ros2.md](ros2.md) (Benchmarks)",
+              {"docs/results/fleet.md": ("fleet-measured", "fleet-thresholds")}),
+    Generator("ros2", (PY, "-m", "hdmaint.ros2_bench", "--update-docs", "docs/how-to/ros2.md"),
+              "[ros2.md](../how-to/ros2.md) (Benchmarks)",
               "`HD_BUILD_DIR=build/host-release PYTHONPATH=tools .venv/bin/python -m "
-              "hdmaint.ros2_bench --update-docs docs/ros2.md` (~10 min; not in "
+              "hdmaint.ros2_bench --update-docs docs/how-to/ros2.md` (~10 min; not in "
               "`tools/update-docs`)", "a benchmark: date and machine in the block, not checked",
-              {"docs/ros2.md": ("ros2-bench",)}, in_all=False),
+              {"docs/how-to/ros2.md": ("ros2-bench",)}, in_all=False),
     Generator("docgen", (PY, "-m", "hdmaint.docgen", "--write-table"),
               "this table", "`cd tools && ../.venv/bin/python -m hdmaint.docgen --write-table`",
-              "`tools_docgen`", {"docs/testing.md": ("docgen-generators",)}),
+              "`tools_docgen`", {"docs/reference/testing.md": ("docgen-generators",)}),
     Generator("headline", (PY, "-m", "hdmaint.headline", "--write"),
               "the README's headline table (from the results above: last)",
               "`cd tools && ../.venv/bin/python -m hdmaint.headline --write`", "`headline`",
@@ -157,7 +157,7 @@ def migrate(text: str) -> str:
 
 
 def documents() -> list[Path]:
-    return sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+    return sorted((ROOT / "docs").rglob("*.md")) + [ROOT / "README.md"]
 
 
 def protocol_blocks() -> set:
@@ -182,7 +182,7 @@ def table() -> str:
 
 
 def write_table() -> Path:
-    path = ROOT / "docs" / "testing.md"
+    path = ROOT / "docs" / "reference" / "testing.md"
     old, new = docblock.update(path, {"docgen-generators": table()})
     if new != old:
         docblock.write([(path, new)])
@@ -212,9 +212,9 @@ def main(argv=None) -> int:
                     help="run only this generator (repeatable)")
     ap.add_argument("--no-vm", action="store_true", help="skip the generators that boot VMs")
     ap.add_argument("--write-table", action="store_true",
-                    help="write docs/testing.md's table of the generators")
+                    help="write docs/reference/testing.md's table of the generators")
     ap.add_argument("--migrate-markers", action="store_true",
-                    help="rewrite older marker syntaxes in docs/*.md and README.md")
+                    help="rewrite older marker syntaxes in docs/**/*.md and README.md")
     a = ap.parse_args(argv)
     try:
         if a.list:

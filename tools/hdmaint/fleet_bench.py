@@ -1,4 +1,4 @@
-"""docs/fleet.md's measured tables and docs/results/fleet.json, written by
+"""docs/results/fleet.md's measured tables and docs/results/fleet.json, written by
 the runs that measure them (nothing typed by hand):
 
     cd tools && ../.venv/bin/python -m hdmaint.fleet_bench --write [--ray-python PY]
@@ -30,7 +30,7 @@ from hdtools.fleet import job, simfleet, trends
 from hdtools.safeio import Outputs
 
 ROOT = Path(__file__).resolve().parents[2]
-DOC = ROOT / "docs" / "fleet.md"
+DOC = ROOT / "docs" / "results" / "fleet.md"
 RESULT = ROOT / "docs" / "results" / "fleet.json"
 MEASURED, THRESHOLDS = "fleet-measured", "fleet-thresholds"      # hdtools.docblock blocks
 TUNE_SEEDS = (1, 2)
@@ -318,7 +318,7 @@ def main(argv=None) -> int:
     import argparse
     from hdtools import native
     p = argparse.ArgumentParser(prog="python -m hdmaint.fleet_bench", description=__doc__)
-    p.add_argument("--write", action="store_true", help="write docs/fleet.md and fleet.json")
+    p.add_argument("--write", action="store_true", help="write docs/results/fleet.md and fleet.json")
     p.add_argument("--ray-python", help="a Python with ray installed (comparison only)")
     p.add_argument("--parts", default=",".join(PARTS),
                    help="which parts to measure (the others are kept from fleet.json): "

@@ -4,8 +4,8 @@ tools write (nothing typed):
   docs/results/demo.json      tools/demo --update-docs
   docs/results/bench.json     tools/bench --update-docs
   docs/results/budget.json    tools/target budget --update-docs
-  docs/results/analyze.json   tools/hdsense analyze --results-doc docs/analyze-results.md
-  docs/results/corpus.json    tests/corpus/run_corpus.py --doc docs/reliability.md
+  docs/results/analyze.json   tools/hdsense analyze --results-doc docs/results/analyze-results.md
+  docs/results/corpus.json    tests/corpus/run_corpus.py --doc docs/results/reliability.md
   docs/results/fleet.json     cd tools && python -m hdmaint.fleet_bench --write
   docs/results/control.json   tools/bench --only control --update-docs
 
@@ -63,7 +63,7 @@ def demo_rows(d: dict) -> list[tuple[str, str, str]]:
         f"RMS error **{rms:.4f} N m** = {rms / noise:.2f}x the {noise:g} N m sensor noise "
         f"(raw {float(w['rms_error_raw_nm']):.3f}; first second {float(w['rms_error_filtered_first_1s_nm']):.4f}); "
         f"booted without the profile {float(wo['rms_error_filtered_nm']):.3f}",
-        _link("demo") + ", [slow-torque.md](docs/slow-torque.md)")]
+        _link("demo") + ", [slow-torque.md](docs/design/slow-torque.md)")]
 
 
 def _slow(slow: dict, row: str, key: str) -> list[tuple[float, str]]:
@@ -74,7 +74,7 @@ def _slow(slow: dict, row: str, key: str) -> list[tuple[float, str]]:
 
 
 def bench_rows(b: dict) -> list[tuple[str, str, str]]:
-    src = _link("bench") + ", [bench.md](docs/bench.md)"
+    src = _link("bench") + ", [bench.md](docs/results/bench.md)"
     acc = b["accuracy"]["scenarios"]["const156"]["methods"]
     prod = acc["fw_commissioned"]
     ideal = acc["ideal"]["rms_nm"]
@@ -129,7 +129,7 @@ def bench_rows(b: dict) -> list[tuple[str, str, str]]:
 
 
 def random_rows(r: dict) -> list[tuple[str, str, str]]:
-    src = _link("random") + ", [random-joints.md](docs/random-joints.md)"
+    src = _link("random") + ", [random-joints.md](docs/results/random-joints.md)"
     dec, und = r["declared"]["paths"], r["undeclared"]["paths"]
 
     def within(d):
@@ -146,7 +146,7 @@ def random_rows(r: dict) -> list[tuple[str, str, str]]:
 
 
 def budget_rows(g: dict) -> list[tuple[str, str, str]]:
-    src = _link("budget") + ", [target.md](docs/target.md), [stm32f4.md](docs/stm32f4.md)"
+    src = _link("budget") + ", [target.md](docs/results/target.md), [stm32f4.md](docs/how-to/stm32f4.md)"
     m = g["mps2-an386"]
     n = str(m["default_states"])
     p = m["per_states"][n]
@@ -179,7 +179,7 @@ def budget_rows(g: dict) -> list[tuple[str, str, str]]:
 
 
 def analyze_rows(a: dict) -> list[tuple[str, str, str]]:
-    src = _link("analyze") + ", [analyze-results.md](docs/analyze-results.md)"
+    src = _link("analyze") + ", [analyze-results.md](docs/results/analyze-results.md)"
     cases = a["cases"]
     at_floor = [c for c in cases.values()
                 if c["error_out_of_sample_after_nm"] is not None
@@ -212,7 +212,7 @@ def corpus_rows(c: dict) -> list[tuple[str, str, str]]:
         f"under ASan/UBSan): {classes}",
         f"{c['cases']} cases, each a whole output or one line on stderr and a documented exit "
         f"code ({c['failed_before']} failed before the corpus, at d9ce5d9)",
-        _link("corpus") + ", [reliability.md](docs/reliability.md)")]
+        _link("corpus") + ", [reliability.md](docs/results/reliability.md)")]
 
 
 def fleet_rows(f: dict) -> list[tuple[str, str, str]]:
@@ -222,7 +222,7 @@ def fleet_rows(f: dict) -> list[tuple[str, str, str]]:
     delay = max(d["max_delay_days"] for d in rep)
     sp = f["speed"]
     dask = {r["workers"]: r for r in sp["rows"] if r["engine"] == "Dask LocalCluster"}
-    src = _link("fleet") + ", [fleet.md](docs/fleet.md)"
+    src = _link("fleet") + ", [fleet.md](docs/results/fleet.md)"
     return [
         (f"`hdsense fleet` on held-out simulated fleets (seeds "
          f"{', '.join(str(d['seed']) for d in rep)}; meshing, friction, gauge-gain and "

@@ -1,6 +1,6 @@
 """Benchmarks of the ROS 2 paths (numbers, not pass/fail):
 
-    .venv/bin/python -m hdmaint.ros2_bench [--duration S] [--update-docs docs/ros2.md]
+    .venv/bin/python -m hdmaint.ros2_bench [--duration S] [--update-docs docs/how-to/ros2.md]
 
 1. the monitor's recording cost: one 1 kHz sample (JointState, the Float64
    channels, a heartbeat a second) encoded and written to an MCAP file,
@@ -9,7 +9,7 @@
    of analysis.bench_speed (hdsim, 1 kHz) as a CSV, the same samples as an
    MCAP recording with every channel a monitor writes, each analysed in a
    child process (wall time, peak resident memory).
---update-docs writes the numbers into docs/ros2.md ("Benchmarks")."""
+--update-docs writes the numbers into docs/how-to/ros2.md ("Benchmarks")."""
 from __future__ import annotations
 
 import argparse
@@ -146,7 +146,7 @@ def update_docs(doc: Path, lines: list[str]) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=bench_speed.HOUR_S)
-    ap.add_argument("--update-docs", type=Path, metavar="docs/ros2.md")
+    ap.add_argument("--update-docs", type=Path, metavar="docs/how-to/ros2.md")
     args = ap.parse_args(argv)
     lines = run(args.duration)
     print("\n".join(lines))

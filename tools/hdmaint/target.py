@@ -15,8 +15,8 @@
                                   flash, RAM, worst-case stack, instruction
                                   counts per filter update / ISR, cycle estimate
   tools/target budget --update-docs [--docs DIR]
-                                  both ports' budgets into docs/target.md,
-                                  docs/stm32f4.md (block target-budget,
+                                  both ports' budgets into docs/results/target.md,
+                                  docs/how-to/stm32f4.md (block target-budget,
                                   hdtools.docblock) and
                                   docs/results/budget.json, all or none
   tools/target count ELF [ARG...] instruction counts between the markers of
@@ -72,7 +72,7 @@ def main(argv=None) -> int:
     b.add_argument("--json", help="also write the numbers to this JSON file")
     b.add_argument("--update-docs", action="store_true",
                    help="measure both ports (mps2-an386 and stm32f4) and rewrite their tables "
-                        "in docs/target.md and docs/stm32f4.md and docs/results/budget.json")
+                        "in docs/results/target.md and docs/how-to/stm32f4.md and docs/results/budget.json")
     b.add_argument("--docs", default=str(ROOT / "docs"),
                    help="the docs folder --update-docs writes (default: the tree's docs/)")
     k = sub.add_parser("count", parents=[on], help="instruction counts between markers of an image")

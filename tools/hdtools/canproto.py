@@ -4,7 +4,7 @@ The DBC (generated from firmware/hd_protocol.def by hdtools.protocol)
 describes node 1; load_db(node_id) moves every identifier to another node
 (identifier = 0x01D00000 | type << 8 | node_id, 29-bit).  Helpers build
 command frames (as (frame_id, bytes) pairs or `cansend` strings) and turn a
-firmware configuration text file (docs/firmware.md, parsed by the firmware's
+firmware configuration text file (docs/design/firmware.md, parsed by the firmware's
 own parser: hdtools.cfgtext) into the equivalent commands: every key of the
 parameter table (firmware/hd_params.def) has one.
 """

@@ -4,7 +4,7 @@ Each subcommand lives in hdtools/cmd_<name>.py and defines
 `register(subparsers)`, which adds its parser and sets `func` on it.
 
 Every subcommand ends with exit 0 and whole outputs, or one line on stderr
-and a non-zero status (docs/reliability.md, "Exit status"):
+and a non-zero status (docs/results/reliability.md, "Exit status"):
   0 ok   1 negative result (calib: rejected)   2 bad command line or input
   3 an output could not be written   4 internal error (a bug: the line says
   where to look; HDSENSE_TRACEBACK=1 prints the traceback)   130 interrupted

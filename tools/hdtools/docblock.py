@@ -5,7 +5,7 @@
     <!-- END generated:NAME -->
 
 NAME is [A-Za-z0-9_-]+.  hdtools.protocol owns the names without a hyphen
-in docs/*.md (its tables) and README's `headline`; every other generator's
+in docs/**/*.md (its tables) and README's `headline`; every other generator's
 names have one (`target-budget`, `reliability-faults`).  The registry of
 generators, the commands that write each block, is tools/hdmaint/docgen.py.
 Writing goes through hdtools.safeio (all files of a generator or none).

@@ -378,7 +378,7 @@ DOCS = ROOT / "docs"
 
 
 def doc_tables() -> dict[str, str]:
-    """The generated tables of docs/*.md, by block name."""
+    """The generated tables of docs/**/*.md, by block name."""
     return protocol_dbc.doc_tables(sys.modules[__name__])
 
 
@@ -391,7 +391,7 @@ def render_docs(text: str) -> str:
 
 
 def stale_docs() -> list[Path]:
-    return [p for p in sorted(DOCS.glob("*.md")) if render_docs(p.read_text()) != p.read_text()]
+    return [p for p in sorted(DOCS.rglob("*.md")) if render_docs(p.read_text()) != p.read_text()]
 
 
 def generate_c() -> tuple[str, str]:
@@ -416,7 +416,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m hdtools.protocol",
                                  description="Generate or check what comes from "
                                              "firmware/hd_protocol.def and hd_params.def: the DBC, "
-                                             "the C codec and the tables in docs/*.md.")
+                                             "the C codec and the tables in docs/**/*.md.")
     ap.add_argument("--write", action="store_true",
                     help="rewrite firmware/hdjoint.dbc, hd_can_gen.[ch] and the docs' tables")
     ap.add_argument("--write-dbc", action="store_true", help="rewrite firmware/hdjoint.dbc only")

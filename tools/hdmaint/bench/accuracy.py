@@ -32,7 +32,7 @@ from .joint import (encoder_angles, firmware_commissioning, ini_value, joint_key
 
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO_DIR = ROOT / "tests" / "bench" / "scenarios"
-# The commissioning motion of every firmware row (docs/slow-torque.md,
+# The commissioning motion of every firmware row (docs/design/slow-torque.md,
 # "Commissioning motion"): no load, both directions, 30 s.
 COMMISSION_MOTION = SCENARIO_DIR / "slow" / "commission.ini"
 # What the product row is told: the firmware defaults in operating mode,

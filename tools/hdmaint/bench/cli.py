@@ -6,11 +6,11 @@ scenarios) and the real iiwa logs, the host compute benchmark
 checks issue 12's goals against the numbers (bench/goals.py); prints the
 tables, writes OUT/results.json, OUT/results.md and OUT/bench_accuracy.png
 (OUT = out/bench; the control part, --only control: OUT/control.json).
---update-docs also writes the tables into docs/bench.md
+--update-docs also writes the tables into docs/results/bench.md
 (between the generated-results markers), results.json to
 docs/results/bench.json (the README headline reads it) and the plot to
 docs/img/bench_accuracy.png; the control part's (issue 23) go into
-docs/control.md and docs/results/control.json, and bench.md is left alone
+docs/results/control.md and docs/results/control.json, and bench.md is left alone
 when only the random and control parts ran.  Every file is written under a
 temporary name and all are renamed together once all are complete.
 """
@@ -26,12 +26,12 @@ from hdtools import docblock
 from hdtools.safeio import OutputError, Outputs, UsageError
 
 ROOT = Path(__file__).resolve().parents[3]
-DOC = ROOT / "docs" / "bench.md"
+DOC = ROOT / "docs" / "results" / "bench.md"
 DOC_JSON = ROOT / "docs" / "results" / "bench.json"
 DOC_PLOT = ROOT / "docs" / "img" / "bench_accuracy.png"
-RANDOM_DOC = ROOT / "docs" / "random-joints.md"
+RANDOM_DOC = ROOT / "docs" / "results" / "random-joints.md"
 RANDOM_JSON = ROOT / "docs" / "results" / "random.json"
-CONTROL_DOC = ROOT / "docs" / "control.md"
+CONTROL_DOC = ROOT / "docs" / "results" / "control.md"
 CONTROL_JSON = ROOT / "docs" / "results" / "control.json"
 BLOCK = "bench-results"           # in bench.md and random-joints.md
 BEGIN, END = docblock.markers(BLOCK)
@@ -55,7 +55,7 @@ def parser() -> argparse.ArgumentParser:
                    help="tiny sizes (smoke test): short runs, 2 real segments, few reps; the "
                         "control part only with --only control")
     p.add_argument("--update-docs", action="store_true",
-                   help="write the tables into docs/bench.md and the plot into docs/img/")
+                   help="write the tables into docs/results/bench.md and the plot into docs/img/")
     p.set_defaults(func=run)
     return p
 
@@ -71,7 +71,7 @@ def run(args) -> int:
         args.skip = args.skip + ["control"]   # --quick: the control part only with --only control
     if not 1 <= n_random <= 1000:
         raise UsageError(f"--random-joints must be 1..1000 (got {n_random})")
-    # bench.md holds every part but the random joints' (docs/random-joints.md)
+    # bench.md holds every part but the random joints' (docs/results/random-joints.md)
     own_docs = bool(only) and set(only) <= {"random", "control"}  # parts with docs of their own
     doc_text = read_doc() if args.update_docs and not own_docs else None
     random_text = read_doc(RANDOM_DOC) if args.update_docs and "random" not in args.skip else None
@@ -187,7 +187,7 @@ def run(args) -> int:
 
 
 def read_doc(doc: Path | None = None, begin: str = BEGIN, end: str = END) -> str:
-    """A generated doc, docs/bench.md by default (checked before the
+    """A generated doc, docs/results/bench.md by default (checked before the
     benchmark runs: its markers)."""
     doc = DOC if doc is None else doc
     try:

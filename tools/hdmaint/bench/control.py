@@ -1,4 +1,4 @@
-"""Control benchmark (issue 23, docs/control.md): the firmware's torque loop
+"""Control benchmark (issue 23, docs/results/control.md): the firmware's torque loop
 on the dynamic joint, judged on the simulation's true output torque.
 
 Feedback variants, each tuned by control_tune (same margins, measured by

@@ -1,5 +1,5 @@
 """Tables of the control benchmark (bench/control.py): plain text, Markdown
-for the generated section of docs/control.md, JSON for
+for the generated section of docs/results/control.md, JSON for
 docs/results/control.json and the README headline row."""
 from __future__ import annotations
 
@@ -149,7 +149,7 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
     bw = next(x for x in c["goals"] if x["goal"].startswith("bandwidth"))
     f = c["rows"]["filtered"]["speeds"]
     speeds = [str(s) for s in c["speeds_rad_s"]]
-    src = "[control.json](docs/results/control.json), [control.md](docs/control.md)"
+    src = "[control.json](docs/results/control.json), [control.md](docs/results/control.md)"
     ratios = " / ".join(f"{bw['ratios'][s]:.2f}x" for s in speeds)
     status = lambda x: "met" if x["met"] else "**not met**"  # noqa: E731
     return [(
@@ -165,4 +165,4 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
 
 
 def splice(text_: str, md: str) -> str:
-    return docblock.splice(text_, BLOCK, md, "docs/control.md")
+    return docblock.splice(text_, BLOCK, md, "docs/results/control.md")

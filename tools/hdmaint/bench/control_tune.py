@@ -1,4 +1,4 @@
-"""The torque loop's tuning method (docs/control.md, "Tuning"), per feedback.
+"""The torque loop's tuning method (docs/results/control.md, "Tuning"), per feedback.
 
 1. Break the loop in the simulation at every benchmark speed and with the
    output pressed against a stiff wall (the conditions)

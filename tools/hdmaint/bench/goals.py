@@ -3,7 +3,7 @@ each goal, the rows it is judged on, the measured worst case, where it
 occurs, and whether it is met.  The thresholds live here and nowhere else;
 report.py renders the list, cli.py stores it as results["goals"].
 
-Rows (docs/bench.md): `fw_commissioned` is the firmware on the classic
+Rows (docs/results/bench.md): `fw_commissioned` is the firmware on the classic
 accuracy scenarios booted from its own commissioning profile; the `fw_*`
 rows of the slow-torque part are the firmware on the slow scenarios.
 """

@@ -3,7 +3,7 @@ of the random-joint benchmark holds over, and the scenario files of one
 joint's commissioning run and its operation.
 
 A joint is drawn from a seed with numpy's PCG64: every range is in RANGES
-(one place; docs/random-joints.md's range table is rendered from it).  The
+(one place; docs/results/random-joints.md's range table is rendered from it).  The
 declared lines are the firmware's default model (motor orders 2 and 4,
 output order 1), each with a uniform phase; an undeclared effect (one of
 UNDECLARED) is added only when asked for, and so are load-modulated lines
@@ -39,7 +39,7 @@ RANGES = {
     "load_step_nm": (-1.5, 1.5),
     "undeclared_amplitude_nm": (0.2, 0.6),
     # load-modulated lines (when drawn): every motor and output line grows
-    # as 1 + c |T_true| (hdsim's law, docs/sim.md); 0.1 doubles a line at
+    # as 1 + c |T_true| (hdsim's law, docs/reference/sim.md); 0.1 doubles a line at
     # 10 N m, about the largest load an operating plan here reaches
     "ripple_load_coeff_per_nm": (0.02, 0.1),
 }
@@ -48,7 +48,7 @@ LOAD_SINES = (1, 3)                 # how many slow load sines, inclusive
 DECLARED = (("motor", 2), ("motor", 4), ("output", 1))
 UNDECLARED = (("output", 2), ("output", 3), ("motor", 1), ("motor", 3), ("motor", 6),
               ("fixed", 50))
-COMMISSION_REVS = 3.2               # output revolutions each way (docs/slow-torque.md: >= 3)
+COMMISSION_REVS = 3.2               # output revolutions each way (docs/design/slow-torque.md: >= 3)
 OPERATE_S = 60.0
 RAMP_S = 0.5
 
@@ -118,7 +118,7 @@ class Joint:
         return out
 
     def commissioning_ini(self, seed_offset: int = 1) -> str:
-        """The commissioning motion of docs/slow-torque.md: no load, constant
+        """The commissioning motion of docs/design/slow-torque.md: no load, constant
         speed, COMMISSION_REVS output revolutions each way."""
         w = self.commission_speed_rad_s * self.gear_ratio
         leg = COMMISSION_REVS * 2 * math.pi / self.commission_speed_rad_s
@@ -242,7 +242,7 @@ def write(joint: Joint, wd: Path) -> tuple[Path, Path]:
 
 
 def ranges_table() -> list[str]:
-    """The drawing ranges as a Markdown table (docs/random-joints.md)."""
+    """The drawing ranges as a Markdown table (docs/results/random-joints.md)."""
     rows = ["| quantity | drawn from |", "|---|---|"]
     for k, (lo, hi) in RANGES.items():
         rows.append(f"| `{k}` | uniform {lo:g} .. {hi:g} |")

@@ -1,4 +1,4 @@
-"""The random-joint benchmark (issue 21, docs/random-joints.md): the
+"""The random-joint benchmark (issue 21, docs/results/random-joints.md): the
 firmware and the analysis on joints drawn by hdmaint.bench.randjoint, each
 run scored against the simulator's ripple-free truth.
 

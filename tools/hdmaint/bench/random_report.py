@@ -1,4 +1,4 @@
-"""docs/random-joints.md's generated part: the drawing ranges and the
+"""docs/results/random-joints.md's generated part: the drawing ranges and the
 random-joint benchmark's distributions (hdmaint.bench.random_bench), as
 Markdown, from the results the benchmark wrote."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Slow-torque benchmark (issue 12, docs/slow-torque.md): the firmware under
+"""Slow-torque benchmark (issue 12, docs/design/slow-torque.md): the firmware under
 gravity, payload changes, unknown slow loads, output orders 2-3 and a
 controller model 25-30 % off, against the peers.
 
@@ -180,7 +180,7 @@ def fw_row(row: Method, sc: Scenario, com: Commissioning, cur_cfg: str | None, w
         told["config"] = f"model.cfg of {com.note}"
         # T_exp from the slow-torque source only: the friction and inertia
         # analyze identifies on the commissioning run make every row worse
-        # (docs/slow-torque.md, "Measurements": the Coulomb step of a lagging
+        # (docs/design/slow-torque.md, "Measurements": the Coulomb step of a lagging
         # velocity estimate)
         over.update({"inertia_kgm2": "0", "viscous_nm_s_rad": "0", "coulomb_nm": "0"})
     if p["slow"] == "ff":
