@@ -122,25 +122,85 @@ def test_no_issue_numbers_in_typed_docs():
     """History lives in docs/decisions/ and git, not in "issue N" asides."""
     found = [f"{rel}: {m.group(0)}" for rel, text in docs().items()
              for m in re.finditer(r"(?i)\bissues? \d+", prose(text))]
-    found += [f"{p.relative_to(ROOT)}: {m.group(0)}"
-              for p in sorted((ROOT / "docs" / "decisions").glob("*.md"))
-              for m in re.finditer(r"(?i)\bissues? \d+", p.read_text())]
     assert found == []
 
 
-def test_relative_links_resolve():
-    pages = docgen.documents() + sorted((ROOT / "docs" / "decisions").glob("*.md")) + \
-        [ROOT / "CONTRIBUTING.md"]
+def slugs(text: str) -> set:
+    """The anchors GitHub gives text's headings: lower case, punctuation
+    but '-' and '_' dropped, spaces to '-', a repeated one suffixed -1, -2."""
+    out, seen = set(), {}
+    for title in re.findall(r"^#{1,6} +(.+?) *#*$", text, flags=re.M):
+        slug = re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+        n = seen.get(slug, 0)
+        seen[slug] = n + 1
+        out.add(slug if n == 0 else f"{slug}-{n}")
+    return out
+
+
+def broken_links(page) -> list:
+    """page's relative links (outside code fences) whose file or heading
+    anchor does not exist."""
+    text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+    name = page.relative_to(ROOT) if page.is_relative_to(ROOT) else page.name
     broken = []
-    for page in pages:
-        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
-        for target in re.findall(r"\]\(([^)\s]+)\)", text):
-            path = target.split("#", 1)[0]
-            if not path or re.match(r"[a-z]+:", path):
-                continue
-            if not (page.parent / path).exists():
-                broken.append(f"{page.relative_to(ROOT)}: {target}")
-    assert broken == []
+    for target in re.findall(r"\]\(([^)\s]+)\)", text):
+        path, _, anchor = target.partition("#")
+        if re.match(r"[a-z]+:", path):
+            continue
+        dest = (page.parent / path) if path else page
+        if not dest.exists():
+            broken.append(f"{name}: {target}")
+        elif anchor and dest.suffix == ".md" and anchor not in slugs(
+                re.sub(r"```.*?```", "", dest.read_text(), flags=re.S)):
+            broken.append(f"{name}: {target} (no such heading)")
+    return broken
+
+
+def test_relative_links_resolve():
+    """Every relative link of README.md, CONTRIBUTING.md and docs/**/*.md
+    names a file of the tree, and a #heading of a page names one of its
+    headings."""
+    pages = docgen.documents() + [ROOT / "CONTRIBUTING.md"]
+    assert ROOT / "docs" / "README.md" in pages and \
+        ROOT / "docs" / "decisions" / "README.md" in pages
+    assert [b for page in pages for b in broken_links(page)] == []
+
+
+def test_index_lists_every_page_once_under_its_kind():
+    """docs/README.md names each docs/**/*.md once, under the heading of its
+    folder (decisions/ is design history), by the page's own title."""
+    text = (ROOT / "docs" / "README.md").read_text()
+    kind = {"how-to": "How-to", "reference": "Reference", "design": "Design",
+            "decisions": "Design", "results": "Results"}
+    listed, heading = {}, None
+    for line in text.splitlines():
+        if line.startswith("## "):
+            heading = line[3:]
+        m = re.match(r"- \[([^]]+)\]\(([^)]+)\): (.+)$", line)
+        if m:
+            assert m.group(1) == m.group(2) and m.group(2) not in listed, line
+            listed[m.group(2)] = (heading, m.group(3))
+    pages = {str(p.relative_to(ROOT / "docs")): p for p in docgen.documents()
+             if p.parent != ROOT and p != ROOT / "docs" / "README.md"}
+    assert sorted(listed) == sorted(pages)
+    for rel, (heading, title) in listed.items():
+        h1 = re.search(r"^# (.+)$", pages[rel].read_text(), flags=re.M).group(1)
+        assert (heading, title) == (kind[rel.split("/")[0]], h1), rel
+
+
+def test_slugs_and_broken_links_by_hand(tmp_path):
+    assert slugs("# A `b` c (d/e)\n## A `b` c (d/e)\n### x_y-z.\n") == \
+        {"a-b-c-de", "a-b-c-de-1", "x_y-z"}
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "t.md").write_text("# Top\n## Two words\n")
+    page = tmp_path / "p.md"
+    page.write_text("[a](sub/t.md) [b](sub/t.md#two-words) [c](#here) [d](https://x/y)\n"
+                    "# Here\n```\n[e](nowhere.md)\n```\n")
+    assert broken_links(page) == []
+    page.write_text("[a](sub/gone.md) [b](sub/t.md#three) [c](#there)\n")
+    found = [b.split(": ", 1)[1] for b in broken_links(page)]
+    assert found == ["sub/gone.md", "sub/t.md#three (no such heading)",
+                      "#there (no such heading)"]
 
 
 def test_paths_named_in_typed_docs_exist():
