@@ -268,7 +268,8 @@ def test_update_docs_all_or_none(tmp_path):
     before = {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()}
     with pytest.raises(TargetError, match="budget.json: cannot write"):
         budget_docs.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
-    assert {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()} == before  # no page half-updated
+    # no page half-updated
+    assert {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()} == before
 
 
 def run_target(*args):

@@ -152,7 +152,8 @@ def test_firmware_file_table_names_every_source():
     named = set(re.findall(r"`([A-Za-z0-9_]+\.(?:c|def))`", table))
     files = {p.name for p in (ROOT / "firmware").glob("*.c")} | \
         {p.name for p in (ROOT / "firmware").glob("*.def")}
-    assert files - named == set(), f"docs/design/firmware.md's file table lacks {sorted(files - named)}"
+    assert files - named == set(), \
+        f"docs/design/firmware.md's file table lacks {sorted(files - named)}"
 
 
 # Files that rename or make temporary files for another reason than writing

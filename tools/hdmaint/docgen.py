@@ -45,34 +45,38 @@ class Generator:
 PROTOCOL = "protocol"
 GENERATORS = (
     Generator("protocol", (PY, "-m", "hdtools.protocol", "--write"),
-              "parameter, fault, command, frame and record tables in [firmware.md](../design/firmware.md), "
+              "parameter, fault, command, frame and record tables in "
+              "[firmware.md](../design/firmware.md), "
               "[protocol.md](protocol.md), [records.md](records.md); `firmware/hdjoint.dbc`",
               "`cd tools && ../.venv/bin/python -m hdtools.protocol --write`",
               "`fw_protocol_tables`"),
     Generator("calib", (PY, "tests/calib/calib_doc.py"),
-              "[calibration.md](../how-to/calibration.md) (measured section)", "`tests/calib/calib_doc.py`",
+              "[calibration.md](../how-to/calibration.md) (measured section)",
+              "`tests/calib/calib_doc.py`",
               "`calib_tool`", {"docs/how-to/calibration.md": ("calib-measured",)}),
     Generator("corpus", (PY, "tests/corpus/run_corpus.py", "--doc", "docs/results/reliability.md"),
-              "[reliability.md](../results/reliability.md) (corpus table), `docs/results/corpus.json`",
+              "[reliability.md](../results/reliability.md) (corpus table), "
+              "`docs/results/corpus.json`",
               "`tests/corpus/run_corpus.py --doc docs/results/reliability.md`", "`corpus_doc`",
               {"docs/results/reliability.md": ("corpus-classes",)}),
     Generator("filter", (PY, "tests/filter/filter_doc.py", "--build", "build/host-debug"),
               "[filter-tests.md](../results/filter-tests.md) (every measured table)",
               "`tests/filter/filter_doc.py --build build/host-debug` (runs the filter tests)",
               "`filter_doc`",
-              {"docs/results/filter-tests.md": ("filter-behaviour", "filter-numerics", "filter-reference",
-                                        "filter-shift", "filter-trig-track")}),
+              {"docs/results/filter-tests.md": ("filter-behaviour", "filter-numerics",
+                                                "filter-reference", "filter-shift",
+                                                "filter-trig-track")}),
     Generator("rig", (PY, "tests/reliability/rig_identify.py"),
               "`tests/reliability/rig_expected.cfg` (the fault rig's expected-torque model: "
               "regenerate it before the reliability tables, which depend on it)",
               "`.venv/bin/python tests/reliability/rig_identify.py`", "`rel_rig_identified`"),
     Generator("reliability", (PY, "tests/reliability/rel_doc.py", "--build", "build/host-debug"),
-              "[reliability.md](../results/reliability.md) (fault-injection, filter-input, control-reaction "
-              "and 10^6 soak tables)",
+              "[reliability.md](../results/reliability.md) (fault-injection, filter-input, "
+              "control-reaction and 10^6 soak tables)",
               "`tests/reliability/rel_doc.py --build build/host-debug` (runs `rel_fault_*`, "
               "`fw_control`, `rel_soak_1e6`)", "`rel_doc`",
               {"docs/results/reliability.md": ("reliability-control", "reliability-faults",
-                                       "reliability-filter-input", "reliability-soak")}),
+                                               "reliability-filter-input", "reliability-soak")}),
     Generator("soak-long", (PY, "tests/reliability/rel_doc.py", "--soak-long",
                             "build/host-release"),
               "[reliability.md](../results/reliability.md) (10^8 soak)",
@@ -87,32 +91,38 @@ GENERATORS = (
               "`vm_socketcan_decode`, `vm_monitor_decode`",
               {"docs/how-to/socketcan.md": ("socketcan-vm", "socketcan-vm-monitor")}, vm=True),
     Generator("budget", ("tools/target", "budget", "--update-docs"),
-              "budget tables in [target.md](../results/target.md) and [stm32f4.md](../how-to/stm32f4.md), "
+              "budget tables in [target.md](../results/target.md) and "
+              "[stm32f4.md](../how-to/stm32f4.md), "
               "`docs/results/budget.json`", "`tools/target budget --update-docs`",
               "numbers of one run, not checked; the rendering: `target_budget_docs`",
-              {"docs/results/target.md": ("target-budget",), "docs/how-to/stm32f4.md": ("target-budget",)}),
+              {"docs/results/target.md": ("target-budget",),
+               "docs/how-to/stm32f4.md": ("target-budget",)}),
     Generator("demo", ("tools/demo", "--update-docs"),
               "`docs/results/demo.json`, `docs/img/demo.png`, `docs/results/demo_control.json`, "
               "`docs/img/demo_control.png` (the closed-loop part)", "`tools/demo --update-docs`",
               "numbers of one run; the closed-loop part's claims (transparency against the "
               "drive-off baseline, the step's true torque): `device_tools` "
               "(`tests/device/test_demo_control.py`)"),
-    Generator("analyze", ("tools/hdsense", "analyze", "--results-doc", "docs/results/analyze-results.md",
+    Generator("analyze", ("tools/hdsense", "analyze", "--results-doc",
+                          "docs/results/analyze-results.md",
                           "--bench-hour"),
               "[analyze-results.md](../results/analyze-results.md), `docs/results/analyze.json`",
               "`tools/hdsense analyze --results-doc docs/results/analyze-results.md`",
               "`analyze_sim`, `analyze_geometry`, `analyze_iiwa`",
-              {"docs/results/analyze-results.md": ("analyze-suite", "analyze-bands", "analyze-slow",
-                                           "analyze-slow-bands", "analyze-iiwa")}),
+              {"docs/results/analyze-results.md": ("analyze-suite", "analyze-bands",
+                                                   "analyze-slow", "analyze-slow-bands",
+                                                   "analyze-iiwa")}),
     Generator("bench", ("tools/bench", "--update-docs"),
-              "[bench.md](../results/bench.md), `docs/results/bench.json`; [control.md](../results/control.md) (Results), "
+              "[bench.md](../results/bench.md), `docs/results/bench.json`; "
+              "[control.md](../results/control.md) (Results), "
               "`docs/results/control.json`; [random-joints.md](../results/random-joints.md), "
               "`docs/results/random.json`",
               "`tools/bench --update-docs` (one part: `--only control`, `--only random`)",
               "benchmarks: numbers of one run, not checked, but `bench_control_docs` checks the "
               "control section and the default gains against the JSON, and the random joints' "
               "CI sample is what `analyze_random_joints` holds the firmware to",
-              {"docs/results/bench.md": ("bench-results",), "docs/results/control.md": ("control-results",),
+              {"docs/results/bench.md": ("bench-results",),
+               "docs/results/control.md": ("control-results",),
                "docs/results/random-joints.md": ("bench-results",)}),
     Generator("fleet", (PY, "-m", "hdmaint.fleet_bench", "--write"),
               "[fleet.md](../results/fleet.md) (measured section), `docs/results/fleet.json`",

@@ -318,7 +318,8 @@ def main(argv=None) -> int:
     import argparse
     from hdtools import native
     p = argparse.ArgumentParser(prog="python -m hdmaint.fleet_bench", description=__doc__)
-    p.add_argument("--write", action="store_true", help="write docs/results/fleet.md and fleet.json")
+    p.add_argument("--write", action="store_true",
+                   help="write docs/results/fleet.md and fleet.json")
     p.add_argument("--ray-python", help="a Python with ray installed (comparison only)")
     p.add_argument("--parts", default=",".join(PARTS),
                    help="which parts to measure (the others are kept from fleet.json): "

@@ -146,7 +146,8 @@ def random_rows(r: dict) -> list[tuple[str, str, str]]:
 
 
 def budget_rows(g: dict) -> list[tuple[str, str, str]]:
-    src = _link("budget") + ", [target.md](docs/results/target.md), [stm32f4.md](docs/how-to/stm32f4.md)"
+    src = _link("budget") + (", [target.md](docs/results/target.md), "
+                             "[stm32f4.md](docs/how-to/stm32f4.md)")
     m = g["mps2-an386"]
     n = str(m["default_states"])
     p = m["per_states"][n]

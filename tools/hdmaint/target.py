@@ -72,7 +72,8 @@ def main(argv=None) -> int:
     b.add_argument("--json", help="also write the numbers to this JSON file")
     b.add_argument("--update-docs", action="store_true",
                    help="measure both ports (mps2-an386 and stm32f4) and rewrite their tables "
-                        "in docs/results/target.md and docs/how-to/stm32f4.md and docs/results/budget.json")
+                        "in docs/results/target.md and docs/how-to/stm32f4.md and "
+                        "docs/results/budget.json")
     b.add_argument("--docs", default=str(ROOT / "docs"),
                    help="the docs folder --update-docs writes (default: the tree's docs/)")
     k = sub.add_parser("count", parents=[on], help="instruction counts between markers of an image")

@@ -41,7 +41,8 @@ def register(sub):
                    help="speed benchmark: simulate one hour at 1 kHz and time the analysis")
     p.add_argument("--results-doc", metavar="FILE.md",
                    help="run the simulated cases and the iiwa logs and write the results "
-                        "tables (docs/results/analyze-results.md); with --bench-hour, the benchmark too")
+                        "tables (docs/results/analyze-results.md); with --bench-hour, the "
+                        "benchmark too")
     p.set_defaults(func=main)
 
 
