@@ -204,11 +204,12 @@ def test_slugs_and_broken_links_by_hand(tmp_path):
 
 
 def test_paths_named_in_typed_docs_exist():
-    """A `tools/...` or `tests/...` path in prose names a file of the tree (a
-    moved module leaves no stale name behind; globs must match something)."""
+    """A `tools/...`, `tests/...` or `docs/...` path in prose names a file of
+    the tree (a moved module or page leaves no stale name behind; globs must
+    match something)."""
     missing = []
     for rel, text in docs().items():
-        for path in re.findall(r"`((?:tools|tests)/[\w./*-]+)`", prose(text)):
+        for path in re.findall(r"`((?:tools|tests|docs)/[\w./*-]+)`", prose(text)):
             path = path.rstrip(".")
             if not any(ROOT.glob(path)) and not any(ROOT.glob(path + ".*")):  # or its source
                 missing.append(f"{rel}: {path}")
