@@ -16,11 +16,6 @@ void hd_slow_current_config(hd_slow_current_config_t *c, const hd_expected_curre
     c->ts_s = ts_s;
 }
 
-float hd_slow_output_velocity_rad_s(const hd_slow_current_config_t *c, float d_motor_angle_rad)
-{
-    return d_motor_angle_rad / (c->gear_ratio * c->ts_s);
-}
-
 /* Both stages of every input advanced by one step; returns the derivative
  * of the filtered velocity (0 on the step that primes them). */
 static float low_pass(hd_slow_current_t *st, float a, float current_a, float w)

@@ -61,7 +61,11 @@ void hd_slow_current_config(hd_slow_current_config_t *c, const hd_expected_curre
 
 /* The output velocity the current term uses, from one motor increment:
  * d_motor / (N ts).  The firmware's one motor velocity is this times N. */
-float hd_slow_output_velocity_rad_s(const hd_slow_current_config_t *c, float d_motor_angle_rad);
+static inline float hd_slow_output_velocity_rad_s(const hd_slow_current_config_t *c,
+                                                  float d_motor_angle_rad)
+{
+    return d_motor_angle_rad / (c->gear_ratio * c->ts_s);
+}
 
 /* T_cur for this sample (0 without a usable current); *var_nm2 its error
  * variance.  e: the expected-torque model (its v_eps smooths the signs). */
