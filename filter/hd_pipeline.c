@@ -24,9 +24,10 @@ hd_kf_err_t hd_pipeline_init(hd_pipeline_t *p, const hd_kf_config_t *kf_cfg,
     return HD_KF_OK;
 }
 
-void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
-                      float d_motor_angle_rad, float d_output_angle_rad,
-                      float feedforward_nm, float feedforward_var_nm2, hd_kf_output_t *out)
+/* Inlined into both entry points: the tick's path pays one call, not two. */
+static inline void step(hd_pipeline_t *p, float torque_meas_nm, float d_motor_angle_rad,
+                        float d_output_angle_rad, float feedforward_nm, float feedforward_var_nm2,
+                        hd_kf_output_t *out)
 {
     (void)hd_track_update(&p->output_track, d_output_angle_rad);
     p->torque_expected_nm = hd_expected_torque_nm(
@@ -42,6 +43,14 @@ void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
     hd_kf_step(&p->kf, &in, out);
 }
 
+void hd_pipeline_step(hd_pipeline_t *p, float torque_meas_nm,
+                      float d_motor_angle_rad, float d_output_angle_rad,
+                      float feedforward_nm, float feedforward_var_nm2, hd_kf_output_t *out)
+{
+    step(p, torque_meas_nm, d_motor_angle_rad, d_output_angle_rad, feedforward_nm,
+         feedforward_var_nm2, out);
+}
+
 void hd_pipeline_sample(hd_pipeline_t *p, hd_slow_current_t *cur,
                         const hd_slow_current_config_t *cc, const hd_pipeline_in_t *in,
                         hd_pipeline_slow_t *slow, hd_kf_output_t *out)
@@ -51,8 +60,8 @@ void hd_pipeline_sample(hd_pipeline_t *p, hd_slow_current_t *cur,
     const float cur_nm =
         hd_slow_current_nm(cur, cc, &p->expected, in->motor_current_a, w, &cur_var_nm2);
     const float var_nm2 = cur_var_nm2 + in->feedforward_var_nm2;
-    hd_pipeline_step(p, in->torque_meas_nm, in->d_motor_angle_rad, in->d_output_angle_rad,
-                     in->feedforward_nm + cur_nm, var_nm2, out);
+    step(p, in->torque_meas_nm, in->d_motor_angle_rad, in->d_output_angle_rad,
+         in->feedforward_nm + cur_nm, var_nm2, out);
     if (slow != NULL) {
         slow->torque_expected_nm = p->torque_expected_nm;
         slow->torque_expected_var_nm2 = var_nm2;
