@@ -34,9 +34,11 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .gear_ratio = 100.0f,
         .kt_nm_per_a = 0.06f,
         .feedback = HD_CTRL_FB_FILTERED,
-        .torque_kp = 1.27f,          /* tools/bench --only control: docs/control.md, "Tuning" */
-        .torque_ki_per_s = 40.1f,
+        .torque_kp = 0.991f,         /* tools/bench --only control: docs/control.md, "Tuning" */
+        .torque_ki_per_s = 31.1f,
         .torque_ff = 1.0f,
+        .torque_kd_s = 0.002f,
+        .integral_limit_nm = 7.69f,  /* tools/bench --only control, as the gains */
         .lowpass_hz = 50.0f,
         .lowpass_order = 1u,
         .notch_mask = 0u,
@@ -64,7 +66,9 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
         within(k->kt_nm_per_a, 1e-4f, 10.0f) && (unsigned)k->feedback < HD_CTRL_FB_COUNT &&
         within(k->torque_kp, 0.0f, HD_CTRL_TORQUE_GAIN_MAX) &&
         within(k->torque_ki_per_s, 0.0f, HD_CTRL_KI_MAX_PER_S) &&
-        within(k->torque_ff, 0.0f, 1.0f) && k->lowpass_hz > 0.0f &&
+        within(k->torque_ff, 0.0f, 1.0f) && within(k->torque_kd_s, 0.0f, HD_CTRL_TORQUE_KD_MAX_S) &&
+        within(k->integral_limit_nm, 0.0f, 1e4f) &&
+        k->lowpass_hz > 0.0f &&
         k->lowpass_hz < 0.5f / k->ts_s &&
         (k->lowpass_order == 1u || k->lowpass_order == 2u || k->lowpass_order == 4u) &&
         within(k->notch_width_hz, 0.1f, 0.1f / k->ts_s) && within(k->friction_nm, 0.0f, 1000.0f) &&
@@ -84,6 +88,8 @@ void hd_ctrl_reset(hd_ctrl_t *c)
         return;
     }
     c->integral_nm = 0.0f;
+    c->fb_prev_nm = 0.0f;
+    c->fb_primed = false;
     c->lowpass_nm = 0.0f;
     c->lowpass_primed = false;
     c->raw_notched_nm = 0.0f;
@@ -354,12 +360,17 @@ static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
 {
     const hd_ctrl_config_t *k = &c->cfg;
     const float e = tau_ref - fb;
-    const float u = k->torque_ff * tau_ref + k->torque_kp * e + c->integral_nm +
-                    friction_feedforward(k, v);
+    /* the feedback's rate, on the measurement only (a setpoint step kicks nothing) */
+    const float rate = c->fb_primed ? (fb - c->fb_prev_nm) / k->ts_s : 0.0f;
+    c->fb_prev_nm = fb;
+    c->fb_primed = true;
+    const float u = k->torque_ff * tau_ref + k->torque_kp * e + c->integral_nm -
+                    k->torque_kd_s * rate + friction_feedforward(k, v);
     const float u_max = k->current_limit_a * k->kt_nm_per_a * k->gear_ratio;
     const bool wind_up = (u >= u_max && e > 0.0f) || (u <= -u_max && e < 0.0f);
     if (!wind_up) {
-        c->integral_nm = clampf(c->integral_nm + k->torque_ki_per_s * k->ts_s * e, -u_max, u_max);
+        const float i_max = k->integral_limit_nm < u_max ? k->integral_limit_nm : u_max;
+        c->integral_nm = clampf(c->integral_nm + k->torque_ki_per_s * k->ts_s * e, -i_max, i_max);
     }
     return u;
 }
@@ -367,6 +378,7 @@ static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
 static void stop(hd_ctrl_t *c, hd_ctrl_output_t *out)
 {
     c->integral_nm = 0.0f;
+    c->fb_primed = false;
     out->enable = false;
     out->current_a = 0.0f;
     out->motor_torque_nm = 0.0f;
@@ -397,6 +409,7 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
     float u;
     if (!uses_torque_loop(m) || k->feedback == HD_CTRL_FB_NONE) {
         c->integral_nm = 0.0f;
+        c->fb_primed = false;
         u = m == HD_CTRL_DAMP ? tau_ref : tau_ref + friction_feedforward(k, in->velocity_rad_s);
     } else {
         (void)feedback_nm(c, in, &out->torque_fb_nm);
