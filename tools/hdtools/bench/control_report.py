@@ -8,6 +8,7 @@ import math
 
 BEGIN = "<!-- control:results:begin -->"
 END = "<!-- control:results:end -->"
+INTEGRAL_NOTE = "1.25x the largest open-loop back-drive torque of the transparency rows"
 
 
 def clean(x):
@@ -57,18 +58,21 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
         if "measured" not in t:
             note = ("open loop: no loop" if cfg["feedback"] == "none"
                     else "NO (no gains on the grid meet them)")
-            tab.append([key, what, "-", "-"] + ["-"] * len(conds) + [note])
+            tab.append([key, what, "-", "-", "-"] + ["-"] * len(conds) + [note])
             continue
         cells = [f"{_n(t['measured'][c]['pm_deg'], '{:.0f}', 'no crossover')} / "
                  f"{_n(t['measured'][c]['gm_db'], '{:.1f}', 'no phase crossover')}"
                  for c in conds]
-        tab.append([key, what, f"{t['kp']:.3g}", f"{t['ki_per_s']:.3g}"] + cells
+        tab.append([key, what, f"{t['kp']:.3g}", f"{t['ki_per_s']:.3g}",
+                    f"{1e3 * t.get('kd_s', 0.0):.3g}"] + cells
                    + ["yes" if t["met"] else "NO"])
     out.append((f"Tuned gains and the margins measured by breaking the loop (phase margin deg / "
                 f"gain margin dB; goal >= {res['margins']['pm_deg']:g} / "
-                f">= {res['margins']['gm_db']:g})",
-                ["variant", "feedback", "kp", "ki [1/s]"]
-                + [("wall contact" if c == "wall" else f"{c} rad/s") for c in conds]
+                f">= {res['margins']['gm_db']:g}); every loop's integral within "
+                f"+-{res['integral_limit_nm']:.3g} N m ({INTEGRAL_NOTE})",
+                ["variant", "feedback", "kp", "ki [1/s]", "kd [ms]"]
+                + [{"wall": "wall contact", "free": "free output"}.get(c, f"{c} rad/s")
+                   for c in conds]
                 + ["margins met"], tab))
     best = res["best_butterworth"]
     tab = []
