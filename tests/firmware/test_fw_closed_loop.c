@@ -50,6 +50,7 @@ typedef struct {
     double speed_rad_s;   /* mean output speed */
     double person_nm;     /* mean person torque */
     double angle_rad;     /* mean true output angle */
+    double angle_err_rad; /* worst |the law's output angle - the true one|, last second */
 } loop_result_t;
 
 typedef struct {
@@ -157,7 +158,7 @@ static loop_result_t run_loop(const loop_case_t *lc)
     hd_fw_config_t cfg;
     start_loop(lc, &cfg);
     fit_t fit = {0};
-    double w = 0.0, person = 0.0, angle = 0.0;
+    double w = 0.0, person = 0.0, angle = 0.0, angle_err = 0.0, angle_before = 0.0;
     for (int k = 0; k < RUN_TICKS; k++) {
         const float tau = k < lc->step_at ? lc->step_from_nm : lc->torque_nm;
         const hd_can_setpoint_t sp = {lc->mode, (uint8_t)k, tau, 0.0f, 0.0f};
@@ -178,7 +179,10 @@ static loop_result_t run_loop(const loop_case_t *lc)
             w += t->output_velocity_rad_s;
             person += t->person_torque_nm;
             angle += t->output_angle_rad;
+            /* the law sees the angle of the tick's sensor reading: before this step */
+            angle_err = fmax(angle_err, fabs((double)fw.control.in.angle_rad - angle_before));
         }
+        angle_before = dyn.truth.output_angle_rad;
     }
     TEST_ASSERT_EQUAL_INT(lc->mode, fw.control.out.mode);
     loop_result_t out;
@@ -188,6 +192,7 @@ static loop_result_t run_loop(const loop_case_t *lc)
     out.speed_rad_s = w / fit.n;
     out.person_nm = person / fit.n;
     out.angle_rad = angle / fit.n;
+    out.angle_err_rad = angle_err;
     return out;
 }
 
@@ -286,17 +291,32 @@ static void test_zero_torque_transparency(void)
     TEST_ASSERT_TRUE(worst <= 0.1);
 }
 
+/* The law's output angle is the output encoder's count refined by the motor's
+ * increments (hd_fw_control.c, track_angle): within the flexspline's windup
+ * of the true angle, not within a count of it (4096 counts: 1.53 mrad, 8 %
+ * of kp 500's 20 mrad deflection). */
 static void test_impedance_rendered_stiffness(void)
 {
-    const float kp = 100.0f, kd = 2.0f;
-    const double push_nm = 10.0;
-    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kp, kd, 0.0, 0.0, push_nm, 0, 0.0f, false};
-    const loop_result_t r = run_loop(&lc);
-    const double rendered = push_nm / r.angle_rad;
-    printf("closed_loop: IMPEDANCE kp %.0f N m/rad, a person's %.1f N m: true deflection %.5f "
-           "rad, rendered %.2f N m/rad (%+.2f %%; goal within 5 %%)\n",
-           (double)kp, push_nm, r.angle_rad, rendered, 100.0 * (rendered / (double)kp - 1.0));
-    TEST_ASSERT_DOUBLE_WITHIN(0.05 * (double)kp, (double)kp, rendered);
+    const float kps[2] = {100.0f, 500.0f}, kd = 2.0f;
+    const double push_nm = 10.0, count_rad = 2.0 * 3.14159265358979323846 / 4096.0;
+    for (int i = 0; i < 2; i++) {
+        loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kps[i], kd, 0.0, 0.0,
+                          push_nm, 0, 0.0f, false};
+        const loop_result_t r = run_loop(&lc);
+        const double rendered = push_nm / r.angle_rad;
+        printf("closed_loop: IMPEDANCE kp %.0f N m/rad, a person's %.1f N m: true deflection "
+               "%.5f rad, rendered %.2f N m/rad (%+.2f %%; goal within 5 %%); the law's angle "
+               "within %.3f mrad of the true one (an output count: %.3f mrad)\n",
+               (double)kps[i], push_nm, r.angle_rad, rendered,
+               100.0 * (rendered / (double)kps[i] - 1.0), 1e3 * r.angle_err_rad, 1e3 * count_rad);
+        /* at kp 500 the output hunts by about +-12 % of its deflection (the integral
+         * against the motor's static friction, docs/control.md): its mean over one
+         * second is not the goal's number, the benchmark's row is */
+        if (i == 0) {
+            TEST_ASSERT_DOUBLE_WITHIN(0.05 * (double)kps[i], (double)kps[i], rendered);
+        }
+        TEST_ASSERT_TRUE(r.angle_err_rad < 0.25 * count_rad);
+    }
 }
 
 /* The benchmark's wall scene (tools/hdtools/bench/control.py, wall_contact):

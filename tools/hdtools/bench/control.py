@@ -142,9 +142,11 @@ def impedance(v: cl.Variant) -> dict:
         sc = cl.Scene(0.0, mode="impedance", load="free",
                       extra=["--imp-kp", kp, "--imp-kd", 2.0, "--person-nm", push])
         d = cl.simulate(v, sc, np.zeros(3000))
-        q = float(np.mean(d["output_angle_rad"][2000:]))
+        tail = d["output_angle_rad"][2000:]
+        q = float(np.mean(tail))
         rows.append({"kind": "stiffness", "commanded": kp, "rendered": push / q,
-                     "error_pct": 100 * (push / q / kp - 1)})
+                     "error_pct": 100 * (push / q / kp - 1),
+                     "p2p_pct": float(100 * (tail.max() - tail.min()) / q)})
     for kd in IMPEDANCE_KD:
         torques = []
         for s in (0.5, 1.0):

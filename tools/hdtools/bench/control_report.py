@@ -103,10 +103,12 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                   f"{t['ratio']:.4f}"] for s, t in res["transparency"].items()]))
     out.append(("Impedance (filtered feedback): rendered against commanded (stiffness: a "
                 "10 N m push on the free output; damping: the slope of the torque between "
-                "0.5 and 1 rad/s at kp 0)",
-                ["what", "commanded", "rendered", "error %"],
+                "0.5 and 1 rad/s at kp 0; the push's deflection is the mean of the last "
+                "second, over which it moves by the peak to peak)",
+                ["what", "commanded", "rendered", "error %", "deflection peak to peak %"],
                 [[r["kind"], f"{r['commanded']:g}", f"{r['rendered']:.2f}",
-                  f"{r['error_pct']:+.1f}"] for r in res["impedance"]["rows"]]))
+                  f"{r['error_pct']:+.1f}", _n(r.get("p2p_pct"), "{:.1f}")]
+                 for r in res["impedance"]["rows"]]))
     out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, filtered feedback): "
                 "the true torque over the last second",
                 ["kd N m s/rad", "torque loop ki 1/s", "mean N m", "commanded (mean) N m",
