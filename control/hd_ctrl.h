@@ -193,6 +193,11 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg);
 /* Checks cfg, then starts with a cleared loop.  On error *c is unchanged. */
 int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
 
+/* hd_ctrl_init without the check, for a cfg that has passed
+ * hd_ctrl_config_check (the firmware checks its settings once, when it
+ * builds them; its tick restarts the loop on new settings). */
+void hd_ctrl_init_prechecked(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
+
 /* Clears the loop's state (integral, low-pass). */
 void hd_ctrl_reset(hd_ctrl_t *c);
 

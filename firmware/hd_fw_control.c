@@ -93,7 +93,8 @@ void hd_fw_take_control_frame(hd_fw_t *fw, const hal_can_frame_t *f, uint8_t typ
         return;
     }
     hd_fw_ctrl_state_t *c = &fw->control;
-    hd_can_setpoint_t sp = {0};
+    hd_can_setpoint_t sp; /* the decode assigns every field; seq is the ACK's before it */
+    sp.seq = 0u;
     hd_ctrl_setpoint_t next;
     int rc = hd_can_decode_setpoint(f, &sp);
     if (rc == HD_CAN_RES_OK) {
@@ -229,6 +230,13 @@ static uint32_t command_drive(hd_fw_t *fw, const hd_ctrl_output_t *o)
     return HD_FAULT_DRIVE_FAULT;
 }
 
+void hd_fw_control_boot(hd_fw_t *fw)
+{
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    hd_ctrl_init_prechecked(&fw->control.ctrl, &set->ctrl);
+    fw->control.built_from = set;
+}
+
 uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
 {
     if (!hd_fw_has_drive(fw)) {
@@ -237,10 +245,9 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
     hd_fw_ctrl_state_t *c = &fw->control;
     const hd_fw_settings_t *set = hd_fw_live(fw);
     if (c->built_from != set) {
-        /* new settings: the loop restarts from them (config_check passed them) */
-        if (hd_ctrl_init(&c->ctrl, &set->ctrl) != HD_CTRL_OK) {
-            c->stop_latched = true;
-        }
+        /* new settings: the loop restarts from them (hd_fw_config_check passed
+         * them before they were built: no second check in the tick) */
+        hd_ctrl_init_prechecked(&c->ctrl, &set->ctrl);
         c->built_from = set;
     }
     track_angle(c, s, set);
