@@ -10,7 +10,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdtools.bench import control_report  # noqa: E402
+from hdmaint.bench import control_report  # noqa: E402
 
 RESULTS = json.loads((ROOT / "docs" / "results" / "control.json").read_text())
 

@@ -1,4 +1,4 @@
-"""The control benchmark's loop measurement (tools/hdtools/bench/
+"""The control benchmark's loop measurement (tools/hdmaint/bench/
 control_loop.py) against loops with a closed-form L:
 
   * margins() on L(jw) = K exp(-jwT) / (1 + jw tau): the crossover
@@ -19,8 +19,8 @@ from scipy.optimize import brentq
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdtools.bench import control_loop as cl  # noqa: E402
-from hdtools.bench import control_tune as ct  # noqa: E402
+from hdmaint.bench import control_loop as cl  # noqa: E402
+from hdmaint.bench import control_tune as ct  # noqa: E402
 
 
 def test_margins_of_first_order_plus_delay():

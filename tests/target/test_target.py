@@ -38,8 +38,8 @@ SCENARIOS = ROOT / "sim" / "scenarios"
 
 
 def load_target_module():
-    import hdtools.target
-    return hdtools.target
+    from hdmaint import qemu_run
+    return qemu_run
 
 
 def run_target(*args, timeout=600):
@@ -83,7 +83,7 @@ def test_closed_loop_lockstep_bit_identical(built):
 
 
 def test_closed_loop_comparison_catches_one_ulp():
-    from hdtools import target_closed_loop as cl
+    from hdmaint import closed_loop as cl
     bits = struct.unpack("<I", struct.pack("<f", 1.875))[0]
     host = [(k, 2 | 1 << 8, bits, bits, bits, 0, 0) for k in range(4)]
     assert cl.compare_records(host, list(host)) == []

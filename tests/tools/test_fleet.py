@@ -297,7 +297,7 @@ def test_long_candump_log_in_chunks_keeps_every_sample_once(tmp_path):
 
 
 def test_docs_thresholds_table_is_current():
-    from hdtools.fleet import bench
+    from hdmaint import fleet_bench as bench
     text = (ROOT / "docs" / "fleet.md").read_text()
     assert bench.thresholds_table() in text
 

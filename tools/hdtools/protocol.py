@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from .safeio import OutputError, Outputs
+
 from . import paths  # noqa: E402 - the source tree or the installed copies
 from . import protocol_c, protocol_dbc
 
@@ -410,12 +412,6 @@ def stale_files() -> list[Path]:
             if not p.exists() or p.read_text() != text] + stale_docs()
 
 
-def _write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m hdtools.protocol",
                                  description="Generate or check what comes from "
@@ -430,12 +426,14 @@ def main(argv=None) -> int:
     try:
         if a.write or a.write_dbc:
             files = generated_files()
-            for path, text in files.items():
-                if a.write or path == DBC_PATH:
-                    _write(path, text)
-            if a.write:
-                for p in stale_docs():
-                    _write(p, render_docs(p.read_text()))
+            with Outputs() as out:          # every file or none
+                for path, text in files.items():
+                    if a.write or path == DBC_PATH:
+                        out.write_text(path, text)
+                if a.write:
+                    for p in stale_docs():
+                        out.write_text(p, render_docs(p.read_text()))
+                out.commit()
             return 0
         if a.check:
             bad = stale_files()
@@ -446,7 +444,7 @@ def main(argv=None) -> int:
                 return 1
             return 0
         sys.stdout.write(generate_dbc())
-    except (OSError, DefError) as exc:
+    except (OSError, DefError, OutputError) as exc:
         print(f"hdtools.protocol: {exc}", file=sys.stderr)
         return 1
     return 0

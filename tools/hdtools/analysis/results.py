@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import docblock
+
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIOS = ROOT / "tests" / "tools" / "scenarios"
 REAL = (ROOT / ".." / "shared" / "data" / "real").resolve()
@@ -299,7 +301,8 @@ def iiwa_table(reports: dict) -> list[str]:
 
 
 def section(name, lines) -> str:
-    return "\n".join([f"<!-- generated: {name} -->"] + lines + [f"<!-- end: {name} -->"])
+    begin, end = docblock.markers(f"analyze-{name}")
+    return "\n".join([begin] + lines + [end])
 
 
 def render(suite: dict, slow: dict, iiwa: dict, bench: str | None = None,
@@ -390,7 +393,7 @@ def _finite(o):
 
 
 def extract(text: str, name: str) -> str | None:
-    a, b = f"<!-- generated: {name} -->", f"<!-- end: {name} -->"
+    a, b = docblock.markers(f"analyze-{name}")
     if a not in text or b not in text:
         return None
     return text[text.index(a):text.index(b) + len(b)]

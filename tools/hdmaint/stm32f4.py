@@ -1,7 +1,7 @@
 """tools/target for the STM32F4 board port: the budget of the board images
 (tools/target budget --board stm32f4) and programming a board
-(tools/target flash).  Standard library only, like hdtools.target, whose
-build, QEMU and analysis helpers this uses.
+(tools/target flash).  Standard library only, like the rest of tools/target,
+whose build, QEMU and analysis helpers this uses.
 """
 from __future__ import annotations
 
@@ -12,9 +12,15 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hdtools import target as t
+from .board import BOARDS, ROOT, Board, TargetError, build_images, need, run_qemu, sh, symbols
+from .budget import (ALLOCATORS, MCU_CLOCKS_MHZ, TICK_PERIOD_US, check_failures,
+                     section_counts, section_sizes, stack_numbers, worst_us)
+from .budget_render import md_table, stack_table, timing
+from .m4_cycles import disassembly
+from .qemu_run import labelled_sections
+from .stack import worst_stack
 
-BOARD_SRC = t.ROOT / "firmware" / "board" / "stm32f4"
+BOARD_SRC = ROOT / "firmware" / "board" / "stm32f4"
 BOARD_IMAGES = [("hd_odrive_v3", "ODrive v3.x class, STM32F405RG"),
                 ("hd_mini_cheetah", "Mini Cheetah class, STM32F446RE")]
 # The interrupts of a board image, lowest priority first (each may preempt
@@ -25,6 +31,12 @@ FLASH_PART_KB = 512                 # the smaller part (F446RE); the F405RG has 
 RAM_PART_KB = 128
 BOOT_SECTOR = 16 * 1024
 TICK_RATE_WINDOW_MS = 20
+# Boards tools/target flash programs: the image, and where its two loadable
+# parts go (sector 0, then sector 3 on: sectors 1-2 hold the records and are
+# never written, see firmware/board/stm32f4/stm32f4.ld).
+FLASH_BOARDS = {"odrive-v3": "hd_odrive_v3", "mini-cheetah": "hd_mini_cheetah"}
+FLASH_BOOT_ADDR, FLASH_MAIN_ADDR = 0x08000000, 0x0800C000
+OPENOCD_CFG = ["interface/stlink.cfg", "target/stm32f4x.cfg"]
 
 
 def hal_functions() -> tuple:
@@ -37,13 +49,13 @@ def hal_functions() -> tuple:
         text = src.read_text()
         body = re.search(rf"\n\w[^\n]*\b{func}\([^)]*\)\n\{{(.*?)\n\}}", text, re.S)
         if body is None:
-            raise t.TargetError(f"{src.name}: {func} not found")
+            raise TargetError(f"{src.name}: {func} not found")
         names.update(re.findall(r"->\w+(?:\.\w+)? = (\w+);", body.group(1)))
     return tuple(sorted(n for n in names if "_" in n))  # not the contexts (b, drv)
 
 
 def memory_rows(elf: Path) -> dict:
-    s = t.section_sizes(elf)
+    s = section_sizes(elf)
     boot = s.get(".boot", 0)
     flash = boot + s.get(".text", 0) + s.get(".ARM.exidx", 0) + s.get(".data", 0)
     ram = s.get(".noinit", 0) + s.get(".data", 0) + s.get(".bss", 0) + s.get(".stack", 0)
@@ -52,21 +64,21 @@ def memory_rows(elf: Path) -> dict:
             "stack": s.get(".stack", 0), "nvm": s.get(".nvm", 0)}
 
 
-def tick_rate(bench: Path) -> int:
+def tick_rate(board: Board, bench: Path) -> int:
     """TIM2 update events in TICK_RATE_WINDOW_MS of SysTick time (both
     counted by the bench image on netduinoplus2)."""
-    rc, text = t.run_qemu(bench, ["tickrate"])
+    rc, text = run_qemu(board, bench, ["tickrate"])
     m = re.search(r"tickrate: (\d+)\s+per ms: (\d+)", text)
     if rc != 0 or m is None or int(m.group(2)) != TICK_RATE_WINDOW_MS:
-        raise t.TargetError(f"{bench.name} tickrate: exit {rc}:\n{text}")
+        raise TargetError(f"{bench.name} tickrate: exit {rc}:\n{text}")
     return int(m.group(1))
 
 
-def interrupt_counts(bench: Path) -> tuple:
+def interrupt_counts(board: Board, bench: Path) -> tuple:
     """({label: {states, calls, mean, max, cycles_best, cycles_worst}} of the
     bench image's interrupt bodies (label without ':states'), counter
     check)."""
-    counts, check, _ = t.section_counts(t.labelled_sections(bench, []), t.disassembly(bench))
+    counts, check, _ = section_counts(labelled_sections(board, bench, []), disassembly(bench))
     return {label.split(":")[0]: c for label, c in counts.items()
             if label not in ("empty:-", "loop:-")}, check
 
@@ -79,31 +91,31 @@ SECTION_TEXT = {
 }
 
 
-def measure() -> dict:
+def measure(board: Board) -> dict:
     """Builds the STM32F4 images and measures them: {images: {NAME: memory},
     heap_symbols, stack_worst_bytes, stack_reserved_bytes, counter_check,
     tick_rate_per_20ms, interrupts: {LABEL: counts}, stack, clock_mhz,
     failures}.  Raises TargetError on a setup problem."""
-    t.build_images()
-    images = {name: memory_rows(t.image(name)) for name, _ in BOARD_IMAGES}
-    elf = t.image("hd_odrive_v3")
-    linked = t.symbols(elf)
-    heap = [s for s in t.ALLOCATORS if s in linked]
-    st = t.worst_stack(elf, isrs=ISRS, fault_entry=FAULT_ENTRY, hal_funcs=hal_functions())
+    build_images(board)
+    images = {name: memory_rows(board.image(name)) for name, _ in BOARD_IMAGES}
+    elf = board.image("hd_odrive_v3")
+    linked = symbols(elf)
+    heap = [s for s in ALLOCATORS if s in linked]
+    st = worst_stack(board, elf, isrs=ISRS, fault_entry=FAULT_ENTRY, hal_funcs=hal_functions())
     stack_reserved = images["hd_odrive_v3"]["stack"]
-    bench = t.image(t.BENCH_IMAGE)
-    rate = tick_rate(bench)
-    interrupts, check = interrupt_counts(bench)
-    mhz = t.MCU_CLOCKS_MHZ[0][1]
+    bench = board.image(board.bench_image)
+    rate = tick_rate(board, bench)
+    interrupts, check = interrupt_counts(board, bench)
+    mhz = MCU_CLOCKS_MHZ[0][1]
     for c in interrupts.values():
-        c["worst_us"] = t.worst_us(c, mhz)
-    failures = t.check_failures(heap, st["total"], stack_reserved, check)
+        c["worst_us"] = worst_us(c, mhz)
+    failures = check_failures(heap, st["total"], stack_reserved, check)
     if rate != TICK_RATE_WINDOW_MS:
         failures.append(f"{rate} ticks in {TICK_RATE_WINDOW_MS} ms of emulator time")
     return {"images": images, "heap_symbols": heap, "stack_worst_bytes": st["total"],
             "stack_reserved_bytes": stack_reserved, "counter_check": check,
             "tick_rate_per_20ms": rate, "interrupts": interrupts,
-            "stack": t.stack_numbers(st, list(ISRS)),
+            "stack": stack_numbers(st, list(ISRS)),
             "clock_mhz": mhz, "failures": failures}
 
 
@@ -119,7 +131,7 @@ def render(n: dict) -> str:
     mhz = n["clock_mhz"]
     nvm = next(iter(n["images"].values()))["nvm"]
     out = ["#### Memory (arm-none-eabi-size -A of the board images)\n",
-           t.md_table(["image", f"flash (of {FLASH_PART_KB} KB - {nvm // 1024} KB NVM)",
+           md_table(["image", f"flash (of {FLASH_PART_KB} KB - {nvm // 1024} KB NVM)",
                        "sector 0", f"RAM (of {RAM_PART_KB} KB)", "RAM contents"], rows),
            f"\nNVM: flash sectors 1 and 2 ({nvm} B) reserved by the linker script for the A/B "
            "record store; nothing is linked there.",
@@ -130,7 +142,7 @@ def render(n: dict) -> str:
             "table)."),
            "\n#### Worst-case stack, hd_odrive_v3.elf (-fstack-usage + -fcallgraph-info call "
            "graph)\n",
-           t.stack_table(n["stack"], n["stack_worst_bytes"], n["stack_reserved_bytes"],
+           stack_table(n["stack"], n["stack_worst_bytes"], n["stack_reserved_bytes"],
                          "fault handler", "fault inside the tick"),
            "\nThe CAN transmit interrupt (priority 2) can be preempted by the tick (priority 1); "
            "indirect calls are bounded by the deepest function the board puts in its hal_t" +
@@ -143,13 +155,13 @@ def render(n: dict) -> str:
            f"{n['counter_check']} instructions (expected 2000).  Cycles: the Cortex-M4 TRM "
            "timings per executed instruction, zero wait states (best-worst); us = max "
            f"instructions x worst cycles per instruction at {mhz} MHz; share = us of the "
-           f"{t.TICK_PERIOD_US} us tick.\n",
-           t.md_table(["interrupt body", "filter states", "instructions mean / max",
+           f"{TICK_PERIOD_US} us tick.\n",
+           md_table(["interrupt body", "filter states", "instructions mean / max",
                        "cycles mean (best-worst)", "worst-case us", "share of the tick"],
                       [[SECTION_TEXT.get(k, k), c["states"], f"{c['mean']:.0f} / {c['max']}",
                         f"{c['cycles_best']:.0f}-{c['cycles_worst']:.0f}",
-                        f"{t.worst_us(c, mhz):.1f}",
-                        f"{100 * t.worst_us(c, mhz) / t.TICK_PERIOD_US:.1f} %"]
+                        f"{worst_us(c, mhz):.1f}",
+                        f"{100 * worst_us(c, mhz) / TICK_PERIOD_US:.1f} %"]
                        for k, c in n["interrupts"].items()]),
            f"\nTick rate in the emulator: {n['tick_rate_per_20ms']} TIM2 update events in "
            f"{TICK_RATE_WINDOW_MS} ms of SysTick time (stm32_tick_init for QEMU's 1 GHz timer "
@@ -166,19 +178,9 @@ def summary(n: dict) -> dict:
             "stack_worst_bytes": n["stack_worst_bytes"],
             "stack_reserved_bytes": n["stack_reserved_bytes"],
             "instructions_counted_on": "hd_stm32f4_bench.elf, QEMU netduinoplus2",
-            "interrupts": {k: dict(t.timing(c, n["clock_mhz"]), states=c["states"],
+            "interrupts": {k: dict(timing(c, n["clock_mhz"]), states=c["states"],
                                    what=SECTION_TEXT.get(k, k))
                            for k, c in n["interrupts"].items()}}
-
-
-def cmd_budget(a) -> int:
-    numbers = measure()
-    print(render(numbers))
-    if a.json:
-        t.write_json(Path(a.json), numbers)
-    for failure in numbers["failures"]:
-        print(f"\nFAIL: {failure}")
-    return 1 if numbers["failures"] else 0
 
 
 # ------------------------------------------------------------------ flash
@@ -192,37 +194,37 @@ def split_binaries(elf: Path) -> tuple:
     boot, main = elf.with_suffix(".boot.bin"), elf.with_suffix(".main.bin")
     built = elf.stat().st_mtime
     if any(not p.exists() or p.stat().st_mtime < built for p in (boot, main)):
-        objcopy = t.need("arm-none-eabi-objcopy")
-        t.sh([objcopy, "-O", "binary", "-j", ".boot", elf, boot])
-        t.sh([objcopy, "-O", "binary", "-j", ".text", "-j", ".ARM.exidx", "-j", ".data",
+        objcopy = need("arm-none-eabi-objcopy")
+        sh([objcopy, "-O", "binary", "-j", ".boot", elf, boot])
+        sh([objcopy, "-O", "binary", "-j", ".text", "-j", ".ARM.exidx", "-j", ".data",
               elf, main])
     return boot, main
 
 
 def flash_commands(tool: str, elf: Path) -> list:
     if tool == "openocd":
-        cfg = [x for c in t.OPENOCD_CFG for x in ("-f", c)]
+        cfg = [x for c in OPENOCD_CFG for x in ("-f", c)]
         return [["openocd", *cfg, "-c", f"program {elf} verify reset exit"]]
     boot, main = split_binaries(elf)
-    return [["dfu-util", "-a", "0", "-s", f"0x{t.FLASH_BOOT_ADDR:08X}", "-D", str(boot)],
-            ["dfu-util", "-a", "0", "-s", f"0x{t.FLASH_MAIN_ADDR:08X}:leave", "-D", str(main)]]
+    return [["dfu-util", "-a", "0", "-s", f"0x{FLASH_BOOT_ADDR:08X}", "-D", str(boot)],
+            ["dfu-util", "-a", "0", "-s", f"0x{FLASH_MAIN_ADDR:08X}:leave", "-D", str(main)]]
 
 
 def cmd_flash(a) -> int:
     if a.image:
         elf = Path(a.image).resolve()
     else:
-        t.select_board("stm32f4")
-        elf = t.image(t.FLASH_BOARDS[a.board])
+        board = BOARDS["stm32f4"]
+        elf = board.image(FLASH_BOARDS[a.board])
         if not a.dry_run or not elf.exists():
-            t.build_images()
+            build_images(board)
     if not elf.is_file():
-        raise t.TargetError(f"{elf}: no such image (tools/target build --board stm32f4, "
+        raise TargetError(f"{elf}: no such image (tools/target build --board stm32f4, "
                             "or --image ELF)")
     program = "openocd" if a.tool == "openocd" else "dfu-util"
     if not a.dry_run:
         if shutil.which(program) is None:
-            raise t.TargetError(f"{program} not found: install Debian's {program} "
+            raise TargetError(f"{program} not found: install Debian's {program} "
                                 "(tools/setup installs it)")
     cmds = flash_commands(a.tool, elf)
     for cmd in cmds:

@@ -1,5 +1,5 @@
 """The random-joint benchmark (issue 21, docs/random-joints.md): the
-firmware and the analysis on joints drawn by hdtools.bench.randjoint, each
+firmware and the analysis on joints drawn by hdmaint.bench.randjoint, each
 run scored against the simulator's ripple-free truth.
 
 Paths (nothing is handed the drawn joint's parameters: the firmware gets

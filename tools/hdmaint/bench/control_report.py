@@ -6,8 +6,10 @@ from __future__ import annotations
 import json
 import math
 
-BEGIN = "<!-- control:results:begin -->"
-END = "<!-- control:results:end -->"
+from hdtools import docblock
+
+BLOCK = "control-results"
+BEGIN, END = docblock.markers(BLOCK)
 INTEGRAL_NOTE = "1.25x the largest open-loop back-drive torque of the transparency rows"
 
 
@@ -148,7 +150,7 @@ def text(tabs) -> str:
 
 
 def headline_rows(c: dict) -> list[tuple[str, str, str]]:
-    """The README's row (tools/hdtools/headline.py)."""
+    """The README's row (tools/hdmaint/headline.py)."""
     g = {x["goal"].split(" ")[0]: x for x in c["goals"]}
     bw = next(x for x in c["goals"] if x["goal"].startswith("bandwidth"))
     f = c["rows"]["filtered"]["speeds"]
@@ -169,6 +171,4 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
 
 
 def splice(text_: str, md: str) -> str:
-    pre, rest = text_.split(BEGIN, 1)
-    post = rest.split(END, 1)[1]
-    return f"{pre}{BEGIN}\n{md}\n{END}{post}"
+    return docblock.splice(text_, BLOCK, md, "docs/control.md")

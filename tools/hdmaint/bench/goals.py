@@ -1,7 +1,7 @@
 """Issue 12's goals, checked from the benchmark's own results (nothing typed):
 each goal, the rows it is judged on, the measured worst case, where it
 occurs, and whether it is met.  The thresholds live here and nowhere else;
-report.py renders the list, cmd_bench stores it as results["goals"].
+report.py renders the list, cli.py stores it as results["goals"].
 
 Rows (docs/bench.md): `fw_commissioned` is the firmware on the classic
 accuracy scenarios booted from its own commissioning profile; the `fw_*`

@@ -1,7 +1,7 @@
 """Benchmarks (issue 7): accuracy of the filter against peer methods and the
 noise floor on simulated and real data, and compute cost on host and target.
 
-Entry point: `tools/bench` (= `hdsense bench`).  Modules:
+Entry point: `tools/bench` (python -m hdmaint.bench; cli.py).  Modules:
   peers     independent peer methods (Butterworth, order-domain notch,
             Fourier compensation table) in numpy/scipy
   metrics   RMS error, line attenuation, step delay/settle, recovery time

@@ -1,4 +1,4 @@
-"""`hdsense bench` (= tools/bench): accuracy and compute benchmarks (issue 7).
+"""tools/bench (python -m hdmaint.bench): accuracy and compute benchmarks (issue 7).
 
 Runs the accuracy benchmark on the simulated scenarios (tests/bench/
 scenarios) and the real iiwa logs, the host compute benchmark
@@ -16,14 +16,16 @@ temporary name and all are renamed together once all are complete.
 """
 from __future__ import annotations
 
+import argparse
 import datetime
 import sys
 import tempfile
 from pathlib import Path
 
-from .safeio import OutputError, Outputs, UsageError
+from hdtools import docblock
+from hdtools.safeio import OutputError, Outputs, UsageError
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "bench.md"
 DOC_JSON = ROOT / "docs" / "results" / "bench.json"
 DOC_PLOT = ROOT / "docs" / "img" / "bench_accuracy.png"
@@ -31,16 +33,16 @@ RANDOM_DOC = ROOT / "docs" / "random-joints.md"
 RANDOM_JSON = ROOT / "docs" / "results" / "random.json"
 CONTROL_DOC = ROOT / "docs" / "control.md"
 CONTROL_JSON = ROOT / "docs" / "results" / "control.json"
-BEGIN = "<!-- bench:results:begin -->"
-END = "<!-- bench:results:end -->"
+BLOCK = "bench-results"           # in bench.md and random-joints.md
+BEGIN, END = docblock.markers(BLOCK)
 
 
 PARTS = ["accuracy", "slow", "random", "real", "host", "target", "control"]
 
 
-def register(subparsers) -> None:
-    p = subparsers.add_parser("bench", help="benchmarks: accuracy vs peers, compute cost",
-                              description=__doc__.split("\n\n")[1])
+def parser() -> argparse.ArgumentParser:
+    from hdtools.cli import OneLineParser
+    p = OneLineParser(prog="tools/bench", description=__doc__.split("\n\n")[1])
     p.add_argument("--out", type=Path, default=ROOT / "out" / "bench",
                    help="output directory (default out/bench)")
     p.add_argument("--skip", action="append", default=[],
@@ -55,10 +57,11 @@ def register(subparsers) -> None:
     p.add_argument("--update-docs", action="store_true",
                    help="write the tables into docs/bench.md and the plot into docs/img/")
     p.set_defaults(func=run)
+    return p
 
 
 def run(args) -> int:
-    from .bench import accuracy, compute, control_report, goals, real, report
+    from . import accuracy, compute, control_report, goals, real, report
     if args.update_docs and args.quick:
         raise UsageError("--update-docs writes the documented numbers: run without --quick")
     only, n_random = args.only, args.random_joints
@@ -90,11 +93,11 @@ def run(args) -> int:
         print("accuracy benchmark (simulated scenarios)...", file=sys.stderr)
         results["accuracy"] = accuracy.run(residual, duration_scale=0.3 if args.quick else 1.0)
     if "slow" not in args.skip:
-        from .bench import slow
+        from . import slow
         print("slow-torque benchmark (firmware on the simulated joint)...", file=sys.stderr)
         results["slow"] = slow.run(quick=bool(args.quick))
     if "random" not in args.skip:
-        from .bench import random_bench
+        from . import random_bench
         print("random-joint benchmark (firmware and analysis on drawn joints)...", file=sys.stderr)
         results["random"] = random_bench.bench(
             1 if args.quick else n_random, log=lambda s: print("  " + s, file=sys.stderr),
@@ -111,7 +114,7 @@ def run(args) -> int:
             results["real"] = None
             print(f"  no logs in {real.DATA_DIR}", file=sys.stderr)
     if "control" not in args.skip:
-        from .bench import control
+        from . import control
         print("control benchmark (the torque loop on the dynamic joint)...", file=sys.stderr)
         results["control"] = control.run(quick=bool(args.quick),
                                          log=lambda s: print("  " + s, file=sys.stderr))
@@ -165,7 +168,7 @@ def run(args) -> int:
                 png = Path(tmp).read_bytes()
             written.append(plot)
         if random_text is not None:
-            from .bench import random_report
+            from . import random_report
             import json
             out.write_text(RANDOM_DOC, splice(random_text, f"_{header}_\n\n"
                                               + random_report.markdown(results["random"])))
@@ -200,6 +203,4 @@ def read_doc(doc: Path | None = None, begin: str = BEGIN, end: str = END) -> str
 
 def splice(text: str, md: str) -> str:
     """text with the part between the markers replaced by md."""
-    pre, rest = text.split(BEGIN, 1)
-    post = rest.split(END, 1)[1]
-    return f"{pre}{BEGIN}\n{md}\n{END}{post}"
+    return docblock.splice(text, BLOCK, md, "the bench document")

@@ -6,11 +6,11 @@ tools write (nothing typed):
   docs/results/budget.json    tools/target budget --update-docs
   docs/results/analyze.json   tools/hdsense analyze --results-doc docs/analyze-results.md
   docs/results/corpus.json    tests/corpus/run_corpus.py --doc docs/reliability.md
-  docs/results/fleet.json     cd tools && python -m hdtools.fleet.bench --write
+  docs/results/fleet.json     cd tools && python -m hdmaint.fleet_bench --write
   docs/results/control.json   tools/bench --only control --update-docs
 
-  python -m hdtools.headline --write    rewrite the README block
-  python -m hdtools.headline --check    exit 1 if the README block is stale
+  python -m hdmaint.headline --write    rewrite the README block
+  python -m hdmaint.headline --check    exit 1 if the README block is stale
 
 The block sits between `<!-- BEGIN generated:headline -->` and
 `<!-- END generated:headline -->`; tests/tools/test_headline.py runs --check.
@@ -22,12 +22,13 @@ import json
 import sys
 from pathlib import Path
 
-from .safeio import OutputError, Outputs
+from hdtools import docblock
+from hdtools.safeio import OutputError, Outputs, UsageError
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
 README = ROOT / "README.md"
-BEGIN, END = "<!-- BEGIN generated:headline -->", "<!-- END generated:headline -->"
+BEGIN, END = docblock.markers("headline")
 SOURCES = ("demo", "bench", "random", "budget", "analyze", "corpus", "fleet", "control")
 
 
@@ -121,7 +122,7 @@ def bench_rows(b: dict) -> list[tuple[str, str, str]]:
             f"Filter step on this host, 7 states ({b['machine']['cpu']})",
             f"{kf:.0f} ns ({1e3 / kf:.1f} M updates/s)"
             + "".join(f"; {label} {by[k]['ns_median'] / kf:.1f}x slower"
-                      for k, label in (("hd_kf_step_v0", "the step before issue 16"),
+                      for k, label in (("hd_kf_step_v0", "the step before its rewrite"),
                                        ("dense_f32", "a dense float32 filter")) if k in by),
             src))
     return rows
@@ -210,7 +211,7 @@ def corpus_rows(c: dict) -> list[tuple[str, str, str]]:
         f"Hostile inputs to every CLI (`tests/corpus`, run in CI; the C tools' cases also "
         f"under ASan/UBSan): {classes}",
         f"{c['cases']} cases, each a whole output or one line on stderr and a documented exit "
-        f"code ({c['failed_before']} failed before issue 18)",
+        f"code ({c['failed_before']} failed before the corpus, at d9ce5d9)",
         _link("corpus") + ", [reliability.md](docs/reliability.md)")]
 
 
@@ -253,15 +254,14 @@ def render(results: dict) -> str:
 
 
 def splice(text: str, block: str) -> str:
-    if BEGIN not in text or END not in text:
-        raise HeadlineError(f"{README}: no {BEGIN} ... {END} block")
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    return f"{head}{BEGIN}\n{block}\n{END}{tail}"
+    try:
+        return docblock.splice(text, "headline", block, str(README))
+    except UsageError as exc:
+        raise HeadlineError(str(exc)) from None
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m hdtools.headline",
+    ap = argparse.ArgumentParser(prog="python -m hdmaint.headline",
                                  description="render the README's headline numbers")
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--write", action="store_true")
@@ -279,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         if new != text:
             print("README.md headline is stale: run `cd tools && ../.venv/bin/python -m "
-                  "hdtools.headline --write`", file=sys.stderr)
+                  "hdmaint.headline --write`", file=sys.stderr)
             return 1
         return 0
     try:

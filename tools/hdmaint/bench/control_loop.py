@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..safeio import HdError
+from hdtools.safeio import HdError
 
 TS_S = 1e-3
 GEAR_RATIO = 100.0      # the law's defaults (control/hd_ctrl.c): what the firmware is told
@@ -48,7 +48,7 @@ class BenchError(HdError):
 
 
 def runner() -> Path:
-    from .. import native
+    from hdtools import native
     return native.executable("hdctrl-bench")
 
 

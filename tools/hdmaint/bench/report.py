@@ -36,7 +36,7 @@ def goal_table(goals: list[dict] | None) -> list:
     rows = [[g["goal"], g["rows"], g.get("text", "-"), g["where"] or "-",
              {True: "met", False: "NOT met", None: "reported" if g["n"] else "not run"}[g["met"]]]
             for g in goals]
-    return [("Goals of issue 12 against the measured worst case (tools/hdtools/bench/goals.py)",
+    return [("The slow-torque goals against the measured worst case (tools/hdmaint/bench/goals.py)",
              ["goal", "rows", "worst case", "where", "status"], rows)]
 
 
@@ -150,7 +150,7 @@ def _slow_get(slow, sc, row, key):
 
 
 def slow_tables(slow: dict | None) -> list:
-    """The slow-torque benchmark (tools/hdtools/bench/slow.py)."""
+    """The slow-torque benchmark (tools/hdmaint/bench/slow.py)."""
     if not slow:
         return []
     scs = list(slow["scenarios"])  # in the order of slow.SCENARIOS

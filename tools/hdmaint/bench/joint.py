@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import canproto, native, summary
+from hdtools import canproto, native, summary
 
 ROOT = Path(__file__).resolve().parents[3]
 HDSENSE = ROOT / "tools" / "hdsense"

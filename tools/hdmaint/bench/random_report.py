@@ -1,5 +1,5 @@
 """docs/random-joints.md's generated part: the drawing ranges and the
-random-joint benchmark's distributions (hdtools.bench.random_bench), as
+random-joint benchmark's distributions (hdmaint.bench.random_bench), as
 Markdown, from the results the benchmark wrote."""
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def _row(path, d):
 
 def markdown(res: dict) -> str:
     out = [f"Joints {res['seeds']}; the fixes were developed on {res['tuned_on']}, disjoint.",
-           "", "### Drawing ranges (`tools/hdtools/bench/randjoint.py`)", ""]
+           "", "### Drawing ranges (`tools/hdmaint/bench/randjoint.py`)", ""]
     out += randjoint.ranges_table()
     for key, title in PARTS:
         if key not in res:

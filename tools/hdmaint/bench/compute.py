@@ -8,7 +8,7 @@ import platform
 import subprocess
 from pathlib import Path
 
-from .. import native
+from hdtools import native
 
 
 def cpu_model() -> str:
@@ -40,14 +40,13 @@ def host(steps: int = 5000, reps: int = 31, warmup: int = 3) -> dict:
 def target() -> dict:
     """Instruction counts per filter update (typical and worst of its slow
     paths) and per ISR on the Cortex-M4F image under QEMU, from the budget
-    code of hdtools.target (exact counts from the TCG plugin; the dense
+    code of tools/target (hdmaint.budget; exact counts from the TCG plugin; the dense
     textbook filter is tests/bench/dense_kf_f32.c compiled into the same
     image).  A missing tool or a failure is reported, never fatal."""
-    from .. import target as budget_tool
+    from hdmaint import board, budget as budget_tool
     try:
-        budget_tool.select_board("mps2-an386")
-        budget = budget_tool.budget()
-    except (budget_tool.TargetError, OSError) as exc:
+        budget = budget_tool.budget(board.BOARDS["mps2-an386"])
+    except (board.TargetError, OSError) as exc:
         return {"status": "failed", "note": str(exc)[-500:]}
     if budget["failures"]:
         return {"status": "failed", "note": "; ".join(budget["failures"])[-500:]}

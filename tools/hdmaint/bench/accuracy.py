@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis import cfilter
+from hdtools.analysis import cfilter
 from . import metrics, peers
 from .joint import (encoder_angles, firmware_commissioning, ini_value, joint_key, nominal,
                     run_firmware, simulate, with_motion, compose_config)
@@ -214,7 +214,7 @@ def paper_filtered(ts_s, misalignment, torque, d_motor, d_output, feedforward=No
 def residual_config(model: dict, ts_s: float):
     """(KfConfig, ExpectedConfig, tracker bandwidth) from the model JSON of
     `hdsense analyze` (hdtools.analysis.model)."""
-    from ..analysis import model as amodel
+    from hdtools.analysis import model as amodel
     fields = {k: v for k, v in model.items() if k in amodel.Model.__dataclass_fields__}
     fields["blocks"] = [amodel.Block(**b) for b in model.get("blocks", [])]
     m = amodel.Model(**fields)
@@ -366,10 +366,7 @@ def run(residual_model: dict | None = None, duration_scale: float = 1.0,
         for r in sres["methods"].values():
             r["x_floor"] = r["rms_nm"] / floor
         if sc.lines:
-            raw = sres["methods"]["raw"]["line_amplitude_nm"]
-            for key, r in sres["methods"].items():
-                r["attenuation_db"] = {ln: metrics.attenuation_db(raw[ln], a)
-                                       for ln, a in r["line_amplitude_nm"].items()}
+            metrics.add_line_attenuations(sres["methods"])
         results["scenarios"][sc.name] = sres
     if tmp:
         tmp.cleanup()

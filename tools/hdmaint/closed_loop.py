@@ -21,7 +21,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from hdtools import target as t
+from .board import HOST_BUILD, Board, TargetError, build_images, host_tools, run_qemu, sh
+from .qemu_run import f32
 
 CTRL_IMAGE = "hd_ctrl_image"
 # u32 tick, u32 mode | enabled << 8, f32 current, f32 torque ref, f32 filtered, u32 faults,
@@ -32,21 +33,21 @@ PLANT_TIMEOUT_S = 30
 
 
 def plant_tool(host_build: Path | None) -> Path:
-    bdir = host_build or t.HOST_BUILD
+    bdir = host_build or HOST_BUILD
     if host_build is None:
-        t.host_tools(None)              # configures build/target-host if needed
-        t.sh(["cmake", "--build", bdir, "-j2", "--target", "target_plant"],
+        host_tools(None)              # configures build/target-host if needed
+        sh(["cmake", "--build", bdir, "-j2", "--target", "target_plant"],
              stdout=subprocess.DEVNULL)
     path = bdir / "tests" / "target" / "target_plant"
     if not path.exists():
-        raise t.TargetError(f"{path} is missing: build the host tree {bdir} first")
+        raise TargetError(f"{path} is missing: build the host tree {bdir} first")
     return path
 
 
 def read_records(path: Path) -> list:
     data = path.read_bytes()
     if len(data) % CTRL_RECORD.size:
-        raise t.TargetError(f"{path}: not a whole number of {CTRL_RECORD.size}-byte records")
+        raise TargetError(f"{path}: not a whole number of {CTRL_RECORD.size}-byte records")
     return [CTRL_RECORD.unpack_from(data, i) for i in range(0, len(data), CTRL_RECORD.size)]
 
 
@@ -59,13 +60,13 @@ def compare_records(host: list, qemu: list) -> list:
     if diff:
         h, q = host[diff[0]], qemu[diff[0]]
         problems.append(f"{len(diff)} of {len(host)} ticks differ; first at tick {h[0]}: "
-                        f"current host {t.f32(h[2])!r} qemu {t.f32(q[2])!r}, torque reference "
-                        f"host {t.f32(h[3])!r} qemu {t.f32(q[3])!r}, filtered host "
-                        f"{t.f32(h[4])!r} qemu {t.f32(q[4])!r}")
+                        f"current host {f32(h[2])!r} qemu {f32(q[2])!r}, torque reference "
+                        f"host {f32(h[3])!r} qemu {f32(q[3])!r}, filtered host "
+                        f"{f32(h[4])!r} qemu {f32(q[4])!r}")
     return problems
 
 
-def run_lockstep(plant: Path, work: Path, ticks: int) -> tuple:
+def run_lockstep(board: Board, plant: Path, work: Path, ticks: int) -> tuple:
     """(QEMU exit status and console, plant exit status and stderr)."""
     samples, commands = work / "samples.fifo", work / "commands.fifo"
     os.mkfifo(samples)
@@ -74,7 +75,7 @@ def run_lockstep(plant: Path, work: Path, ticks: int) -> tuple:
                              str(work / "qemu.bin"), str(ticks)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        rc, text = t.run_qemu(t.image(CTRL_IMAGE), [samples, commands])
+        rc, text = run_qemu(board, board.image(CTRL_IMAGE), [samples, commands])
         try:
             _, err = proc.communicate(timeout=PLANT_TIMEOUT_S)
         except subprocess.TimeoutExpired:
@@ -88,16 +89,16 @@ def run_lockstep(plant: Path, work: Path, ticks: int) -> tuple:
             proc.wait()
 
 
-def cmd_closed_loop(a) -> int:
-    t.build_images()
+def cmd_closed_loop(board: Board, a) -> int:
+    build_images(board)
     plant = plant_tool(Path(a.host_build).resolve() if a.host_build else None)
     with tempfile.TemporaryDirectory(prefix="hd-target-loop-") as tmp:
         work = Path(tmp)
-        rc, text, prc, perr = run_lockstep(plant, work, a.ticks)
+        rc, text, prc, perr = run_lockstep(board, plant, work, a.ticks)
         if rc != 0 or prc != 0:
             print(f"FAIL: QEMU exit status {rc}, plant exit status {prc}\n{text}{perr}")
             return 1
-        t.sh([plant, "host", work / "host.bin", str(a.ticks)], stdout=subprocess.DEVNULL)
+        sh([plant, "host", work / "host.bin", str(a.ticks)], stdout=subprocess.DEVNULL)
         host, qemu = read_records(work / "host.bin"), read_records(work / "qemu.bin")
     problems = compare_records(host, qemu)
     for msg in problems:
@@ -108,7 +109,7 @@ def cmd_closed_loop(a) -> int:
     print(f"closed loop: {len(qemu)} ticks in lockstep with the plant, TORQUE 0 -> {STEP_NM:g} "
           f"N m at tick {STEP_TICK}; drive commands, torque reference, filtered torque, faults "
           f"and limits {'bit-identical' if ok else 'DIFFERENT'} to the host build" +
-          (f"; last tick: current {t.f32(last[2]):.4f} A, filtered {t.f32(last[4]):.3f} N m, "
+          (f"; last tick: current {f32(last[2]):.4f} A, filtered {f32(last[4]):.3f} N m, "
            f"modes run {modes}" if last else ""))
     return 0 if ok else 1
 

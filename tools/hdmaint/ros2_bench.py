@@ -1,6 +1,6 @@
 """Benchmarks of the ROS 2 paths (numbers, not pass/fail):
 
-    .venv/bin/python -m hdtools.rosio.bench [--duration S] [--update-docs docs/ros2.md]
+    .venv/bin/python -m hdmaint.ros2_bench [--duration S] [--update-docs docs/ros2.md]
 
 1. the monitor's recording cost: one 1 kHz sample (JointState, the Float64
    channels, a heartbeat a second) encoded and written to an MCAP file,
@@ -22,13 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import native
-from ..safeio import Outputs
-from ..analysis import bench_speed
-from ..analysis.results import read_csv
-from . import bagout, messages, stream
+from hdtools import docblock, native
+from hdtools.analysis import bench_speed
+from hdtools.analysis.results import read_csv
+from hdtools.rosio import bagout, messages, stream
+from hdtools.safeio import Outputs
 
-BEGIN, END = "<!-- BEGIN ros2:bench -->\n", "<!-- END ros2:bench -->"
+BLOCK = "ros2-bench"     # hdtools.docblock
 
 
 def _samples(cols: dict):
@@ -73,7 +73,7 @@ def monitor_cost(tmp: Path, mcap: bool) -> dict:
     import contextlib
     import io
     import uuid
-    from .. import cli, emu, summary
+    from hdtools import cli, emu, summary
     channel = f"bench-{uuid.uuid4().hex[:8]}"
     args = ["monitor", "-i", "virtual", channel, "--duration", str(MONITOR_S), "-q"]
     if mcap:
@@ -110,7 +110,7 @@ def run(duration_s: float) -> list[str]:
             f"results differ: {by_bag['summary']!r} vs {by_csv['summary']!r}")
     return [
         f"Measured {time.strftime('%Y-%m-%d')} on {platform.processor() or platform.machine()}"
-        f" ({os.cpu_count()} cores, shared), `python -m hdtools.rosio.bench --duration "
+        f" ({os.cpu_count()} cores, shared), `python -m hdmaint.ros2_bench --duration "
         f"{duration_s:g}`:",
         "",
         "| what | measured |",
@@ -137,10 +137,7 @@ def run(duration_s: float) -> list[str]:
 
 
 def update_docs(doc: Path, lines: list[str]) -> None:
-    text = doc.read_text()
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    new = head + BEGIN + "\n".join(lines) + "\n" + END + tail
+    new = docblock.splice(doc.read_text(), BLOCK, "\n".join(lines), str(doc))
     with Outputs() as out:
         out.write_text(doc, new)
         out.commit()

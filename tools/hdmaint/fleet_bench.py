@@ -1,7 +1,7 @@
 """docs/fleet.md's measured tables and docs/results/fleet.json, written by
 the runs that measure them (nothing typed by hand):
 
-    cd tools && ../.venv/bin/python -m hdtools.fleet.bench --write [--ray-python PY]
+    cd tools && ../.venv/bin/python -m hdmaint.fleet_bench --write [--ray-python PY]
 
 1. Detection: simulated fleets of TUNE_SEEDS (the thresholds were looked at
    on these) and REPORT_SEEDS (held out: the numbers to quote), each run
@@ -9,7 +9,7 @@ the runs that measure them (nothing typed by hand):
 2. Throughput: one fleet of long logs run directly (the task called in this
    process: the baseline), then on a LocalCluster of 1 and 2 workers, and,
    with --ray-python (a Python with ray installed: not a project
-   dependency), on Ray with 1 and 2 workers (bench_ray.py); each REPEATS
+   dependency), on Ray with 1 and 2 workers (fleet_bench_ray.py); each REPEATS
    times, interleaved, the faster counting.  A benchmark: the numbers of
    one run on this machine, not pass/fail.
 3. A paper estimate for 1000 joints x 8 h a day from the measured cost."""
@@ -25,14 +25,14 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..safeio import Outputs
-from . import job, simfleet, trends
+from hdtools import docblock
+from hdtools.fleet import job, simfleet, trends
+from hdtools.safeio import Outputs
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "fleet.md"
 RESULT = ROOT / "docs" / "results" / "fleet.json"
-BEGIN, END = "<!-- fleet:measured:begin -->", "<!-- fleet:measured:end -->"
-TH_BEGIN, TH_END = "<!-- fleet:thresholds:begin -->", "<!-- fleet:thresholds:end -->"
+MEASURED, THRESHOLDS = "fleet-measured", "fleet-thresholds"      # hdtools.docblock blocks
 TUNE_SEEDS = (1, 2)
 REPORT_SEEDS = (3, 4)
 DETECT_FLEET = {"n_joints": 12, "days": 14, "logs_per_day": 2, "log_s": 60.0}
@@ -47,7 +47,7 @@ USD_PER_CORE_HOUR = 0.04     # an on-demand cloud vCPU-hour, order of magnitude
 
 def _epoch_day(utc):
     from datetime import datetime, timezone
-    from . import catalog
+    from hdtools.fleet import catalog
     t = datetime.strptime(utc, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=timezone.utc)
     return (t - catalog.EPOCH).total_seconds() / 86400.0
 
@@ -107,7 +107,7 @@ REPEATS = 3     # each configuration twice, interleaved; the faster run counts (
 
 
 def _dask(root, store, n):
-    from . import engine
+    from hdtools.fleet import engine
     t0 = time.perf_counter()
     client = engine.connect(None, n, "2GiB")
     client.wait_for_workers(n)
@@ -121,7 +121,7 @@ def _dask(root, store, n):
 
 
 def _ray(root, n, ray_python):
-    p = subprocess.run([ray_python, "-m", "hdtools.fleet.bench_ray", str(root), str(n)],
+    p = subprocess.run([ray_python, "-m", "hdmaint.fleet_bench_ray", str(root), str(n)],
                        cwd=ROOT / "tools", capture_output=True, text=True, check=True,
                        env=dict(os.environ, PYTHONPATH=str(ROOT / "tools")))
     s = json.loads(p.stdout.strip().splitlines()[-1])
@@ -200,7 +200,7 @@ def speed(tmp, hdsim, ray_python=None) -> dict:
 def memory(tmp, hdsim) -> dict:
     """Peak RSS of one LocalCluster worker on one long log, cut in chunks
     and whole."""
-    from . import engine
+    from hdtools.fleet import engine
     root = Path(tmp) / "memory"
     simfleet.generate(root, hdsim, **MEMORY_FLEET)
     size = sum(f.stat().st_size for f in root.rglob("*.csv"))
@@ -314,15 +314,10 @@ def _speed_table(rows) -> list[str]:
 PARTS = ("detection", "speed", "memory")
 
 
-def _splice(text, begin, end, body):
-    a, b = text.index(begin) + len(begin), text.index(end)
-    return text[:a] + "\n" + body + "\n" + text[b:]
-
-
 def main(argv=None) -> int:
     import argparse
-    from .. import native
-    p = argparse.ArgumentParser(prog="python -m hdtools.fleet.bench", description=__doc__)
+    from hdtools import native
+    p = argparse.ArgumentParser(prog="python -m hdmaint.fleet_bench", description=__doc__)
     p.add_argument("--write", action="store_true", help="write docs/fleet.md and fleet.json")
     p.add_argument("--ray-python", help="a Python with ray installed (comparison only)")
     p.add_argument("--parts", default=",".join(PARTS),
@@ -355,8 +350,8 @@ def main(argv=None) -> int:
     md = markdown(res)
     print(md)
     if a.write:
-        text = _splice(DOC.read_text(), BEGIN, END, md)
-        text = _splice(text, TH_BEGIN, TH_END, thresholds_table())
+        text = docblock.splice(DOC.read_text(), MEASURED, md, str(DOC))
+        text = docblock.splice(text, THRESHOLDS, thresholds_table(), str(DOC))
         with Outputs() as out:
             out.write_text(DOC, text)
             out.write_text(RESULT, json.dumps(res, indent=1) + "\n")

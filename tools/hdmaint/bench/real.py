@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from ..analysis import cfilter
+from hdtools.analysis import cfilter
 from . import accuracy, metrics, peers
 
 DATA_DIR = Path("/work/shared/data/real")

@@ -1,8 +1,8 @@
-"""The same per-log task (engine.task) on Ray, for bench.py's Dask-vs-Ray
+"""The same per-log task (engine.task) on Ray, for fleet_bench.py's Dask-vs-Ray
 table only.  Ray is not a project dependency: run with a Python that has
 it (and numpy, scipy, cantools, threadpoolctl), PYTHONPATH=tools:
 
-    python -m hdtools.fleet.bench_ray FLEET_DIR WORKERS   -> one JSON line"""
+    python -m hdmaint.fleet_bench_ray FLEET_DIR WORKERS   -> one JSON line"""
 from __future__ import annotations
 
 import json
@@ -12,7 +12,7 @@ import time
 
 def main(root: str, workers: int) -> int:
     import ray
-    from . import catalog, engine
+    from hdtools.fleet import catalog, engine
     logs = [r.path for r in catalog.discover([root]) if not r.problem]
     t0 = time.perf_counter()
     ray.init(num_cpus=workers, include_dashboard=False, logging_level="ERROR",
@@ -25,7 +25,7 @@ def main(root: str, workers: int) -> int:
 
     @ray.remote(num_cpus=1)
     def ready():
-        from ..analysis import cfilter   # noqa: F401 - import the C library once per worker
+        from hdtools.analysis import cfilter   # noqa: F401 - import the C library once per worker
         return True
 
     ray.get([ready.remote() for _ in range(workers)])
