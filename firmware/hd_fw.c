@@ -139,6 +139,7 @@ int hd_fw_init(hd_fw_t *fw, const hal_t *hal, const hd_fw_config_t *defaults)
      * absolute angle of its sample. */
     fw->filter.import_pending = fw->bg.profile.line_count > 0u;
     hd_fw_set_rx_filter(fw, c->node_id);
+    hd_fw_control_boot(fw);
     return HD_FW_OK;
 }
 

@@ -176,12 +176,14 @@ typedef struct {
     uint32_t bus_off_hold_ticks;    /* DAMP for this many more ticks (the last bus-off) */
     float angle_rad;                /* output angle since boot (compensated sum) */
     float angle_comp_rad;
+    float angle_fine_rad;           /* where in the output encoder's count: 0..one count */
     /* a refused SETPOINT / GAINS frame's ACK, sent by publish */
     bool refuse_pending;
     uint8_t refuse_node;
     uint8_t refuse_token;
     uint8_t refuse_aux;
     uint8_t refuse_result;
+    hd_ctrl_input_t in;             /* the last step's inputs */
     hd_ctrl_output_t out;           /* the last step's */
 } hd_fw_ctrl_state_t;
 

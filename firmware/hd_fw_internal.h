@@ -59,6 +59,9 @@ void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s);
  * step), and the control stage after the pipeline; returns its faults. */
 void hd_fw_take_control_frame(hd_fw_t *fw, const hal_can_frame_t *f, uint8_t type);
 uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults);
+/* The law built from the boot settings by hd_fw_init: the first tick does
+ * not pay for it (the tick rebuilds it only when the settings change). */
+void hd_fw_control_boot(hd_fw_t *fw);
 /* A drive is present: the actuator part has enable and command_current. */
 bool hd_fw_has_drive(const hd_fw_t *fw);
 void hd_fw_stop(hd_fw_t *fw);
