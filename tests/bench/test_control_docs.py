@@ -1,7 +1,8 @@
 """Staleness of the control benchmark's outputs (docs/results/control.json,
 written by `tools/bench --only control --update-docs`):
   * the law's default torque gains (control/hd_ctrl.c) are the gains the
-    bench's tuning found for the filtered feedback;
+    bench's tuning found for the filtered feedback, and its integral limit
+    the one the bench derived from the open-loop drive train;
   * the generated section of docs/results/control.md is the tables of that JSON."""
 import json
 import re
@@ -24,6 +25,8 @@ def test_default_gains_are_the_tuned_ones():
     assert t["met"]
     assert _default("torque_kp") == t["kp"]
     assert _default("torque_ki_per_s") == t["ki_per_s"]
+    assert _default("torque_kd_s") == t["kd_s"]
+    assert _default("integral_limit_nm") == RESULTS["integral_limit_nm"]
 
 
 def test_doc_section_is_the_results_tables():

@@ -79,18 +79,20 @@ def test_injection_measures_the_closed_form_loop():
 
 
 def test_pi_response_is_the_laws_recursion():
-    kp, ki, f = 0.8, 50.0, 7.0
-    n = 4000
-    e = np.sin(2 * math.pi * f * cl.TS_S * np.arange(n))
-    u, integ = np.zeros(n), 0.0
-    for k in range(n):
-        u[k] = kp * e[k] + integ
-        integ += ki * cl.TS_S * e[k]
-    u -= u[n // 2:].mean()   # the integral's constant from the start
-    t = np.arange(n // 2, n)
-    basis = np.exp(1j * 2 * math.pi * f * cl.TS_S * t)
-    gain = (u[t] @ basis.conj()) / (e[t] @ basis.conj())
-    assert abs(gain / cl.pi_response(f, kp, ki) - 1) < 1e-3
+    """u = kp e + I + kd (e - e_prev) / ts, I += ki ts e after u (the law's
+    recursion on a constant setpoint, where the feedback's rate is -e's)."""
+    f, n = 7.0, 4000
+    for kp, ki, kd in ((0.8, 50.0, 0.0), (0.8, 50.0, 2e-3)):
+        e = np.sin(2 * math.pi * f * cl.TS_S * np.arange(n))
+        u, integ = np.zeros(n), 0.0
+        for k in range(n):
+            u[k] = kp * e[k] + integ + (kd * (e[k] - e[k - 1]) / cl.TS_S if k else 0.0)
+            integ += ki * cl.TS_S * e[k]
+        u -= u[n // 2:].mean()   # the integral's constant from the start
+        t = np.arange(n // 2, n)
+        basis = np.exp(1j * 2 * math.pi * f * cl.TS_S * t)
+        gain = (u[t] @ basis.conj()) / (e[t] @ basis.conj())
+        assert abs(gain / cl.pi_response(f, kp, ki, kd) - 1) < 1e-3
 
 
 def test_bandwidth_of_a_first_order_response():

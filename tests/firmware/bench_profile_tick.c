@@ -47,9 +47,9 @@ static double median_tick_ns(int kind)
         s.enc.has_output = true;
         hal_mock_push_sample(&mock, &s);
         if (kind == 1) {
-            fw.tick.import_pending = true;
+            fw.filter.import_pending = true;
         } else if (kind == 2) {
-            fw.tick.snapshot_pending = true;
+            fw.filter.snapshot_pending = true;
         }
         double t0 = now_ns();
         hd_fw_isr(&fw);

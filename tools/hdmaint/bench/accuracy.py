@@ -366,10 +366,7 @@ def run(residual_model: dict | None = None, duration_scale: float = 1.0,
         for r in sres["methods"].values():
             r["x_floor"] = r["rms_nm"] / floor
         if sc.lines:
-            raw = sres["methods"]["raw"]["line_amplitude_nm"]
-            for key, r in sres["methods"].items():
-                r["attenuation_db"] = {ln: metrics.attenuation_db(raw[ln], a)
-                                       for ln, a in r["line_amplitude_nm"].items()}
+            metrics.add_line_attenuations(sres["methods"])
         results["scenarios"][sc.name] = sres
     if tmp:
         tmp.cleanup()

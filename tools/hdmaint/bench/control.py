@@ -24,7 +24,7 @@ from . import control_loop as cl
 from . import control_tune as ct
 
 SPEEDS_RAD_S = (0.0, 0.5, 3.0)
-CONDITIONS = tuple(str(s) for s in SPEEDS_RAD_S) + ("wall",)   # of the tuning
+CONDITIONS = tuple(str(s) for s in SPEEDS_RAD_S) + ("wall", "free")   # of the tuning
 TRANSPARENCY_SPEEDS_RAD_S = (0.2, 0.5, 1.0, 3.0)
 SETPOINT_NM = 10.0
 CHIRP_AMP_NM, CHIRP_F0_HZ, CHIRP_F1_HZ, CHIRP_S = 2.0, 0.5, 200.0, 10.0
@@ -38,6 +38,7 @@ IMPEDANCE_KD = (1.0, 5.0)
 WALL = {"kp": 500.0, "kds": (2.0, 10.0), "q_d": 0.05, "wall_rad": 0.02,
         "stiffness": cl.WALL_STIFFNESS_NM_RAD}
 STIFFNESS_GOAL_PCT = 5.0
+INTEGRAL_MARGIN = 1.25   # the integral bound over the measured drive-train friction
 TS = cl.TS_S
 
 
@@ -141,9 +142,11 @@ def impedance(v: cl.Variant) -> dict:
         sc = cl.Scene(0.0, mode="impedance", load="free",
                       extra=["--imp-kp", kp, "--imp-kd", 2.0, "--person-nm", push])
         d = cl.simulate(v, sc, np.zeros(3000))
-        q = float(np.mean(d["output_angle_rad"][2000:]))
+        tail = d["output_angle_rad"][2000:]
+        q = float(np.mean(tail))
         rows.append({"kind": "stiffness", "commanded": kp, "rendered": push / q,
-                     "error_pct": 100 * (push / q / kp - 1)})
+                     "error_pct": 100 * (push / q / kp - 1),
+                     "p2p_pct": float(100 * (tail.max() - tail.min()) / q)})
     for kd in IMPEDANCE_KD:
         torques = []
         for s in (0.5, 1.0):
@@ -185,10 +188,27 @@ def wall_contact(v: cl.Variant, kd: float) -> dict:
             "limit_cycle": bool(losses > 0 or p2p > 0.1 * abs(float(force.mean())))}
 
 
+def integral_limit_nm(drive_friction_nm: float) -> float:
+    """The torque loop's integral bound: what the integral is for (the drive
+    train's friction between the current and the flexspline, measured open
+    loop) with a margin, rounded as the law's defaults hold it.  Bounded,
+    the integral cannot wind up on what it is not for: the torque that
+    accelerates a free output before an impact, or the feedback's drift while
+    a stiff contact holds the motor still (both end in a limit cycle)."""
+    return float(f"{INTEGRAL_MARGIN * drive_friction_nm:.3g}")
+
+
 def run(quick: bool = False, log=lambda s: None) -> dict:
     vs = variants()
     if quick:
         vs = [x for x in vs if x.key in ("filtered", "butter2", "open_loop")]
+    opn = next(v for v in vs if v.key == "open_loop")
+    speeds_t = TRANSPARENCY_SPEEDS_RAD_S[::3] if quick else TRANSPARENCY_SPEEDS_RAD_S
+    log("measuring the open-loop drive train...")
+    open_nm = {str(s): back_drive_nm(opn, s) for s in speeds_t}
+    ilim = integral_limit_nm(max(abs(x) for x in open_nm.values()))
+    for v in vs:   # every feedback alike
+        v.ilim = ilim
     tuning = {}
     for v in vs:
         log(f"tuning {v.key}...")
@@ -197,8 +217,8 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
     rows = {}
     for v in vs:
         log(f"measuring {v.key}...")
-        r = {"config": {k: getattr(v, k) for k in ("feedback", "kp", "ki", "ff", "lowpass_hz",
-                                                     "lowpass_order", "notch_mask",
+        r = {"config": {k: getattr(v, k) for k in ("feedback", "kp", "ki", "kd", "ff", "ilim",
+                                                     "lowpass_hz", "lowpass_order", "notch_mask",
                                                      "notch_width_hz")},
              "speeds": {}}
         for s in SPEEDS_RAD_S:
@@ -207,10 +227,8 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
         rows[v.key] = r
     best = max(butters, key=lambda v: min(_bw(rows[v.key], s) for s in SPEEDS_RAD_S))
     filt = next(v for v in vs if v.key == "filtered")
-    opn = next(v for v in vs if v.key == "open_loop")
-    transp = {str(s): {"zero_torque_nm": back_drive_nm(filt, s),
-                       "open_loop_nm": back_drive_nm(opn, s)}
-              for s in (TRANSPARENCY_SPEEDS_RAD_S[::3] if quick else TRANSPARENCY_SPEEDS_RAD_S)}
+    transp = {str(s): {"zero_torque_nm": back_drive_nm(filt, s), "open_loop_nm": open_nm[str(s)]}
+              for s in speeds_t}
     for t in transp.values():
         t["ratio"] = abs(t["zero_torque_nm"]) / abs(t["open_loop_nm"])
     imp = impedance(filt)
@@ -218,6 +236,7 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
     if not quick:   # the same loop without its integral: what the contact's cycle needs
         wall.append(wall_contact(dataclasses.replace(filt, ki=0.0), WALL["kds"][0]))
     return {"speeds_rad_s": list(SPEEDS_RAD_S), "margins": {"pm_deg": ct.PM_DEG, "gm_db": ct.GM_DB},
+            "integral_limit_nm": ilim,
             "tuning": tuning, "rows": rows, "best_butterworth": best.key,
             "transparency": transp, "impedance": imp, "wall": wall,
             "goals": goals(rows, best.key, transp, imp, wall), "quick": quick}

@@ -60,6 +60,8 @@ class Variant:
     kp: float = 1.0
     ki: float = 30.0
     ff: float = 1.0
+    kd: float = 0.0
+    ilim: float = 480.0
     lowpass_hz: float = 50.0
     lowpass_order: int = 1
     notch_mask: int = 0
@@ -67,7 +69,7 @@ class Variant:
 
     def options(self) -> list[str]:
         return ["--feedback", self.feedback, "--kp", f"{self.kp:.6g}", "--ki", f"{self.ki:.6g}",
-                "--ff", f"{self.ff:.6g}", "--lowpass-hz", f"{self.lowpass_hz:.6g}",
+                "--ff", f"{self.ff:.6g}", "--kd", f"{self.kd:.6g}", "--ilim", f"{self.ilim:.6g}", "--lowpass-hz", f"{self.lowpass_hz:.6g}",
                 "--lowpass-order", str(self.lowpass_order), "--notch-mask",
                 str(self.notch_mask), "--notch-width-hz", f"{self.notch_width_hz:.6g}"]
 
@@ -99,9 +101,20 @@ def contact_scene() -> Scene:
                                           f"{WALL_STIFFNESS_NM_RAD:g}"])
 
 
+def free_scene() -> Scene:
+    """The output free (nothing on it) in ZERO_TORQUE: the plant the torque
+    loop sees off contact in IMPEDANCE or ZERO_TORQUE, whose flexspline mode
+    (the motor's reflected inertia against the output's) is neither the
+    held output's nor the wall's."""
+    return Scene(0.0, mode="zero_torque", load="free")
+
+
 def scene_of(condition: str) -> Scene:
-    """A tuning condition: "wall" (contact_scene) or a speed in rad/s."""
-    return contact_scene() if condition == "wall" else torque_scene(float(condition))
+    """A tuning condition: "wall" (contact_scene), "free" (free_scene) or
+    a speed in rad/s."""
+    if condition == "wall":
+        return contact_scene()
+    return free_scene() if condition == "free" else torque_scene(float(condition))
 
 
 def preroll(scene: Scene) -> np.ndarray:
@@ -203,11 +216,13 @@ def measure_loop(variant: Variant, scene: Scene, setpoint_nm: float = 10.0, peri
     return Response(f[keep], loop[keep], plant[keep], true_plant[keep])
 
 
-def pi_response(freq_hz, kp: float, ki: float, ts: float = TS_S) -> np.ndarray:
-    """The law's PI (hd_ctrl.c: u = kp e + I, I += ki ts e after u):
-    C(z) = kp + ki ts / (z - 1), at z = exp(j w ts)."""
+def pi_response(freq_hz, kp: float, ki: float, kd: float = 0.0, ts: float = TS_S) -> np.ndarray:
+    """The law's PI (hd_ctrl.c: u = kp e + I, I += ki ts e after u) and its
+    rate term on the feedback (u -= kd (fb - fb_prev) / ts):
+    C(z) = kp + ki ts / (z - 1) + kd (1 - 1/z) / ts, at z = exp(j w ts).
+    With kd the feedback's path; the setpoint's is the same with kd = 0."""
     z = np.exp(1j * 2 * math.pi * np.asarray(freq_hz) * ts)
-    return kp + ki * ts / (z - 1.0)
+    return kp + ki * ts / (z - 1.0) + kd * (1.0 - 1.0 / z) / ts
 
 
 def _crossings(f: np.ndarray, y: np.ndarray) -> list[tuple[int, float]]:

@@ -10,6 +10,7 @@ from hdtools import docblock
 
 BLOCK = "control-results"
 BEGIN, END = docblock.markers(BLOCK)
+INTEGRAL_NOTE = "1.25x the largest open-loop back-drive torque of the transparency rows"
 
 
 def clean(x):
@@ -59,18 +60,21 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
         if "measured" not in t:
             note = ("open loop: no loop" if cfg["feedback"] == "none"
                     else "NO (no gains on the grid meet them)")
-            tab.append([key, what, "-", "-"] + ["-"] * len(conds) + [note])
+            tab.append([key, what, "-", "-", "-"] + ["-"] * len(conds) + [note])
             continue
         cells = [f"{_n(t['measured'][c]['pm_deg'], '{:.0f}', 'no crossover')} / "
                  f"{_n(t['measured'][c]['gm_db'], '{:.1f}', 'no phase crossover')}"
                  for c in conds]
-        tab.append([key, what, f"{t['kp']:.3g}", f"{t['ki_per_s']:.3g}"] + cells
+        tab.append([key, what, f"{t['kp']:.3g}", f"{t['ki_per_s']:.3g}",
+                    f"{1e3 * t.get('kd_s', 0.0):.3g}"] + cells
                    + ["yes" if t["met"] else "NO"])
     out.append((f"Tuned gains and the margins measured by breaking the loop (phase margin deg / "
                 f"gain margin dB; goal >= {res['margins']['pm_deg']:g} / "
-                f">= {res['margins']['gm_db']:g})",
-                ["variant", "feedback", "kp", "ki [1/s]"]
-                + [("wall contact" if c == "wall" else f"{c} rad/s") for c in conds]
+                f">= {res['margins']['gm_db']:g}); every loop's integral within "
+                f"+-{res['integral_limit_nm']:.3g} N m ({INTEGRAL_NOTE})",
+                ["variant", "feedback", "kp", "ki [1/s]", "kd [ms]"]
+                + [{"wall": "wall contact", "free": "free output"}.get(c, f"{c} rad/s")
+                   for c in conds]
                 + ["margins met"], tab))
     best = res["best_butterworth"]
     tab = []
@@ -101,10 +105,12 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                   f"{t['ratio']:.4f}"] for s, t in res["transparency"].items()]))
     out.append(("Impedance (filtered feedback): rendered against commanded (stiffness: a "
                 "10 N m push on the free output; damping: the slope of the torque between "
-                "0.5 and 1 rad/s at kp 0)",
-                ["what", "commanded", "rendered", "error %"],
+                "0.5 and 1 rad/s at kp 0; the push's deflection is the mean of the last "
+                "second, over which it moves by the peak to peak)",
+                ["what", "commanded", "rendered", "error %", "deflection peak to peak %"],
                 [[r["kind"], f"{r['commanded']:g}", f"{r['rendered']:.2f}",
-                  f"{r['error_pct']:+.1f}"] for r in res["impedance"]["rows"]]))
+                  f"{r['error_pct']:+.1f}", _n(r.get("p2p_pct"), "{:.1f}")]
+                 for r in res["impedance"]["rows"]]))
     out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, filtered feedback): "
                 "the true torque over the last second",
                 ["kd N m s/rad", "torque loop ki 1/s", "mean N m", "commanded (mean) N m",

@@ -1,26 +1,31 @@
 """The torque loop's tuning method (docs/results/control.md, "Tuning"), per feedback.
 
-1. Break the loop in the simulation at every benchmark speed and with the
-   output pressed against a stiff wall (the conditions)
+1. Break the loop in the simulation at every benchmark speed, with the
+   output pressed against a stiff wall and with the output free (the
+   conditions)
    (control_loop.measure_loop, with the variant's current gains): the plant
    the controller sees, P_fb(jw) (feedback torque per drive current), and
    the true output torque's, P_true(jw), on the same run.
-2. On a grid of PI gains (kp, ki = kp w_i) compute, from P in closed form,
-   L = C P_fb (margins) and the predicted tracking response
-   H = P_true (ff + C) / (1 + C P_fb) (its -3 dB bandwidth).
+2. On a grid of gains (kp, ki = kp w_i, and kd on the feedback's rate)
+   compute, from P in closed form, L = C_fb P_fb (margins) and the
+   predicted tracking response H = P_true (ff + C_ref) / (1 + L) (its -3 dB
+   bandwidth; C_ref is C_fb without the rate term).
 3. Keep the gains whose loop has phase margin >= 45 deg and gain margin
    >= 6 dB, and whose predicted tracking peak |H| is at most 10 dB, in EVERY
-   condition (one set of gains for all: what the
-   firmware runs), and take the one with the largest predicted bandwidth at
-   the worst speed (ties: the larger worst crossover).
+   condition (one set of gains for all: what the firmware runs; the free
+   output is judged on the margins alone: it tracks nothing, its "response"
+   is the free flexspline mode), ranked by crossover (geometric mean over
+   the conditions), then predicted bandwidth.
 4. Measure the chosen loop again by breaking it (its margins are the ones
-   reported) and, if a speed misses a margin (the plant's nonlinearity:
-   friction at standstill), step kp down by 10 % until all are met.
+   reported) and, if a condition misses a margin (the plant's nonlinearity:
+   friction at standstill, the stick-slip of a stiff contact), take the next
+   best candidate of the grid, up to CHECKED_MAX of them.
 The open-loop current (feedback none) has no loop and no tuning.
 """
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -31,6 +36,9 @@ PM_DEG, GM_DB = 45.0, 6.0
 PEAK_DB = 10.0
 KP_GRID = np.geomspace(0.05, 40.0, 48)
 WI_GRID_RAD_S = 2 * math.pi * np.array([1.0, 2.0, 5.0, 10.0, 20.0, 40.0])  # ki / kp
+CHECKED_MAX = 30          # candidates measured again, best predicted first
+MARGINS_ONLY = ("free",)   # conditions judged on the margins alone
+KD_GRID_S = (0.0, 5e-4, 1e-3, 1.5e-3, 2e-3, 3e-3, 4e-3)   # the feedback's rate term
 
 
 def bandwidth_hz(freq_hz, h) -> float | None:
@@ -66,22 +74,25 @@ def measure_plants(v: cl.Variant, conditions, measure=cl.measure_loop) -> list[P
     return out
 
 
-def predict(p: PlantAt, kp: float, ki: float, ff: float) -> tuple[dict, float | None]:
+def predict(p: PlantAt, kp: float, ki: float, ff: float,
+            kd: float = 0.0) -> tuple[dict, float | None]:
     """Margins of C P_fb and the predicted tracking bandwidth; margins gets
-    the tracking peak (peak_db) too."""
-    c = cl.pi_response(p.freq_hz, kp, ki)
-    loop = c * p.p_fb
-    h = p.p_true * (ff + c) / (1.0 + loop)
+    the tracking peak (peak_db) too.  The rate term acts on the feedback
+    only: L = C_fb P_fb, H = P_true (ff + C_ref) / (1 + L)."""
+    loop = cl.pi_response(p.freq_hz, kp, ki, kd) * p.p_fb
+    h = p.p_true * (ff + cl.pi_response(p.freq_hz, kp, ki)) / (1.0 + loop)
     m = cl.margins(p.freq_hz, loop)
     m["peak_db"] = float(20 * np.log10(np.abs(h).max()))
     return m, bandwidth_hz(p.freq_hz, h)
 
 
-def acceptable(m: dict) -> bool:
+def acceptable(m: dict, tracking: bool = True) -> bool:
     """The margins, and no tracking peak above PEAK_DB (a loop whose
     feedback lags can meet the margins with a proportional kick that
-    overshoots many-fold: the peak rules it out)."""
-    return cl.meets(m, PM_DEG, GM_DB) and m.get("peak_db", 0.0) <= PEAK_DB
+    overshoots many-fold: the peak rules it out).  A margins-only
+    condition (the free output: nothing holds the torque, it tracks no
+    setpoint; its "response" is the free flexspline mode) has no peak bound."""
+    return cl.meets(m, PM_DEG, GM_DB) and (not tracking or m.get("peak_db", 0.0) <= PEAK_DB)
 
 
 def _score(bws, crossovers) -> tuple[float, float]:
@@ -93,24 +104,31 @@ def _score(bws, crossovers) -> tuple[float, float]:
     return float(np.mean(np.log(w))), float(np.mean(np.log(b)))
 
 
-def search(plants: list[PlantAt], ff: float) -> tuple[float, float, dict] | None:
-    """The grid's best gains meeting the margins at every speed:
-    (kp, ki, {speed: predicted margins and bandwidth}) or None."""
-    best, best_score = None, None
-    for kp in KP_GRID:
-        for wi in WI_GRID_RAD_S:
-            ki = float(kp * wi)
-            if ki > 5000.0:
-                continue
-            preds = [predict(p, float(kp), ki, ff) for p in plants]
-            if not all(acceptable(m) for m, _ in preds):
-                continue
-            score = _score([b for _, b in preds], [m["crossover_hz"] for m, _ in preds])
-            if best_score is None or score > best_score:
-                best_score = score
-                best = (float(kp), ki, {p.condition: {"margins": m, "bandwidth_hz": b}
-                                        for p, (m, b) in zip(plants, preds)})
-    return best
+def candidates(plants: list[PlantAt], ff: float) -> list[tuple[float, float, float, dict]]:
+    """The grid's gains meeting the margins in every condition, best first:
+    (kp, ki, kd, {condition: predicted margins and bandwidth})."""
+    scored = []
+    tracking = [p.condition not in MARGINS_ONLY for p in plants]
+    for kp, wi, kd in itertools.product(KP_GRID, WI_GRID_RAD_S, KD_GRID_S):
+        ki = float(kp * wi)
+        if ki > 5000.0:
+            continue
+        preds = [predict(p, float(kp), ki, ff, float(kd)) for p in plants]
+        if not all(acceptable(m, t) for (m, _), t in zip(preds, tracking)):
+            continue
+        score = _score([b for (_, b), t in zip(preds, tracking) if t],
+                       [m["crossover_hz"] for m, _ in preds])
+        scored.append((score, (float(kp), ki, float(kd),
+                               {p.condition: {"margins": m, "bandwidth_hz": b}
+                                for p, (m, b) in zip(plants, preds)})))
+    scored.sort(key=lambda x: x[0], reverse=True)
+    return [c for _, c in scored]
+
+
+def search(plants: list[PlantAt], ff: float) -> tuple[float, float, float, dict] | None:
+    """The best of `candidates`, or None."""
+    found = candidates(plants, ff)
+    return found[0] if found else None
 
 
 def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None) -> dict:
@@ -118,24 +136,23 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None)
     if v.feedback == "none":
         return {"method": "none (open loop)"}
     plants = measure_plants(v, conditions, measure)
-    found = search(plants, v.ff)
-    if found is None:
+    found = candidates(plants, v.ff)
+    if not found:
         # reported with the grid's weakest loop, marked as not meeting the margins
         v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
         log(f"{v.key}: no gains on the grid meet the margins in every condition")
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
-    v.kp, v.ki, predicted = found
-    v.kp, v.ki = float(f"{v.kp:.3g}"), float(f"{v.ki:.3g}")   # as the law's defaults hold them
-    checked = {}
-    for _ in range(25):
+    checked, predicted = {}, found[0][3]
+    for kp, ki, kd, pred in found[:CHECKED_MAX]:
+        # as the law's defaults hold them
+        v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in (kp, ki, kd))
         checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
-        ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
-        if all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()):
+        if all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB) for r in checked.values()):
+            predicted = pred
             break
-        v.kp, v.ki = float(f"{0.9 * v.kp:.3g}"), float(f"{0.9 * v.ki:.3g}")
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
-    log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s; measured "
+    log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
     return {"method": "grid", "met": all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()),
-            "kp": v.kp, "ki_per_s": v.ki, "predicted": predicted, "measured": ms,
+            "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": predicted, "measured": ms,
             "loops": {s: r.to_json() for s, r in checked.items()}}

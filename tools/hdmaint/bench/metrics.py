@@ -32,6 +32,16 @@ def attenuation_db(before_nm: float, after_nm: float) -> float:
     return float(20.0 * np.log10(before_nm / max(after_nm, 1e-12)))
 
 
+def add_line_attenuations(rows: dict) -> None:
+    """Each row's "attenuation_db" per line, against the "raw" row's amplitude of
+    that line (rows without line amplitudes are left alone)."""
+    raw = rows["raw"]["line_amplitude_nm"]
+    for r in rows.values():
+        if "line_amplitude_nm" in r:
+            r["attenuation_db"] = {ln: attenuation_db(raw[ln], a)
+                                   for ln, a in r["line_amplitude_nm"].items()}
+
+
 def moving_rms(x, n: int):
     x2 = np.asarray(x, dtype=float) ** 2
     c = np.concatenate([[0.0], np.cumsum(x2)])

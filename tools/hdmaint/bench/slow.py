@@ -304,11 +304,7 @@ def run(quick: bool = False, workdir: Path | None = None, scenarios=None) -> dic
         for key, y in ys.items():
             sres["rows"][key] = row_metrics(y, d, sc, ang, out_angle, floor)
         if any("line_amplitude_nm" in m for m in sres["rows"].values()):
-            raw = sres["rows"]["raw"]["line_amplitude_nm"]
-            for m in sres["rows"].values():
-                if "line_amplitude_nm" in m:
-                    m["attenuation_db"] = {k: metrics.attenuation_db(raw[k], v)
-                                           for k, v in m["line_amplitude_nm"].items()}
+            metrics.add_line_attenuations(sres["rows"])
         res["scenarios"][sc.name] = sres
     if tmp:
         tmp.cleanup()
