@@ -118,6 +118,9 @@ static void receive_frames(hd_fw_t *fw)
 
 /* ---------------------------------------------------------------- faults */
 
+_Static_assert(HD_FAULT_COUNT < 32u, "the fault bits fit a uint32_t below bit 31");
+#define FAULT_BITS ((1u << HD_FAULT_COUNT) - 1u)
+
 static void account_faults(hd_fw_t *fw, hd_fw_sample_t *s, uint32_t faults)
 {
     hd_fw_tick_state_t *k = &fw->tick;
@@ -137,10 +140,10 @@ static void account_faults(hd_fw_t *fw, hd_fw_sample_t *s, uint32_t faults)
     }
     if (faults != 0u) {
         fw->counters.fault_ticks++;
-        for (unsigned bit = 0; bit < HD_FAULT_COUNT; bit++) {
-            if ((faults & (1u << bit)) != 0u) {
-                fw->counters.by_fault[bit]++;
-            }
+        /* the set bits only: a tick with a sticky record fault would walk
+         * all HD_FAULT_COUNT bits every millisecond */
+        for (uint32_t left = faults & FAULT_BITS; left != 0u; left &= left - 1u) {
+            fw->counters.by_fault[__builtin_ctz(left)]++;
         }
     }
     k->state = (fw->telem.hb_faults != 0u) ? HD_STATE_DEGRADED : HD_STATE_RUN;
