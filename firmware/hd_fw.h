@@ -76,7 +76,8 @@ typedef struct {
     uint32_t correction_limited;       /* ticks with the correction at correction_max_nm */
 } hd_fw_counters_t;
 
-/* What the last tick produced (for the host runner and tests). */
+/* What the last tick produced (for the host runner and tests).  The tick
+ * fills it in place (fw->last): read it between ticks, not during one. */
 typedef struct {
     uint64_t t_us;                 /* clock at the start of the tick (0 without a clock) */
     int32_t bridge_counts;

@@ -1,12 +1,13 @@
 /* hd_fw_sense: the gauge stage (hd_fw_stages.h).
  *
- * Contract: the first stage of every tick.  It clears the sample, stamps
- * it, reads the ADC once and turns the bridge counts into volts and N m
+ * Contract: the first stage of every tick.  It reads the ADC once, clears
+ * the sample, stamps it and turns the bridge counts into volts and N m
  * with the live calibration; a sample the gauge cannot vouch for (ADC
  * error, open bridge, saturated, non-finite, beyond the torque limit) is
  * invalid (torque NaN) with its fault bit.  Valid voltages enter the tare
  * window the background's TARE averages.  Returns false when the sample
- * source is exhausted (replay, simulation end): the tick stops. */
+ * source is exhausted (replay, simulation end): the tick stops, and the
+ * sample is left as it was. */
 #include <math.h> /* isfinite, NAN: compiler builtins, no libm call */
 #include <string.h>
 
@@ -55,12 +56,12 @@ bool hd_fw_gauge(hd_fw_gauge_t *g, const hd_fw_config_t *c, const hal_sensors_t 
 {
     hal_adc_sample_t adc;
     memset(&adc, 0, sizeof adc);
-    memset(s, 0, sizeof *s);
-    s->t_us = t_us;
     int adc_rc = sen->adc_read(sen->ctx, &adc);
     if (adc_rc == HAL_ERR_END) {
-        return false;
+        return false; /* *s untouched: it is the last tick's sample */
     }
+    memset(s, 0, sizeof *s);
+    s->t_us = t_us;
     *faults = read_torque(c, adc_rc, &adc, s);
     s->valid = *faults == 0u;
     if (s->valid) {

@@ -162,20 +162,21 @@ void hd_fw_isr(hd_fw_t *fw)
     apply_request(fw);               /* the change the background prepared */
     receive_frames(fw);              /* commands queued; feed-forward, setpoints latched */
     const hd_fw_settings_t *set = hd_fw_live(fw);
-    hd_fw_sample_t s;
+    /* The stages fill the sample in place: nothing reads fw->last during
+     * the tick, and a copy of it at the end cost ~100 instructions. */
+    hd_fw_sample_t *s = &fw->last;
     uint32_t faults = 0u;
-    if (!hd_fw_gauge(&fw->gauge, &set->cfg, sen, t_us, &s, &faults)) { /* ADC -> N m */
+    if (!hd_fw_gauge(&fw->gauge, &set->cfg, sen, t_us, s, &faults)) { /* ADC -> N m */
         hd_fw_stop(fw);
         return;
     }
-    faults |= hd_fw_encoder(&fw->encoder, set, sen, &s);         /* counts -> increments */
-    faults |= hd_fw_current(&fw->current, &set->cfg, sen, &s);   /* motor current */
-    faults |= hd_fw_ff(&fw->ff, &set->cfg, &s);                  /* feed-forward, stale fallback */
-    faults |= hd_fw_filter(fw, &s);  /* expected torque -> Kalman filter -> filtered torque */
+    faults |= hd_fw_encoder(&fw->encoder, set, sen, s);          /* counts -> increments */
+    faults |= hd_fw_current(&fw->current, &set->cfg, sen, s);    /* motor current */
+    faults |= hd_fw_ff(&fw->ff, &set->cfg, s);                   /* feed-forward, stale fallback */
+    faults |= hd_fw_filter(fw, s);   /* expected torque -> Kalman filter -> filtered torque */
     /* with the faults raised between samples (a bus-off seen by a send) */
-    faults |= hd_fw_control(fw, &s, faults | fw->tick.pending_faults);
-    account_faults(fw, &s, faults);  /* fault bits, counters, state */
-    fw->last = s;
+    faults |= hd_fw_control(fw, s, faults | fw->tick.pending_faults);
+    account_faults(fw, s, faults);   /* fault bits, counters, state */
     fw->counters.ticks++;
-    hd_fw_publish(fw, &s);           /* boot report, telemetry, heartbeat, ACKs */
+    hd_fw_publish(fw, s);            /* boot report, telemetry, heartbeat, ACKs */
 }

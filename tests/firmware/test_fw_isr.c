@@ -269,9 +269,15 @@ static void test_calib_bound_macros_are_the_tables(void)
 static void test_end_of_samples_stops_the_isr(void)
 {
     init_fw();
-    run(5, 0, 1);
+    run(5, 1234, 1);
+    const uint64_t t_us = hd_fw_last_sample(&fw)->t_us;
     hd_fw_isr(&fw); /* queue empty: HAL_ERR_END */
     TEST_ASSERT_TRUE(fw.tick.ended);
+    /* the last sample is still the last one the source gave (the tick
+     * fills it in place: the ending tick must not touch it) */
+    TEST_ASSERT_EQUAL_INT32(1234, hd_fw_last_sample(&fw)->bridge_counts);
+    TEST_ASSERT_TRUE(hd_fw_last_sample(&fw)->valid);
+    TEST_ASSERT_EQUAL_UINT64(t_us, hd_fw_last_sample(&fw)->t_us);
     TEST_ASSERT_EQUAL_UINT8(HD_STATE_STOPPED, last_id(ID_HB)->data[0]);
     uint32_t ticks = hd_fw_counters(&fw)->ticks;
     hd_fw_isr(&fw);
