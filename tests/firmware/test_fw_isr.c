@@ -365,6 +365,33 @@ static void test_frames_for_others_are_counted_not_queued(void)
     TEST_ASSERT_EQUAL_UINT32(0, hd_fw_counters(&fw)->commands);
 }
 
+/* The mock's receive copies the header and the bytes a frame carries (the
+ * classic 8, or an FD frame's len), not the whole buffer: each frame comes
+ * back with the bytes it was pushed with. */
+static void test_mock_receive_gives_the_frames_as_pushed(void)
+{
+    static const uint8_t lens[] = {0, 3, 8, 12, 64};
+    for (unsigned k = 0; k < sizeof lens; k++) {
+        hal_can_frame_t in = {0};
+        in.id = 0x1234567u + k;
+        in.len = lens[k];
+        in.flags = (uint8_t)(HAL_CAN_FLAG_EXT | (lens[k] > 8u ? HAL_CAN_FLAG_FD : 0u));
+        for (unsigned i = 0; i < HAL_CAN_MAX_DATA; i++) {
+            in.data[i] = (uint8_t)(7u * i + k + 1u);
+        }
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal_mock_push_rx(&mock, &in));
+        hal_can_frame_t out;
+        memset(&out, 0xA5, sizeof out);
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal.can.recv(hal.can.ctx, &out));
+        TEST_ASSERT_EQUAL_HEX32(in.id, out.id);
+        TEST_ASSERT_EQUAL_UINT8(in.len, out.len);
+        TEST_ASSERT_EQUAL_HEX8(in.flags, out.flags);
+        TEST_ASSERT_EQUAL_INT(0, memcmp(in.data, out.data, in.len));
+    }
+    hal_can_frame_t none;
+    TEST_ASSERT_EQUAL_INT(HAL_ERR_NO_DATA, hal.can.recv(hal.can.ctx, &none));
+}
+
 int main(int argc, char **argv)
 {
     if (UnityParseOptions(argc, argv) != 0) {
@@ -387,5 +414,6 @@ int main(int argc, char **argv)
     RUN_TEST(test_angle_telemetry_carries_the_raw_counts);
     RUN_TEST(test_boot_report_says_why_and_what);
     RUN_TEST(test_frames_for_others_are_counted_not_queued);
+    RUN_TEST(test_mock_receive_gives_the_frames_as_pushed);
     return UNITY_END();
 }
