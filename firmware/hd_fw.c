@@ -30,16 +30,6 @@ void hd_fw_derive(hd_fw_settings_t *s)
 
 /* ------------------------------------------------------------------ queues */
 
-bool hd_fw_queue_full(const hd_fw_queue_t *q)
-{
-    return q->head - q->tail >= HD_FW_QUEUE_LEN;
-}
-
-bool hd_fw_queue_empty(const hd_fw_queue_t *q)
-{
-    return q->head == q->tail;
-}
-
 bool hd_fw_queue_push(hd_fw_queue_t *q, const hal_can_frame_t *f)
 {
     if (hd_fw_queue_full(q)) {

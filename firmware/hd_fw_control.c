@@ -26,12 +26,6 @@
 #define SENSOR_FAULTS \
     (HD_FAULT_ADC_ERROR | HD_FAULT_ADC_SATURATED | HD_FAULT_OPEN_BRIDGE | HD_FAULT_TORQUE_RANGE)
 
-bool hd_fw_has_drive(const hd_fw_t *fw)
-{
-    const hal_actuator_t *a = &fw->hal->actuator;
-    return a->enable != NULL && a->command_current != NULL;
-}
-
 /* ------------------------------------------------------------- receive */
 
 /* One ACK per tick goes out (publish); the fault bit marks every refusal. */

@@ -31,8 +31,14 @@ void hd_fw_set_rx_filter(const hd_fw_t *fw, uint8_t node_id);
 /* The queues: push returns false when full, pop when empty. */
 bool hd_fw_queue_push(hd_fw_queue_t *q, const hal_can_frame_t *f);
 bool hd_fw_queue_pop(hd_fw_queue_t *q, hal_can_frame_t *f);
-bool hd_fw_queue_full(const hd_fw_queue_t *q);
-bool hd_fw_queue_empty(const hd_fw_queue_t *q);
+static inline bool hd_fw_queue_full(const hd_fw_queue_t *q)
+{
+    return q->head - q->tail >= HD_FW_QUEUE_LEN;
+}
+static inline bool hd_fw_queue_empty(const hd_fw_queue_t *q)
+{
+    return q->head == q->tail;
+}
 
 /* The tick's stages (hd_fw_stages.h; tick context only), in the order
  * hd_fw_isr calls them; each returns the fault bits it raised.  The gauge
@@ -62,8 +68,13 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults);
 /* The law built from the boot settings by hd_fw_init: the first tick does
  * not pay for it (the tick rebuilds it only when the settings change). */
 void hd_fw_control_boot(hd_fw_t *fw);
-/* A drive is present: the actuator part has enable and command_current. */
-bool hd_fw_has_drive(const hd_fw_t *fw);
+/* A drive is present: the actuator part has enable and command_current
+ * (inline: the tick asks up to three times). */
+static inline bool hd_fw_has_drive(const hd_fw_t *fw)
+{
+    const hal_actuator_t *a = &fw->hal->actuator;
+    return a->enable != NULL && a->command_current != NULL;
+}
 void hd_fw_stop(hd_fw_t *fw);
 
 /* Records (hd_fw_records.c).  Boot: loads the calibration and configuration
