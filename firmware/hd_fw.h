@@ -77,7 +77,8 @@ typedef struct {
 } hd_fw_counters_t;
 
 /* What the last tick produced (for the host runner and tests).  The tick
- * fills it in place (fw->last): read it between ticks, not during one. */
+ * fills it in place (fw->last): read it between ticks, not during one.
+ * Nothing clears it first: each field's stage writes it on every tick. */
 typedef struct {
     uint64_t t_us;                 /* clock at the start of the tick (0 without a clock) */
     int32_t bridge_counts;
