@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from .. import canproto
-from . import detect, geometry, replay as rp
+from . import detect, detect_slow, geometry, replay as rp
 from .lineamp import (LINE_FIT_MAX_SAMPLES, line_amplitude, lines_left,  # noqa: F401
                       spectral_line_amplitude)
 from .model import NOISE_FLOOR_NM, Block, Model, ProfileLine
@@ -273,13 +273,13 @@ def judge(c, runs0, m0, runs1, m1, model0):
             return False, ev
         return True, ev
     if c.kind == "offset_drift":
-        h = detect.drift_held_out(c, vb0)
+        h = detect_slow.drift_held_out(c, vb0)
         ev.update(h)
         if not h.get("held_out_samples"):
             ev["rejected_because"] = "no held-out samples on the drift's time base"
             return False, ev
         if not (h["held_out_rest_after_line_rms_nm"]
-                <= detect.DRIFT_REST_FRACTION * max(h["held_out_line_excursion_nm"], 1e-12)):
+                <= detect_slow.DRIFT_REST_FRACTION * max(h["held_out_line_excursion_nm"], 1e-12)):
             ev["rejected_because"] = ("the line fitted in fold A does not explain fold B's slow "
                                       "residual: not a drift")
             return False, ev
@@ -376,8 +376,8 @@ class Session:
                 if c.action == "profile" and c.key() not in self.tried:
                     self.tried.add(c.key())
             lines = [c for c in lines if c.action != "profile"]
-            slow = detect.slow_candidates(ctx, self.model)
-            drift = detect.drift_candidate(ctx, self.data.has_feedforward,
+            slow = detect_slow.slow_candidates(ctx, self.model)
+            drift = detect_slow.drift_candidate(ctx, self.data.has_feedforward,
                                            self.segment_t0)
             # Order of trial: the profile, lines (strongest first), then
             # expected-torque terms, and drift last: a drift is only judged
