@@ -132,6 +132,18 @@ static double rms_error_vs_truth(const run_t *r, size_t from)
     return sqrt(s / (double)(r->n - from));
 }
 
+/* RMS of the measurement's error against T_true over samples [from, n): the
+ * raw error every filtered one is held to. */
+static double rms_raw_vs_truth(const run_t *r, size_t from)
+{
+    double s = 0.0;
+    for (size_t k = from; k < r->n; k++) {
+        double e = r->t_meas[k] - r->t_true[k];
+        s += e * e;
+    }
+    return sqrt(s / (double)(r->n - from));
+}
+
 static double rms_ripple_residual(const run_t *r, size_t from, int with_misalign)
 {
     double s = 0.0;
@@ -1019,14 +1031,9 @@ static double load_error(double load_nm, double load_hz, double ramp_nm, float o
     run_scenario(&kf, &s, &g_run);
     g_ramp_nm = 0.0;
     const size_t from = (size_t)(1.0 / TS_S);
-    double se = 0.0, sr = 0.0;
-    for (size_t k = from; k < g_run.n; k++) {
-        se += (g_run.filtered[k] - g_run.t_true[k]) * (g_run.filtered[k] - g_run.t_true[k]);
-        sr += (g_run.t_meas[k] - g_run.t_true[k]) * (g_run.t_meas[k] - g_run.t_true[k]);
-    }
-    *raw = sqrt(sr / (double)(g_run.n - from));
+    *raw = rms_raw_vs_truth(&g_run, from);
     *drift_steps = kf.drift_count;
-    return sqrt(se / (double)(g_run.n - from));
+    return rms_error_vs_truth(&g_run, from);
 }
 
 #define DRIFT_RAMP_NM 6.0
@@ -1077,13 +1084,8 @@ static void test_unmodelled_line_above_gate_takes_one_burst(void)
     run_scenario(&kf, &s, &g_run);
     g_undeclared_m3_nm = 0.0;
     const size_t from = (size_t)(2.0 / TS_S);
-    double se = 0.0, sr = 0.0;
-    for (size_t k = from; k < g_run.n; k++) {
-        se += (g_run.filtered[k] - g_run.t_true[k]) * (g_run.filtered[k] - g_run.t_true[k]);
-        sr += (g_run.t_meas[k] - g_run.t_true[k]) * (g_run.t_meas[k] - g_run.t_true[k]);
-    }
-    const double err = sqrt(se / (double)(g_run.n - from));
-    const double raw = sqrt(sr / (double)(g_run.n - from));
+    const double err = rms_error_vs_truth(&g_run, from);
+    const double raw = rms_raw_vs_truth(&g_run, from);
     const double own = UNMODELLED_LINE_NM / sqrt(2.0);
     msg("undeclared motor order 3 line %.2f N m: filtered error %.4f N m, raw %.4f, the line's "
         "own RMS %.4f; %u steps beyond the gate while it held",
@@ -1179,13 +1181,8 @@ static void test_undeclared_line_twice_the_envelope_never_worse_than_raw(void)
     run_scenario(&kf, &s, &g_run);
     g_undeclared_m3_nm = 0.0;
     const size_t from = (size_t)(1.0 / TS_S);
-    double se = 0.0, sr = 0.0;
-    for (size_t k = from; k < g_run.n; k++) {
-        se += (g_run.filtered[k] - g_run.t_true[k]) * (g_run.filtered[k] - g_run.t_true[k]);
-        sr += (g_run.t_meas[k] - g_run.t_true[k]) * (g_run.t_meas[k] - g_run.t_true[k]);
-    }
-    const double err = sqrt(se / (double)(g_run.n - from));
-    const double raw = sqrt(sr / (double)(g_run.n - from));
+    const double err = rms_error_vs_truth(&g_run, from);
+    const double raw = rms_raw_vs_truth(&g_run, from);
     msg("undeclared motor order 3 line %.2f N m (2x the %.2f N m envelope): filtered error "
         "%.4f N m, raw %.4f; %u steps beyond the held gate, %u beyond the envelope, %u restarts",
         2.0 * envelope, envelope, err, raw, (unsigned)kf.jump_held_count,
