@@ -120,30 +120,29 @@ static void run_scenario(hd_kf_t *kf, const scen_t *s, run_t *r)
     }
 }
 
-/* RMS of (filtered - T_true) and of (true ripple - estimated ripple) over
- * samples [from, n). */
+/* RMS of (x - T_true) over samples [from, n): x the filtered torque, or the
+ * measurement (the raw error every filtered one is held to). */
+static double rms_vs_truth(const run_t *r, const double *x, size_t from)
+{
+    double s = 0.0;
+    for (size_t k = from; k < r->n; k++) {
+        double e = x[k] - r->t_true[k];
+        s += e * e;
+    }
+    return sqrt(s / (double)(r->n - from));
+}
+
 static double rms_error_vs_truth(const run_t *r, size_t from)
 {
-    double s = 0.0;
-    for (size_t k = from; k < r->n; k++) {
-        double e = r->filtered[k] - r->t_true[k];
-        s += e * e;
-    }
-    return sqrt(s / (double)(r->n - from));
+    return rms_vs_truth(r, r->filtered, from);
 }
 
-/* RMS of the measurement's error against T_true over samples [from, n): the
- * raw error every filtered one is held to. */
 static double rms_raw_vs_truth(const run_t *r, size_t from)
 {
-    double s = 0.0;
-    for (size_t k = from; k < r->n; k++) {
-        double e = r->t_meas[k] - r->t_true[k];
-        s += e * e;
-    }
-    return sqrt(s / (double)(r->n - from));
+    return rms_vs_truth(r, r->t_meas, from);
 }
 
+/* RMS of (true ripple - estimated ripple) over samples [from, n). */
 static double rms_ripple_residual(const run_t *r, size_t from, int with_misalign)
 {
     double s = 0.0;
