@@ -20,7 +20,7 @@
  *  40  f32  consistency
  *  44  16B  reserved (zero)
  *  60  u32  CRC-32 (IEEE, as zlib) of bytes 0..59
- * See docs/calibration.md.
+ * See docs/how-to/calibration.md.
  */
 #ifndef HD_CALIB_RECORD_H
 #define HD_CALIB_RECORD_H

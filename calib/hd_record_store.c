@@ -1,4 +1,4 @@
-/* hd_record_store: see hd_record_store.h and docs/records.md. */
+/* hd_record_store: see hd_record_store.h and docs/reference/records.md. */
 #include "hd_record_store.h"
 
 #include <stdbool.h>

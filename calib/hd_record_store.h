@@ -33,7 +33,7 @@
  *    the valid one, so a power loss at any byte loses at most this save.
  *  - Saves need io->work, at least HD_STORE_IMAGE_MAX bytes (the image is
  *    built there so a record living only in the half being erased survives).
- * docs/records.md has the tests behind each point.
+ * docs/reference/records.md has the tests behind each point.
  */
 #ifndef HD_RECORD_STORE_H
 #define HD_RECORD_STORE_H

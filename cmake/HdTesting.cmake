@@ -8,7 +8,7 @@
 #   Besides the test <name> (every RUN_TEST of the executable), each RUN_TEST
 #   in SOURCES becomes a test <name>.<case> that runs `<name> -n <case>`; they
 #   belong to the CTest configuration "case", so a plain `ctest` does not run
-#   them and `ctest -C case -R '^<name>\.<case>$'` runs one (docs/testing.md).
+#   them and `ctest -C case -R '^<name>\.<case>$'` runs one (docs/reference/testing.md).
 
 if(HD_UNITY_DIR)
   add_library(hd_unity STATIC ${HD_UNITY_DIR}/src/unity.c)

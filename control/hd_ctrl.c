@@ -34,9 +34,11 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .gear_ratio = 100.0f,
         .kt_nm_per_a = 0.06f,
         .feedback = HD_CTRL_FB_FILTERED,
-        .torque_kp = 1.27f,          /* tools/bench --only control: docs/control.md, "Tuning" */
-        .torque_ki_per_s = 40.1f,
+        .torque_kp = 0.991f,         /* tools/bench --only control: docs/results/control.md, "Tuning" */
+        .torque_ki_per_s = 31.1f,
         .torque_ff = 1.0f,
+        .torque_kd_s = 0.002f,
+        .integral_limit_nm = 7.69f,  /* tools/bench --only control, as the gains */
         .lowpass_hz = 50.0f,
         .lowpass_order = 1u,
         .notch_mask = 0u,
@@ -64,7 +66,9 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
         within(k->kt_nm_per_a, 1e-4f, 10.0f) && (unsigned)k->feedback < HD_CTRL_FB_COUNT &&
         within(k->torque_kp, 0.0f, HD_CTRL_TORQUE_GAIN_MAX) &&
         within(k->torque_ki_per_s, 0.0f, HD_CTRL_KI_MAX_PER_S) &&
-        within(k->torque_ff, 0.0f, 1.0f) && k->lowpass_hz > 0.0f &&
+        within(k->torque_ff, 0.0f, 1.0f) && within(k->torque_kd_s, 0.0f, HD_CTRL_TORQUE_KD_MAX_S) &&
+        within(k->integral_limit_nm, 0.0f, 1e4f) &&
+        k->lowpass_hz > 0.0f &&
         k->lowpass_hz < 0.5f / k->ts_s &&
         (k->lowpass_order == 1u || k->lowpass_order == 2u || k->lowpass_order == 4u) &&
         within(k->notch_width_hz, 0.1f, 0.1f / k->ts_s) && within(k->friction_nm, 0.0f, 1000.0f) &&
@@ -84,6 +88,8 @@ void hd_ctrl_reset(hd_ctrl_t *c)
         return;
     }
     c->integral_nm = 0.0f;
+    c->fb_prev_nm = 0.0f;
+    c->fb_primed = false;
     c->lowpass_nm = 0.0f;
     c->lowpass_primed = false;
     c->raw_notched_nm = 0.0f;
@@ -95,14 +101,24 @@ void hd_ctrl_reset(hd_ctrl_t *c)
     }
 }
 
-/* cos by its Taylor series (Horner, to x^18): |x| <= pi, error < 2e-7;
- * no libm in control/. */
+/* cos and sin by their Taylor series (Horner, to x^18 and x^19): |x| <= pi,
+ * error < 2e-7; no libm in control/.  Term k divides by n (n - 1), n = 18,
+ * 16, ..., 2 (cos) and 19, 17, ..., 3 (sin): multiplied by the reciprocal
+ * instead (a division is 14 cycles on the M4F, in the tick when a notch
+ * follows the speed). */
+static const float COS_RECIP[9] = {1.0f / 306.0f, 1.0f / 240.0f, 1.0f / 182.0f, 1.0f / 132.0f,
+                                   1.0f / 90.0f,  1.0f / 56.0f,  1.0f / 30.0f,  1.0f / 12.0f,
+                                   1.0f / 2.0f};
+static const float SIN_RECIP[9] = {1.0f / 342.0f, 1.0f / 272.0f, 1.0f / 210.0f, 1.0f / 156.0f,
+                                   1.0f / 110.0f, 1.0f / 72.0f,  1.0f / 42.0f,  1.0f / 20.0f,
+                                   1.0f / 6.0f};
+
 static float cos_poly(float x)
 {
     const float x2 = x * x;
     float r = 1.0f;
-    for (int n = 18; n >= 2; n -= 2) {
-        r = 1.0f - x2 / (float)(n * (n - 1)) * r;
+    for (unsigned k = 0; k < 9u; k++) {
+        r = 1.0f - x2 * COS_RECIP[k] * r;
     }
     return r;
 }
@@ -111,8 +127,8 @@ static float sin_poly(float x)
 {
     const float x2 = x * x;
     float r = 1.0f;
-    for (int n = 19; n >= 3; n -= 2) {
-        r = 1.0f - x2 / (float)(n * (n - 1)) * r;
+    for (unsigned k = 0; k < 9u; k++) {
+        r = 1.0f - x2 * SIN_RECIP[k] * r;
     }
     return x * r;
 }
@@ -152,23 +168,34 @@ int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
     if (rc != HD_CTRL_OK) {
         return rc;
     }
+    hd_ctrl_init_prechecked(c, cfg);
+    return HD_CTRL_OK;
+}
+
+void hd_ctrl_init_prechecked(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
+{
     c->cfg = *cfg;
     const float wts = TWO_PI_F * cfg->lowpass_hz * cfg->ts_s;
     c->lowpass_alpha = wts / (1.0f + wts);
     /* Butterworth sections: the pole pairs' quality factors, 1 / (2 cos)
      * of their angles: order 2 one pair at 45 deg, order 4 at 22.5 and
      * 67.5 deg. */
-    const float x = PI_F * cfg->lowpass_hz * cfg->ts_s;
-    const float k = sin_poly(x) / cos_poly(x);
-    if (cfg->lowpass_order == 2u) {
-        butter_section(&c->butter[0], k, 0.70710678f);
-    } else {
-        butter_section(&c->butter[0], k, 0.54119610f);
-        butter_section(&c->butter[1], k, 1.30656296f);
+    for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) { /* pass-through unless set below */
+        hd_ctrl_biquad_t *b = &c->butter[i];
+        b->b0 = 1.0f, b->b1 = b->b2 = b->a1 = b->a2 = 0.0f;
+    }
+    if (cfg->lowpass_order != 1u) {
+        const float x = PI_F * cfg->lowpass_hz * cfg->ts_s;
+        const float k = sin_poly(x) / cos_poly(x);
+        if (cfg->lowpass_order == 2u) {
+            butter_section(&c->butter[0], k, 0.70710678f);
+        } else {
+            butter_section(&c->butter[0], k, 0.54119610f);
+            butter_section(&c->butter[1], k, 1.30656296f);
+        }
     }
     c->notch_r = 1.0f - PI_F * cfg->notch_width_hz * cfg->ts_s;
     hd_ctrl_reset(c);
-    return HD_CTRL_OK;
 }
 
 bool hd_ctrl_setpoint_valid(const hd_ctrl_setpoint_t *sp)
@@ -229,11 +256,16 @@ static float notches(hd_ctrl_t *c, float raw, float v, bool prime)
     return x;
 }
 
-/* The notches and the low-pass run every tick the raw torque is usable, so
- * switching to them starts from a settled state. */
+/* The notches and the low-pass run every tick the raw torque is usable
+ * while the feedback uses them (the feedback source changes only with a new
+ * configuration, which restarts them: hd_ctrl_init). */
 static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
 {
-    if (!in->torque_valid || !finite_f(in->torque_raw_nm) || !finite_f(in->velocity_rad_s)) {
+    const hd_ctrl_config_t *k = &c->cfg;
+    const bool used = k->feedback == HD_CTRL_FB_LOWPASS ||
+                      (k->feedback == HD_CTRL_FB_RAW && k->notch_mask != 0u);
+    if (!used || !in->torque_valid || !finite_f(in->torque_raw_nm) ||
+        !finite_f(in->velocity_rad_s)) {
         return;
     }
     const bool prime = !c->lowpass_primed;
@@ -284,18 +316,18 @@ static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb
     return in->torque_valid && finite_f(*fb);
 }
 
-/* The mode that can run safely with these inputs. */
+/* The mode that can run safely with these inputs; *fb the feedback torque
+ * when the mode runs the torque loop. */
 static hd_ctrl_mode_t pick_mode(const hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp,
-                                const hd_ctrl_input_t *in, uint8_t *limits)
+                                const hd_ctrl_input_t *in, uint8_t *limits, float *fb)
 {
     if (sp->mode == HD_CTRL_STOP) {
         return HD_CTRL_STOP;
     }
     hd_ctrl_mode_t m = hd_ctrl_setpoint_valid(sp) ? sp->mode : HD_CTRL_DAMP;
-    float fb;
     if (!finite_f(in->velocity_rad_s) || !finite_f(in->angle_rad)) {
         m = HD_CTRL_STOP;
-    } else if (uses_torque_loop(m) && !feedback_nm(c, in, &fb)) {
+    } else if (uses_torque_loop(m) && !feedback_nm(c, in, fb)) {
         m = HD_CTRL_DAMP;
     }
     if (m != sp->mode) {
@@ -354,12 +386,17 @@ static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
 {
     const hd_ctrl_config_t *k = &c->cfg;
     const float e = tau_ref - fb;
-    const float u = k->torque_ff * tau_ref + k->torque_kp * e + c->integral_nm +
-                    friction_feedforward(k, v);
+    /* the feedback's rate, on the measurement only (a setpoint step kicks nothing) */
+    const float rate = c->fb_primed ? (fb - c->fb_prev_nm) / k->ts_s : 0.0f;
+    c->fb_prev_nm = fb;
+    c->fb_primed = true;
+    const float u = k->torque_ff * tau_ref + k->torque_kp * e + c->integral_nm -
+                    k->torque_kd_s * rate + friction_feedforward(k, v);
     const float u_max = k->current_limit_a * k->kt_nm_per_a * k->gear_ratio;
     const bool wind_up = (u >= u_max && e > 0.0f) || (u <= -u_max && e < 0.0f);
     if (!wind_up) {
-        c->integral_nm = clampf(c->integral_nm + k->torque_ki_per_s * k->ts_s * e, -u_max, u_max);
+        const float i_max = k->integral_limit_nm < u_max ? k->integral_limit_nm : u_max;
+        c->integral_nm = clampf(c->integral_nm + k->torque_ki_per_s * k->ts_s * e, -i_max, i_max);
     }
     return u;
 }
@@ -367,6 +404,7 @@ static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
 static void stop(hd_ctrl_t *c, hd_ctrl_output_t *out)
 {
     c->integral_nm = 0.0f;
+    c->fb_primed = false;
     out->enable = false;
     out->current_a = 0.0f;
     out->motor_torque_nm = 0.0f;
@@ -381,13 +419,21 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
     if (out == NULL) {
         return;
     }
-    *out = (hd_ctrl_output_t){0};
+    /* field by field: a compound literal is a memset call on the M4F */
+    out->enable = false;
+    out->current_a = 0.0f;
+    out->motor_torque_nm = 0.0f;
+    out->torque_ref_nm = 0.0f;
+    out->torque_fb_nm = 0.0f;
+    out->limits = 0u;
+    out->mode = HD_CTRL_STOP;
     if (c == NULL || sp == NULL || in == NULL) {
         out->mode = HD_CTRL_STOP;
         return;
     }
     lowpass_update(c, in);
-    const hd_ctrl_mode_t m = pick_mode(c, sp, in, &out->limits);
+    float fb = 0.0f;
+    const hd_ctrl_mode_t m = pick_mode(c, sp, in, &out->limits, &fb);
     if (m == HD_CTRL_STOP) {
         stop(c, out);
         return;
@@ -397,10 +443,11 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
     float u;
     if (!uses_torque_loop(m) || k->feedback == HD_CTRL_FB_NONE) {
         c->integral_nm = 0.0f;
+        c->fb_primed = false;
         u = m == HD_CTRL_DAMP ? tau_ref : tau_ref + friction_feedforward(k, in->velocity_rad_s);
     } else {
-        (void)feedback_nm(c, in, &out->torque_fb_nm);
-        u = torque_loop(c, tau_ref, out->torque_fb_nm, in->velocity_rad_s);
+        out->torque_fb_nm = fb; /* pick_mode's: the mode runs the loop, so it was read */
+        u = torque_loop(c, tau_ref, fb, in->velocity_rad_s);
     }
     float i = u / (k->gear_ratio * k->kt_nm_per_a);
     if (!finite_f(i)) {

@@ -16,14 +16,22 @@
  *   ZERO_TORQUE  tau_ref = 0: the loop cancels what the drive train resists.
  * TORQUE, IMPEDANCE and ZERO_TORQUE track tau_ref with the torque loop:
  *   e     = tau_ref - tau_fb
- *   u     = ff tau_ref + kp_t e + I + friction_nm sat(v / v_eps)   (joint N m)
+ *   u     = ff tau_ref + kp_t e + I - kd_t d(tau_fb)/dt + friction_nm sat(v / v_eps)
+ *                         (joint N m; the rate is the backward difference of the
+ *                         feedback over one tick: it damps the flexspline's mode)
  *   I    += ki_t ts e     only while u is not saturated in e's direction
- *                         (conditional integration: the anti-windup)
+ *                         (conditional integration: the anti-windup), and
+ *                         |I| <= integral_limit_nm: the integral is there for
+ *                         the drive train's friction; unbounded it also winds
+ *                         up on the torque that accelerates a free output before
+ *                         an impact and on the feedback's drift while a stiff
+ *                         contact holds the motor still: a limit cycle at a wall
+ *                         (docs/results/control.md, "Contact")
  *   i_q   = u / (N kt)
  * A PI on the torque error with the setpoint fed forward: the structure of
  * the torque controllers of Taghirad & Belanger's refs [5], [10] and the
- * torque loop of Albu-Schaeffer, Ott et al. (2007) without its motor-inertia
- * scaling (a later step; docs/control.md).
+ * torque loop of Albu-Schaeffer, Ott et al. (2007), whose rate term on the
+ * torque kd_t is here too, without its motor-inertia scaling (docs/results/control.md).
  * Feedback source (tau_fb): the filtered torque, the raw gauge torque, a
  * low-pass of the raw torque (corner lowpass_hz; lowpass_order 1: first
  * order, backward Euler; 2 or 4: Butterworth, bilinear with the corner
@@ -35,8 +43,7 @@
  * -3 dB width notch_width_hz, unity gain at DC.  A notch whose frequency is
  * below notch_width_hz or above 0.45 / ts passes the torque unchanged (a
  * notch at DC would remove the torque itself; above, it would alias).
- * Benchmarks compare these feedbacks (docs/control.md); the firmware's
- * parameter table does not expose lowpass_order and the notches yet.
+ * Benchmarks compare these feedbacks (docs/results/control.md).
  *
  * Limits, applied last so no path exceeds them whatever the input:
  *   tau_ref within +-torque_limit_nm;
@@ -100,6 +107,7 @@ typedef enum {
 #define HD_CTRL_KD_MAX_NM_S_RAD 50.0f
 #define HD_CTRL_TORQUE_GAIN_MAX 50.0f
 #define HD_CTRL_KI_MAX_PER_S 5000.0f
+#define HD_CTRL_TORQUE_KD_MAX_S 0.1f
 
 typedef struct {
     float ts_s;                    /* tick period */
@@ -110,6 +118,9 @@ typedef struct {
     float torque_kp;               /* kp_t: joint N m of u per N m of error */
     float torque_ki_per_s;         /* ki_t */
     float torque_ff;               /* ff: share of tau_ref fed forward, 0..1 */
+    float torque_kd_s;             /* kd_t: joint N m of u per N m/s of the feedback's rate */
+    float integral_limit_nm;       /* |I| at most this (joint N m; also at most the
+                                      current limit's torque) */
     float lowpass_hz;              /* HD_CTRL_FB_LOWPASS corner */
     uint8_t lowpass_order;         /* 1, 2 or 4 (2, 4: Butterworth) */
     uint8_t notch_mask;            /* bit k-1: a notch at motor order k on the raw torque */
@@ -166,12 +177,14 @@ typedef struct {
     hd_ctrl_biquad_t notch[HD_CTRL_NOTCH_MAX];
     float notch_r;            /* pole radius: 1 - pi width ts */
     float integral_nm;        /* I */
+    float fb_prev_nm;         /* the feedback of the loop's last tick (kd_t) */
+    bool fb_primed;           /* fb_prev_nm is from the previous tick */
     float lowpass_nm;         /* the low-pass state */
     bool lowpass_primed;
     float raw_notched_nm;     /* the raw torque after the notches, this tick */
 } hd_ctrl_t;
 
-/* Defaults of a 40 N m class joint (docs/control.md). */
+/* Defaults of a 40 N m class joint (docs/results/control.md). */
 void hd_ctrl_config_default(hd_ctrl_config_t *cfg);
 
 /* HD_CTRL_OK or HD_CTRL_ERR_CONFIG (every value finite, in range). */
@@ -179,6 +192,11 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg);
 
 /* Checks cfg, then starts with a cleared loop.  On error *c is unchanged. */
 int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
+
+/* hd_ctrl_init without the check, for a cfg that has passed
+ * hd_ctrl_config_check (the firmware checks its settings once, when it
+ * builds them; its tick restarts the loop on new settings). */
+void hd_ctrl_init_prechecked(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
 
 /* Clears the loop's state (integral, low-pass). */
 void hd_ctrl_reset(hd_ctrl_t *c);

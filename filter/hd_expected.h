@@ -9,7 +9,7 @@
  * coefficients default to zero (T_exp = T_ff).  The filter needs only a rough
  * T_exp: what it misses enters R (or the offset state), not the ripple.
  *
- * Motor current (optional second source of slow torque, docs/slow-torque.md):
+ * Motor current (optional second source of slow torque, docs/design/slow-torque.md):
  *
  *   T_cur = k_i i - J_r acc_out - b_r vel_out - Fc_r vel_out / (|vel_out| + v_eps)
  *

@@ -1,4 +1,4 @@
-/* hd_kf: see hd_kf.h for the contracts, docs/filter.md for the design. */
+/* hd_kf: see hd_kf.h for the contracts, docs/design/filter.md for the design. */
 #include "hd_kf.h"
 
 #include <math.h> /* sqrtf (VSQRT on Cortex-M4F): clamp and read-out; atan2f: read-out only */
@@ -8,7 +8,7 @@
 #include "hd_trig.h"
 
 #define DEFAULT_R_NM2 1.0f
-#define DEFAULT_P0_NM2 0.3f /* an amplitude prior (docs/filter.md, "Priors") */
+#define DEFAULT_P0_NM2 0.3f /* an amplitude prior (docs/design/filter.md, "Priors") */
 #define DEFAULT_P_MAX_NM2 1.0e6f
 #define DEFAULT_NYQUIST_FRACTION 0.9f
 #define DEFAULT_OFFSET_Q_NM2 1.0e-6f
@@ -410,7 +410,7 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
 /* A disabled block keeps its slot with x = 0 and zero rows and columns of
  * P; the step gives it a zero row entry, no process noise and gain 1, so
  * g = P C' is exactly 0 on its states and nothing in the step changes them
- * or uses them (docs/filter.md, "Run-time block toggles"). */
+ * or uses them (docs/design/filter.md, "Run-time block toggles"). */
 hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
 {
     if (kf == NULL) {

@@ -2,7 +2,7 @@
  * hd_kf: the ripple-cancelling Kalman filter of Taghirad, Helmy & Belanger
  * (1997), equations 5-10, as a float32, allocation-free library.  This
  * header holds the contracts; why each rule exists, with the measurements
- * behind it, is in docs/filter.md.
+ * behind it, is in docs/design/filter.md.
  *
  * Model.  The torque ripple y = T_meas - T_exp is the sum of the first
  * states of a bank of 2-state oscillators, plus, if enabled, one
@@ -34,7 +34,7 @@
  * the estimate of sample k-1 turned by sample k's own increments, a
  * prediction that never uses y_k.
  *
- * Per-block rules (docs/filter.md explains each):
+ * Per-block rules (docs/design/filter.md explains each):
  *   - measurement row: c = 1 + ripple_load_coeff_per_nm |T_ref| for
  *     motor-locked blocks (1 when the coefficient is 0), 1 for output-locked
  *     and fixed blocks, 0 for a frozen block; the offset's entry is 1.
@@ -134,7 +134,7 @@ extern "C" {
 #define HD_KF_MAX_ABS_Y_NM 1.0e6f
 
 /* Largest accepted p0 / r (and output_p0 / r): float32 keeps ~7 digits of
- * the first update's p0 - (p0 - r) (docs/filter.md, "Priors"). */
+ * the first update's p0 - (p0 - r) (docs/design/filter.md, "Priors"). */
 #define HD_KF_MAX_P0_OVER_R 1.0e4f
 
 /* Largest accepted ripple_load_coeff_per_nm [1/Nm] (c^2 P must not
@@ -269,7 +269,7 @@ typedef struct {
  * x and p hold each block's state and covariance in the block's co-rotating
  * frame: the model's x_s = R(phi_s) x[2s..2s+1], phi_s the block's
  * accumulated phase (phasor_cos/sin[slot.frame]), so a step turns no state
- * and no covariance, only the frames (docs/filter.md, "Co-rotating
+ * and no covariance, only the frames (docs/design/filter.md, "Co-rotating
  * frames").  hd_kf_state and hd_kf_cov return the model's coordinates in the
  * active ordering (enabled blocks, offset last). */
 typedef struct {
@@ -332,7 +332,7 @@ void hd_kf_config_default(hd_kf_config_t *cfg, float ts_s);
  * order 1 when with_misalignment (the sixth-order model of section V). */
 void hd_kf_config_paper(hd_kf_config_t *cfg, float ts_s, bool with_misalignment);
 
-/* The project's recommended tuning (docs/filter.md, "Recommended tuning"):
+/* The project's recommended tuning (docs/design/filter.md, "Recommended tuning"):
  * motor orders 2 and 4 and output order 1, plus the offset (real torque);
  *   R = noise_nm^2;
  *   q (each oscillator state) = R (ts / ripple_settle_s)^2;

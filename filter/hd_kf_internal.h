@@ -11,7 +11,7 @@
 #include "hd_float.h"
 
 /* Integral orders up to this take powers of the lock's phasor (doubling
- * depth <= 3: angle within 2e-7 rad, docs/filter.md). */
+ * depth <= 3: angle within 2e-7 rad, docs/design/filter.md). */
 #define MAX_POWER_ORDER ((unsigned)HD_KF_MAX_POWER)
 /* Phasor table: motor powers at [1, 8], output powers at [10, 17], then one
  * per configured block that turns its own frame. */
@@ -19,7 +19,7 @@
 #define OWN_PHASORS (2u * POWER_TABLE_OUTPUT)
 
 /* The step's kernels are written once with loops over the blocks and
- * instantiated per layout size, where every loop unrolls (docs/filter.md,
+ * instantiated per layout size, where every loop unrolls (docs/design/filter.md,
  * "Instances per layout size"). */
 #define KF_INLINE static inline __attribute__((always_inline))
 #define KF_UNROLL _Pragma("GCC unroll 8")

@@ -1,4 +1,4 @@
-/* hd_kf_step: the filter's step (hd_kf.h; docs/filter.md, "The step"). */
+/* hd_kf_step: the filter's step (hd_kf.h; docs/design/filter.md, "The step"). */
 #include <math.h> /* fabsf */
 #include <stddef.h>
 
@@ -347,7 +347,7 @@ KF_INLINE void advance_output_frame(hd_kf_t *kf, float d)
  * Integral orders take powers of the motor and output phasors; the others
  * turn their own.  The motor phasor turns by one sin/cos of the increment:
  * its rounding drifts the phase by ~2e-9 rad per step at constant speed
- * (docs/filter.md), which motor-locked blocks, learning all the time, take
+ * (docs/design/filter.md), which motor-locked blocks, learning all the time, take
  * up.  The output phasor comes from the exactly accumulated output phase:
  * an output-locked block that does not learn (output_learn_scale 0) keeps
  * its profile against the absolute angle for as long as the filter runs. */

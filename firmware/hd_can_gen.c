@@ -93,7 +93,6 @@ uint32_t hd_can_unpack_setpoint(const uint8_t data[HD_CAN_DLC], hd_can_setpoint_
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->mode = (uint8_t)((uint32_t)(w >> 0) & 0xFFu);
     v->seq = (uint8_t)((uint32_t)(w >> 8) & 0xFFu);
     { const int32_t r = sext((uint32_t)(w >> 16) & 0xFFFFu, 16);
@@ -135,7 +134,6 @@ uint32_t hd_can_unpack_feedforward(const uint8_t data[HD_CAN_DLC], hd_can_feedfo
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->torque_nm = bits_f32((uint32_t)(w >> 0) & 0xFFFFFFFFu);
     na |= isfinite(v->torque_nm) ? 0u : (1u << 0);
     v->seq = (uint8_t)((uint32_t)(w >> 32) & 0xFFu);
@@ -171,7 +169,6 @@ uint32_t hd_can_unpack_telem_a(const uint8_t data[HD_CAN_DLC], hd_can_telem_a_t 
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     { const int32_t r = sext((uint32_t)(w >> 0) & 0xFFFFu, 16);
       v->torque_filtered_nm = (float)r * HD_CAN_TELEM_A_TORQUE_FILTERED_NM_LSB;
       na |= (r == -32768) ? (1u << 0) : 0u; }
@@ -214,7 +211,6 @@ uint32_t hd_can_unpack_telem_b(const uint8_t data[HD_CAN_DLC], hd_can_telem_b_t 
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     { const int32_t r = sext((uint32_t)(w >> 0) & 0xFFFFFFu, 24);
       v->motor_velocity_rad_s = (float)r * HD_CAN_TELEM_B_MOTOR_VELOCITY_RAD_S_LSB;
       na |= (r == -8388608) ? (1u << 0) : 0u; }
@@ -253,7 +249,6 @@ uint32_t hd_can_unpack_telem_c(const uint8_t data[HD_CAN_DLC], hd_can_telem_c_t 
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->motor_counts = (uint32_t)((uint32_t)(w >> 0) & 0xFFFFFFFFu);
     v->output_counts = (uint32_t)((uint32_t)(w >> 32) & 0x7FFFFFu);
     v->has_output = (((uint32_t)(w >> 55) & 0x1u) != 0u);
@@ -288,7 +283,6 @@ uint32_t hd_can_unpack_gains(const uint8_t data[HD_CAN_DLC], hd_can_gains_t *v)
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->kp_nm_rad = bits_f32((uint32_t)(w >> 0) & 0xFFFFFFFFu);
     na |= isfinite(v->kp_nm_rad) ? 0u : (1u << 0);
     v->kd_nm_s_rad = bits_f32((uint32_t)(w >> 32) & 0xFFFFFFFFu);
@@ -328,7 +322,6 @@ uint32_t hd_can_unpack_ctrl_state(const uint8_t data[HD_CAN_DLC], hd_can_ctrl_st
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->mode_asked = (uint8_t)((uint32_t)(w >> 0) & 0xFu);
     v->mode_run = (uint8_t)((uint32_t)(w >> 4) & 0xFu);
     v->limits = (uint8_t)((uint32_t)(w >> 8) & 0xFFu);
@@ -559,7 +552,6 @@ uint32_t hd_can_unpack_heartbeat(const uint8_t data[HD_CAN_DLC], hd_can_heartbea
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->state = (uint8_t)((uint32_t)(w >> 0) & 0xFFu);
     v->faults = (uint32_t)((uint32_t)(w >> 8) & 0xFFFFFFu);
     v->deadline_misses = (uint16_t)((uint32_t)(w >> 32) & 0xFFFFu);
@@ -600,7 +592,6 @@ uint32_t hd_can_unpack_boot(const uint8_t data[HD_CAN_DLC], hd_can_boot_t *v)
 {
     const uint64_t w = load_word(data);
     uint32_t na = 0u;
-    memset(v, 0, sizeof *v);
     v->reset_cause = (uint8_t)((uint32_t)(w >> 0) & 0xFFu);
     v->fault_valid = (((uint32_t)(w >> 8) & 0x1u) != 0u);
     v->config_from_record = (((uint32_t)(w >> 9) & 0x1u) != 0u);

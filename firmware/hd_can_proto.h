@@ -4,7 +4,7 @@
  * Classic CAN, 29-bit identifiers, every frame 8 bytes, little-endian:
  *   identifier = HD_CAN_ID_PREFIX | frame type << 8 | node_id (1..127).
  * 29-bit identifiers keep the protocol out of CANopen's 11-bit predefined
- * connection set (docs/protocol.md, "Sharing a bus").  Frame types, their
+ * connection set (docs/reference/protocol.md, "Sharing a bus").  Frame types, their
  * signals, opcodes with their arguments and replies, results, fault bits and
  * states are the rows of hd_protocol.def; the structs and pack / unpack code
  * are generated from them (hd_can_gen.h), and so is firmware/hdjoint.dbc.

@@ -1,4 +1,4 @@
-/* hd_config_text: see hd_config_text.h and docs/firmware.md. */
+/* hd_config_text: see hd_config_text.h and docs/design/firmware.md. */
 #include "hd_config_text.h"
 
 #include <math.h> /* isfinite (builtin) */

@@ -1,5 +1,5 @@
 /*
- * hd_config_text: the firmware configuration text file (docs/firmware.md).
+ * hd_config_text: the firmware configuration text file (docs/design/firmware.md).
  *
  *   # comment
  *   gear_ratio = 100

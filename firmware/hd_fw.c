@@ -21,26 +21,14 @@ void hd_fw_derive(hd_fw_settings_t *s)
     float output_counts = motor_counts / c->gear_ratio * (float)c->output_cpr / (float)c->motor_cpr;
     s->max_motor_delta_counts = motor_counts > 1.0e9f ? 1000000000 : (int32_t)motor_counts + 2;
     s->max_output_delta_counts = output_counts > 1.0e9f ? 1000000000 : (int32_t)output_counts + 2;
-    /* y += alpha (i - y): alpha = w / (1 + w), w = 2 pi f ts (backward Euler) */
-    const float w = HD_TWO_PI_F * c->current_filter_hz * HD_FW_TS_S;
-    s->current_alpha = (c->current_filter_hz > 0.0f) ? w / (1.0f + w) : 1.0f;
-    s->current_lag_ticks = 2.0f * (1.0f - s->current_alpha) / s->current_alpha;
+    hd_slow_current_config(&s->current, &c->current, c->current_filter_hz, c->gear_ratio,
+                           HD_FW_TS_S);
     s->telem_divider = (c->telemetry_rate_hz == 0u)
                            ? 0u
                            : (HD_FW_TICK_HZ + c->telemetry_rate_hz / 2u) / c->telemetry_rate_hz;
 }
 
 /* ------------------------------------------------------------------ queues */
-
-bool hd_fw_queue_full(const hd_fw_queue_t *q)
-{
-    return q->head - q->tail >= HD_FW_QUEUE_LEN;
-}
-
-bool hd_fw_queue_empty(const hd_fw_queue_t *q)
-{
-    return q->head == q->tail;
-}
 
 bool hd_fw_queue_push(hd_fw_queue_t *q, const hal_can_frame_t *f)
 {
@@ -139,8 +127,9 @@ int hd_fw_init(hd_fw_t *fw, const hal_t *hal, const hd_fw_config_t *defaults)
     fw->tick.state = HD_STATE_INIT;
     /* The stored profile (if any) is taken by the first tick, at the
      * absolute angle of its sample. */
-    fw->tick.import_pending = fw->bg.profile.line_count > 0u;
+    fw->filter.import_pending = fw->bg.profile.line_count > 0u;
     hd_fw_set_rx_filter(fw, c->node_id);
+    hd_fw_control_boot(fw);
     return HD_FW_OK;
 }
 

@@ -1,9 +1,11 @@
 /*
  * hd_fw: the joint firmware core, in two contexts.
  *
- *   hd_fw_isr         the 1 kHz tick (hd_fw_tick.c):
- *                       deadline -> requests -> receive -> sense -> pipeline
- *                       -> control -> faults -> publish
+ *   hd_fw_isr         the 1 kHz tick (hd_fw_tick.c), a list of stage calls
+ *                     (hd_fw_stages.h): deadline -> requests -> receive ->
+ *                     gauge -> encoders -> current -> feed-forward ->
+ *                     filter (expected torque inside) -> control -> faults
+ *                     -> telemetry
  *                     Bounded time: it never parses a command, builds a
  *                     model or touches NVM.  It takes the frames the HAL
  *                     received (feed-forward applied at once, commands queued
@@ -17,7 +19,7 @@
  *
  * The two talk through single-producer single-consumer queues and one
  * request mailbox (hd_fw_request_t); every shared field has exactly one
- * writer (docs/firmware.md, "Two contexts").  On the host both are called
+ * writer (docs/design/firmware.md, "Two contexts").  On the host both are called
  * from one thread, tick then background.
  *
  * All state lives in hd_fw_t, which the caller allocates (statically on the
@@ -34,6 +36,7 @@
 #include "hd_ctrl.h"
 #include "hd_can_proto.h"
 #include "hd_fw_config.h"
+#include "hd_fw_stages.h"
 #include "hd_params.h"
 #include "hd_pipeline.h"
 #include "hd_record_store.h"
@@ -52,7 +55,6 @@ extern "C" {
 #define HD_FW_ACKS_PER_TICK 1u    /* ACKs the tick sends, at most */
 #define HD_FW_CMDS_PER_CALL 2u    /* commands one background call handles, at most */
 #define HD_FW_HEARTBEAT_TICKS 1000u
-#define HD_FW_TARE_TICKS 64u      /* tare averages the last this many valid samples */
 
 /* Per-fault and per-event counters.  Each field has one writer: the tick,
  * except commands, command_errors (background). */
@@ -74,7 +76,9 @@ typedef struct {
     uint32_t correction_limited;       /* ticks with the correction at correction_max_nm */
 } hd_fw_counters_t;
 
-/* What the last tick produced (for the host runner and tests). */
+/* What the last tick produced (for the host runner and tests).  The tick
+ * fills it in place (fw->last): read it between ticks, not during one.
+ * Nothing clears it first: each field's stage writes it on every tick. */
 typedef struct {
     uint64_t t_us;                 /* clock at the start of the tick (0 without a clock) */
     int32_t bridge_counts;
@@ -86,7 +90,7 @@ typedef struct {
     float torque_expected_var_nm2; /* the variance of T_exp's error the filter was given */
     float feedforward_nm;          /* feed-forward in T_exp this tick (after the stale fallback) */
     float motor_current_a;         /* NaN without a current channel */
-    float motor_velocity_rad_s;
+    float motor_velocity_rad_s;    /* the motor increment over the tick (the current term uses it / N) */
     float d_motor_angle_rad;       /* increment used (after glitch rejection) */
     float d_output_angle_rad;
     uint32_t motor_counts;         /* as read (TELEM_C) */
@@ -106,8 +110,7 @@ typedef struct {
     int32_t max_motor_delta_counts;
     int32_t max_output_delta_counts;
     uint32_t telem_divider;         /* ticks per telemetry frame, 0 = off */
-    float current_alpha;            /* motor-current low-pass gain per tick (1 = none) */
-    float current_lag_ticks;        /* the two stages' lag behind a ramp: 2 (1 - alpha) / alpha */
+    hd_slow_current_config_t current; /* the current term (cfg.current, current_filter_hz) */
     uint32_t record_faults;         /* sticky HD_FAULT_CALIB_* / CONFIG_DEFAULTS */
     uint8_t calib_status;           /* hd_record_status_t */
     uint8_t config_status;
@@ -135,7 +138,7 @@ typedef struct {
 #define HD_FW_REQ_KF_RESET 0x04u /* reset the live filter */
 #define HD_FW_REQ_BLOCK    0x08u /* enable/disable one block of the live filter */
 #define HD_FW_REQ_PROFILE  0x10u /* the live filter takes hd_fw_bg_state_t.profile */
-#define HD_FW_REQ_SNAPSHOT 0x20u /* export the live filter into hd_fw_tick_state_t.snapshot */
+#define HD_FW_REQ_SNAPSHOT 0x20u /* export the live filter into hd_fw_filter_t.snapshot */
 
 /* The background fills it and sets pending; the tick applies it at the
  * start of the next tick and clears pending. */
@@ -146,59 +149,15 @@ typedef struct {
     uint8_t enable;
 } hd_fw_request_t;
 
-/* State only the tick writes. */
+/* The tick's own state (the stages' are in hd_fw_stages.h): only the tick
+ * writes it. */
 typedef struct {
-    bool have_prev;
-    bool output_present;            /* the last good read had an output encoder */
-    uint32_t prev_motor_counts;
-    uint32_t prev_output_counts;
-    int32_t last_good_motor_delta;
-    int32_t last_good_output_delta;
-    float tare_v[HD_FW_TARE_TICKS]; /* the last valid bridge voltages */
-    volatile uint32_t tare_n;
-    uint32_t tare_next;
     bool have_prev_time;
     uint64_t prev_t_us;
-    uint32_t telem_countdown;
-    uint8_t telem_seq;
-    uint32_t telem_pairs;           /* for TELEM_C's every-Nth */
-    uint32_t telem_faults;          /* faults since the last telemetry frame */
-    uint8_t telem_kf_status;
-    uint32_t hb_faults;             /* faults since the last heartbeat */
-    uint32_t hb_countdown;
     uint32_t pending_faults;        /* raised between samples (transmit drops) */
     uint32_t command_errors_seen;   /* CMD_ERROR raised when the background's count moves */
-    bool boot_sent;
     volatile uint8_t state;         /* hd_fw_state_t */
     volatile bool ended;            /* the sensors reported HAL_ERR_END */
-    /* feed-forward (docs/slow-torque.md) */
-    bool ff_have;                   /* a frame was accepted since boot */
-    uint8_t ff_seq;                 /* of the last accepted frame */
-    float ff_nm;                    /* its value */
-    uint32_t ff_age_ticks;          /* ticks since it arrived (saturating) */
-    uint32_t ff_stale_ticks;        /* ticks stale (saturating) */
-    /* motor current */
-    float current_a;                /* last good reading */
-    /* the current term's inputs, low-passed alike (two first-order stages
-     * at current_filter_hz): current, output velocity from the motor
-     * increments, its derivative */
-    float cur_i1, cur_i2;
-    float cur_w1, cur_w2;
-    float cur_torque_nm;            /* the term at the last tick (its change: the lag's size) */
-    bool cur_primed;
-    /* absolute angles: first good count modulo cpr plus every increment
-     * given to the filter, so they follow the filter's own phase */
-    bool pos_valid;
-    bool output_pos_valid;          /* an output encoder gave the output angle */
-    uint32_t pos_motor_cpr;         /* the cprs the positions are counted in */
-    uint32_t pos_output_cpr;
-    uint32_t motor_pos;             /* [0, motor cpr) */
-    uint32_t output_pos;            /* [0, output cpr) */
-    /* profiles */
-    bool import_pending;            /* take bg.profile before this tick's step */
-    bool snapshot_pending;          /* export after this tick's step */
-    hd_kf_profile_t snapshot;       /* PROFILE_SAVE: the filter at a tick boundary */
-    volatile uint32_t snapshot_seq; /* incremented when snapshot is written */
 } hd_fw_tick_state_t;
 
 /* The control stage's state (hd_fw_control.c): only the tick writes it. */
@@ -219,12 +178,14 @@ typedef struct {
     uint32_t bus_off_hold_ticks;    /* DAMP for this many more ticks (the last bus-off) */
     float angle_rad;                /* output angle since boot (compensated sum) */
     float angle_comp_rad;
+    float angle_fine_rad;           /* where in the output encoder's count: 0..one count */
     /* a refused SETPOINT / GAINS frame's ACK, sent by publish */
     bool refuse_pending;
     uint8_t refuse_node;
     uint8_t refuse_token;
     uint8_t refuse_aux;
     uint8_t refuse_result;
+    hd_ctrl_input_t in;             /* the last step's inputs */
     hd_ctrl_output_t out;           /* the last step's */
 } hd_fw_ctrl_state_t;
 
@@ -263,8 +224,15 @@ typedef struct {
     hd_fw_request_t request;
     hd_fw_queue_t cmd_queue;        /* tick -> background */
     hd_fw_queue_t ack_queue;        /* background -> tick */
+    /* the tick's stages (hd_fw_stages.h), in the order it runs them */
     hd_fw_tick_state_t tick;
+    hd_fw_gauge_t gauge;
+    hd_fw_encoder_t encoder;
+    hd_fw_current_t current;
+    hd_fw_ff_t ff;
+    hd_fw_filter_t filter;
     hd_fw_ctrl_state_t control;     /* written by the tick only */
+    hd_fw_telem_t telem;
     hd_fw_bg_state_t bg;
     hd_fw_sample_t last;
     hd_fw_counters_t counters;

@@ -193,7 +193,7 @@ static void blocks_clear(hd_fw_t *fw, reply_t *r)
 
 static void tare(hd_fw_t *fw, reply_t *r)
 {
-    const hd_fw_tick_state_t *k = &fw->tick;
+    const hd_fw_gauge_t *k = &fw->gauge;
     uint32_t n = k->tare_n;
     if (n == 0u) {
         r->result = HD_CAN_RES_NO_DATA;
@@ -393,7 +393,7 @@ static void profile_save(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, rep
     fw->bg.save_pending = true;
     fw->bg.save_cmd = *cmd;
     fw->bg.save_node = node;
-    fw->bg.save_snapshot_seq = fw->tick.snapshot_seq;
+    fw->bg.save_snapshot_seq = fw->filter.snapshot_seq;
     post(fw, HD_FW_REQ_SNAPSHOT, 0u, 0u);
     r->deferred = true;
 }
@@ -430,7 +430,7 @@ static void profile_clear(hd_fw_t *fw, reply_t *r)
 static void profile_job(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
 {
     if (cmd->opcode != HD_CMD_PROFILE_PUT &&
-        (fw->tick.import_pending || fw->tick.snapshot_pending)) {
+        (fw->filter.import_pending || fw->filter.snapshot_pending)) {
         r->result = HD_CAN_RES_BUSY; /* the tick still reads bg.profile (no encoder yet) */
         return;
     }
@@ -447,12 +447,12 @@ static void profile_job(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, repl
 static bool finish_profile_save(hd_fw_t *fw)
 {
     hd_fw_bg_state_t *b = &fw->bg;
-    if (!b->save_pending || fw->request.pending || fw->tick.snapshot_seq == b->save_snapshot_seq ||
+    if (!b->save_pending || fw->request.pending || fw->filter.snapshot_seq == b->save_snapshot_seq ||
         hd_fw_queue_full(&fw->ack_queue)) {
         return false;
     }
     b->save_pending = false;
-    const hd_kf_profile_t snap = fw->tick.snapshot; /* the tick writes it only on request */
+    const hd_kf_profile_t snap = fw->filter.snapshot; /* the tick writes it only on request */
     reply_t r = {HD_CAN_RES_OK, 0u, (float)snap.line_count, 0u, false};
     if (snap.line_count == 0u) {
         r.result = HD_CAN_RES_NO_DATA; /* no profile-able block, or no absolute angle */

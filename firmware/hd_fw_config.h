@@ -60,7 +60,7 @@ typedef struct {
 } hd_fw_config_t;
 
 /* learning_mode: how fast output-locked (geometric) blocks learn
- * (docs/slow-torque.md, "Learning schedule"). */
+ * (docs/design/slow-torque.md, "Learning schedule"). */
 #define HD_FW_LEARN_ADAPTIVE 0u      /* every block at its full rate (before issue 12) */
 #define HD_FW_LEARN_OPERATING 1u     /* output-locked at operating_output_learn_scale */
 #define HD_FW_LEARN_COMMISSIONING 2u /* no or a known load: output-locked at full rate,

@@ -4,7 +4,7 @@
  *   never reaches the law) -> safe mode (watchdog, fault reactions) -> the
  *   law (control/hd_ctrl: modes, torque loop, limits applied last) -> drive.
  *
- * Fault reactions (docs/firmware.md, "Control"):
+ * Fault reactions (docs/design/firmware.md, "Control"):
  *   no new setpoint for ctrl_watchdog_ms      DAMP, then STOP after ctrl_damp_ms
  *   motor encoder lost (ENC_FAULT)            STOP, latched until a STOP setpoint
  *   drive fault or a failed drive call        STOP, latched until a STOP setpoint
@@ -25,12 +25,6 @@
 
 #define SENSOR_FAULTS \
     (HD_FAULT_ADC_ERROR | HD_FAULT_ADC_SATURATED | HD_FAULT_OPEN_BRIDGE | HD_FAULT_TORQUE_RANGE)
-
-bool hd_fw_has_drive(const hd_fw_t *fw)
-{
-    const hal_actuator_t *a = &fw->hal->actuator;
-    return a->enable != NULL && a->command_current != NULL;
-}
 
 /* ------------------------------------------------------------- receive */
 
@@ -93,7 +87,8 @@ void hd_fw_take_control_frame(hd_fw_t *fw, const hal_can_frame_t *f, uint8_t typ
         return;
     }
     hd_fw_ctrl_state_t *c = &fw->control;
-    hd_can_setpoint_t sp = {0};
+    hd_can_setpoint_t sp; /* the decode assigns every field; seq is the ACK's before it */
+    sp.seq = 0u;
     hd_ctrl_setpoint_t next;
     int rc = hd_can_decode_setpoint(f, &sp);
     if (rc == HD_CAN_RES_OK) {
@@ -118,14 +113,28 @@ void hd_fw_take_control_frame(hd_fw_t *fw, const hal_can_frame_t *f, uint8_t typ
 
 /* --------------------------------------------------------------- stage */
 
-/* The output angle since boot: a compensated (Kahan) sum of the increments
- * the filter used, so that 1 mrad steps still add up at 30 rad. */
-static void track_angle(hd_fw_ctrl_state_t *c, float d_rad)
+/* The output angle since boot: a compensated (Kahan) sum of the output
+ * encoder's increments the filter used (so that 1 mrad steps still add up
+ * at 30 rad), plus where in the encoder's count the output is.  A count
+ * says only that the angle lies in [count, count + 1) (a truncating
+ * encoder: the count is its cell's lower edge); the motor's increments
+ * over the gear ratio, N times finer, say where, up to the flexspline's
+ * windup since the last count edge.  Without them a 4096-count output
+ * encoder holds a 500 N m/rad impedance's 20 mrad deflection to a count,
+ * 1.5 mrad: most of the rendered stiffness's error (docs/results/control.md). */
+static void track_angle(hd_fw_ctrl_state_t *c, const hd_fw_sample_t *s,
+                        const hd_fw_settings_t *set)
 {
+    const float d_rad = s->d_output_angle_rad;
     const float y = d_rad - c->angle_comp_rad;
     const float t = c->angle_rad + y;
     c->angle_comp_rad = (t - c->angle_rad) - y;
     c->angle_rad = t;
+    if (s->has_output) {
+        const float cell = set->output_rad_per_count;
+        const float f = c->angle_fine_rad + s->d_motor_angle_rad / set->cfg.gear_ratio - d_rad;
+        c->angle_fine_rad = f < 0.0f ? 0.0f : (f > cell ? cell : f);
+    }
 }
 
 static void score_deadline_misses(hd_fw_t *fw)
@@ -215,6 +224,13 @@ static uint32_t command_drive(hd_fw_t *fw, const hd_ctrl_output_t *o)
     return HD_FAULT_DRIVE_FAULT;
 }
 
+void hd_fw_control_boot(hd_fw_t *fw)
+{
+    const hd_fw_settings_t *set = hd_fw_live(fw);
+    hd_ctrl_init_prechecked(&fw->control.ctrl, &set->ctrl);
+    fw->control.built_from = set;
+}
+
 uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
 {
     if (!hd_fw_has_drive(fw)) {
@@ -223,27 +239,26 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
     hd_fw_ctrl_state_t *c = &fw->control;
     const hd_fw_settings_t *set = hd_fw_live(fw);
     if (c->built_from != set) {
-        /* new settings: the loop restarts from them (config_check passed them) */
-        if (hd_ctrl_init(&c->ctrl, &set->ctrl) != HD_CTRL_OK) {
-            c->stop_latched = true;
-        }
+        /* new settings: the loop restarts from them (hd_fw_config_check passed
+         * them before they were built: no second check in the tick) */
+        hd_ctrl_init_prechecked(&c->ctrl, &set->ctrl);
         c->built_from = set;
     }
-    track_angle(c, s->d_output_angle_rad);
+    track_angle(c, s, set);
     score_deadline_misses(fw);
     uint32_t raised = drive_status(fw);
     hd_ctrl_setpoint_t sp = c->sp;
     sp.mode = safe_mode(fw, faults, &raised);
     sp.kp_nm_rad = c->kp_nm_rad;
     sp.kd_nm_s_rad = c->kd_nm_s_rad;
-    const hd_ctrl_input_t in = {
+    c->in = (hd_ctrl_input_t){
         .torque_filtered_nm = s->torque_filtered_nm,
         .torque_raw_nm = s->torque_raw_nm,
         .torque_valid = s->valid && (faults & (SENSOR_FAULTS | HD_FAULT_KF_RESET)) == 0u,
-        .angle_rad = c->angle_rad,
+        .angle_rad = c->angle_rad + c->angle_fine_rad,
         .velocity_rad_s = hd_fw_live_pipe(fw)->output_track.vel_rad_s,
     };
-    hd_ctrl_step(&c->ctrl, &sp, &in, &c->out);
+    hd_ctrl_step(&c->ctrl, &sp, &c->in, &c->out);
     if ((c->out.limits & HD_CTRL_LIM_FALLBACK) != 0u) {
         raised |= HD_FAULT_CTRL_FALLBACK;
     }

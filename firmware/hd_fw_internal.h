@@ -31,22 +31,50 @@ void hd_fw_set_rx_filter(const hd_fw_t *fw, uint8_t node_id);
 /* The queues: push returns false when full, pop when empty. */
 bool hd_fw_queue_push(hd_fw_queue_t *q, const hal_can_frame_t *f);
 bool hd_fw_queue_pop(hd_fw_queue_t *q, hal_can_frame_t *f);
-bool hd_fw_queue_full(const hd_fw_queue_t *q);
-bool hd_fw_queue_empty(const hd_fw_queue_t *q);
+static inline bool hd_fw_queue_full(const hd_fw_queue_t *q)
+{
+    return q->head - q->tail >= HD_FW_QUEUE_LEN;
+}
+static inline bool hd_fw_queue_empty(const hd_fw_queue_t *q)
+{
+    return q->head == q->tail;
+}
 
-/* Tick steps in their own files (tick context only). */
-uint32_t hd_fw_sense(hd_fw_t *fw, uint64_t t_us, hd_fw_sample_t *s, bool *ended);
-float hd_fw_feedforward_nm(hd_fw_t *fw, uint32_t *faults);
-float hd_fw_current_torque_nm(hd_fw_t *fw, const hd_pipeline_t *p, const hd_fw_sample_t *s,
-                              float *var_nm2);
+/* The tick's stages (hd_fw_stages.h; tick context only), in the order
+ * hd_fw_isr calls them; each returns the fault bits it raised.  The gauge
+ * sets *faults and returns false when the sample source has ended. */
+bool hd_fw_gauge(hd_fw_gauge_t *g, const hd_fw_config_t *c, const hal_sensors_t *sen,
+                 uint64_t t_us, hd_fw_sample_t *s, uint32_t *faults);
+uint32_t hd_fw_encoder(hd_fw_encoder_t *k, const hd_fw_settings_t *set, const hal_sensors_t *sen,
+                       hd_fw_sample_t *s);
+/* The absolute angles of the last sample, in [0, 2 pi). */
+float hd_fw_encoder_motor_rad(const hd_fw_encoder_t *k, const hd_fw_settings_t *set);
+float hd_fw_encoder_output_rad(const hd_fw_encoder_t *k, const hd_fw_settings_t *set);
+uint32_t hd_fw_current(hd_fw_current_t *k, const hd_fw_config_t *c, const hal_sensors_t *sen,
+                       hd_fw_sample_t *s);
+/* Feed-forward: ages the latch (before the frames), takes one frame of
+ * ours (counts it in *accepted), gives the sample its T_ff. */
+void hd_fw_ff_age(hd_fw_ff_t *k);
+uint32_t hd_fw_ff_take(hd_fw_ff_t *k, const hd_fw_config_t *c, const hal_can_frame_t *f,
+                       uint32_t *accepted);
+uint32_t hd_fw_ff(hd_fw_ff_t *k, const hd_fw_config_t *c, hd_fw_sample_t *s);
+uint32_t hd_fw_filter(hd_fw_t *fw, hd_fw_sample_t *s);
 void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s);
 
 /* hd_fw_control.c: a SETPOINT or GAINS frame of ours (the tick's receive
  * step), and the control stage after the pipeline; returns its faults. */
 void hd_fw_take_control_frame(hd_fw_t *fw, const hal_can_frame_t *f, uint8_t type);
 uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults);
-/* A drive is present: the actuator part has enable and command_current. */
-bool hd_fw_has_drive(const hd_fw_t *fw);
+/* The law built from the boot settings by hd_fw_init: the first tick does
+ * not pay for it (the tick rebuilds it only when the settings change). */
+void hd_fw_control_boot(hd_fw_t *fw);
+/* A drive is present: the actuator part has enable and command_current
+ * (inline: the tick asks up to three times). */
+static inline bool hd_fw_has_drive(const hd_fw_t *fw)
+{
+    const hal_actuator_t *a = &fw->hal->actuator;
+    return a->enable != NULL && a->command_current != NULL;
+}
 void hd_fw_stop(hd_fw_t *fw);
 
 /* Records (hd_fw_records.c).  Boot: loads the calibration and configuration

@@ -1,5 +1,12 @@
-/* hd_fw_publish: what the tick sends (boot report, telemetry, heartbeat,
- * the ACKs the background queued).  Tick context only: the tick owns the
+/* hd_fw_publish: the telemetry scheduler stage (hd_fw_stages.h).
+ *
+ * Contract: the last stage of every tick.  It sends what the tick sends:
+ * the BOOT report once, a TELEM_A/B pair every telem_divider ticks (with
+ * the faults and filter status gathered since the last pair; TELEM_C with
+ * every angle_telemetry_every-th pair; CTRL_STATE with it on a board with a
+ * drive), the heartbeat every HD_FW_HEARTBEAT_TICKS, at most
+ * HD_FW_ACKS_PER_TICK queued ACKs.  A failed send is counted and raised
+ * with the next sample (CAN_TX_FULL / CAN_BUS_OFF).  The tick owns the
  * transmitter. */
 #include <math.h> /* isfinite, NAN: compiler builtins, no libm call */
 #include <string.h>
@@ -34,40 +41,40 @@ static void send_boot(hd_fw_t *fw)
     hal_can_frame_t f;
     hd_can_encode_boot(set->cfg.node_id, &boot, &f);
     send_frame(fw, &f);
-    fw->tick.boot_sent = true;
+    fw->telem.boot_sent = true;
 }
 
 /* Returns true on the ticks it sends a TELEM_A/B pair. */
 static bool send_telemetry(hd_fw_t *fw, const hd_fw_sample_t *s)
 {
     const hd_fw_settings_t *set = hd_fw_live(fw);
-    hd_fw_tick_state_t *k = &fw->tick;
+    hd_fw_telem_t *k = &fw->telem;
     if (set->telem_divider == 0u) {
         return false;
     }
-    if (k->telem_countdown > 0u) {
-        k->telem_countdown--;
+    if (k->countdown > 0u) {
+        k->countdown--;
         return false;
     }
-    k->telem_countdown = set->telem_divider - 1u;
+    k->countdown = set->telem_divider - 1u;
     hd_can_telem_t t = {s->torque_filtered_nm, s->torque_raw_nm, s->ripple_nm, s->valid,
-                        s->motor_velocity_rad_s, k->telem_faults, k->telem_kf_status,
-                        k->telem_seq};
-    k->telem_faults = 0u;
-    k->telem_kf_status = 0u;
+                        s->motor_velocity_rad_s, k->faults, k->kf_status,
+                        k->seq};
+    k->faults = 0u;
+    k->kf_status = 0u;
     hal_can_frame_t a;
     hal_can_frame_t b;
     hd_can_encode_telem(set->cfg.node_id, &t, &a, &b);
     send_frame(fw, &a);
     send_frame(fw, &b);
     const uint16_t every = set->cfg.angle_telemetry_every;
-    if (every != 0u && k->telem_pairs % every == 0u) {
-        hd_can_angle_t c = {s->motor_counts, s->output_counts, s->has_output, k->telem_seq};
+    if (every != 0u && k->pairs % every == 0u) {
+        hd_can_angle_t c = {s->motor_counts, s->output_counts, s->has_output, k->seq};
         hd_can_encode_angle(set->cfg.node_id, &c, &a);
         send_frame(fw, &a);
     }
-    k->telem_pairs++;
-    k->telem_seq++;
+    k->pairs++;
+    k->seq++;
     fw->counters.telemetry_frames++;
     return true;
 }
@@ -105,14 +112,14 @@ static uint16_t sat16(uint32_t v)
 
 static void send_heartbeat(hd_fw_t *fw, bool now)
 {
-    hd_fw_tick_state_t *k = &fw->tick;
+    hd_fw_telem_t *k = &fw->telem;
     if (k->hb_countdown > 0u && !now) {
         k->hb_countdown--;
         return;
     }
     k->hb_countdown = HD_FW_HEARTBEAT_TICKS - 1u;
     const hd_fw_settings_t *set = hd_fw_live(fw);
-    hd_can_heartbeat_t h = {k->state, k->hb_faults, sat16(fw->counters.deadline_misses),
+    hd_can_heartbeat_t h = {fw->tick.state, k->hb_faults, sat16(fw->counters.deadline_misses),
                             set->calib_status, set->config_status, set->profile_status};
     k->hb_faults = 0u;
     hal_can_frame_t f;
@@ -131,7 +138,7 @@ static void send_acks(hd_fw_t *fw)
 
 void hd_fw_publish(hd_fw_t *fw, const hd_fw_sample_t *s)
 {
-    if (!fw->tick.boot_sent) {
+    if (!fw->telem.boot_sent) {
         send_boot(fw);
     }
     const bool telemetry_tick = send_telemetry(fw, s);

@@ -1,6 +1,6 @@
 /* hd_fw_records: the configuration record's codec, and the firmware's
  * record jobs (boot, CALIB_SAVE/LOAD, CONFIG_SAVE/LOAD), which run in the
- * background context.  See hd_fw_records.h and docs/records.md. */
+ * background context.  See hd_fw_records.h and docs/reference/records.md. */
 #include "hd_fw_records.h"
 
 #include <math.h> /* sqrtf: an instruction with -fno-math-errno */

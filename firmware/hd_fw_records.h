@@ -16,7 +16,7 @@
  *   u8  n;  n x { u8 lock (0 motor, 1 output), u8 order, f32 a_nm, f32 b_nm }
  * ripple(alpha) = a cos(order alpha) + b sin(order alpha), alpha the absolute
  * motor or output angle (hd_kf.h, "angle-referenced profiles";
- * docs/slow-torque.md).  A record for another gear ratio or encoder
+ * docs/design/slow-torque.md).  A record for another gear ratio or encoder
  * resolution is REFUSED by the firmware, never scaled.
  *
  * Pure: no I/O, no heap, no globals.

@@ -87,7 +87,7 @@ typedef struct {
     int (*adc_read)(void *ctx, hal_adc_sample_t *out);
     int (*encoder_read)(void *ctx, hal_encoder_sample_t *out);
     /* May be NULL (no current channel).  The motor current of this tick,
-     * e.g. the drive's last q-axis current (docs/slow-torque.md). */
+     * e.g. the drive's last q-axis current (docs/design/slow-torque.md). */
     int (*current_read)(void *ctx, hal_current_sample_t *out);
 } hal_sensors_t;
 

@@ -1,5 +1,5 @@
 /*
- * hd_rawstream: the .hdraw raw sample stream (docs/raw-stream.md), and the
+ * hd_rawstream: the .hdraw raw sample stream (docs/reference/raw-stream.md), and the
  * one reader of it.  Pure: no I/O of its own, no heap, builds for host and
  * MCU.  The bytes come from a caller's callback (a file on the host, ARM
  * semihosting in the QEMU image), so every reader shares this code.

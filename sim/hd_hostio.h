@@ -27,7 +27,7 @@
 extern "C" {
 #endif
 
-/* Exit status of the host programs, the same in every one (docs/reliability.md,
+/* Exit status of the host programs, the same in every one (docs/results/reliability.md,
  * "Exit status"): 0 ok, 128 + signal when interrupted, and: */
 #define EXIT_RUN 1   /* the run failed (hdjoint-host: SocketCAN, --cmd frames not handled) */
 #define EXIT_USAGE 2 /* bad command line or bad input */

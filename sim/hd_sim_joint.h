@@ -21,7 +21,7 @@
  * integrator (eps = 0.1 rad/s at the motor: 1 mrad/s at the output).
  * Integration: classical RK4, `substeps` steps per tick, the motor and
  * person torques held over the tick (zero-order hold, as a drive does).
- * Parameters of a 40 N m class drive: hd_sim_joint_default and docs/sim.md.
+ * Parameters of a 40 N m class drive: hd_sim_joint_default and docs/reference/sim.md.
  */
 #ifndef HD_SIM_JOINT_H
 #define HD_SIM_JOINT_H
@@ -98,7 +98,7 @@ typedef struct {
 
 #define HD_SIM_G_M_S2 9.80665
 
-/* A 40 N m class joint (size-20 strain-wave gear, N = 100; docs/sim.md). */
+/* A 40 N m class joint (size-20 strain-wave gear, N = 100; docs/reference/sim.md). */
 void hd_sim_joint_default(hd_sim_joint_params_t *p);
 
 /* 0, or -1 with the first bad parameter named in err. */

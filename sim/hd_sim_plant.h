@@ -7,7 +7,7 @@
  *   T_true      = J alpha_o + b omega_o + Fc sgn(omega_o)
  *                 + Fs exp(-(omega_o/ws)^2) sgn(omega_o) + T_load(t)
  *                 + m g l(t) sin(theta_o + phase)          [arm link under gravity]
- * Motor current and the controller's feed-forward: docs/sim.md.
+ * Motor current and the controller's feed-forward: docs/reference/sim.md.
  * What the sensor adds (ripple_true = measured - truth, before noise):
  *   T_sensed    = T_true + sum_lines (1 + c |T_true|) A sin(order theta + phase)
  *                 + offset(t)    [c applies to motor and output lines only]

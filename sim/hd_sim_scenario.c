@@ -583,7 +583,7 @@ int hd_sim_scenario_parse_n(hd_sim_scenario_t *sc, const char *text, size_t text
         size_t idx;
         const key_def_t *k = find_key(key, &idx);
         if (k == NULL) {
-            fail(err, err_len, "%s:%u: unknown key \"%s\" (see docs/sim.md)", name, lineno, key);
+            fail(err, err_len, "%s:%u: unknown key \"%s\" (see docs/reference/sim.md)", name, lineno, key);
             return -1;
         }
         if (*val == '\0') {

@@ -9,7 +9,7 @@
  * NUL, control or non-UTF-8 bytes, lines over 4095 characters, files over
  * 1 MiB or that are not regular files, and malformed or out-of-range values
  * are rejected with "file:line: message".  All keys, units and defaults:
- * docs/sim.md.
+ * docs/reference/sim.md.
  *
  * Host-only (double precision, no allocation needed: fixed-size lists).
  */
@@ -65,7 +65,7 @@ typedef struct {
 } hd_sim_sine_t;
 
 /* The robot controller's model of the joint torque, sent as feed-forward
- * (docs/sim.md, "Feed-forward and motor current"): its own gravity and
+ * (docs/reference/sim.md, "Feed-forward and motor current"): its own gravity and
  * dynamics parameters, never the plant's truth unless a scenario says so. */
 typedef struct {
     int enabled;                     /* 1: the CSV column and hdjoint-host's frames */
@@ -82,7 +82,7 @@ typedef struct {
     size_t dropout_count;
 } hd_sim_feedforward_t;
 
-/* The motor and its current (docs/sim.md): i = T_motor / kt_true. */
+/* The motor and its current (docs/reference/sim.md): i = T_motor / kt_true. */
 typedef struct {
     double kt_nm_per_a;              /* datasheet torque constant; 0 = no current channel */
     double kt_error;                 /* kt_true = kt (1 + kt_error) */

@@ -5,13 +5,13 @@
  *         --csv OUT.csv [--raw OUT.hdraw] [--nominal]
  *
  * OUT.csv ("-" = stdout) holds the measured signals and the ground truth;
- * OUT.hdraw is the raw sample stream of docs/raw-stream.md.  --nominal
+ * OUT.hdraw is the raw sample stream of docs/reference/raw-stream.md.  --nominal
  * prints the nominal calibration as key=value lines on stdout (with no
  * --csv, it is all that runs).  Outputs are written under temporary names
  * and renamed when complete (sim/hd_hostio.h): an error or an interrupt
  * leaves the old files as they were.
  *
- * Exit status (docs/reliability.md): 0 ok, 2 bad usage or a bad scenario,
+ * Exit status (docs/results/reliability.md): 0 ok, 2 bad usage or a bad scenario,
  * 3 an output could not be written, 128 + signal when interrupted by
  * SIGINT/SIGTERM (no output written).
  */
@@ -32,7 +32,7 @@ static void usage(FILE *f)
             "usage: hdsim SCENARIO.ini [--duration S] [--seed N] [--set KEY=VALUE]...\n"
             "             --csv OUT.csv [--raw OUT.hdraw] [--nominal]\n"
             "       hdsim --version\n"
-            "  --csv -   writes the CSV to stdout; keys are those of docs/sim.md\n"
+            "  --csv -   writes the CSV to stdout; keys are those of docs/reference/sim.md\n"
             "exit status: 0 ok, 2 bad usage or scenario, 3 write failed, 130/143 interrupted\n");
 }
 

@@ -48,7 +48,7 @@ typedef struct {
     const char *input, *out;
     int mode;
     int feedback;
-    double kp, ki, ff, lowpass_hz, notch_width_hz;
+    double kp, ki, kd, ff, ilim, lowpass_hz, notch_width_hz;
     int lowpass_order, notch_mask;
     int load;           /* 0 dyno, 1 free, 2 wall */
     double dyno_kv, dyno_ki, person_nm;
@@ -108,7 +108,8 @@ static int parse(int argc, char **argv, opts_t *o)
     hd_ctrl_config_default(&def);
     d = &def;
     *o = (opts_t){.mode = HD_CTRL_TORQUE, .feedback = d->feedback, .kp = d->torque_kp,
-                  .ki = d->torque_ki_per_s, .ff = d->torque_ff, .lowpass_hz = d->lowpass_hz,
+                  .ki = d->torque_ki_per_s, .ff = d->torque_ff,
+                  .ilim = d->integral_limit_nm, .kd = d->torque_kd_s, .lowpass_hz = d->lowpass_hz,
                   .notch_width_hz = d->notch_width_hz, .lowpass_order = d->lowpass_order,
                   .notch_mask = d->notch_mask, .dyno_kv = 50.0, .dyno_ki = 5000.0,
                   .wall_k = 2e4, .wall_d = 5.0, .imp_kd = 0.0, .seed = 0x5EEDu};
@@ -122,7 +123,7 @@ static int parse(int argc, char **argv, opts_t *o)
         double x = 0.0;
         const bool num = number(v, &x) == 0;
         struct { const char *name; double *dst; } nums[] = {
-            {"--kp", &o->kp}, {"--ki", &o->ki}, {"--ff", &o->ff},
+            {"--kp", &o->kp}, {"--ki", &o->ki}, {"--kd", &o->kd}, {"--ff", &o->ff}, {"--ilim", &o->ilim},
             {"--lowpass-hz", &o->lowpass_hz}, {"--notch-width-hz", &o->notch_width_hz},
             {"--dyno-kv", &o->dyno_kv}, {"--dyno-ki", &o->dyno_ki},
             {"--person-nm", &o->person_nm}, {"--wall-rad", &o->wall_rad},
@@ -255,6 +256,8 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
     k->torque_kp = (float)o->kp;
     k->torque_ki_per_s = (float)o->ki;
     k->torque_ff = (float)o->ff;
+    k->integral_limit_nm = (float)o->ilim;
+    k->torque_kd_s = (float)o->kd;
     k->lowpass_hz = (float)o->lowpass_hz;
     k->lowpass_order = (uint8_t)o->lowpass_order;
     k->notch_mask = (uint8_t)o->notch_mask;

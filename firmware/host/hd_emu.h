@@ -38,7 +38,7 @@ typedef struct {
 
 /* Creates a joint.  scenario_text: a sim scenario (sim/scenarios/NAME.ini
  * syntax) on top of the paper's drive, NULL for the defaults.
- * config_text: firmware configuration text (docs/firmware.md) on top of the
+ * config_text: firmware configuration text (docs/design/firmware.md) on top of the
  * firmware defaults and the scenario's sensor constants, NULL for none:
  * these are the "factory defaults" a boot without a saved configuration
  * runs.  The scenario's nominal calibration is stored in NVM.  Returns NULL

@@ -10,7 +10,7 @@
  * on CLOCK_MONOTONIC with clock_nanosleep(TIMER_ABSTIME) and reports wake-up
  * jitter and overruns.  Prints a summary (key = value lines) at the end.
  *
- * Nothing is lost and nothing is silent (docs/reliability.md):
+ * Nothing is lost and nothing is silent (docs/results/reliability.md):
  * - the CSV and the CAN log are written under temporary names and renamed
  *   when the run ends; a failed write ends the run with one line on stderr
  *   and exit 3, and the old files stay as they were;

@@ -21,7 +21,7 @@ int host_provision_calibration(hal_t *hal, float gain, float offset)
     return hd_calib_store_save(&s, &rec) == HD_RECORD_OK ? 0 : -1;
 }
 
-/* A profile record file (docs/slow-torque.md, "Record file"): "HDPF", u16
+/* A profile record file (docs/design/slow-torque.md, "Record file"): "HDPF", u16
  * format version, u16 payload length, the payload of hd_fw_records.h, u32
  * CRC-32 of everything before it.  Stored as is: the firmware checks that
  * it is for this joint at boot (REFUSED otherwise, as on the MCU). */

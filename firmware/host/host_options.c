@@ -42,7 +42,7 @@ static void usage(FILE *f)
           "  -s, --sensors  sample source: the simulated joint, a recorded raw stream, or a\n"
           "                 built-in synthetic joint (mock)\n"
           "  --can          log: write every frame as a candump -l log; socketcan: use IFNAME\n"
-          "  --config       firmware configuration text file (docs/firmware.md)\n"
+          "  --config       firmware configuration text file (docs/design/firmware.md)\n"
           "  --realtime     run at a real 1 kHz (default: as fast as possible)\n"
           "  --duration     stop after S seconds of samples (default: end of the source; mock 10 s)\n"
           "  --csv          per-sample output\n"

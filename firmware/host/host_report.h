@@ -52,7 +52,7 @@ typedef struct {
     unsigned replay_trailing_bytes;
 } host_summary_t;
 
-/* The summary on stdout (docs/reliability.md lists its keys). */
+/* The summary on stdout (docs/results/reliability.md lists its keys). */
 void host_print_summary(const host_summary_t *s);
 
 const char *host_signal_name(int sig);

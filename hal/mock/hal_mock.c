@@ -80,7 +80,18 @@ static int can_recv(void *ctx, hal_can_frame_t *f)
     if (m->rx_count == 0u) {
         return HAL_ERR_NO_DATA;
     }
-    *f = m->rx[m->rx_head];
+    /* The header and the classic frame's 8 bytes (more only for a longer
+     * FD frame), not the whole 64-byte buffer: the bench image counts this
+     * copy in the tick, and a real driver moves only what the frame has. */
+    const hal_can_frame_t *r = &m->rx[m->rx_head];
+    f->id = r->id;
+    f->len = r->len;
+    f->flags = r->flags;
+    memcpy(f->data, r->data, 8u);
+    if (r->len > 8u) {
+        const size_t n = r->len < HAL_CAN_MAX_DATA ? r->len : HAL_CAN_MAX_DATA;
+        memcpy(&f->data[8], &r->data[8], n - 8u);
+    }
     m->rx_head = (m->rx_head + 1u) % HAL_MOCK_RX_CAP;
     m->rx_count--;
     m->counters.can_rx++;

@@ -1,5 +1,5 @@
 /*
- * hal_replay: feeds a recorded raw sample stream (.hdraw, docs/raw-stream.md)
+ * hal_replay: feeds a recorded raw sample stream (.hdraw, docs/reference/raw-stream.md)
  * from a file through the same ISR.  Host only (files, heap).  The format is
  * read by hd_rawstream's reader; this file only supplies the bytes.
  *

@@ -3,7 +3,7 @@
  * running in QEMU (firmware/board/mps2_an386).  No heap, no libc.
  *
  * - hal_sh_stream_t: the sensors part (and a sample clock) from a raw sample
- *   stream on the host (.hdraw, docs/raw-stream.md): semihosting supplies
+ *   stream on the host (.hdraw, docs/reference/raw-stream.md): semihosting supplies
  *   the bytes, hd_rawstream's reader (the same as the host's hal/replay)
  *   reads the format.
  * - hal_sh_writer_t: a buffered host file writer (binary dumps).

@@ -3,7 +3,7 @@
  * sockets: can0, vcan0, ...).  Host-only backend: it allocates its context
  * and uses the OS.
  *
- * Behaviour (see docs/socketcan.md):
+ * Behaviour (see docs/how-to/socketcan.md):
  *  - the socket is non-blocking; send() never waits;
  *  - a bounded software transmit queue (HAL_SOCKETCAN_TXQ_LEN frames) holds
  *    frames the kernel refused with EAGAIN/ENOBUFS; it is drained at every

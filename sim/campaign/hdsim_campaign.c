@@ -1,7 +1,7 @@
 /*
  * hdsim-campaign: a static calibration campaign on the simulated joint
  * (Taghirad 1997, section III), written as the calibration CSV
- * (docs/calibration.md).
+ * (docs/how-to/calibration.md).
  *
  * The wave generator is locked at a flexspline position; weights hung on an
  * arm apply torque = n * weight * g * arm, loading 0 -> +FS, unloading to 0,
@@ -22,7 +22,7 @@
  * draws were rescaled to exactly the requested spread, which made "the
  * analysis finds 2 %" a round trip.)
  *
- * Exit status (docs/reliability.md): 0 ok, 2 bad usage, 3 the output could
+ * Exit status (docs/results/reliability.md): 0 ok, 2 bad usage, 3 the output could
  * not be written (an existing file is left as it was).
  */
 #include "hd_bridge.h"

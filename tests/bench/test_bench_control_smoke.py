@@ -1,4 +1,4 @@
-"""Smoke test of the control benchmark (tools/hdtools/bench/control.py):
+"""Smoke test of the control benchmark (tools/hdmaint/bench/control.py):
 --quick sizes through the firmware's loop on the dynamic joint, checked
 only for well-formed output (its goals are benchmark numbers, not pass/fail
 tests), and its tables, JSON, docs section and README row rendered."""
@@ -8,7 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdtools.bench import control, control_report  # noqa: E402
+from hdmaint.bench import control, control_report  # noqa: E402
 
 
 def _finite_or_none(x):

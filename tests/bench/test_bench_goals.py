@@ -1,13 +1,13 @@
-"""Issue 12's goals as the benchmark checks them (tools/hdtools/bench/goals.py)
-and `tools/bench --update-docs` (tools/hdtools/cmd_bench.py): on results
+"""Issue 12's goals as the benchmark checks them (tools/hdmaint/bench/goals.py)
+and `tools/bench --update-docs` (tools/hdmaint/bench/cli.py): on results
 made up here, whose worst cases are known by construction."""
 import argparse
 import json
 
 import pytest
 
-from hdtools import cmd_bench
-from hdtools.bench import goals, report
+from hdmaint.bench import cli as cmd_bench
+from hdmaint.bench import goals, report
 from hdtools.safeio import OutputError, UsageError
 
 
@@ -118,7 +118,7 @@ def test_update_docs_writes_the_doc_and_the_same_json(tmp_path, docs):
     assert "goals" in json.loads(out_json)
     text = docs.read_text()
     assert text.startswith("# head\n\n" + cmd_bench.BEGIN) and text.endswith("\n## tail\n")
-    assert "old" not in text and "Goals of issue 12" in text
+    assert "old" not in text and "The slow-torque goals" in text
     assert (tmp_path / "out" / "results.md").read_text() in text
     assert not [p for p in tmp_path.rglob("*.tmp")]
 

@@ -1,12 +1,12 @@
 """Smoke test of the accuracy table's product row `fw_commissioned`
-(tools/hdtools/bench/accuracy.py): the firmware, commissioned by its own
+(tools/hdmaint/bench/accuracy.py): the firmware, commissioned by its own
 learning_mode 2 + PROFILE_SAVE on a separate run of each distinct joint,
 then run in operating mode from that profile.  Short runs (--quick sizes):
 the output is checked for form and for what the firmware was told, not for
-accuracy (the benchmark prints numbers; docs/bench.md)."""
+accuracy (the benchmark prints numbers; docs/results/bench.md)."""
 import math
 
-from hdtools.bench import accuracy, joint, report
+from hdmaint.bench import accuracy, joint, report
 
 ROW = "fw_commissioned"
 # The benchmark joint's true plant (tests/bench/scenarios/*.ini): the

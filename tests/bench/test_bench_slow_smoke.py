@@ -1,9 +1,9 @@
-"""Smoke test of the slow-torque benchmark (tools/hdtools/bench/slow.py):
+"""Smoke test of the slow-torque benchmark (tools/hdmaint/bench/slow.py):
 one scenario on tiny sizes, checked only for well-formed output (the
 benchmark prints numbers; its goals are not pass/fail tests)."""
 import math
 
-from hdtools.bench import report, slow
+from hdmaint.bench import report, slow
 
 
 def test_slow_bench_quick_is_well_formed(tmp_path):
@@ -28,7 +28,7 @@ def test_each_scenario_is_the_joint_of_its_commissioning_run():
     """The firmware rows boot from the profile of a commissioning run
     (slow.Scenario.commission): the scenario files type the joint out
     again, so they must agree on every key but the motion."""
-    from hdtools.bench import joint
+    from hdmaint.bench import joint
     for sc in slow.SCENARIOS:
         run = joint.joint_key(slow.SCENARIO_DIR / f"{sc.name}.ini")
         com = joint.joint_key(slow.SCENARIO_DIR / f"{sc.commission}.ini")

@@ -30,7 +30,7 @@ def test_bench_quick_output_is_well_formed(tmp_path):
         for m in sc["methods"].values():
             assert math.isfinite(m["rms_nm"]) and m["rms_nm"] >= 0.0
     assert res["goals"] and all(g["goal"] and g["rows"] for g in res["goals"])
-    assert "Goals of issue 12" in proc.stdout
+    assert "The slow-torque goals" in proc.stdout
     for f in res["real"]["files"].values():
         assert f["segments"] and "kf_recommended" in f["median"]
 

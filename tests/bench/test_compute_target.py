@@ -1,10 +1,11 @@
-"""tools/bench's Cortex-M4 part (hdtools.bench.compute.target) takes the
-numbers from the budget code of hdtools.target in-process: the rows it
+"""tools/bench's Cortex-M4 part (hdmaint.bench.compute.target) takes the
+numbers from the budget code of tools/target (hdmaint.budget) in-process: the rows it
 reports are the budget's, and a setup problem or a failed check is reported
 as a status, never raised."""
 
-from hdtools import target as budget_tool
-from hdtools.bench import compute
+from hdmaint import budget as budget_tool
+from hdmaint.board import TargetError
+from hdmaint.bench import compute
 
 BUDGET = {
     "flash_bytes": 40000, "ram_bytes": 80000, "stack_reserved_bytes": 8192,
@@ -24,7 +25,7 @@ BUDGET = {
 
 
 def test_rows_are_the_budget_numbers(monkeypatch):
-    monkeypatch.setattr(budget_tool, "budget", lambda p=None: BUDGET)
+    monkeypatch.setattr(budget_tool, "budget", lambda board=None: BUDGET)
     res = compute.target()
     assert res["status"] == "ok"
     assert res["instructions_max"] == {
@@ -35,12 +36,12 @@ def test_rows_are_the_budget_numbers(monkeypatch):
 
 def test_failed_check_and_setup_problem_are_reported(monkeypatch):
     failed = dict(BUDGET, failures=["worst-case stack 9000 B exceeds the reserved 8192 B"])
-    monkeypatch.setattr(budget_tool, "budget", lambda p=None: failed)
+    monkeypatch.setattr(budget_tool, "budget", lambda board=None: failed)
     res = compute.target()
     assert res["status"] == "failed" and "9000 B" in res["note"]
 
-    def missing(p=None):
-        raise budget_tool.TargetError("arm-none-eabi-gcc not found: run tools/setup")
+    def missing(board=None):
+        raise TargetError("arm-none-eabi-gcc not found: run tools/setup")
     monkeypatch.setattr(budget_tool, "budget", missing)
     res = compute.target()
     assert res == {"status": "failed", "note": "arm-none-eabi-gcc not found: run tools/setup"}

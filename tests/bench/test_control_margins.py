@@ -1,4 +1,4 @@
-"""The control benchmark's loop measurement (tools/hdtools/bench/
+"""The control benchmark's loop measurement (tools/hdmaint/bench/
 control_loop.py) against loops with a closed-form L:
 
   * margins() on L(jw) = K exp(-jwT) / (1 + jw tau): the crossover
@@ -19,8 +19,8 @@ from scipy.optimize import brentq
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdtools.bench import control_loop as cl  # noqa: E402
-from hdtools.bench import control_tune as ct  # noqa: E402
+from hdmaint.bench import control_loop as cl  # noqa: E402
+from hdmaint.bench import control_tune as ct  # noqa: E402
 
 
 def test_margins_of_first_order_plus_delay():
@@ -79,18 +79,20 @@ def test_injection_measures_the_closed_form_loop():
 
 
 def test_pi_response_is_the_laws_recursion():
-    kp, ki, f = 0.8, 50.0, 7.0
-    n = 4000
-    e = np.sin(2 * math.pi * f * cl.TS_S * np.arange(n))
-    u, integ = np.zeros(n), 0.0
-    for k in range(n):
-        u[k] = kp * e[k] + integ
-        integ += ki * cl.TS_S * e[k]
-    u -= u[n // 2:].mean()   # the integral's constant from the start
-    t = np.arange(n // 2, n)
-    basis = np.exp(1j * 2 * math.pi * f * cl.TS_S * t)
-    gain = (u[t] @ basis.conj()) / (e[t] @ basis.conj())
-    assert abs(gain / cl.pi_response(f, kp, ki) - 1) < 1e-3
+    """u = kp e + I + kd (e - e_prev) / ts, I += ki ts e after u (the law's
+    recursion on a constant setpoint, where the feedback's rate is -e's)."""
+    f, n = 7.0, 4000
+    for kp, ki, kd in ((0.8, 50.0, 0.0), (0.8, 50.0, 2e-3)):
+        e = np.sin(2 * math.pi * f * cl.TS_S * np.arange(n))
+        u, integ = np.zeros(n), 0.0
+        for k in range(n):
+            u[k] = kp * e[k] + integ + (kd * (e[k] - e[k - 1]) / cl.TS_S if k else 0.0)
+            integ += ki * cl.TS_S * e[k]
+        u -= u[n // 2:].mean()   # the integral's constant from the start
+        t = np.arange(n // 2, n)
+        basis = np.exp(1j * 2 * math.pi * f * cl.TS_S * t)
+        gain = (u[t] @ basis.conj()) / (e[t] @ basis.conj())
+        assert abs(gain / cl.pi_response(f, kp, ki, kd) - 1) < 1e-3
 
 
 def test_bandwidth_of_a_first_order_response():

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The calibration numbers of docs/calibration.md, measured: simulated
+"""The calibration numbers of docs/how-to/calibration.md, measured: simulated
 campaigns (hdsim-campaign) through the calibration library (libhdcalib via
 hdtools.calibtool), written between the markers of the "Measured numbers"
 section.  tests/calib/test_calib_tool.py checks that the document holds
@@ -28,9 +28,11 @@ sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import native  # noqa: E402
 from hdtools.calibtool import csvio  # noqa: E402
 from hdtools.calibtool import lib as L  # noqa: E402
+from hdtools import docblock  # noqa: E402
+from hdtools.safeio import Outputs  # noqa: E402
 
-DOC = ROOT / "docs" / "calibration.md"
-BEGIN, END = "<!-- calib:measured:begin -->", "<!-- calib:measured:end -->"
+DOC = ROOT / "docs" / "how-to" / "calibration.md"
+BLOCK = "calib-measured"   # hdtools.docblock
 TRUE_GAIN, TRUE_SPREAD, N_EXP, N_CAMPAIGNS = 6.60, 0.02, 8, 300
 ROWS = [("--spread 0.02 --seed 1", ["--spread", "0.02", "--seed", "1"]),
         ("--spread 0.02 --seed 2", ["--spread", "0.02", "--seed", "2"]),
@@ -140,12 +142,12 @@ def block(figs: list[dict] | None = None) -> str:
 
 def update(check: bool, figs: list[dict] | None = None) -> int:
     text = DOC.read_text()
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    new = f"{head}{BEGIN}\n{block(figs)}\n{END}{tail}"
+    new = docblock.splice(text, BLOCK, block(figs), str(DOC))
     if check:
         return 0 if new == text else 1
-    DOC.write_text(new)
+    with Outputs() as out:       # atomically: never half a page
+        out.write_text(DOC, new)
+        out.commit()
     return 0
 
 

@@ -53,7 +53,7 @@ static void test_encode_layout_and_roundtrip(void)
     hd_calib_record_t r = make_rec(6.61f, "HD-0001");
     uint8_t buf[HD_CALIB_RECORD_BYTES + 8];
     TEST_ASSERT_EQUAL_UINT(HD_CALIB_RECORD_BYTES, hd_calib_record_encode(&r, 7u, buf, sizeof buf));
-    /* Layout of docs/calibration.md, checked byte by byte. */
+    /* Layout of docs/how-to/calibration.md, checked byte by byte. */
     TEST_ASSERT_EQUAL_UINT8('H', buf[0]);
     TEST_ASSERT_EQUAL_UINT8('D', buf[1]);
     TEST_ASSERT_EQUAL_UINT8('C', buf[2]);

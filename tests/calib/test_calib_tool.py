@@ -92,7 +92,7 @@ def test_record_layout_matches_documentation():
 # noise (mean se^2 of the per-experiment gains); the mean gain's t statistic
 # has n-1 degrees of freedom.  Checked over many independent campaigns
 # against those distributions (scipy), not against "2.0 %".  The same
-# figures are written into docs/calibration.md by calib_doc.py.
+# figures are written into docs/how-to/calibration.md by calib_doc.py.
 import calib_doc
 from calib_doc import N_CAMPAIGNS, N_EXP, TRUE_GAIN, TRUE_SPREAD, spread_interval  # noqa: F401
 
@@ -133,7 +133,7 @@ def test_mean_gain_intervals_cover_the_true_gain(campaigns):
 
 
 def test_docs_hold_the_measured_numbers(campaigns):
-    """docs/calibration.md's measured table and Table I paragraph are what
+    """docs/how-to/calibration.md's measured table and Table I paragraph are what
     calib_doc.py computes now (re-run it after a change)."""
     assert calib_doc.update(check=True, figs=campaigns) == 0, "run tests/calib/calib_doc.py"
 

@@ -55,6 +55,7 @@ static void loop_config(hd_ctrl_config_t *k, double kp, double lag_s)
     k->torque_kp = (float)kp;
     k->torque_ki_per_s = (float)(kp / lag_s);
     k->torque_ff = 0.0f;
+    k->integral_limit_nm = 1e4f; /* without feed-forward the integral carries the setpoint */
 }
 
 static void test_config_check(void)
@@ -65,7 +66,7 @@ static void test_config_check(void)
     TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
     const hd_ctrl_config_t good = k;
     float *fields[] = {&k.ts_s, &k.gear_ratio, &k.kt_nm_per_a, &k.torque_kp, &k.torque_ki_per_s,
-                       &k.torque_ff, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
+                       &k.torque_ff, &k.torque_kd_s, &k.integral_limit_nm, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
                        &k.damp_nm_s_rad, &k.torque_limit_nm, &k.current_limit_a,
                        &k.velocity_limit_rad_s, &k.velocity_gain_nm_s_rad};
     const float bad[] = {NAN, INFINITY, -1.0f, 1e9f};
@@ -150,6 +151,71 @@ static void test_antiwindup_recovers_like_a_fresh_step(void)
            settled, 1e3 * tau_cl * log(50.0));
     TEST_ASSERT_TRUE(settled > 0);
     TEST_ASSERT_LESS_OR_EQUAL((int)(1.3 * tau_cl * log(50.0) / TS), settled);
+}
+
+/* The integral's bound: with the setpoint fed forward, a plant that loses
+ * d N m (the drive train's friction) settles on the setpoint while d is
+ * within integral_limit_nm (the integral holds d), and beyond it at the
+ * proportional loop's error, closed form: tau = tau_d - (d - I_max) / (1 + kp). */
+static void test_integral_bounded_by_its_limit(void)
+{
+    const double kp = 0.5, lag = 0.02, step = 10.0, limit = 4.0;
+    const double losses[2] = {3.0, 6.0};
+    for (int i = 0; i < 2; i++) {
+        hd_ctrl_config_t k;
+        hd_ctrl_t c;
+        loop_config(&k, kp, lag);
+        k.torque_ff = 1.0f;
+        k.integral_limit_nm = (float)limit;
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 1.0};
+        const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = (float)step};
+        for (int n = 0; n < 3000; n++) {
+            hd_ctrl_output_t o;
+            const hd_ctrl_input_t in = input_of(p.tau_nm, 0.0, 0.0);
+            hd_ctrl_step(&c, &sp, &in, &o);
+            plant_step(&p, &k, &o);
+            p.tau_nm -= (1.0 - exp(-TS / lag)) * losses[i]; /* the loss, through the lag */
+        }
+        const double expect = step - fmax(0.0, losses[i] - limit) / (1.0 + kp);
+        printf("control: loss %.0f N m, integral limit %.0f N m: settles at %.4f N m "
+               "(closed form %.4f)\n", losses[i], limit, p.tau_nm, expect);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3, expect, p.tau_nm);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-4, fmin(losses[i], limit), (double)c.integral_nm);
+    }
+}
+
+/* The rate term: -kd_t times the feedback's backward difference over a
+ * tick, nothing on the first tick of the loop (no previous feedback) and
+ * nothing from a setpoint step (it acts on the measurement only). */
+static void test_rate_term_on_the_feedback(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_t c;
+    hd_ctrl_config_default(&k);
+    k.torque_kp = 0.5f, k.torque_ki_per_s = 0.0f, k.torque_ff = 0.0f, k.torque_kd_s = 2e-3f;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    const double nkt = (double)k.gear_ratio * (double)k.kt_nm_per_a, slope = 300.0; /* N m/s */
+    hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 0.0f};
+    hd_ctrl_output_t o;
+    for (int n = 0; n < 5; n++) {
+        if (n == 3) {
+            sp.torque_nm = 20.0f; /* a step of the setpoint: no kick */
+        }
+        const double fb = 1.0 + slope * TS * n;
+        const hd_ctrl_input_t in = input_of(fb, 0.0, 0.0);
+        hd_ctrl_step(&c, &sp, &in, &o);
+        const double expect = (double)k.torque_kp * ((double)sp.torque_nm - fb) -
+                              (n == 0 ? 0.0 : (double)k.torque_kd_s * slope);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-4, expect, (double)o.current_a * nkt);
+    }
+    sp.mode = HD_CTRL_DAMP; /* out of the loop: the next loop tick starts unprimed */
+    hd_ctrl_input_t in = input_of(100.0, 0.0, 0.0);
+    hd_ctrl_step(&c, &sp, &in, &o);
+    sp.mode = HD_CTRL_TORQUE, sp.torque_nm = 0.0f;
+    in = input_of(0.0, 0.0, 0.0);
+    hd_ctrl_step(&c, &sp, &in, &o);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, (double)o.current_a);
 }
 
 /* Impedance through the torque loop against a fixed output: the torque the
@@ -435,6 +501,8 @@ int main(int argc, char **argv)
     RUN_TEST(test_config_check);
     RUN_TEST(test_torque_step_first_order_closed_loop);
     RUN_TEST(test_antiwindup_recovers_like_a_fresh_step);
+    RUN_TEST(test_integral_bounded_by_its_limit);
+    RUN_TEST(test_rate_term_on_the_feedback);
     RUN_TEST(test_impedance_renders_kp);
     RUN_TEST(test_modes_and_fallbacks);
     RUN_TEST(test_velocity_and_position_limits);

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The hostile-input corpus: every CLI of the project against inputs that
 must give exit 0 with whole outputs, or one line on stderr and a documented
-non-zero status (docs/reliability.md, "Exit status").
+non-zero status (docs/results/reliability.md, "Exit status").
 
 Each case is a small file tests/corpus/<class>/<name>.case (key = value
 lines, '#' comments) next to its input files:
@@ -48,7 +48,7 @@ asan build) and hdsense (class "py": needs the plain build's shared
 libraries).  Usage:
 
   run_corpus.py --build BUILD [--root ROOT] [--only c|py] [-k TEXT] [-v]
-  run_corpus.py --doc docs/reliability.md [--check]   the class table
+  run_corpus.py --doc docs/results/reliability.md [--check]   the class table
   run_corpus.py --build OLD_BUILD --root OLD_ROOT --mark-before
 """
 from __future__ import annotations
@@ -73,8 +73,7 @@ ROOT = HERE.parents[1]
 C_TOOLS = {"hdjoint-host": "firmware/host/hdjoint-host", "hdsim": "sim/hdsim",
            "hdsim-campaign": "sim/hdsim-campaign"}
 OLD_LINE = "OLD CONTENT\n"
-DOC_BEGIN = "<!-- corpus:classes:begin -->"
-DOC_END = "<!-- corpus:classes:end -->"
+DOC_BLOCK = "corpus-classes"    # hdtools.docblock
 CLASS_TEXT = {
     "host-output": "hdjoint-host outputs: full disk, /dev/full, unwritable paths, signals, NVM persistence",
     "host-args": "hdjoint-host command line and --cmd frames",
@@ -328,7 +327,7 @@ def doc_table(cases: list[Case]) -> str:
     for c in cases:
         classes.setdefault(c.klass, []).append(c)
     rows = ["| class | what | cases | C tools (also under ASan) | pending | "
-            "failed before issue 18 | before: other status only |",
+            "failed before the corpus (d9ce5d9) | before: other status only |",
             "|---|---|---|---|---|---|---|"]
     tot = [0, 0, 0, 0, 0]
     for k in sorted(classes, key=lambda k: list(CLASS_TEXT).index(k) if k in CLASS_TEXT else 99):
@@ -350,15 +349,17 @@ def doc_table(cases: list[Case]) -> str:
 
 
 def write_doc(path: Path, cases: list[Case], check: bool) -> int:
+    sys.path.insert(0, str(ROOT / "tools"))     # hdtools.docblock and safeio, this checkout's
+    from hdtools import docblock
+    from hdtools.safeio import OutputError, Outputs, UsageError
     text = path.read_text()
-    if DOC_BEGIN not in text or DOC_END not in text:
-        print(f"{path}: no {DOC_BEGIN} ... {DOC_END} block", file=sys.stderr)
+    try:
+        new = docblock.splice(text, DOC_BLOCK, "<!-- written by tests/corpus/run_corpus.py --doc; "
+                              f"do not edit -->\n{doc_table(cases)}", str(path))
+    except UsageError as exc:
+        print(exc, file=sys.stderr)
         return 1
-    head, rest = text.split(DOC_BEGIN, 1)
-    _, tail = rest.split(DOC_END, 1)
-    new = (f"{head}{DOC_BEGIN}\n<!-- written by tests/corpus/run_corpus.py --doc; do not edit -->\n"
-           f"{doc_table(cases)}\n{DOC_END}{tail}")
-    summary_path = path.resolve().parent / "results" / "corpus.json"
+    summary_path = path.resolve().parent / "corpus.json"    # the page sits in docs/results/
     summary = json.dumps(corpus_summary(cases), indent=1) + "\n"
     if check:
         if new != text or not summary_path.is_file() or summary_path.read_text() != summary:
@@ -368,10 +369,14 @@ def write_doc(path: Path, cases: list[Case], check: bool) -> int:
         print(f"{path}: corpus table up to date ({len(cases)} cases)")
         return 0
     summary_path.parent.mkdir(parents=True, exist_ok=True)
-    for target, content in ((path, new), (summary_path, summary)):
-        tmp = target.with_name(f".{target.name}.tmp")
-        tmp.write_text(content)
-        os.replace(tmp, target)
+    try:
+        with Outputs() as out:              # both or neither
+            out.write_text(path, new)
+            out.write_text(summary_path, summary)
+            out.commit()
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 1
     print(f"{path}: corpus table written ({len(cases)} cases), and {summary_path}")
     return 0
 
@@ -380,7 +385,7 @@ def corpus_summary(cases: list[Case]) -> dict:
     """docs/results/corpus.json, the README headline's source: how many
     hostile inputs, in how many classes, and how many the tools failed
     before issue 18 (each case's `before` line)."""
-    return {"tool": "tests/corpus/run_corpus.py --doc docs/reliability.md",
+    return {"tool": "tests/corpus/run_corpus.py --doc docs/results/reliability.md",
             "cases": len(cases), "classes": len({c.klass for c in cases}),
             "per_class": {k: sum(c.klass == k for c in cases)
                           for k in sorted({c.klass for c in cases},

@@ -1,4 +1,4 @@
-"""Sharing a bus with CANopen (docs/protocol.md, "Sharing a bus"): a
+"""Sharing a bus with CANopen (docs/reference/protocol.md, "Sharing a bus"): a
 CANopen master (the `canopen` package: NMT, SDO, node scan, heartbeat
 consumer) and a CANopen slave on one virtual bus with the emulated joint.
 The master reads nothing from the joint (no 11-bit frame, no node seen,

@@ -64,6 +64,19 @@ def test_hdsense_version(installed):
     assert r.returncode == 0 and r.stdout.startswith(f"hdsense monitor {want}")
 
 
+def test_the_wheel_carries_the_user_cli_only(installed):
+    """The maintainer tools (tools/hdmaint: target, bench, headline, doc
+    generators) stay in the checkout: none is importable from the wheel and
+    hdsense has no bench subcommand."""
+    r = run(installed, installed / "bin" / "python", "-c",
+            "import importlib.util as u; print([m for m in ('hdmaint', 'hdtools.bench', "
+            "'hdtools.target', 'hdtools.headline', 'hdtools.cmd_bench', 'hdtools.fleet.bench', "
+            "'hdtools.rosio.bench') if u.find_spec(m)])")
+    assert r.returncode == 0 and r.stdout.strip() == "[]", r.stdout + r.stderr
+    r = run(installed, installed / "bin" / "hdsense", "bench", "--help")
+    assert r.returncode == 2 and "invalid choice: 'bench'" in r.stderr, r.stderr
+
+
 def test_installed_package_reads_its_own_copies(installed, tmp_path):
     py = installed / "bin" / "python"
     r = run(installed, py, "-c", "from hdtools import protocol; print(protocol.PARAMS_DEF); "

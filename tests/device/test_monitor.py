@@ -177,7 +177,7 @@ def test_monitor_errors_are_one_line(capsys, tmp_path, channel):
 
 
 def ctrl_state_bytes(asked, run, limits, torque_ref_nm, current_a, seq, flags):
-    """CTRL_STATE as docs/protocol.md lays it out: mode asked (bits 0..3) and
+    """CTRL_STATE as docs/reference/protocol.md lays it out: mode asked (bits 0..3) and
     run (4..7), the limits, int16 torque reference (0.01 N m), int16 current
     command (1 mA), the setpoint's sequence, flags."""
     return struct.pack("<BBhhBB", asked | run << 4, limits, round(torque_ref_nm * 100),
@@ -187,7 +187,7 @@ def ctrl_state_bytes(asked, run, limits, torque_ref_nm, current_a, seq, flags):
 def test_monitor_shows_and_records_the_control_state(joint, channel, capsys, tmp_path):
     """CTRL_STATE frames (a board with a drive; the emulated joint has none,
     so they are sent beside it): the mode run and asked, torque reference,
-    current command, limits and flags by the names of docs/protocol.md
+    current command, limits and flags by the names of docs/reference/protocol.md
     (modes 1 DAMP, 2 TORQUE, 3 IMPEDANCE; limits 1 torque, 8 current,
     32 fallback; flags 1 enabled, 2 watchdog), and the frames in the log."""
     ident = canproto.BASE_IDS["CTRL_STATE"] + 1

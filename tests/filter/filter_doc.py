@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The measured tables of docs/filter-tests.md, written from what the filter
+"""The measured tables of docs/results/filter-tests.md, written from what the filter
 tests measure (nothing typed):
 
   filter_doc.py --build BUILD           run the filter tests of BUILD, rewrite the blocks
@@ -31,7 +31,7 @@ sys.path.insert(0, str(HERE.parent / "reliability"))
 from gendoc import GenDocError, ROOT, command_of, ctest_commands, run, update_doc  # noqa: E402
 from rel_doc import parse_measured, table  # noqa: E402
 
-DOC = ROOT / "docs" / "filter-tests.md"
+DOC = ROOT / "docs" / "results" / "filter-tests.md"
 TESTS = ("filter_kf_reference", "filter_kf_behaviour", "filter_kf_profile", "filter_kf_numerics",
          "filter_trig", "filter_track")
 REGENERATE = "tests/filter/filter_doc.py --build build/host-debug"

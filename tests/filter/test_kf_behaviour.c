@@ -1065,7 +1065,7 @@ static void test_load_beyond_gate_goes_to_offset_in_commissioning(void)
  * line's own RMS (the adaptive motor blocks 5 Hz either side take part of
  * it: that is their bandwidth, not a runaway); taking every jump the gate
  * sees (no hold) ran the offset and the slow output-locked block away from
- * each other (docs/filter.md, "Offset jumps"). */
+ * each other (docs/design/filter.md, "Offset jumps"). */
 static const double k_unmod_t[] = {0, 3, 3.5, 8, 8.5, 13, 13.5, 20};
 static const double k_unmod_w[] = {30, 30, -60, -60, 80, 80, -40, -40};
 #define UNMODELLED_LINE_NM 0.7

@@ -524,7 +524,7 @@ static void test_reference_block_toggles(void)
  * reference gets that time update first (a step without a usable sample).
  * Speed changes abruptly every 0.7 s (up to 400 rad/s in one sample, with
  * reversals; no standstill: without motion scaling the blocks there are
- * collinear with the offset and float32 loses their split, docs/filter.md
+ * collinear with the offset and float32 loses their split, docs/design/filter.md
  * "Priors"), the load signal has offset jumps; both
  * filters carry the load-dependent row.  Compared: the float filter against
  * the old algorithm (dense double reference, ref_kf_step_update_first) fed

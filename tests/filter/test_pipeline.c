@@ -116,7 +116,8 @@ static void test_run_equals_step_bitwise(void)
     memset(&g_run, 0x5A, sizeof(g_run));
     hd_pipeline_io_t io = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, g_ff_var,
                            g_run.filtered, g_run.ripple, g_run.offset, g_run.innov,
-                           g_run.innov_var, g_run.texp, g_run.vel, g_run.amp, g_run.status};
+                           g_run.innov_var, g_run.texp, g_run.vel, g_run.amp, g_run.status,
+                           NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pr, &io);
     TEST_ASSERT_EQUAL_MEMORY_MESSAGE(g_step.filtered, g_run.filtered, sizeof(g_run.filtered), "filtered");
     TEST_ASSERT_EQUAL_MEMORY_MESSAGE(g_step.ripple, g_run.ripple, sizeof(g_run.ripple), "ripple");
@@ -147,7 +148,8 @@ static void test_run_null_outputs_and_null_feedforward(void)
     init_pipe(&pc);
     memset(ff0, 0, sizeof(ff0));
     hd_pipeline_io_t all_null = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, g_ff_var,
-                                 NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+                                 NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL,
+                                 NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pa, &all_null);
     hd_pipeline_io_t one = all_null;
     one.torque_filtered_nm = filt_a;
@@ -188,13 +190,14 @@ static void test_run_chunked_equals_whole(void)
     init_pipe(&pa);
     init_pipe(&pb);
     hd_pipeline_io_t whole = {N_SAMPLES, g_meas, g_dm, g_do, g_ff, NULL, fa,
-                              NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+                              NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL,
+                              NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pa, &whole);
     size_t h = 1777;
     hd_pipeline_io_t c1 = {h, g_meas, g_dm, g_do, g_ff, NULL, fb, NULL, NULL, NULL, NULL, NULL,
-                           NULL, NULL, NULL};
+                           NULL, NULL, NULL, NULL, NULL, NULL, NULL};
     hd_pipeline_io_t c2 = {N_SAMPLES - h, g_meas + h, g_dm + h, g_do + h, g_ff + h, NULL, fb + h,
-                           NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
+                           NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL};
     hd_pipeline_run(&pb, &c1);
     hd_pipeline_run(&pb, &c2);
     TEST_ASSERT_EQUAL_MEMORY(fa, fb, sizeof(fa));

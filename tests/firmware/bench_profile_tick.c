@@ -1,4 +1,4 @@
-/* Host timing of the tick at its profile boundaries (docs/slow-torque.md,
+/* Host timing of the tick at its profile boundaries (docs/design/slow-torque.md,
  * "Cost"): the median time of hd_fw_isr on plain ticks, on ticks that import
  * a profile (boot, PROFILE_LOAD, restarts) and on ticks that take a
  * PROFILE_SAVE snapshot, measured in the same run on the mock HAL with the
@@ -47,9 +47,9 @@ static double median_tick_ns(int kind)
         s.enc.has_output = true;
         hal_mock_push_sample(&mock, &s);
         if (kind == 1) {
-            fw.tick.import_pending = true;
+            fw.filter.import_pending = true;
         } else if (kind == 2) {
-            fw.tick.snapshot_pending = true;
+            fw.filter.snapshot_pending = true;
         }
         double t0 = now_ns();
         hd_fw_isr(&fw);

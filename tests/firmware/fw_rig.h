@@ -156,7 +156,7 @@ static inline hd_can_ack_t set_param(int id, float v)
     return send_cmd(&c);
 }
 
-/* A command whose one argument is the u8 at byte 2 (docs/protocol.md), or
+/* A command whose one argument is the u8 at byte 2 (docs/reference/protocol.md), or
  * none: the byte is written as it is, whatever the opcode. */
 static inline hd_can_ack_t simple_cmd(uint8_t opcode, uint8_t arg)
 {

@@ -1,5 +1,5 @@
 /* CAN protocol: byte layouts checked against hand-computed bytes from the
- * tables in docs/protocol.md, identifiers, round trips, saturation,
+ * tables in docs/reference/protocol.md, identifiers, round trips, saturation,
  * malformed frames. */
 #include <math.h>
 #include <string.h>
@@ -70,7 +70,7 @@ static void test_telem_saturates_and_marks_not_available(void)
 
 static void test_command_bytes_match_the_documented_example(void)
 {
-    /* docs/protocol.md: 01D01001#1007C80000007A44 adds motor order 2, q = 1000 */
+    /* docs/reference/protocol.md: 01D01001#1007C80000007A44 adds motor order 2, q = 1000 */
     hd_can_cmd_t c = {0};
     c.opcode = HD_CMD_ADD_MOTOR;
     c.token = 7;
@@ -91,7 +91,7 @@ static void test_command_bytes_match_the_documented_example(void)
 
 static void test_command_argument_bytes(void)
 {
-    /* Hand-computed from docs/protocol.md's argument table. */
+    /* Hand-computed from docs/reference/protocol.md's argument table. */
     hd_can_cmd_t c = {0};
     hal_can_frame_t f;
     c.opcode = HD_CMD_ADD_FIXED;

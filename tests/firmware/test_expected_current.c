@@ -4,7 +4,7 @@
  * scaled by k_b / k_i where the load drives the motor (T_cur vel < 0,
  * blended in like the Coulomb sign; k_i at standstill), and its
  * configuration check.  (A filter-library unit test kept with the
- * firmware tests: the firmware is its only caller; docs/slow-torque.md.) */
+ * firmware tests: the firmware is its only caller; docs/design/slow-torque.md.) */
 #include <math.h>
 
 #include "hd_expected.h"

@@ -15,7 +15,10 @@
  *     ZERO_TORQUE on the filtered torque against the open-loop drive (zero
  *     current: the person pays the drive train's friction);
  *   - impedance: a person's constant torque against IMPEDANCE kp: the true
- *     output deflects by T / kp (the rendered stiffness).
+ *     output deflects by T / kp (the rendered stiffness);
+ *   - contact: IMPEDANCE kp 500 N m/rad toward a point behind a 2e4 N m/rad
+ *     wall (the control benchmark's wall rows): after the impact the output
+ *     stays on the wall and the true torque settles (no limit cycle).
  * The 2x component is fitted by least squares on sin/cos(2 theta_m) of the
  * true motor angle over the last second.
  */
@@ -47,6 +50,7 @@ typedef struct {
     double speed_rad_s;   /* mean output speed */
     double person_nm;     /* mean person torque */
     double angle_rad;     /* mean true output angle */
+    double angle_err_rad; /* worst |the law's output angle - the true one|, last second */
 } loop_result_t;
 
 typedef struct {
@@ -59,7 +63,10 @@ typedef struct {
     double person_torque_nm;   /* else: a person's constant torque */
     int step_at;               /* > 0: the setpoint is step_from_nm before this tick */
     float step_from_nm;
+    bool wall;                 /* a 2e4 N m/rad wall at WALL_RAD (damping 5 N m s/rad) */
 } loop_case_t;
+
+#define WALL_RAD 0.02
 
 static double trace_nm[RUN_TICKS]; /* the true output torque of each tick */
 
@@ -74,6 +81,12 @@ static void joint_for(const loop_case_t *lc, hd_sim_joint_params_t *p)
         p->env = HD_SIM_ENV_SPRING; /* K_e = 0: a damper, the output runs at T / D_e */
         p->env_stiffness_nm_rad = 0.0;
         p->env_damping_nm_s_rad = lc->damper_nm_s_rad;
+    }
+    if (lc->wall) {
+        p->env = HD_SIM_ENV_WALL;
+        p->env_position_rad = WALL_RAD;
+        p->env_stiffness_nm_rad = 2e4;
+        p->env_damping_nm_s_rad = 5.0;
     }
 }
 
@@ -145,7 +158,7 @@ static loop_result_t run_loop(const loop_case_t *lc)
     hd_fw_config_t cfg;
     start_loop(lc, &cfg);
     fit_t fit = {0};
-    double w = 0.0, person = 0.0, angle = 0.0;
+    double w = 0.0, person = 0.0, angle = 0.0, angle_err = 0.0, angle_before = 0.0;
     for (int k = 0; k < RUN_TICKS; k++) {
         const float tau = k < lc->step_at ? lc->step_from_nm : lc->torque_nm;
         const hd_can_setpoint_t sp = {lc->mode, (uint8_t)k, tau, 0.0f, 0.0f};
@@ -166,7 +179,10 @@ static loop_result_t run_loop(const loop_case_t *lc)
             w += t->output_velocity_rad_s;
             person += t->person_torque_nm;
             angle += t->output_angle_rad;
+            /* the law sees the angle of the tick's sensor reading: before this step */
+            angle_err = fmax(angle_err, fabs((double)fw.control.in.angle_rad - angle_before));
         }
+        angle_before = dyn.truth.output_angle_rad;
     }
     TEST_ASSERT_EQUAL_INT(lc->mode, fw.control.out.mode);
     loop_result_t out;
@@ -176,13 +192,14 @@ static loop_result_t run_loop(const loop_case_t *lc)
     out.speed_rad_s = w / fit.n;
     out.person_nm = person / fit.n;
     out.angle_rad = angle / fit.n;
+    out.angle_err_rad = angle_err;
     return out;
 }
 
 static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
 {
     const float tau = 10.0f;
-    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_TORQUE, tau, 0.0f, 0.0f, 4.0, 0.0, 0.0, 0, 0.0f};
+    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_TORQUE, tau, 0.0f, 0.0f, 4.0, 0.0, 0.0, 0, 0.0f, false};
     const loop_result_t filt = run_loop(&lc);
     lc.feedback = HD_CTRL_FB_RAW;
     const loop_result_t raw = run_loop(&lc);
@@ -241,7 +258,7 @@ static void test_torque_step_filtered_raw_open(void)
     const char *names[3] = {"filtered", "raw", "open loop"};
     step_t r[3];
     for (int i = 0; i < 3; i++) {
-        loop_case_t lc = {fb[i], HD_CTRL_TORQUE, 10.0f, 0.0f, 0.0f, 4.0, 0.0, 0.0, at, 5.0f};
+        loop_case_t lc = {fb[i], HD_CTRL_TORQUE, 10.0f, 0.0f, 0.0f, 4.0, 0.0, 0.0, at, 5.0f, false};
         (void)run_loop(&lc);
         r[i] = step_metrics(at, 5.0, 10.0);
         printf("closed_loop: step 5 -> 10 N m, %-9s feedback: rise (10-90 %%) %.0f ms, overshoot "
@@ -259,7 +276,7 @@ static void test_zero_torque_transparency(void)
     double worst = 0.0;
     for (int i = 0; i < 3; i++) {
         loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_ZERO_TORQUE, 0.0f, 0.0f, 0.0f, 0.0,
-                          speeds[i], 0.0, 0, 0.0f};
+                          speeds[i], 0.0, 0, 0.0f, false};
         const loop_result_t zt = run_loop(&lc);
         lc.feedback = HD_CTRL_FB_NONE; /* zero current: the open-loop drive */
         const loop_result_t open = run_loop(&lc);
@@ -274,17 +291,100 @@ static void test_zero_torque_transparency(void)
     TEST_ASSERT_TRUE(worst <= 0.1);
 }
 
+/* The law's output angle is the output encoder's count refined by the motor's
+ * increments (hd_fw_control.c, track_angle): within the flexspline's windup
+ * of the true angle, not within a count of it (4096 counts: 1.53 mrad, 8 %
+ * of kp 500's 20 mrad deflection). */
 static void test_impedance_rendered_stiffness(void)
 {
-    const float kp = 100.0f, kd = 2.0f;
-    const double push_nm = 10.0;
-    loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kp, kd, 0.0, 0.0, push_nm, 0, 0.0f};
-    const loop_result_t r = run_loop(&lc);
-    const double rendered = push_nm / r.angle_rad;
-    printf("closed_loop: IMPEDANCE kp %.0f N m/rad, a person's %.1f N m: true deflection %.5f "
-           "rad, rendered %.2f N m/rad (%+.2f %%; goal within 5 %%)\n",
-           (double)kp, push_nm, r.angle_rad, rendered, 100.0 * (rendered / (double)kp - 1.0));
-    TEST_ASSERT_DOUBLE_WITHIN(0.05 * (double)kp, (double)kp, rendered);
+    const float kps[2] = {100.0f, 500.0f}, kd = 2.0f;
+    const double push_nm = 10.0, count_rad = 2.0 * 3.14159265358979323846 / 4096.0;
+    for (int i = 0; i < 2; i++) {
+        loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kps[i], kd, 0.0, 0.0,
+                          push_nm, 0, 0.0f, false};
+        const loop_result_t r = run_loop(&lc);
+        const double rendered = push_nm / r.angle_rad;
+        printf("closed_loop: IMPEDANCE kp %.0f N m/rad, a person's %.1f N m: true deflection "
+               "%.5f rad, rendered %.2f N m/rad (%+.2f %%; goal within 5 %%); the law's angle "
+               "within %.3f mrad of the true one (an output count: %.3f mrad)\n",
+               (double)kps[i], push_nm, r.angle_rad, rendered,
+               100.0 * (rendered / (double)kps[i] - 1.0), 1e3 * r.angle_err_rad, 1e3 * count_rad);
+        /* at kp 500 the output hunts by about +-12 % of its deflection (the integral
+         * against the motor's static friction, docs/results/control.md): its mean over one
+         * second is not the goal's number, the benchmark's row is */
+        if (i == 0) {
+            TEST_ASSERT_DOUBLE_WITHIN(0.05 * (double)kps[i], (double)kps[i], rendered);
+        }
+        TEST_ASSERT_TRUE(r.angle_err_rad < 0.25 * count_rad);
+    }
+}
+
+/* The benchmark's wall scene (tools/hdtools/bench/control.py, wall_contact):
+ * a pre-roll back-drives the joint in ZERO_TORQUE (a PI speed servo: down
+ * to -3 rad/s, up to +3, back to rest where it started) so that the filter
+ * has seen it move; then IMPEDANCE kp 500 toward 0.05 rad with the wall at
+ * 0.02 rad.  A limit cycle: the output leaving the wall after the first
+ * 0.5 s of contact, or the last second's true torque moving by more than
+ * 10 % of its mean. */
+static void test_impedance_wall_contact_settles(void)
+{
+    enum { RAMP = 500, HOLD = 750, PRE = 4 * RAMP + 2 * HOLD, TICKS = PRE + 500 + 3000 };
+    const float kds[2] = {2.0f, 10.0f};
+    for (int i = 0; i < 2; i++) {
+        const loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, 500.0f, kds[i],
+                                0.0, 0.0, 0.0, 0, 0.0f, true};
+        hd_fw_config_t cfg;
+        start_loop(&lc, &cfg);
+        double servo_int = 0.0, lo = INFINITY, hi = -INFINITY, sum = 0.0;
+        int first_contact = -1, losses = 0;
+        bool touching = false;
+        for (int k = 0; k < TICKS; k++) {
+            const bool pre = k < PRE;
+            const hd_can_setpoint_t sp = {pre ? (uint8_t)HD_CTRL_ZERO_TORQUE
+                                              : (uint8_t)HD_CTRL_IMPEDANCE,
+                                          (uint8_t)k, 0.0f, (float)(WALL_RAD + 0.03), 0.0f};
+            hal_can_frame_t f;
+            hd_can_encode_setpoint(cfg.node_id, &sp, &f);
+            TEST_ASSERT_EQUAL_INT(0, hal_mock_push_rx(&mock, &f));
+            hd_fw_isr(&fw);
+            hd_fw_background(&fw);
+            double person = 0.0;
+            if (pre) {
+                const double t = (double)k, v = 3.0;
+                const double target =
+                    t < RAMP ? -v * t / RAMP
+                    : t < RAMP + HOLD ? -v
+                    : t < 3 * RAMP + HOLD ? -v + 2.0 * v * (t - RAMP - HOLD) / (2 * RAMP)
+                    : t < 3 * RAMP + 2 * HOLD ? v
+                    : v * (1.0 - (t - 3 * RAMP - 2 * HOLD) / RAMP);
+                const double err = target - dyn.joint.x.output_velocity_rad_s;
+                servo_int += 5000.0 * err * 1e-3;
+                person = 50.0 * err + servo_int;
+            }
+            dyn.joint.person_torque_nm = person;
+            hal_simdyn_tick(&dyn);
+            const double env = dyn.truth.env_torque_nm;
+            if (!pre && env > 0.0 && first_contact < 0) {
+                first_contact = k;
+            }
+            if (first_contact >= 0 && k >= first_contact + 500) {
+                losses += (touching && env <= 0.0) ? 1 : 0;
+            }
+            touching = env > 0.0;
+            if (k >= TICKS - 1000) {
+                const double tau = dyn.truth.output_torque_nm;
+                lo = fmin(lo, tau), hi = fmax(hi, tau), sum += tau;
+            }
+        }
+        const double mean = sum / 1000.0;
+        printf("closed_loop: IMPEDANCE kp 500 N m/rad kd %.0f N m s/rad on a 2e4 N m/rad wall: "
+               "true torque last second mean %.2f N m, peak to peak %.3f N m, %d contact losses "
+               "(integral limit %.3g N m)\n",
+               (double)kds[i], mean, hi - lo, losses, (double)cfg.ctrl.integral_limit_nm);
+        TEST_ASSERT_TRUE(first_contact >= 0);
+        TEST_ASSERT_EQUAL_INT(0, losses);
+        TEST_ASSERT_TRUE(hi - lo <= 0.1 * fabs(mean));
+    }
 }
 
 int main(int argc, char **argv)
@@ -297,5 +397,6 @@ int main(int argc, char **argv)
     RUN_TEST(test_torque_step_filtered_raw_open);
     RUN_TEST(test_zero_torque_transparency);
     RUN_TEST(test_impedance_rendered_stiffness);
+    RUN_TEST(test_impedance_wall_contact_settles);
     return UNITY_END();
 }

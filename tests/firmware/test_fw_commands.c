@@ -435,7 +435,7 @@ static void test_version_and_info(void)
     init_fw();
     hd_can_ack_t a = info(HD_CMD_VERSION, HD_INFO_PROTOCOL_VERSION);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
-    TEST_ASSERT_EQUAL_UINT32(2u, a.value_u32); /* docs/protocol.md: version 2 */
+    TEST_ASSERT_EQUAL_UINT32(2u, a.value_u32); /* docs/reference/protocol.md: version 2 */
     TEST_ASSERT_EQUAL_HEX32(0x54534F48u, info(HD_CMD_VERSION, HD_INFO_BOARD_ID).value_u32);
     TEST_ASSERT_EQUAL_UINT32(HD_CONFIG_RECORD_VERSION,
                              info(HD_CMD_VERSION, HD_INFO_CONFIG_RECORD_VERSION).value_u32);

@@ -17,9 +17,9 @@
  *     DAMP; filter frozen -> no reaction; drive fault or a failed drive
  *     call -> STOP latched; bus-off and repeated deadline misses -> DAMP;
  *   - a board without a drive sends nothing new and refuses control modes.
- * The `measured:` lines are the control table of docs/reliability.md
+ * The `measured:` lines are the control table of docs/results/reliability.md
  * (tests/reliability/rel_doc.py); the expectations are the reactions
- * docs/firmware.md specifies, not what the code happens to do.
+ * docs/design/firmware.md specifies, not what the code happens to do.
  */
 #include <math.h>
 #include <stdio.h>
@@ -285,7 +285,7 @@ static void test_current_never_beyond_its_limit(void)
  * fault to the first tick whose command ran the safe mode (0: the command
  * of the faulty tick itself), and the ticks back to the asked mode once the
  * fault is gone.  The measured: lines are the control table of
- * docs/reliability.md (tests/reliability/rel_doc.py). */
+ * docs/results/reliability.md (tests/reliability/rel_doc.py). */
 
 static hal_mock_sample_t fault_smp; /* what the next sample_tick reads */
 

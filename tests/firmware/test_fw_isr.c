@@ -269,9 +269,15 @@ static void test_calib_bound_macros_are_the_tables(void)
 static void test_end_of_samples_stops_the_isr(void)
 {
     init_fw();
-    run(5, 0, 1);
+    run(5, 1234, 1);
+    const uint64_t t_us = hd_fw_last_sample(&fw)->t_us;
     hd_fw_isr(&fw); /* queue empty: HAL_ERR_END */
     TEST_ASSERT_TRUE(fw.tick.ended);
+    /* the last sample is still the last one the source gave (the tick
+     * fills it in place: the ending tick must not touch it) */
+    TEST_ASSERT_EQUAL_INT32(1234, hd_fw_last_sample(&fw)->bridge_counts);
+    TEST_ASSERT_TRUE(hd_fw_last_sample(&fw)->valid);
+    TEST_ASSERT_EQUAL_UINT64(t_us, hd_fw_last_sample(&fw)->t_us);
     TEST_ASSERT_EQUAL_UINT8(HD_STATE_STOPPED, last_id(ID_HB)->data[0]);
     uint32_t ticks = hd_fw_counters(&fw)->ticks;
     hd_fw_isr(&fw);
@@ -359,6 +365,98 @@ static void test_frames_for_others_are_counted_not_queued(void)
     TEST_ASSERT_EQUAL_UINT32(0, hd_fw_counters(&fw)->commands);
 }
 
+/* The tick writes every field of the sample (the gauge does not clear it
+ * first): two runs on the same inputs, with the sample filled with 0x00 in
+ * one and 0xFF in the other before each tick, give the same fields, over
+ * good ticks, ADC errors, saturation, encoder faults and an output encoder
+ * coming and going. */
+_Static_assert(sizeof(hd_fw_sample_t) == 80u,
+               "a new hd_fw_sample_t field: add it to poisoned_run's comparison");
+enum { POISON_TICKS = 60 };
+
+static void poisoned_run(uint8_t poison, hd_fw_sample_t out[POISON_TICKS])
+{
+    rig_reset();
+    init_fw();
+    for (unsigned i = 0; i < POISON_TICKS; i++) {
+        hal_mock_sample_t smp;
+        memset(&smp, 0, sizeof smp);
+        smp.adc.bridge_counts = 1000 + 37 * (int32_t)i;
+        smp.adc_rc = (i % 7u == 3u) ? HAL_ERR_IO : HAL_OK;
+        smp.adc.saturated = i % 11u == 5u;
+        smp.enc.motor_counts = 5u * i;
+        smp.enc.output_counts = i / 2u;
+        smp.enc.has_output = i >= 20u && i < 40u;
+        smp.enc.fault = i % 13u == 6u;
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal_mock_push_sample(&mock, &smp));
+        memset(&fw.last, poison, sizeof fw.last);
+        hd_fw_isr(&fw);
+        hd_fw_background(&fw);
+        out[i] = fw.last;
+    }
+}
+
+#define SAME_FIELD(f)                                                                  \
+    TEST_ASSERT_EQUAL_INT_MESSAGE(0, memcmp(&a[i].f, &b[i].f, sizeof a[i].f), #f)
+
+static void test_every_tick_writes_every_sample_field(void)
+{
+    static hd_fw_sample_t a[POISON_TICKS], b[POISON_TICKS];
+    poisoned_run(0x00u, a);
+    poisoned_run(0xFFu, b);
+    for (unsigned i = 0; i < POISON_TICKS; i++) {
+        SAME_FIELD(t_us);
+        SAME_FIELD(bridge_counts);
+        SAME_FIELD(bridge_v);
+        SAME_FIELD(torque_raw_nm);
+        SAME_FIELD(torque_filtered_nm);
+        SAME_FIELD(ripple_nm);
+        SAME_FIELD(torque_expected_nm);
+        SAME_FIELD(torque_expected_var_nm2);
+        SAME_FIELD(feedforward_nm);
+        SAME_FIELD(motor_current_a);
+        SAME_FIELD(motor_velocity_rad_s);
+        SAME_FIELD(d_motor_angle_rad);
+        SAME_FIELD(d_output_angle_rad);
+        SAME_FIELD(motor_counts);
+        SAME_FIELD(output_counts);
+        SAME_FIELD(has_output);
+        SAME_FIELD(valid);
+        SAME_FIELD(faults);
+        SAME_FIELD(kf_status);
+    }
+    TEST_ASSERT_FALSE(a[3].valid);      /* the paths ran: an ADC error, */
+    TEST_ASSERT_TRUE(a[25].has_output); /* an output encoder */
+    TEST_ASSERT_TRUE(a[12].valid);      /* and good samples */
+}
+
+/* The mock's receive copies the header and the bytes a frame carries (the
+ * classic 8, or an FD frame's len), not the whole buffer: each frame comes
+ * back with the bytes it was pushed with. */
+static void test_mock_receive_gives_the_frames_as_pushed(void)
+{
+    static const uint8_t lens[] = {0, 3, 8, 12, 64};
+    for (unsigned k = 0; k < sizeof lens; k++) {
+        hal_can_frame_t in = {0};
+        in.id = 0x1234567u + k;
+        in.len = lens[k];
+        in.flags = (uint8_t)(HAL_CAN_FLAG_EXT | (lens[k] > 8u ? HAL_CAN_FLAG_FD : 0u));
+        for (unsigned i = 0; i < HAL_CAN_MAX_DATA; i++) {
+            in.data[i] = (uint8_t)(7u * i + k + 1u);
+        }
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal_mock_push_rx(&mock, &in));
+        hal_can_frame_t out;
+        memset(&out, 0xA5, sizeof out);
+        TEST_ASSERT_EQUAL_INT(HAL_OK, hal.can.recv(hal.can.ctx, &out));
+        TEST_ASSERT_EQUAL_HEX32(in.id, out.id);
+        TEST_ASSERT_EQUAL_UINT8(in.len, out.len);
+        TEST_ASSERT_EQUAL_HEX8(in.flags, out.flags);
+        TEST_ASSERT_EQUAL_INT(0, memcmp(in.data, out.data, in.len));
+    }
+    hal_can_frame_t none;
+    TEST_ASSERT_EQUAL_INT(HAL_ERR_NO_DATA, hal.can.recv(hal.can.ctx, &none));
+}
+
 int main(int argc, char **argv)
 {
     if (UnityParseOptions(argc, argv) != 0) {
@@ -381,5 +479,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_angle_telemetry_carries_the_raw_counts);
     RUN_TEST(test_boot_report_says_why_and_what);
     RUN_TEST(test_frames_for_others_are_counted_not_queued);
+    RUN_TEST(test_mock_receive_gives_the_frames_as_pushed);
+    RUN_TEST(test_every_tick_writes_every_sample_field);
     return UNITY_END();
 }

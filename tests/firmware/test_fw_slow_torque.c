@@ -1,4 +1,4 @@
-/* Slow torque in the firmware (issue 12, docs/slow-torque.md), on the mock
+/* Slow torque in the firmware (issue 12, docs/design/slow-torque.md), on the mock
  * HAL: the feed-forward frame (latched, stale, ramp, every rejection), the
  * motor-current channel, and the profile record (boot import at the
  * absolute angle of the first sample, every refusal, upload, load, save,
@@ -743,7 +743,7 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
     hal_can_frame_t f;
     hd_can_encode_cmd(1, &c, &f);
     hal_mock_push_rx(&mock, &f);
-    const uint32_t seq0 = fw.tick.snapshot_seq;
+    const uint32_t seq0 = fw.filter.snapshot_seq;
     float x[3][2] = {{0}};
     uint32_t at_m = 0, at_o = 0;
     hd_can_ack_t a;
@@ -751,7 +751,7 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
     for (unsigned i = 0; i < 6 && a.token != 0x5A; i++) {
         uint32_t before = hal_mock_tx_count(&mock);
         tick_n(1, 1300, 7);
-        if (fw.tick.snapshot_seq != seq0 && at_m == 0u) {
+        if (fw.filter.snapshot_seq != seq0 && at_m == 0u) {
             at_m = motor;
             at_o = outc;
             /* the state after the step is the estimate at this sample's
@@ -836,7 +836,7 @@ static void test_operating_mode_freezes_output_lines(void)
  * each sample's own increment before predicting it, so it keeps predicting
  * the ripple at each sample's angle through the change (before it turned
  * by the increment passed with the previous sample and lagged by order x
- * the change: 0.12 N m here, docs/slow-torque.md "Increment prediction"). */
+ * the change: 0.12 N m here, docs/design/slow-torque.md "Increment prediction"). */
 static void test_the_filter_keeps_the_phase_through_a_speed_change(void)
 {
     with_output = true;

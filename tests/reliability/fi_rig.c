@@ -98,7 +98,7 @@ static uint32_t u24le(const uint8_t *p)
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16);
 }
 
-/* Decodes by the byte layout of docs/protocol.md (not with hd_can_proto):
+/* Decodes by the byte layout of docs/reference/protocol.md (not with hd_can_proto):
  * 29-bit identifier 0x01D0TTNN, TT the frame type, NN the node. */
 static void tx_hook(void *ctx, const hal_can_frame_t *f, uint64_t t_us)
 {

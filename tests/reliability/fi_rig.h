@@ -7,7 +7,7 @@
  *                      of ticks (the truth is never touched);
  *   CAN, NVM        <- the in-memory mock (hal/mock), whose transmit hook
  *                      decodes every telemetry frame by the documented byte
- *                      layout (docs/firmware.md), independently of the
+ *                      layout (docs/design/firmware.md), independently of the
  *                      firmware's own decoder.
  *
  * Every tick the rig checks the invariants of the issue (the ISR takes one
@@ -65,7 +65,7 @@ typedef struct {
     /* per tick (index = tick) */
     float err_nm[FI_MAX_TICKS];   /* filtered - truth; NaN when the sample was invalid */
     uint32_t faults[FI_MAX_TICKS];/* HD_FAULT_* raised on the tick (hd_fw_sample_t) */
-    /* telemetry decoded from the frames sent (docs/firmware.md layout) */
+    /* telemetry decoded from the frames sent (docs/design/firmware.md layout) */
     uint32_t telem_a, telem_b, heartbeats, acks;
     uint32_t telem_faults_or;     /* OR of TELEM_B.Faults over all frames */
     uint32_t hb_faults_or;        /* OR of HEARTBEAT.HbFaults */
@@ -106,12 +106,12 @@ uint32_t fi_faults_in(const fi_rig_t *r, uint64_t a, uint64_t b);
 /* Queues a command frame for node 1 (opcode, token, args). */
 void fi_push_cmd(fi_rig_t *r, const uint8_t data[8], uint8_t len, uint8_t flags, uint32_t id);
 
-/* The recovery band and hold used throughout (docs/reliability.md prints
+/* The recovery band and hold used throughout (docs/results/reliability.md prints
  * them with the table, from fi_report_setup). */
 #define FI_BAND_NM 0.15
 #define FI_HOLD_TICKS 200u
 
-/* The `measured:` lines (rel_measured.h) docs/reliability.md is written
+/* The `measured:` lines (rel_measured.h) docs/results/reliability.md is written
  * from.  fi_report: one fault case: its recovery, the recovery limit the
  * test asserts, the worst |filtered - truth| over [err_from, err_to) (NaN:
  * none printed), the fault bits raised in [flag_from, flag_to), and `extra`

@@ -1,13 +1,10 @@
 """Writing measured tables into the docs (tests/reliability/rel_doc.py,
 tests/vm/vm_doc.py).
 
-A generated block sits in a Markdown file between
-
-    <!-- BEGIN generated:NAME -->
-    <!-- END generated:NAME -->
-
+A generated block sits in a Markdown file between hdtools.docblock's
+markers (`<!-- BEGIN generated:NAME -->`, `<!-- END generated:NAME -->`);
 NAME has a hyphen (`reliability-faults`), so hdtools.protocol, which
-renders its own `\\w+` blocks in every docs/*.md, leaves these alone.
+renders its own `\\w+` blocks in every docs/**/*.md, leaves these alone.
 The measuring programs are run with the command lines CTest has for them
 (`ctest --show-only=json-v1`), so a table is what the CTest test measures.
 """
@@ -16,7 +13,6 @@ from __future__ import annotations
 import datetime
 import json
 import os
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -64,24 +60,20 @@ def run(cmd: list[str], timeout_s: float, cwd: Path | None = None) -> str:
     return out.stdout
 
 
-def _markers(name: str) -> tuple[str, str]:
-    return f"<!-- BEGIN generated:{name} -->", f"<!-- END generated:{name} -->"
-
-
 def replace_blocks(text: str, blocks: dict[str, str], where: str) -> str:
-    """text with each named block's body replaced."""
+    """text with each named block's body replaced (hdtools.docblock)."""
+    from hdtools import docblock
+    from hdtools.safeio import UsageError
     for name, body in blocks.items():
-        begin, end = _markers(name)
-        pat = re.compile(re.escape(begin) + r"\n.*?" + re.escape(end), re.S)
-        if len(pat.findall(text)) != 1:
-            raise GenDocError(f"{where}: needs exactly one {begin} ... {end} block")
-        text = pat.sub(lambda _m: f"{begin}\n{body.rstrip()}\n{end}", text)
+        try:
+            text = docblock.splice(text, name, body.rstrip(), where)
+        except UsageError as exc:
+            raise GenDocError(str(exc)) from None
     return text
 
 
 def update_doc(path: Path, blocks: dict[str, str], check: bool, regenerate: str) -> str:
-    """Writes the blocks into path atomically (a temporary file in the same
-    folder, then a rename), or with check=True raises GenDocError naming
+    """Writes the blocks into path atomically (hdtools.safeio), or with check=True raises GenDocError naming
     `regenerate` when the file differs.  Returns a one-line report."""
     try:
         old = path.read_text()
@@ -95,13 +87,13 @@ def update_doc(path: Path, blocks: dict[str, str], check: bool, regenerate: str)
             raise GenDocError(f"{path}: generated block(s) {', '.join(stale)} out of date "
                               f"with what the tests just measured: run {regenerate}")
         return f"{path}: {names} up to date"
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    from hdtools.safeio import OutputError, Outputs
     try:
-        tmp.write_text(new)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise GenDocError(f"{path}: cannot write: {exc.strerror}") from None
+        with Outputs() as out:
+            out.write_text(path, new)
+            out.commit()
+    except OutputError as exc:
+        raise GenDocError(str(exc)) from None
     return f"{path}: {names} written"
 
 
@@ -127,7 +119,7 @@ def build_info(build: Path) -> str:
 def machine() -> str:
     """Date, processor and core count, for tables of numbers that vary
     from run to run (not checked)."""
-    from hdtools.bench.compute import cpu_model
+    from hdmaint.bench.compute import cpu_model
     load = ""
     if hasattr(os, "getloadavg"):
         load = f", load average {os.getloadavg()[0]:.1f} at the start"

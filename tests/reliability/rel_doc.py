@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The measured tables of docs/reliability.md, written from what the
+"""The measured tables of docs/results/reliability.md, written from what the
 reliability tests measure (nothing typed):
 
   rel_doc.py --build BUILD            run the tests of BUILD, rewrite the blocks
@@ -36,7 +36,7 @@ from gendoc import (ROOT, GenDocError, build_info, command_of, ctest_commands, m
 sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import protocol, summary  # noqa: E402  (fault and result names from the .def files)
 
-DOC = ROOT / "docs" / "reliability.md"
+DOC = ROOT / "docs" / "results" / "reliability.md"
 FAULT_TESTS = ("rel_fault_sensors", "rel_fault_can", "rel_fault_calib", "rel_fault_filter_input",
                "fw_control")
 SOAK_TEST = "rel_soak_1e6"

@@ -4,7 +4,7 @@
  *   measured: NAME key=value key=value ...
  *
  * (values without spaces).  tests/reliability/rel_doc.py runs the tests,
- * collects these lines and writes the tables of docs/reliability.md from
+ * collects these lines and writes the tables of docs/results/reliability.md from
  * them, so no measured number is typed into the documentation.
  * Header-only host test code.
  */

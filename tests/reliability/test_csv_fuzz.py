@@ -2,7 +2,7 @@
 no Python fuzzing package is pinned): calibration CSV (hdtools.calibtool.csvio.
 read_csv) and measured-log loader (hdtools.analysis.loading.load).
 
-Seeds follow docs/calibration.md and the hdsim / hdjoint-host CSV columns.
+Seeds follow docs/how-to/calibration.md and the hdsim / hdjoint-host CSV columns.
 Each seed is mutated (byte flips, insertions, deletions, splices, duplicated
 lines, numbers replaced by extremes) with a fixed RNG seed, a few thousand
 inputs per reader.  Property: a reader either returns, or raises its own

@@ -3,7 +3,7 @@
  * copy corrupt, wrong version, NVM I/O error, and a power loss at every byte
  * of a CALIB_SAVE issued over CAN.
  *
- * Expectations from docs/firmware.md and docs/calibration.md: the right
+ * Expectations from docs/design/firmware.md and docs/how-to/calibration.md: the right
  * flag on every tick (telemetry) and the right CalibStatus in the heartbeat;
  * defaults (6.60 N m/V, offset 0) whenever no valid copy exists, the stored
  * values otherwise (the profile record's own states: tests/firmware/

@@ -4,7 +4,7 @@
  * flood of frames, and a calibration gain that overflows the torque to
  * infinity.
  *
- * Expectations come from docs/firmware.md (result codes, flags, frame
+ * Expectations come from docs/design/firmware.md (result codes, flags, frame
  * layout), not from running the firmware: every command is answered by one
  * ACK with the documented result code, a rejected command changes nothing
  * (configuration and calibration byte-identical), the ISR keeps one step per
@@ -102,7 +102,7 @@ typedef struct {
     uint8_t len;
     uint8_t flags;
     uint8_t data[8];
-    int result; /* expected ACK result (docs/firmware.md), -1: no ACK */
+    int result; /* expected ACK result (docs/design/firmware.md), -1: no ACK */
 } bad_cmd_t;
 
 static void put_f32(uint8_t *p, float v)

@@ -7,7 +7,7 @@
  * every output finite, the expected status flag raised (BAD_INPUT or RESET
  * for a bad torque, FROZEN / BAD_INPUT / RESET for a bad angle), and the
  * recovery = ticks until the filtered torque is back within 0.15 N m of the
- * truth for 200 steps (a `measured:` line for docs/reliability.md). */
+ * truth for 200 steps (a `measured:` line for docs/results/reliability.md). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>

@@ -9,7 +9,7 @@
  * simulation's ground truth.  The recovery time (ticks from the end of the
  * fault until |filtered - truth| <= 0.15 N m for 200 consecutive ticks) is
  * printed as a `measured:` line (rel_measured.h; tests/reliability/rel_doc.py
- * writes docs/reliability.md from them) and must stay under a limit derived
+ * writes docs/results/reliability.md from them) and must stay under a limit derived
  * from the filter's settle times. */
 #include <math.h>
 #include <string.h>

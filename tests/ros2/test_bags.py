@@ -1,4 +1,4 @@
-"""ROS 2 recordings out and in (docs/ros2.md): `canlog convert` of the
+"""ROS 2 recordings out and in (docs/how-to/ros2.md): `canlog convert` of the
 demo's operating run read back by the MCAP project's own reader and CDR
 decoder (mcap + mcap-ros2-support, not the rosbags library that writes
 them), checked against the CAN frames decoded straight from the DBC;

@@ -1,4 +1,4 @@
-"""docs/ros2.md against the protocol: the ros2_control mapping table and
+"""docs/how-to/ros2.md against the protocol: the ros2_control mapping table and
 URDF block against firmware/hd_protocol.def and the DBC, the topics table
 and the Foxglove layout against the channels the writer makes (no build,
 no ROS)."""
@@ -16,14 +16,14 @@ ROOT = Path(__file__).resolve().parents[2]
 from hdtools import canproto, protocol
 from hdtools.rosio import messages, topics
 
-DOC = (ROOT / "docs" / "ros2.md").read_text()
+DOC = (ROOT / "docs" / "how-to" / "ros2.md").read_text()
 TRANSPORT_PARAMS = {"can_interface"}       # the only hardware param that is not a joint parameter
 
 
 def block(name: str) -> str:
     m = re.search(rf"<!-- BEGIN {re.escape(name)} -->\n(.*?)<!-- END {re.escape(name)} -->",
                   DOC, re.S)
-    assert m, f"docs/ros2.md has no {name} block"
+    assert m, f"docs/how-to/ros2.md has no {name} block"
     return m.group(1)
 
 
@@ -56,7 +56,7 @@ def test_every_telemetry_signal_is_mapped():
         for s in DB.get_message_by_name(frame).signals:
             if "Seq" in s.name or s.name == "OutputPresent":
                 continue                   # framing: the sequence, the output-encoder flag
-            assert (frame, s.name) in mapped, f"{frame}.{s.name} is not in docs/ros2.md"
+            assert (frame, s.name) in mapped, f"{frame}.{s.name} is not in docs/how-to/ros2.md"
 
 
 def test_urdf_block_has_the_tables_interfaces_and_real_parameters():

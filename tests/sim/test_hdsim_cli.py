@@ -1,4 +1,4 @@
-"""The hdsim command line: CSV columns, the raw stream of docs/raw-stream.md,
+"""The hdsim command line: CSV columns, the raw stream of docs/reference/raw-stream.md,
 error handling, and the paper's demo scenario (lines at 312 and 624 rad/s)."""
 from __future__ import annotations
 

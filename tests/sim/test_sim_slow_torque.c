@@ -1,4 +1,4 @@
-/* The simulated joint's slow-torque parts (issue 12, docs/sim.md): arm
+/* The simulated joint's slow-torque parts (issue 12, docs/reference/sim.md): arm
  * gravity with a payload change, slow sinusoidal loads, the controller's
  * feed-forward (its own parameters, dropouts, frame period) and the motor
  * current (efficiency by direction of power flow, kt error, noise), against

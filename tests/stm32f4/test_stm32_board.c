@@ -6,7 +6,7 @@
  * the boot frame reports a watchdog reset, a HardFault record left in RAM
  * and a clock that fell back; telemetry carries the ADC samples; the
  * firmware's receive filter is in the CAN controller.  Also: the pin
- * tables in docs/stm32f4.md are the ones the board definitions produce
+ * tables in docs/how-to/stm32f4.md are the ones the board definitions produce
  * (run with --print-pins to print them).
  */
 #include <stdio.h>
@@ -253,8 +253,8 @@ static const stm32_board_def_t *const BOARDS[] = {&stm32_board_odrive_v3,
 
 static void test_docs_show_the_pin_tables_of_the_code(void)
 {
-    FILE *f = fopen(HD_SOURCE_DIR "/docs/stm32f4.md", "rb");
-    TEST_ASSERT_NOT_NULL_MESSAGE(f, "docs/stm32f4.md");
+    FILE *f = fopen(HD_SOURCE_DIR "/docs/how-to/stm32f4.md", "rb");
+    TEST_ASSERT_NOT_NULL_MESSAGE(f, "docs/how-to/stm32f4.md");
     static char doc[131072];
     size_t n = fread(doc, 1, sizeof doc - 1u, f);
     fclose(f);

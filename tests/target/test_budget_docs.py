@@ -4,7 +4,7 @@ cross build, no QEMU: the renderers are pure functions of a budget dict).
 
 A small hand-made budget (a clock of 100 MHz so that microseconds are easy
 to check by hand) goes through the renderers; every expected cell below is
-computed here from the definitions in docs/target.md (us = max instructions
+computed here from the definitions in docs/results/target.md (us = max instructions
 x worst-case cycles per instruction / MHz; share = us / 1000 us), never read
 back from the code.  --update-docs must keep everything outside its markers,
 write all three files or none, and refuse a page without markers with one
@@ -20,11 +20,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdtools import target as t
-from hdtools import target_stm32f4 as f4
+from hdmaint import budget, budget_docs, budget_render
+from hdmaint import stm32f4 as f4
+from hdmaint.board import TargetError
 
 MHZ = 100
-BEGIN, END = "<!-- target:budget:begin -->", "<!-- target:budget:end -->"
+BEGIN, END = "<!-- BEGIN generated:target-budget -->", "<!-- END generated:target-budget -->"
 PATHS = ("kfpartial", "kffrozen", "kflost", "kfclamp", "kfreset", "kfworst")
 SIZES = {"4": 4, "6": 6, "8": 8, "default": 7, "max": 17}
 
@@ -60,7 +61,7 @@ def fake_m4(heap=()) -> dict:
     return {
         "flash_bytes": 40000, "ram_bytes": 90000, "stack_reserved_bytes": 8192,
         "stack_worst_bytes": 2332, "heap_symbols": list(heap), "counter_check": 2000,
-        "instructions": counts, "kf_paths": t.kf_paths_of(counts),
+        "instructions": counts, "kf_paths": budget.kf_paths_of(counts),
         "memory": {"data": 0, "bss": 81808,
                    "components": [["filter/", 30000, 0], ["board/mps2_an386", 2000, 81808]],
                    "ram_objects": [["g_mock", 57000], ["g_fw", 6400]]},
@@ -89,7 +90,7 @@ def fake_f4() -> dict:
 
 
 def test_slow_paths_pick_the_worst():
-    paths = t.kf_paths_of(fake_counts())
+    paths = budget.kf_paths_of(fake_counts())
     d = paths["default"]
     assert (d["typical"], d["worst"], d["worst_path"]) == (520, 1104, "all at once")
     assert d["dense_ratio"] == 12.0                                 # 6000 / 500
@@ -98,7 +99,7 @@ def test_slow_paths_pick_the_worst():
 
 
 def test_mps2_tables():
-    md = t.render_budget(fake_m4())
+    md = budget_render.render_budget(fake_m4())
     lines = md.splitlines()
     # Summary at the default: us = max x (cycles_worst / mean) / MHz.
     assert "| hd_kf_step, typical path | 520 | 10.4 | 1.0 % |" in lines        # 520*2/100
@@ -129,12 +130,12 @@ def test_mps2_tables():
     assert "HD_FW_RX_PER_TICK = 2 frames" in md and "HD_FW_ACKS_PER_TICK = 1 ACK" in md
     assert "= 2000 instructions (expected 2000)" in md and "64 calls each" in md
     assert "None.  Images link with `-nostdlib`" in md
-    assert "FAIL: allocator symbols linked: malloc, _sbrk" in t.render_budget(
+    assert "FAIL: allocator symbols linked: malloc, _sbrk" in budget_render.render_budget(
         fake_m4(heap=["malloc", "_sbrk"]))
 
 
 def test_mps2_summary():
-    s = t.budget_summary(fake_m4())
+    s = budget_render.budget_summary(fake_m4())
     assert (s["default_states"], s["max_states"]) == (7, 17)
     assert sorted(s["per_states"], key=int) == ["4", "6", "7", "8", "17"]
     d = s["per_states"]["7"]
@@ -169,7 +170,7 @@ def fake_m4_control() -> dict:
 
 def test_mps2_control_rows():
     n = fake_m4_control()
-    lines = t.render_budget(n).splitlines()
+    lines = budget_render.render_budget(n).splitlines()
     assert "| hd_ctrl_step (the control law, every mode) | 300 | 9.0 | 0.9 % |" in lines
     assert ("| the tick with control (a drive, 2 control frames in) | 3900 (1.50x the tick) "
             "| 78.0 | 7.8 % |") in lines                                # 3900*2/100
@@ -181,14 +182,14 @@ def test_mps2_control_rows():
     assert ("The worst tick with control: 78.0 us = 7.8 % of the 1000 us tick with the "
             "firmware's default filter (7 states), 100.0 us = 10.0 % with the largest "
             "(17 states); the goal is at most 5 % (not met at the default).") in md
-    s = t.budget_summary(n)
+    s = budget_render.budget_summary(n)
     assert s["ctrl_step"]["worst_us"] == 9.0 and s["ctrl_step"]["budget_fraction"] == 0.009
     ctl = s["per_states"]["7"]["tick_with_control"]
     assert (ctl["worst_us"], ctl["ratio_to_tick_max"], ctl["frames_in"]) == (78.0, 1.5, 2)
     assert s["per_states"]["17"]["tick_with_control_and_commands"]["worst_us"] == 45.0
     # without the control sections (an older bench image) the tables are as before
-    assert "hd_ctrl_step" not in t.render_budget(fake_m4())
-    assert "ctrl_step" not in t.budget_summary(fake_m4())
+    assert "hd_ctrl_step" not in budget_render.render_budget(fake_m4())
+    assert "ctrl_step" not in budget_render.budget_summary(fake_m4())
 
 
 def test_stm32f4_tables_and_summary():
@@ -215,22 +216,24 @@ def test_stm32f4_tables_and_summary():
 
 def test_replace_block_keeps_the_rest():
     text = f"# Page\n\nbefore\n\n{BEGIN}\nold table\n{END}\n\nafter\n"
-    once = t.replace_block(text, "| new |", "page.md")
+    once = budget_docs.replace_block(text, "| new |", "page.md")
     assert once.startswith("# Page\n\nbefore\n\n" + BEGIN + "\n")
     assert once.endswith(END + "\n\nafter\n")
     assert "| new |" in once and "old table" not in once
-    assert t.replace_block(once, "| new |", "page.md") == once      # a second run: no change
+    assert budget_docs.replace_block(once, "| new |", "page.md") == once      # a second run: no change
     for bad in ("no markers\n", f"{END}\n{BEGIN}\n", f"{BEGIN}\n{BEGIN}\n{END}\n",
                 f"{BEGIN}\nonly the start\n"):
-        with pytest.raises(t.TargetError, match="page.md"):
-            t.replace_block(bad, "x", "page.md")
+        with pytest.raises(TargetError, match="page.md"):
+            budget_docs.replace_block(bad, "x", "page.md")
 
 
 def docs_dir(tmp_path: Path) -> Path:
     docs = tmp_path / "docs"
     (docs / "results").mkdir(parents=True)
-    (docs / "target.md").write_text(f"# Target\n\n## Budget\n\n{BEGIN}\n{END}\n\n## Files\n")
-    (docs / "stm32f4.md").write_text(f"# STM32F4\n\n{BEGIN}\nold\n{END}\ntail\n")
+    (docs / "how-to").mkdir()
+    (docs / "results" / "target.md").write_text(
+        f"# Target\n\n## Budget\n\n{BEGIN}\n{END}\n\n## Files\n")
+    (docs / "how-to" / "stm32f4.md").write_text(f"# STM32F4\n\n{BEGIN}\nold\n{END}\ntail\n")
     return docs
 
 
@@ -239,33 +242,34 @@ SOURCE = {"commit": "0123456789ab", "uncommitted_changes": False}
 
 def test_update_docs_writes_all_three(tmp_path):
     docs = docs_dir(tmp_path)
-    (docs / "target.md").chmod(0o644)
-    t.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
-    assert (docs / "target.md").stat().st_mode & 0o777 == 0o644     # not the temp file's 0600
-    target = (docs / "target.md").read_text()
+    (docs / "results" / "target.md").chmod(0o644)
+    budget_docs.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
+    # not the temp file's 0600
+    assert (docs / "results" / "target.md").stat().st_mode & 0o777 == 0o644
+    target = (docs / "results" / "target.md").read_text()
     assert target.startswith("# Target\n\n## Budget\n\n" + BEGIN) and \
         target.endswith(END + "\n\n## Files\n")
     assert "| the tick (hd_fw_isr) | 2600 | 39.0 | 3.9 % |" in target
     assert "Measured at commit 0123456789ab;" in target
-    stm = (docs / "stm32f4.md").read_text()
+    stm = (docs / "how-to" / "stm32f4.md").read_text()
     assert "| 2300 / 3000 | 3400-4600 | 60.0 | 6.0 % |" in stm and "\nold\n" not in stm
     assert stm.endswith(END + "\ntail\n")
     b = json.loads((docs / "results" / "budget.json").read_text())
     assert b["source"] == SOURCE and b["tick_period_us"] == 1000
     assert b["mps2-an386"]["per_states"]["7"]["tick_with_commands"]["ratio_to_tick_max"] == 1.2
     assert b["stm32f4"]["images"]["hd_mini_cheetah"]["flash_bytes"] == 53976
-    assert sorted(p.name for p in docs.rglob("*")) == ["budget.json", "results",
+    assert sorted(p.name for p in docs.rglob("*")) == ["budget.json", "how-to", "results",
                                                        "stm32f4.md", "target.md"]
 
 
 def test_update_docs_all_or_none(tmp_path):
     docs = docs_dir(tmp_path)
-    (docs / "results").rmdir()
-    (docs / "results").write_text("a file where the folder should be\n")
-    before = {p: p.read_bytes() for p in docs.iterdir()}
-    with pytest.raises(t.TargetError, match="cannot write .*budget.json"):
-        t.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
-    assert {p: p.read_bytes() for p in docs.iterdir()} == before      # no page half-updated
+    (docs / "results" / "budget.json").mkdir()      # a folder where the file should be
+    before = {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()}
+    with pytest.raises(TargetError, match="budget.json: cannot write"):
+        budget_docs.write_budget_docs(docs, fake_m4(), fake_f4(), SOURCE)
+    # no page half-updated
+    assert {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()} == before
 
 
 def run_target(*args):
@@ -275,7 +279,7 @@ def run_target(*args):
 
 def test_update_docs_refuses_a_page_without_markers(tmp_path):
     docs = docs_dir(tmp_path)
-    (docs / "stm32f4.md").write_text("# STM32F4\n\nno markers here\n")
+    (docs / "how-to" / "stm32f4.md").write_text("# STM32F4\n\nno markers here\n")
     before = {p: p.read_bytes() for p in docs.rglob("*") if p.is_file()}
     r = run_target("budget", "--update-docs", "--docs", docs)
     assert r.returncode == 2 and r.stdout == ""
@@ -288,8 +292,8 @@ def test_update_docs_refuses_a_page_without_markers(tmp_path):
 
 def test_a_missing_slow_path_is_an_error_not_a_dropped_row():
     counts = fake_counts()
-    label = f"{t.KF_PATHS[0][0]}:default"
+    label = f"{budget.KF_PATHS[0][0]}:default"
     del counts[label]
-    with pytest.raises(t.TargetError, match=label):
-        t.kf_paths_of(counts)
-    assert t.kf_paths_of({k: v for k, v in counts.items() if not k.startswith("kf:")}) == {}
+    with pytest.raises(TargetError, match=label):
+        budget.kf_paths_of(counts)
+    assert budget.kf_paths_of({k: v for k, v in counts.items() if not k.startswith("kf:")}) == {}

@@ -38,8 +38,8 @@ SCENARIOS = ROOT / "sim" / "scenarios"
 
 
 def load_target_module():
-    import hdtools.target
-    return hdtools.target
+    from hdmaint import qemu_run
+    return qemu_run
 
 
 def run_target(*args, timeout=600):
@@ -77,13 +77,13 @@ def test_closed_loop_lockstep_bit_identical(built):
     assert r.returncode == 0, out
     assert "1000 ticks in lockstep" in out and "bit-identical to the host build" in out, out
     # the torque loop ran (TORQUE); a fault reaction's tick may show DAMP (a filter restart
-    # before the step does: docs/reliability.md, control table)
+    # before the step does: docs/results/reliability.md, control table)
     modes = re.search(r"modes run \[([0-9, ]+)\]", out)
     assert modes and 2 in [int(m) for m in modes.group(1).split(",")], out
 
 
 def test_closed_loop_comparison_catches_one_ulp():
-    from hdtools import target_closed_loop as cl
+    from hdmaint import closed_loop as cl
     bits = struct.unpack("<I", struct.pack("<f", 1.875))[0]
     host = [(k, 2 | 1 << 8, bits, bits, bits, 0, 0) for k in range(4)]
     assert cl.compare_records(host, list(host)) == []

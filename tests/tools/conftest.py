@@ -60,7 +60,7 @@ def added(report):
 def case_report(simulate, tmp_path_factory):
     """case_report(name) -> the report of a case of hdtools.analysis.results
     (SUITE or SLOW: scenario, --set overrides, the CSV transform), analysed
-    once per session: the tests and docs/analyze-results.md see the same
+    once per session: the tests and docs/results/analyze-results.md see the same
     runs."""
     from hdtools.analysis import results
     cases = {c.name: c for c in results.SUITE + results.SLOW}
@@ -76,7 +76,7 @@ def case_report(simulate, tmp_path_factory):
 
 
 def doc_section(name, lines):
-    """The generated section of docs/analyze-results.md and the one these
+    """The generated section of docs/results/analyze-results.md and the one these
     reports give (equal unless the file is stale)."""
     from hdtools.analysis import results
     text = results.DOC.read_text() if results.DOC.is_file() else ""
@@ -85,12 +85,12 @@ def doc_section(name, lines):
 
 def assert_summary_current(part, entries):
     """docs/results/analyze.json (the README's headline source, written in
-    the same run as docs/analyze-results.md) holds these entries of `part`
+    the same run as docs/results/analyze-results.md) holds these entries of `part`
     ("cases" or "iiwa"): numbers to 1e-9 relative."""
     import json
     from hdtools.analysis import results
     stale = ("docs/results/analyze.json is stale: run "
-             "tools/hdsense analyze --results-doc docs/analyze-results.md")
+             "tools/hdsense analyze --results-doc docs/results/analyze-results.md")
     assert results.SUMMARY.is_file(), stale
     stored = json.loads(results.SUMMARY.read_text())[part]
     for name, now in entries.items():
@@ -125,12 +125,12 @@ def same_text_but_rounding(a, b, rel=DOC_NUMBER_REL):
 
 
 def assert_doc_current(sections):
-    """Each (name, lines) section of docs/analyze-results.md is what these
+    """Each (name, lines) section of docs/results/analyze-results.md is what these
     reports give (numbers to DOC_NUMBER_REL)."""
     for name, lines in sections:
         in_doc, now = doc_section(name, lines)
         assert same_text_but_rounding(in_doc, now), (
-            f"docs/analyze-results.md section {name!r} is stale: run "
-            "tools/hdsense analyze --results-doc docs/analyze-results.md\n"
+            f"docs/results/analyze-results.md section {name!r} is stale: run "
+            "tools/hdsense analyze --results-doc docs/results/analyze-results.md\n"
             + "\n".join(l for l in difflib.unified_diff(in_doc.splitlines(), now.splitlines(),
                                                         lineterm="", n=0)))

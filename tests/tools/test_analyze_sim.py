@@ -103,7 +103,7 @@ def test_friction_lowers_the_error(analyzed):
     # smoother choice, slow band 0.016) the fast band's cost at reversals
     # (below) is as large as the slow band's gain (the paper model, with an
     # adaptive output block: 0.044; 0.087 while the offset-jump gate could
-    # cascade, docs/filter.md).  Before the filter turned by each sample's own
+    # cascade, docs/design/filter.md).  Before the filter turned by each sample's own
     # increment the start was worse (0.038 -> 0.030: the lag at reversals).
     r = analyzed("friction")
     from hdtools.analysis import results
@@ -181,7 +181,7 @@ def test_load_dependent_ripple_under_load_steps_lowers_the_ripple_band(analyzed)
 
 
 SCALED_OUTPUT_LINE = (
-    "limit (docs/analyze.md 'Known limits'): the simulated output-order-1 line grows with the "
+    "limit (docs/design/analyze.md 'Known limits'): the simulated output-order-1 line grows with the "
     "load (1 + 0.3 |T|: 0.5 -> 1.4 N m).  A fixed angle profile does not predict it in the "
     "held-out fold, so the geometry-vs-load fit claims nothing and the line stays in the "
     "output (0.70-0.72 N m, all below 2 Hz); the firmware scales only motor-locked lines by "
@@ -196,7 +196,7 @@ def test_load_dependent_ripple_lowers_the_error(analyzed, name):
 
 
 def test_results_doc_suite_tables_are_current(analyzed):
-    """docs/analyze-results.md's suite tables are these reports' (generated
+    """docs/results/analyze-results.md's suite tables are these reports' (generated
     by `tools/hdsense analyze --results-doc`, never typed)."""
     from conftest import assert_doc_current
     from hdtools.analysis import results

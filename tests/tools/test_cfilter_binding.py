@@ -29,6 +29,10 @@ int main(void) {
     O(hd_pipeline_io_t, amplitude_nm);
     P(hd_kf_profile_line_t); P(hd_kf_profile_t); O(hd_kf_profile_line_t, a_nm);
     O(hd_kf_profile_t, lines);
+    P(hd_expected_current_config_t); P(hd_slow_current_config_t); P(hd_slow_current_t);
+    O(hd_slow_current_config_t, alpha); O(hd_slow_current_config_t, ts_s);
+    O(hd_slow_current_t, primed); O(hd_pipeline_io_t, motor_current_a);
+    O(hd_pipeline_io_t, torque_expected_var_nm2);
     return 0;
 }
 """
@@ -38,7 +42,8 @@ MIRROR = {
     "hd_kf_t": cfilter.KfState, "hd_track_t": cfilter.Track,
     "hd_expected_config_t": cfilter.ExpectedConfig, "hd_pipeline_t": cfilter.Pipeline,
     "hd_pipeline_io_t": cfilter.PipelineIO, "hd_kf_profile_line_t": cfilter.ProfileLine,
-    "hd_kf_profile_t": cfilter.Profile,
+    "hd_kf_profile_t": cfilter.Profile, "hd_expected_current_config_t": cfilter.CurrentTerm,
+    "hd_slow_current_config_t": cfilter.CurrentConfig, "hd_slow_current_t": cfilter.CurrentState,
 }
 
 
@@ -62,7 +67,7 @@ def test_struct_layout_matches_c(tmp_path):
             got = ctypes.sizeof(MIRROR[name])
         assert got == int(value), f"{name}: ctypes {got} != C {value}"
         checked += 1
-    assert checked == 22
+    assert checked == 30
 
 
 def test_single_block_removes_a_sinusoid():

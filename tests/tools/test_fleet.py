@@ -1,5 +1,5 @@
 """hdsense fleet against the simulated fleet's truth and against itself run
-without the engine (docs/fleet.md, "Tests").
+without the engine (docs/results/fleet.md, "Tests").
 
 The fleet (seed 7) is not the one the thresholds were chosen on (seed 1):
 held out.  The engine runs are compared with the direct run (the same task
@@ -297,8 +297,8 @@ def test_long_candump_log_in_chunks_keeps_every_sample_once(tmp_path):
 
 
 def test_docs_thresholds_table_is_current():
-    from hdtools.fleet import bench
-    text = (ROOT / "docs" / "fleet.md").read_text()
+    from hdmaint import fleet_bench as bench
+    text = (ROOT / "docs" / "results" / "fleet.md").read_text()
     assert bench.thresholds_table() in text
 
 

@@ -1,10 +1,10 @@
-"""hdsense fleet on MCAP and rosbag2 logs (docs/fleet.md, "Logs").
+"""hdsense fleet on MCAP and rosbag2 logs (docs/results/fleet.md, "Logs").
 
 The reference is the CSV path: each bag is written (rosbags' writer, CDR)
 from a simulated log's numbers, and a CSV holding exactly the numbers the
 bag reader gives (stamps in ns -> s) is written beside it.  The fleet's
 record of the bag must equal the CSV's, column for column: the bag's
-reader (rosbags, CDR, the log contract of docs/ros2.md) against numpy's
+reader (rosbags, CDR, the log contract of docs/how-to/ros2.md) against numpy's
 CSV reader.  A bag of two joints gives two records, each its CSV's; a
 bag cut into time windows keeps every message once."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The README's headline table is what hdtools.headline renders from
+"""The README's headline table is what hdmaint.headline renders from
 docs/results/*.json (the files the measuring tools write), and each
 rendered number is the one in those files."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdtools import headline
+from hdmaint import headline
 
 
 def test_readme_headline_is_current():
@@ -17,7 +17,7 @@ def test_readme_headline_is_current():
     assert headline.BEGIN in text and headline.END in text
     now = headline.splice(text, headline.render(headline.load()))
     assert now == text, ("README.md headline is stale: run `cd tools && ../.venv/bin/python "
-                         "-m hdtools.headline --write`")
+                         "-m hdmaint.headline --write`")
 
 
 def test_two_commands_in_the_first_twenty_lines():

@@ -4,7 +4,7 @@ joints nobody tuned for.
 
 Truth comes from the simulation; the tools see only the logs, the firmware
 only the data-sheet constants (ratio, encoder counts) and the nominal
-calibration.  The joints are drawn from hdtools.bench.randjoint's
+calibration.  The joints are drawn from hdmaint.bench.randjoint's
 REPORT_SEEDS, never from the seeds the fixes were developed on."""
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import pytest
 
 from conftest import ROOT, analyze
 
-from hdtools.bench import randjoint, random_bench
+from hdmaint.bench import randjoint, random_bench
 
 DEMO_COMMISSION = ROOT / "sim" / "scenarios" / "demo_commission.ini"
 PHASES = 8                        # the declared lines' phases: the circle in 8 steps

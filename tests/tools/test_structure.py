@@ -1,8 +1,10 @@
-"""The shape of tools/hdtools and of the CTest names (docs/testing.md):
-no import cycle among the package's modules (every import counted, also
-those inside functions), no module over MAX_LINES lines but the ones listed
-with the change that will split them, and every CTest test named
-<area>_<module> with a known area."""
+"""The shape of tools/hdtools (the installed package), tools/hdmaint (the
+maintainer tools beside it) and of the CTest names (docs/reference/testing.md): no
+import cycle among their modules (every import counted, also those inside
+functions), hdtools never importing hdmaint (the wheel carries hdtools
+only), no module over MAX_LINES lines but the ones listed with the change
+that will split them, and every CTest test named <area>_<module> with a
+known area."""
 from __future__ import annotations
 
 import ast
@@ -12,16 +14,14 @@ from pathlib import Path
 from conftest import ROOT
 
 PACKAGE = ROOT / "tools" / "hdtools"
+MAINT = ROOT / "tools" / "hdmaint"
+PACKAGES = (PACKAGE, MAINT)
 MAX_LINES = 500
 # Over MAX_LINES today, each owned by a change in flight (issue 22): remove an
 # entry when that change lands.
 LONG_ALLOWED = {
-    "target.py": "split by the target change",
-    "analysis/detect.py": "the filter/analysis change works on it",
+    "hdtools/analysis/detect.py": "the filter/analysis change works on it",
 }
-# target.py and its companions (target_stm32f4, ...) import each other; the
-# target split removes that cycle.
-CYCLE_ALLOWED_PREFIX = "hdtools.target"
 AREAS = ("harness", "filter", "calib", "control", "hal", "sim", "fw", "analyze", "tools",
          "fleet", "device", "ros2", "rel", "corpus", "target", "stm32f4", "socketcan", "vm",
          "bench")
@@ -32,11 +32,11 @@ def module_name(package: Path, path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def import_graph(package: Path) -> dict[str, set[str]]:
-    """{module: modules of the package it imports}; a package's __init__ is
+def import_graph(*packages: Path) -> dict[str, set[str]]:
+    """{module: modules of the packages it imports}; a package's __init__ is
     not an edge (importing a.b runs a/__init__ first, which is no cycle)."""
-    files = {module_name(package, p): p for p in package.rglob("*.py")}
-    top = package.name
+    files = {module_name(package, p): p for package in packages for p in package.rglob("*.py")}
+    tops = {package.name for package in packages}
 
     def resolve(name: str) -> str | None:
         while name and name not in files:
@@ -60,7 +60,7 @@ def import_graph(package: Path) -> dict[str, set[str]]:
                 targets += [f"{origin}.{a.name}" if f"{origin}.{a.name}" in files else origin
                             for a in node.names]
         graph[mod] = {t for t in map(resolve, targets)
-                      if t and t != mod and t.split(".")[0] == top
+                      if t and t != mod and t.split(".")[0] in tops
                       and files[t].name != "__init__.py"}
     return graph
 
@@ -111,15 +111,21 @@ def test_cycle_finder_on_a_made_up_package(tmp_path):
     assert cycles(g) == [{"pkg.a", "pkg.sub.b", "pkg.c"}]
 
 
-def test_no_import_cycle_in_hdtools():
-    found = [c for c in cycles(import_graph(PACKAGE))
-             if not all(m.startswith(CYCLE_ALLOWED_PREFIX) for m in c)]
-    assert found == [], f"import cycles in tools/hdtools: {found}"
+def test_no_import_cycle_in_the_tools():
+    found = cycles(import_graph(*PACKAGES))
+    assert found == [], f"import cycles in tools/hdtools, tools/hdmaint: {found}"
+
+
+def test_the_installed_package_never_imports_the_maintainer_tools():
+    graph = import_graph(*PACKAGES)
+    found = sorted(f"{m} -> {t}" for m, ts in graph.items() if m.startswith("hdtools")
+                   for t in ts if t.startswith("hdmaint"))
+    assert found == [], f"hdtools imports hdmaint (not in the wheel): {found}"
 
 
 def test_no_module_over_the_line_limit():
-    sizes = {str(p.relative_to(PACKAGE)): len(p.read_text().splitlines())
-             for p in PACKAGE.rglob("*.py")}
+    sizes = {str(p.relative_to(package.parent)): len(p.read_text().splitlines())
+             for package in PACKAGES for p in package.rglob("*.py")}
     over = {name: n for name, n in sizes.items() if n > MAX_LINES and name not in LONG_ALLOWED}
     assert over == {}, f"modules over {MAX_LINES} lines: {over}"
     stale = [name for name in LONG_ALLOWED if sizes.get(name, 0) <= MAX_LINES]
@@ -138,12 +144,34 @@ def test_ctest_names_are_area_module():
 
 
 def test_firmware_file_table_names_every_source():
-    """docs/firmware.md's file table names every firmware/*.c and *.def (it
+    """docs/design/firmware.md's file table names every firmware/*.c and *.def (it
     lacked three stage files once)."""
     import re
-    text = (ROOT / "docs" / "firmware.md").read_text()
+    text = (ROOT / "docs" / "design" / "firmware.md").read_text()
     table = text[:text.index("## Two contexts")]
     named = set(re.findall(r"`([A-Za-z0-9_]+\.(?:c|def))`", table))
     files = {p.name for p in (ROOT / "firmware").glob("*.c")} | \
         {p.name for p in (ROOT / "firmware").glob("*.def")}
-    assert files - named == set(), f"docs/firmware.md's file table lacks {sorted(files - named)}"
+    assert files - named == set(), \
+        f"docs/design/firmware.md's file table lacks {sorted(files - named)}"
+
+
+# Files that rename or make temporary files for another reason than writing
+# an output atomically: a scratch copy removed after use, a test fixture.
+RENAME_ALLOWED = {
+    "tools/hdtools/safeio.py": "the one atomic writer",
+    "tools/hdtools/fleet/chunks.py": "a scratch log of one chunk, removed after the job",
+    "tests/corpus/make_inputs.py": "builds a fixture bag (a test input, not an output)",
+}
+
+
+def test_every_atomic_write_goes_through_safeio():
+    """os.replace / rename / mkstemp appear only in hdtools.safeio (and the
+    allowed non-output uses): a doc generator or tool with its own
+    temporary-file-and-rename is a second copy of it."""
+    pattern = re.compile(r"\bos\.(?:replace|rename)\(|\.rename\(|\bmkstemp\(|\btmp\.replace\(")
+    found = sorted(str(p.relative_to(ROOT)) for top in ("tools", "tests") for p in
+                   (ROOT / top).rglob("*.py") if pattern.search(p.read_text()))
+    assert [f for f in found if f not in RENAME_ALLOWED] == [], \
+        "atomic writers beside hdtools.safeio"
+    assert [f for f in RENAME_ALLOWED if f not in found] == [], "stale RENAME_ALLOWED entries"

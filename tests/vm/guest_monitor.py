@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Runs inside the SocketCAN test VM (tests/vm, docs/socketcan.md): the
+"""Runs inside the SocketCAN test VM (tests/vm, docs/how-to/socketcan.md): the
 host tools on a real kernel's vcan0, through python-can's socketcan
 interface (AF_CAN raw sockets, kernel time stamps, error frames).  /init
 runs it chrooted into the host's root (run-vm.sh --share-host), so the

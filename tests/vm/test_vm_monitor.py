@@ -1,5 +1,5 @@
 """Host side of the VM test of `hdsense monitor` and `hdsense device` on a
-real kernel's vcan0 (tests/vm/guest_monitor.py, docs/socketcan.md).
+real kernel's vcan0 (tests/vm/guest_monitor.py, docs/how-to/socketcan.md).
 
 The CTest fixture vm_monitor booted the VM; inside it the monitor watched
 hdjoint-host through python-can's socketcan interface while a raw socket
@@ -61,7 +61,7 @@ def key(msg) -> tuple:
 
 def classify(msg, db) -> str:
     """error | foreign | malformed | node: the frame's kind for node 1, from
-    the DBC alone (docs/protocol.md: 29-bit ids, one DLC per message)."""
+    the DBC alone (docs/reference/protocol.md: 29-bit ids, one DLC per message)."""
     if msg.is_error_frame:
         return "error"
     if not msg.is_extended_id:
@@ -219,7 +219,7 @@ def test_set_and_save_over_the_kernel_then_boot_from_the_saved_record(run, tmp_p
 
 
 def test_vm_doc_reads_the_run(run):
-    """tests/vm/vm_doc.py (the vm_monitor table of docs/socketcan.md) reads
+    """tests/vm/vm_doc.py (the vm_monitor table of docs/how-to/socketcan.md) reads
     the monitor's summary and the guest's steps of this run."""
     import vm_doc
     r = vm_doc.parse_monitor_run(run["share"].parent)

@@ -1,4 +1,4 @@
-"""Host side of the real-SocketCAN VM test (tests/vm, docs/socketcan.md).
+"""Host side of the real-SocketCAN VM test (tests/vm, docs/how-to/socketcan.md).
 
 The CTest fixture vm_socketcan boots the VM; inside it, hdjoint-host ran the
 simulated joint with its CAN on vcan0 through the SocketCAN backend, and the
@@ -152,7 +152,7 @@ def test_cantools_cli_decodes_the_capture(vm):
 
 def test_vm_doc_reads_the_run_as_the_dbc_decoder_does(vm):
     """tests/vm/vm_doc.py (which writes the measured table of
-    docs/socketcan.md) counts the captured frames as python-can + cantools
+    docs/how-to/socketcan.md) counts the captured frames as python-can + cantools
     decode them, the runner's own transmit count, and every in-guest check."""
     import vm_doc
     text = serial_log().read_text(errors="replace")

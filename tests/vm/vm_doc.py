@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The "Measured" tables of docs/socketcan.md, written by running the VM tests.
+"""The "Measured" tables of docs/how-to/socketcan.md, written by running the VM tests.
 
   tests/vm/vm_doc.py --build BUILD [--runs 3]
 
@@ -7,7 +7,7 @@ Boots the VM `--runs` times with each of the command lines CTest has for
 vm_socketcan and vm_monitor (into scratch folders, not the fixtures'),
 runs vm_socketcan_failure_modes once, reads each run's serial log, wall
 time, image and (vm_monitor) the files the guest wrote, and writes the
-blocks `socketcan-vm` and `socketcan-vm-monitor` of docs/socketcan.md with
+blocks `socketcan-vm` and `socketcan-vm-monitor` of docs/how-to/socketcan.md with
 the date and the machine.  The numbers are wall times under QEMU's TCG on
 a shared host: they vary from run to run, so the blocks are never checked.
 """
@@ -28,7 +28,7 @@ from gendoc import ROOT, GenDocError, command_of, ctest_commands, machine, run, 
 sys.path.insert(0, str(ROOT / "tools"))
 from hdtools import protocol, summary as key_values  # noqa: E402
 
-DOC = ROOT / "docs" / "socketcan.md"
+DOC = ROOT / "docs" / "how-to" / "socketcan.md"
 CAPTURE_LINE = re.compile(r"^\(\d+\.\d+\) \w+ ([0-9A-F]{3,8})#")
 
 

@@ -4,12 +4,14 @@ The DBC (generated from firmware/hd_protocol.def by hdtools.protocol)
 describes node 1; load_db(node_id) moves every identifier to another node
 (identifier = 0x01D00000 | type << 8 | node_id, 29-bit).  Helpers build
 command frames (as (frame_id, bytes) pairs or `cansend` strings) and turn a
-firmware configuration text file (docs/firmware.md, parsed by the firmware's
+firmware configuration text file (docs/design/firmware.md, parsed by the firmware's
 own parser: hdtools.cfgtext) into the equivalent commands: every key of the
 parameter table (firmware/hd_params.def) has one.
 """
 from __future__ import annotations
 
+import io
+import re
 import warnings
 from pathlib import Path
 
@@ -134,13 +136,25 @@ _FD_LENGTHS = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64}
 _CAN_ERR_FLAG = 0x20000000
 
 
-def _parse_candump_line(line: str):
-    """One `candump -l` line -> can.Message, or a reason string if malformed.
-    Forms: (ts) IF 123#0011, 12345678#.. (extended), 123#R / 123#R3 (remote),
-    123##1<data> (CAN FD with its flags nibble), an 8-digit id with the error
-    flag (error frame), classic 8 bytes with a _D raw DLC suffix."""
-    import can
+_HEX = re.compile(r"[0-9A-Fa-f]*")
+# The common good line (a classic data or remote frame, no error flag), matched at once;
+# anything else takes candump_line_fault's checks one by one.
+_PLAIN_LINE = re.compile(r"\(\d+\.\d+\)\s+\S+\s+(?:[0-7][0-9A-Fa-f]{2}|[01][0-9A-Fa-f]{7})#"
+                         r"(?:(?:[0-9A-Fa-f]{2}){0,8}|[Rr][0-8]?)(?:\s+[RTrt])?")
+
+
+def candump_line_fault(line: str) -> str | None:
+    """Why python-can's can.io.CanutilsLogReader would misread one `candump -l` line
+    (it raises on some and silently mangles others), or None for a good line.
+    Forms: (ts) IF 123#0011 [R|T], 12345678#.. (extended), 123#R / 123#R3
+    (remote), 123##1<data> (CAN FD with its flags nibble), an 8-digit id with
+    the error flag (error frame), classic 8 bytes with a _D raw DLC suffix.
+    Parsing the good lines is can.io's job (read_log_lines)."""
+    if _PLAIN_LINE.fullmatch(line):
+        return None
     parts = line.split()
+    if len(parts) == 4 and parts[3] in ("R", "T", "r", "t"):
+        parts = parts[:3]                    # python-can's writer adds the direction
     if len(parts) != 3:
         return f"{len(parts)} fields, expected 3 ((time) interface frame)"
     ts, _iface, frame = parts
@@ -155,41 +169,84 @@ def _parse_candump_line(line: str):
     can_id, sep, data = frame.partition("#")
     if not sep:
         return "no '#' in the frame"
-    if len(can_id) not in (3, 8) or any(c not in "0123456789abcdefABCDEF" for c in can_id):
+    if len(can_id) not in (3, 8) or not _HEX.fullmatch(can_id):
         return f"identifier {can_id!r} is not 3 or 8 hex digits"
     ident = int(can_id, 16)
-    extended = len(can_id) == 8
-    if extended and ident & _CAN_ERR_FLAG:
-        return can.Message(timestamp=t, arbitration_id=ident & 0x1FFFFFFF, is_extended_id=True,
-                           is_error_frame=True)
-    if (not extended and ident > 0x7FF) or ident > 0x1FFFFFFF:
+    if len(can_id) == 8 and ident & _CAN_ERR_FLAG:
+        ok = not len(data) % 2 and len(data) <= 16 and _HEX.fullmatch(data)
+        return None if ok else "error frame data is not 0-8 hex bytes"
+    if (len(can_id) == 3 and ident > 0x7FF) or ident > 0x1FFFFFFF:
         return f"identifier {can_id} out of range"
-    is_fd, flags = False, 0
-    if data.startswith("#"):
-        if len(data) < 2 or data[1] not in "0123456789abcdefABCDEF":
+    is_fd = data.startswith("#")
+    if is_fd:
+        if len(data) < 2 or data[1] not in "0123456789":   # can.io reads it as decimal
             return "CAN FD frame without its flags digit"
-        is_fd, flags, data = True, int(data[1], 16), data[2:]
+        data = data[2:]
     elif data[:1] in ("R", "r"):
         rest = data[1:]
         if rest and not (len(rest) == 1 and rest.isdigit() and int(rest) <= 8):
             return f"remote frame length {rest!r}"
-        return can.Message(timestamp=t, arbitration_id=ident, is_extended_id=extended,
-                           is_remote_frame=True, dlc=int(rest) if rest else 0)
+        return None
     elif "_" in data:
         data, _, raw_dlc = data.partition("_")
         if len(data) != 16 or len(raw_dlc) != 1 or raw_dlc not in "9ABCDEFabcdef":
             return "bad raw DLC suffix"
     if len(data) % 2:
         return f"odd number of hex digits in the data ({len(data)}): cut short?"
-    try:
-        payload = bytes.fromhex(data)
-    except ValueError:
+    if not _HEX.fullmatch(data):
         return "data is not hex"
-    if (is_fd and len(payload) not in _FD_LENGTHS) or (not is_fd and len(payload) > 8):
-        return f"{len(payload)} data bytes is not a valid {'CAN FD' if is_fd else 'CAN'} length"
-    return can.Message(timestamp=t, arbitration_id=ident, is_extended_id=extended, is_fd=is_fd,
-                       bitrate_switch=bool(flags & 1), error_state_indicator=bool(flags & 2),
-                       data=payload)
+    n = len(data) // 2
+    if (is_fd and n not in _FD_LENGTHS) or (not is_fd and n > 8):
+        return f"{n} data bytes is not a valid {'CAN FD' if is_fd else 'CAN'} length"
+    return None
+
+
+class _CheckedLines:
+    """The good lines of a candump log for can.io.CanutilsLogReader (a file-like
+    object to it); the others go to `malformed`.  `numbers` and `error_frames`
+    keep, per line handed on, its line number and, for an error frame, its
+    identifier and data: python-can keeps neither the class bits nor the data."""
+
+    def __init__(self, fh, malformed: list | None):
+        self.fh, self.malformed = fh, malformed
+        self.numbers: list[int] = []
+        self.error_frames: dict[int, tuple[int, bytes]] = {}
+
+    def _bad(self, lineno: int, reason: str) -> None:
+        if self.malformed is not None:
+            self.malformed.append((lineno, reason))
+
+    def __iter__(self):
+        for lineno, raw in enumerate(self.fh, start=1):
+            try:
+                line = raw.decode("ascii").strip()
+            except UnicodeDecodeError:
+                self._bad(lineno, "not ASCII text")
+                continue
+            if not line or line.startswith("#"):
+                continue
+            reason = candump_line_fault(line)
+            if reason is not None:
+                self._bad(lineno, reason)
+                continue
+            parts = line.split()
+            ident, _, data = parts[2].partition("#")
+            if "_" in data:           # classic 8 bytes with a raw DLC: can.io reads the bytes
+                parts[2] = parts[2].partition("_")[0]
+                line = " ".join(parts)
+            if len(ident) == 8 and int(ident, 16) & _CAN_ERR_FLAG:
+                self.error_frames[len(self.numbers)] = (int(ident, 16) & 0x1FFFFFFF,
+                                                        bytes.fromhex(data))
+            self.numbers.append(lineno)
+            yield line
+
+    def read(self, *_):   # can.io takes an object with read and write as a file
+        raise io.UnsupportedOperation("iterate instead")
+
+    write = read
+
+    def close(self) -> None:
+        pass
 
 
 def read_log_lines(path: str | Path, malformed: list | None = None) -> list:
@@ -213,24 +270,18 @@ def read_log_lines(path: str | Path, malformed: list | None = None) -> list:
     if st.st_size > LOG_MAX_BYTES:
         raise safeio.UsageError(f"{path}: {st.st_size} bytes, more than the limit of "
                                 f"{LOG_MAX_BYTES}")
+    import can
     out = []
     try:
         with open(path, "rb") as f:
-            for lineno, raw in enumerate(f, start=1):
-                try:
-                    line = raw.decode("ascii").strip()
-                except UnicodeDecodeError:
-                    if malformed is not None:
-                        malformed.append((lineno, "not ASCII text"))
-                    continue
-                if not line or line.startswith("#"):
-                    continue
-                res = _parse_candump_line(line)
-                if isinstance(res, str):
-                    if malformed is not None:
-                        malformed.append((lineno, res))
-                else:
-                    out.append((lineno, res))
+            lines = _CheckedLines(f, malformed)
+            for i, msg in enumerate(can.io.CanutilsLogReader(lines)):
+                if i in lines.error_frames:
+                    ident, data = lines.error_frames[i]
+                    msg = can.Message(timestamp=msg.timestamp, is_error_frame=True,
+                                      arbitration_id=ident, is_extended_id=True, data=data,
+                                      channel=msg.channel)
+                out.append((lines.numbers[i], msg))
     except OSError as exc:
         raise safeio.UsageError(f"{path}: cannot read: {exc.strerror}") from None
     return out

@@ -1,4 +1,4 @@
-"""The firmware configuration text (docs/firmware.md), parsed by the
+"""The firmware configuration text (docs/design/firmware.md), parsed by the
 firmware's own parser (firmware/hd_config_text.c) through ctypes.
 
 The tools keep no second parser: what a text means, and why it is refused,

@@ -4,7 +4,7 @@ Each subcommand lives in hdtools/cmd_<name>.py and defines
 `register(subparsers)`, which adds its parser and sets `func` on it.
 
 Every subcommand ends with exit 0 and whole outputs, or one line on stderr
-and a non-zero status (docs/reliability.md, "Exit status"):
+and a non-zero status (docs/results/reliability.md, "Exit status"):
   0 ok   1 negative result (calib: rejected)   2 bad command line or input
   3 an output could not be written   4 internal error (a bug: the line says
   where to look; HDSENSE_TRACEBACK=1 prints the traceback)   130 interrupted
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from hdtools.safeio import HdError
 
-SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "bench", "monitor", "device", "profile",
+SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "monitor", "device", "profile",
                "current", "fleet", "control"]
 EXIT_INTERNAL = 4
 
@@ -81,10 +81,17 @@ def _say(prog: str, msg: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    prog = "hdsense"
+    return run(_parser, argv, "hdsense")
+
+
+def run(make_parser, argv: list[str] | None, name: str) -> int:
+    """Parses argv with make_parser() and runs the chosen `func` with the
+    exit statuses above (also for tools that are not hdsense subcommands:
+    tools/bench)."""
+    prog = name
     try:
-        args = _parser().parse_args(argv)
-        prog = " ".join(["hdsense", args.command] +
+        args = make_parser().parse_args(argv)
+        prog = " ".join([name] + ([args.command] if getattr(args, "command", None) else []) +
                         [v for k, v in vars(args).items() if k.endswith("_command") and v])
         rc = int(args.func(args) or 0)
         try:

@@ -4,7 +4,7 @@ Replays a torque log through the firmware's own filter (C, via ctypes),
 finds structure the model lacks in one part of the log, traces it to an
 effect, adds the effect, re-runs, keeps it only if it helps in the part of
 the log it was not found in, and reports the error before and after, in and
-out of sample.  See docs/analyze.md."""
+out of sample.  See docs/design/analyze.md."""
 from __future__ import annotations
 
 import math
@@ -34,14 +34,15 @@ def register(sub):
     p.add_argument("--angle-unit", choices=("rad", "deg"),
                    help="unit of the angle columns (detected from the speeds when absent)")
     p.add_argument("--joint", metavar="NAME", help="which joint of a bag's JointState "
-                   "(MCAP, rosbag2 folder; default: its only joint; docs/ros2.md)")
+                   "(MCAP, rosbag2 folder; default: its only joint; docs/how-to/ros2.md)")
     p.add_argument("--node-id", type=int, default=1, help="CAN node id for model.can (default 1)")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--bench-hour", action="store_true",
                    help="speed benchmark: simulate one hour at 1 kHz and time the analysis")
     p.add_argument("--results-doc", metavar="FILE.md",
                    help="run the simulated cases and the iiwa logs and write the results "
-                        "tables (docs/analyze-results.md); with --bench-hour, the benchmark too")
+                        "tables (docs/results/analyze-results.md); with --bench-hour, the "
+                        "benchmark too")
     p.set_defaults(func=main)
 
 

@@ -1,6 +1,6 @@
 """`hdsense calib`: torque sensor calibration report, record and plot.
 
-Reads calibration experiments from CSV (docs/calibration.md), analyses them
+Reads calibration experiments from CSV (docs/how-to/calibration.md), analyses them
 with the C library calib/ (ctypes), prints a report in the shape of Table I
 of Taghirad 1997 plus nonlinearity, hysteresis and position dependence
 (each "NOT MEASURABLE" when the data cannot show it, which rejects the

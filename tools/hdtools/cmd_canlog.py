@@ -9,13 +9,13 @@ configuration file into CAN commands.
 convert: the decoded telemetry (as decode --csv has it) as ROS 2 messages:
 /joint_states (effort = the filtered torque), the firmware's other
 signals on /hdjoint/NAME/..., heartbeats and faults on /diagnostics, the
-device's answers in the metadata (docs/ros2.md).  Exit status as decode's;
+device's answers in the metadata (docs/how-to/ros2.md).  Exit status as decode's;
 3 also when a rosbag2 folder exists already.
 
 decode: samples are placed in device time (telemetry sequence x period;
 the period from --rate, the log's telemetry_rate_hz answers, or estimated
 from the time stamps), host time stamps only find gaps; the CSV carries
-motor/output angles from TELEM_C's raw counts (docs/protocol.md, "Time
+motor/output angles from TELEM_C's raw counts (docs/reference/protocol.md, "Time
 from the device").  Without --node the node is found in the log (a log with frames of
 several nodes needs --node).  Lines that are not candump -l frames (a line
 cut by an interrupted logger, bad hex, a wrong length) and frames that do

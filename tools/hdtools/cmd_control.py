@@ -1,5 +1,5 @@
 """`hdsense control`: one-off setpoints and a step test on a joint with a
-drive (issue 23; the frames: docs/protocol.md, "Control frames").
+drive (issue 23; the frames: docs/reference/protocol.md, "Control frames").
 
   hdsense control can0 set torque --torque 5 --hold 1
   hdsense control can0 set impedance --position 0.2 --kp 50 --kd 1
@@ -10,7 +10,7 @@ set: GAINS first when --kp or --kd is given, then the setpoint, streamed at
 --rate for --hold seconds (0: sent once); prints the joint's CTRL_STATE
 that answers the last one, and its filtered torque.  A setpoint lasts only
 while it is streamed: once the tool stops, the joint's watchdog runs DAMP
-after ctrl_watchdog_ms and STOP after ctrl_damp_ms more (docs/firmware.md).
+after ctrl_watchdog_ms and STOP after ctrl_damp_ms more (docs/design/firmware.md).
 
 step: streams --from for --before seconds, then --to for --after seconds,
 recording CTRL_STATE and the telemetry (TELEM_A) the joint sends; t = 0 is

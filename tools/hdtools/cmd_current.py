@@ -1,5 +1,5 @@
 """`hdsense current`: fit the firmware's current-to-torque parameters from a
-log with torque_nm and motor_current_a (docs/slow-torque.md, "Motor current").
+log with torque_nm and motor_current_a (docs/design/slow-torque.md, "Motor current").
 
   hdsense current LOG.csv [--gear-ratio N] [--config OUT.cfg] [--json OUT.json]
 

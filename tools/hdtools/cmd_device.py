@@ -8,7 +8,7 @@ and keep it there; ask and set single things.
   hdsense device can0 profile save | load | clear | put PROFILE.json [--save]
 
 send: FILE is a model.cfg (the configuration text `hdsense analyze`
-writes; docs/firmware.md) or a model.can (cansend lines ID#DATA, comments
+writes; docs/design/firmware.md) or a model.can (cansend lines ID#DATA, comments
 and everything after the first blank line ignored).  The joint's parameter
 table must be this tool's (VERSION PARAM_TABLE_CRC).  The commands go one
 at a time; each waits for its ACK (matched by opcode and token) within

@@ -1,5 +1,5 @@
 """`hdsense fleet`: per-log records of many joints' logs on Dask, in a
-Parquet store, then trends and alarms per joint (docs/fleet.md).
+Parquet store, then trends and alarms per joint (docs/results/fleet.md).
 
 Exit status (hdtools.cli): 0 every log has a record (refused logs are
 reported in the summary and the report, the rest completes); 1 the engine

@@ -38,7 +38,7 @@ at the end (works headless).
 --mcap FILE / --rosbag DIR write the telemetry as ROS 2 messages
 (/joint_states, /diagnostics, /hdjoint/JOINT/...; --joint NAME), whole
 or not at all; --foxglove serves them live on ws://127.0.0.1:8765
-(docs/ros2.md).
+(docs/how-to/ros2.md).
 
 Ends after --duration seconds, on Ctrl-C or SIGTERM, or when the plot
 window is closed: the summary is printed, the log renamed, exit 0.
@@ -74,7 +74,7 @@ __all__ = ["FLUSH_S", "LogRecorder", "MonitorState", "Plot", "QUERY_PARAMS",
 # python-can leaves its SocketCAN socket at net.core.rmem_default (~200 KiB:
 # about 280 frames, under 0.1 s of 1 kHz telemetry), so a monitor held up
 # longer (a plot redraw, a busy machine) lost frames; measured in the VM
-# test (tests/vm, docs/socketcan.md).  8 MiB holds seconds of telemetry.
+# test (tests/vm, docs/how-to/socketcan.md).  8 MiB holds seconds of telemetry.
 RX_BUFFER_BYTES = 8 << 20
 SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)     # Linux; not in Python 3.11
 

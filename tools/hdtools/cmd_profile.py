@@ -13,7 +13,7 @@ commands: PROFILE_PUT for every line, PROFILE_LOAD of the uploaded lines
 (the running filter takes them at the next tick) and, with --save,
 PROFILE_SAVE, as `cansend` lines (hdjoint-host --cmd takes them too).
 json: a record file back to profile.json.  A profile.json made for another
-gear ratio (more than 0.5 % off) is refused.  docs/slow-torque.md.
+gear ratio (more than 0.5 % off) is refused.  docs/design/slow-torque.md.
 Exit status: 0 done, 2 bad command line or input, 3 an output could not be
 written (an old one is left as it was).
 """

@@ -1,4 +1,4 @@
-"""Current-to-torque parameters of a joint from a log (docs/slow-torque.md,
+"""Current-to-torque parameters of a joint from a log (docs/design/slow-torque.md,
 "Motor current").  The firmware's model (filter/hd_expected.h):
 
     u = k_i i - J_r a - b_r w - Fc_r sgn(w)

@@ -1,5 +1,5 @@
 """Talking to one joint over a python-can bus: commands one at a time, each
-answered by an ACK matched by opcode and token (docs/protocol.md,
+answered by an ACK matched by opcode and token (docs/reference/protocol.md,
 "Commands"), parameters by key, VERSION / INFO items, reboot and the BOOT
 frame.  Used by `hdsense send`, `hdsense device` and `hdsense monitor`.
 

@@ -8,7 +8,7 @@ Payload (firmware/hd_fw_records.h, HD_PROFILE_RECORD_VERSION), little-endian:
 Record file: b"HDPF", u16 format version, u16 payload length, payload, u32
 CRC-32 (zlib) of everything before it.  A line predicts
 a cos(order alpha) + b sin(order alpha), alpha the absolute motor or output
-angle; docs/slow-torque.md.
+angle; docs/design/slow-torque.md.
 """
 from __future__ import annotations
 
@@ -189,7 +189,7 @@ def commands(lines: list[Line], node_id: int = 1, save: bool = False,
 
 def read_config_joint(text: str, name: str) -> dict:
     """gear_ratio, motor_cpr and output_cpr from a firmware configuration
-    text (docs/firmware.md); keys it does not give are absent."""
+    text (docs/design/firmware.md); keys it does not give are absent."""
     found = {}
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from .safeio import OutputError, Outputs
+
 from . import paths  # noqa: E402 - the source tree or the installed copies
 from . import protocol_c, protocol_dbc
 
@@ -376,7 +378,7 @@ DOCS = ROOT / "docs"
 
 
 def doc_tables() -> dict[str, str]:
-    """The generated tables of docs/*.md, by block name."""
+    """The generated tables of docs/**/*.md, by block name."""
     return protocol_dbc.doc_tables(sys.modules[__name__])
 
 
@@ -389,7 +391,7 @@ def render_docs(text: str) -> str:
 
 
 def stale_docs() -> list[Path]:
-    return [p for p in sorted(DOCS.glob("*.md")) if render_docs(p.read_text()) != p.read_text()]
+    return [p for p in sorted(DOCS.rglob("*.md")) if render_docs(p.read_text()) != p.read_text()]
 
 
 def generate_c() -> tuple[str, str]:
@@ -410,17 +412,11 @@ def stale_files() -> list[Path]:
             if not p.exists() or p.read_text() != text] + stale_docs()
 
 
-def _write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m hdtools.protocol",
                                  description="Generate or check what comes from "
                                              "firmware/hd_protocol.def and hd_params.def: the DBC, "
-                                             "the C codec and the tables in docs/*.md.")
+                                             "the C codec and the tables in docs/**/*.md.")
     ap.add_argument("--write", action="store_true",
                     help="rewrite firmware/hdjoint.dbc, hd_can_gen.[ch] and the docs' tables")
     ap.add_argument("--write-dbc", action="store_true", help="rewrite firmware/hdjoint.dbc only")
@@ -430,12 +426,14 @@ def main(argv=None) -> int:
     try:
         if a.write or a.write_dbc:
             files = generated_files()
-            for path, text in files.items():
-                if a.write or path == DBC_PATH:
-                    _write(path, text)
-            if a.write:
-                for p in stale_docs():
-                    _write(p, render_docs(p.read_text()))
+            with Outputs() as out:          # every file or none
+                for path, text in files.items():
+                    if a.write or path == DBC_PATH:
+                        out.write_text(path, text)
+                if a.write:
+                    for p in stale_docs():
+                        out.write_text(p, render_docs(p.read_text()))
+                out.commit()
             return 0
         if a.check:
             bad = stale_files()
@@ -446,7 +444,7 @@ def main(argv=None) -> int:
                 return 1
             return 0
         sys.stdout.write(generate_dbc())
-    except (OSError, DefError) as exc:
+    except (OSError, DefError, OutputError) as exc:
         print(f"hdtools.protocol: {exc}", file=sys.stderr)
         return 1
     return 0

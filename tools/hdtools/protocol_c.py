@@ -197,8 +197,12 @@ def generate(frames, frame_signals, commands, command_args, u32_replies) -> tupl
         c += ["    store_word(data, w);", "}", ""]
 
         c += [f"uint32_t hd_can_unpack_{low}(const uint8_t data[HD_CAN_DLC], {t} *v)", "{",
-              "    const uint64_t w = load_word(data);", "    uint32_t na = 0u;",
-              "    memset(v, 0, sizeof *v);"]
+              "    const uint64_t w = load_word(data);", "    uint32_t na = 0u;"]
+        if is_cmd or any(s.mux for s in sigs):
+            # fields only some frames carry (a command's arguments, an ACK's
+            # reply) read as 0 otherwise; a frame whose every field is
+            # assigned below needs no clearing (a memset per decode in the tick)
+            c += ["    memset(v, 0, sizeof *v);"]
         for i, s in enumerate(sigs):
             lines = _unpack_lines(s, f"v->{s.field}", i)
             if s.mux in ("F32_REPLY", "U32_REPLY"):

@@ -8,7 +8,7 @@ exists and is not a regular file (/dev/null, /dev/full, a FIFO) is written
 directly.  Inputs must be regular files under a size limit.
 
 Errors are exceptions carrying their exit status; hdtools.cli prints them as
-one line (docs/reliability.md, "Exit status"):
+one line (docs/results/reliability.md, "Exit status"):
   UsageError  2  bad command line or input
   OutputError 3  an output could not be written (old files untouched)
 """

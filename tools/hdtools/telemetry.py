@@ -1,4 +1,4 @@
-"""Time and angle from the device for decoded telemetry (docs/protocol.md,
+"""Time and angle from the device for decoded telemetry (docs/reference/protocol.md,
 "Time from the device").
 
 A host's time stamps are not the sample clock: a USB adapter delivers
@@ -188,7 +188,7 @@ def angles(t_s, velocity_rad_s, anchor_idx, motor_counts, motor_cpr: float,
 def columns(res: dict, motor_cpr: float | None = None,
             output_cpr: float | None = None) -> tuple[dict, list[str]]:
     """The decoded telemetry of canproto.decode_log as CSV columns for
-    `hdsense analyze` (docs/analyze.md, "Input"): t_s (device time),
+    `hdsense analyze` (docs/design/analyze.md, "Input"): t_s (device time),
     torque_nm (TorqueRaw; NaN when not available), motor_angle_rad and,
     with an output encoder, output_angle_rad, plus the other signals.
     motor_cpr / output_cpr default to the log's GET_PARAM answers.  Returns

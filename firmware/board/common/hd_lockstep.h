@@ -1,6 +1,6 @@
 /*
  * hd_lockstep: the per-tick exchange between a firmware image and a plant
- * on the host (issue 23, docs/target.md "Closed loop"), and the same
+ * on the host (issue 23, docs/results/target.md "Closed loop"), and the same
  * exchange done in one host process for the reference.  One record each
  * way per tick, little-endian:
  *

@@ -4,7 +4,7 @@
  * "flash", 4 MB SSRAM at 0x20000000 used as RAM; the linker script limits
  * both to an STM32F4/G4 class part: 512 KB flash, 128 KB RAM).
  *
- * What a real board replaces is listed in docs/target.md (porting guide).
+ * What a real board replaces is listed in docs/results/target.md (porting guide).
  */
 #ifndef BOARD_H
 #define BOARD_H

@@ -9,7 +9,7 @@
  * is RAM (hal_mock: empty, so the calibration defaults are used, as with
  * `hdjoint-host --sensors replay:IN.hdraw`), transmitted CAN frames go to
  * CAN.log in `candump -l` format with the sample time as time stamp, and
- * one 28-byte record per tick goes to OUT.bin (docs/target.md):
+ * one 28-byte record per tick goes to OUT.bin (docs/results/target.md):
  *   u32 tick, i32 bridge_counts, f32 torque_raw_nm, f32 torque_filtered_nm,
  *   f32 ripple_nm, u32 faults, u32 kf_status     (little-endian, float bits)
  * Either output may be "-" (not written).  When the stream ends the image

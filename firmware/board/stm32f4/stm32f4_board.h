@@ -153,7 +153,7 @@ uint64_t stm32_board_time_us(void *ctx);
 void stm32_board_boot_info(void *ctx, hal_boot_info_t *out);
 void stm32_board_reboot(void *ctx);
 
-/* Writes the board's pin/peripheral table as markdown (docs/stm32f4.md is
+/* Writes the board's pin/peripheral table as markdown (docs/how-to/stm32f4.md is
  * checked against it): calls put(ctx, text) piece by piece. */
 void stm32_board_pin_table(const stm32_board_def_t *def, void (*put)(void *ctx, const char *s),
                            void *ctx);

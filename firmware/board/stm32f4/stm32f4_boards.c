@@ -1,5 +1,5 @@
 /*
- * stm32f4_boards: the supported boards as data.  docs/stm32f4.md's pin
+ * stm32f4_boards: the supported boards as data.  docs/how-to/stm32f4.md's pin
  * tables are checked against these (tests/stm32f4/test_stm32_board.c).
  *
  * ODrive v3.x (STM32F405RG): pins as the ODrive v3.5/v3.6 firmware assigns

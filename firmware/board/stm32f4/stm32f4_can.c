@@ -183,23 +183,36 @@ static int free_mailbox(const stm32_can_t *can)
     return -1;
 }
 
-static void load_mailbox(stm32_can_t *can, int box, const hal_can_frame_t *f)
+/* The low n bytes of a word (n <= 4). */
+static uint32_t low_bytes(uint32_t w, uint32_t n)
+{
+    return n >= 4u ? w : w & ((1u << (8u * n)) - 1u);
+}
+
+/* f->len <= 8 (checked by the caller).  The data words read all 8 bytes of
+ * f->data and keep the first len: no byte copy per frame. */
+static stm32_can_tx_words_t tx_words(const hal_can_frame_t *f)
+{
+    stm32_can_tx_words_t w;
+    w.tir = ((f->flags & HAL_CAN_FLAG_EXT) != 0u)
+                ? (((f->id & EXT_ID_MASK) << STM32_CAN_IR_EXID_POS) | STM32_CAN_IR_IDE)
+                : ((f->id & STD_ID_MAX) << STM32_CAN_IR_STID_POS);
+    if ((f->flags & HAL_CAN_FLAG_RTR) != 0u) {
+        w.tir |= STM32_CAN_IR_RTR;
+    }
+    w.tdtr = f->len;
+    w.tdlr = low_bytes(le32(&f->data[0]), f->len);
+    w.tdhr = f->len > 4u ? low_bytes(le32(&f->data[4]), f->len - 4u) : 0u;
+    return w;
+}
+
+static void load_mailbox(stm32_can_t *can, int box, const stm32_can_tx_words_t *w)
 {
     stm32_can_tx_mailbox_t *mb = &can->TX[box];
-    uint8_t data[CLASSIC_MAX_LEN] = {0};
-    for (uint32_t i = 0; i < f->len; i++) {
-        data[i] = f->data[i];
-    }
-    STM32_WR(mb->TDTR, f->len);
-    STM32_WR(mb->TDLR, le32(&data[0]));
-    STM32_WR(mb->TDHR, le32(&data[4]));
-    uint32_t tir = ((f->flags & HAL_CAN_FLAG_EXT) != 0u)
-                       ? (((f->id & EXT_ID_MASK) << STM32_CAN_IR_EXID_POS) | STM32_CAN_IR_IDE)
-                       : ((f->id & STD_ID_MAX) << STM32_CAN_IR_STID_POS);
-    if ((f->flags & HAL_CAN_FLAG_RTR) != 0u) {
-        tir |= STM32_CAN_IR_RTR;
-    }
-    STM32_WR(mb->TIR, tir | STM32_CAN_TIR_TXRQ); /* the request goes last */
+    STM32_WR(mb->TDTR, w->tdtr);
+    STM32_WR(mb->TDLR, w->tdlr);
+    STM32_WR(mb->TDHR, w->tdhr);
+    STM32_WR(mb->TIR, w->tir | STM32_CAN_TIR_TXRQ); /* the request goes last */
 }
 
 int stm32_can_send(void *ctx, const hal_can_frame_t *frame)
@@ -214,13 +227,14 @@ int stm32_can_send(void *ctx, const hal_can_frame_t *frame)
     if (!drv->running || (STM32_RD(can->ESR) & STM32_CAN_ESR_BOFF) != 0u) {
         return HAL_ERR_FAULT;
     }
+    const stm32_can_tx_words_t w = tx_words(frame); /* before the critical section */
     int rc = HAL_OK;
     uint32_t primask = stm32_irq_save();
     int box = drv->txq_count == 0u ? free_mailbox(can) : -1; /* keep the order */
     if (box >= 0) {
-        load_mailbox(can, box, frame);
+        load_mailbox(can, box, &w);
     } else if (drv->txq_count < STM32_CAN_TXQ) {
-        drv->txq[(drv->txq_head + drv->txq_count) % STM32_CAN_TXQ] = *frame;
+        drv->txq[(drv->txq_head + drv->txq_count) % STM32_CAN_TXQ] = w;
         drv->txq_count++;
     } else {
         drv->counters.can_tx_dropped++;

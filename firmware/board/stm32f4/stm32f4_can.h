@@ -66,10 +66,20 @@ typedef struct {
     bool loopback;           /* BTR.LBKM + SILM: self-test without a bus */
 } stm32_can_config_t;
 
+/* A frame as a transmit mailbox takes it: TIR (without TXRQ), TDTR, TDLR,
+ * TDHR.  Built once per send; the queue holds these 16 bytes, not a
+ * 72-byte hal_can_frame_t. */
+typedef struct {
+    uint32_t tir;
+    uint32_t tdtr;
+    uint32_t tdlr;
+    uint32_t tdhr;
+} stm32_can_tx_words_t;
+
 typedef struct {
     stm32_can_config_t cfg;
     stm32_can_timing_t timing;
-    hal_can_frame_t txq[STM32_CAN_TXQ];
+    stm32_can_tx_words_t txq[STM32_CAN_TXQ];
     uint32_t txq_head;
     uint32_t txq_count;
     hal_counters_t counters; /* can_tx_aborted: a mailbox completed without TXOK;

@@ -1,4 +1,4 @@
-/* Fuzz: the raw sample stream reader (hal_replay_open, docs/raw-stream.md)
+/* Fuzz: the raw sample stream reader (hal_replay_open, docs/reference/raw-stream.md)
  * feeding the firmware ISR, i.e. arbitrary sensor data from a file.
  * Properties: nothing crashes; a refused file has a message; an accepted
  * one delivers exactly its whole records, then HAL_ERR_END; the ISR takes

@@ -3,7 +3,7 @@
 
 Run from the repository root after a build (the replay seed comes from the
 hdsim executable):  python3 tests/reliability/fuzz/make_seeds.py [BUILD_DIR]
-Layouts follow docs/firmware.md, docs/raw-stream.md and calib/hd_calib_record.h.
+Layouts follow docs/design/firmware.md, docs/reference/raw-stream.md and calib/hd_calib_record.h.
 Crash reproducers found later are added next to the seeds as crash-<name>.
 """
 import pathlib
@@ -45,7 +45,7 @@ put("can_cmd", "get_node_reset", rec(cmd(0x21, 7, 11)) + rec(cmd(0x20, 8, 11, 0,
 put("can_cmd", "malformed", rec(cmd(0x20), length=3) + rec(cmd(0x20), flags=0x08)
     + rec(cmd(0x77)) + rec(cmd(0x20, 1, 1, 0, f32(float("nan")))))
 
-# --- firmware configuration text (docs/firmware.md)
+# --- firmware configuration text (docs/design/firmware.md)
 put("config_text", "paper", "gear_ratio = 100\nr_nm2 = 1\np0_nm2 = 1000\noffset = off\n"
     "block = motor 2 1000\nblock = motor 4 1000\nblock = output 1 1000\ntelemetry_rate_hz = 1000\n")
 put("config_text", "all_keys", "# every key\ngear_ratio 50\nr_nm2 = 4e-4\np0_nm2 = 0.3\np_max_nm2 = 1e6\n"

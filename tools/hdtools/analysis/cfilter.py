@@ -163,6 +163,24 @@ class ExpectedConfig(ctypes.Structure):
         super().__init__(inertia_kgm2, viscous_nm_s_rad, coulomb_nm, coulomb_vel_eps_rad_s)
 
 
+class CurrentTerm(ctypes.Structure):
+    """hd_expected_current_config_t (all zero: no current term)."""
+    _fields_ = [("nm_per_a", c_float), ("coulomb_nm", c_float), ("viscous_nm_s_rad", c_float),
+                ("inertia_kgm2", c_float), ("backdrive_nm_per_a", c_float)]
+
+
+class CurrentConfig(ctypes.Structure):
+    """hd_slow_current_config_t; fill it with current_config() (the C code)."""
+    _fields_ = [("term", CurrentTerm), ("alpha", c_float), ("lag_steps", c_float),
+                ("gear_ratio", c_float), ("ts_s", c_float)]
+
+
+class CurrentState(ctypes.Structure):
+    """hd_slow_current_t (all zero: not primed)."""
+    _fields_ = [("i1_a", c_float), ("i2_a", c_float), ("w1_rad_s", c_float),
+                ("w2_rad_s", c_float), ("torque_nm", c_float), ("primed", c_uint8)]
+
+
 class Pipeline(ctypes.Structure):
     """hd_pipeline_t"""
     _fields_ = [("kf", KfState), ("output_track", Track),
@@ -191,7 +209,9 @@ class PipelineIO(ctypes.Structure):
                 ("torque_filtered_nm", _FP), ("ripple_nm", _FP), ("offset_nm", _FP),
                 ("innovation_nm", _FP), ("innovation_var_nm2", _FP),
                 ("torque_expected_nm", _FP), ("output_velocity_rad_s", _FP),
-                ("amplitude_nm", _FP), ("status", POINTER(c_uint))]
+                ("amplitude_nm", _FP), ("status", POINTER(c_uint)),
+                ("motor_current_a", _FP), ("current", POINTER(CurrentConfig)),
+                ("current_state", POINTER(CurrentState)), ("torque_expected_var_nm2", _FP)]
 
 
 _LIB = None
@@ -207,6 +227,9 @@ def lib() -> ctypes.CDLL:
         L.hd_pipeline_init.restype = c_int
         L.hd_pipeline_run.argtypes = [POINTER(Pipeline), POINTER(PipelineIO)]
         L.hd_pipeline_run.restype = None
+        L.hd_slow_current_config.argtypes = [POINTER(CurrentConfig), POINTER(CurrentTerm),
+                                             c_float, c_float, c_float]
+        L.hd_slow_current_config.restype = None
         L.hd_kf_config_default.argtypes = [POINTER(KfConfig), c_float]
         L.hd_kf_config_default.restype = None
         L.hd_kf_config_recommended.argtypes = [POINTER(KfConfig), c_float, c_float, c_float,
@@ -240,6 +263,16 @@ def recommended_config(ts_s: float, noise_nm: float, ripple_settle_s: float,
     cfg = KfConfig()
     lib().hd_kf_config_recommended(ctypes.byref(cfg), ts_s, noise_nm, ripple_settle_s,
                                    offset_settle_s)
+    return cfg
+
+
+def current_config(term: CurrentTerm, filter_hz: float, gear_ratio: float,
+                   ts_s: float) -> CurrentConfig:
+    """hd_slow_current_config (from the C library): the current term as the
+    firmware forms it (current_* parameters, current_filter_hz, gear_ratio)."""
+    cfg = CurrentConfig()
+    lib().hd_slow_current_config(ctypes.byref(cfg), ctypes.byref(term), filter_hz, gear_ratio,
+                                 ts_s)
     return cfg
 
 
@@ -279,7 +312,8 @@ def check(cfg: KfConfig) -> None:
 
 
 OUTPUTS = ("torque_filtered_nm", "ripple_nm", "offset_nm", "innovation_nm",
-           "innovation_var_nm2", "torque_expected_nm", "output_velocity_rad_s")
+           "innovation_var_nm2", "torque_expected_nm", "output_velocity_rad_s",
+           "torque_expected_var_nm2")
 
 
 def _fptr(a):
@@ -296,7 +330,8 @@ def _angle_f32(a: float) -> float:
 
 def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_output_rad,
         feedforward_nm=None, track_bandwidth_hz: float = DEFAULT_TRACK_BANDWIDTH_HZ,
-        amplitudes: bool = False, profile=None) -> dict:
+        amplitudes: bool = False, profile=None, motor_current_a=None,
+        current: CurrentConfig | None = None) -> dict:
     """Replays one contiguous, uniformly sampled segment through
     hd_pipeline_run (one C call).  Returns float32 arrays named as in
     hd_pipeline_io_t, plus "status" (uint32) and, if amplitudes, "amplitude_nm"
@@ -304,7 +339,9 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
     prior_var_nm2) imported with hd_kf_profile_import before the first
     sample (lines: (lock, order, a_nm, b_nm); the angles of the first
     sample, absolute: the filter is given the angles of the sample before
-    it, these minus the first increments, hd_kf.h "Which angle")."""
+    it, these minus the first increments, hd_kf.h "Which angle").
+    motor_current_a with current (current_config()): the firmware's
+    motor-current term, from an unprimed estimator."""
     L = lib()
     n = len(torque_nm)
     p = Pipeline()
@@ -339,6 +376,13 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
     io.n = n
     io.torque_meas_nm, io.d_motor_angle_rad, io.d_output_angle_rad = map(_fptr, ins)
     io.feedforward_nm = _fptr(ff) if ff is not None else None
+    if current is not None and motor_current_a is not None:
+        cur = np.ascontiguousarray(motor_current_a, np.float32)
+        if len(cur) != n:
+            raise ValueError("input arrays differ in length")
+        state = CurrentState()
+        io.motor_current_a, io.current = _fptr(cur), ctypes.pointer(current)
+        io.current_state = ctypes.pointer(state)
     for k, a in outs.items():
         setattr(io, k, _fptr(a))
     if amplitudes:

@@ -1,6 +1,6 @@
 """Load a torque log (CSV or candump) and turn it into clean, uniformly
 sampled pieces the filter can replay.  The log contract is in
-docs/analyze.md ("Input"); what is done to messy data, in order (all of it
+docs/design/analyze.md ("Input"); what is done to messy data, in order (all of it
 counted in Data.cleaning and said in Data.notes):
 
   0. the path must be a readable regular file (a directory, FIFO, device or

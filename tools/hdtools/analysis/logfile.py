@@ -1,7 +1,7 @@
 """Reading a torque log file for hdtools.analysis.loading: the path checks,
 the CSV reader (fast numpy path, then a counting row-by-row reader for
 messy files) and the hand-off of candump -l logs to analysis/candump.py.
-Column names and what a row needs are the log contract of docs/analyze.md
+Column names and what a row needs are the log contract of docs/design/analyze.md
 ("Input")."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The filter model the analysis starts from and augments, and its firmware
-forms: the configuration text of docs/firmware.md (hdjoint-host --config)
+forms: the configuration text of docs/design/firmware.md (hdjoint-host --config)
 and the equivalent CAN command frames (candump `ID#DATA` notation)."""
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ class Block:
 class ProfileLine:
     """One line of a fixed, angle-referenced artifact profile:
     a cos(order alpha) + b sin(order alpha), alpha the absolute motor or
-    output angle of the log [rad] (docs/analyze.md "Profile")."""
+    output angle of the log [rad] (docs/design/analyze.md "Profile")."""
     lock: str          # motor | output
     order: float       # cycles per rev of that angle
     a_nm: float
@@ -158,7 +158,7 @@ class Model:
 
     # --- firmware forms -----------------------------------------------------
     def config_text(self) -> str:
-        lines = ["# Filter model written by `hdsense analyze` (docs/analyze.md).",
+        lines = ["# Filter model written by `hdsense analyze` (docs/design/analyze.md).",
                  "# Load with: hdjoint-host --config FILE",
                  f"gear_ratio = {self.gear_ratio:.6g}",
                  f"r_nm2 = {self.r_nm2:.6g}",
@@ -186,7 +186,7 @@ class Model:
         return "\n".join(lines) + "\n"
 
     def can_commands(self, node_id: int = 1) -> list[dict]:
-        """CAN CMD frames (docs/protocol.md) that put this model into a
+        """CAN CMD frames (docs/reference/protocol.md) that put this model into a
         running joint: the configuration text translated by canproto (every
         key of the parameter table has a SET_PARAM), as `cansend` strings
         with what each one does.  ValueError if a value cannot travel (an

@@ -1,7 +1,7 @@
 """profile.json: the artifact profile learned from a log, referenced to the
 absolute angles of the log, for the firmware's profile record (issue 12).
 
-Schema (docs/analyze.md "Profile"; kept simple on purpose):
+Schema (docs/design/analyze.md "Profile"; kept simple on purpose):
 
   {"schema": "hdjoint-profile/1",
    "gear_ratio": N,
@@ -20,7 +20,7 @@ checked on fold B).  Motor lines are least-squares fits of the measured
 torque over fold A at the model's motor orders, kept when they explain
 part of fold B's line (held-out explained fraction > 0).  A line is written
 only if its angle is absolute in the log: a CSV column (or a bag's
-channel, docs/ros2.md) of that angle (an
+channel, docs/how-to/ros2.md) of that angle (an
 output angle derived from the motor angle, or a motor angle derived from the
 output angle, has an unknown zero; a candump log's angle is an integral of
 velocity)."""

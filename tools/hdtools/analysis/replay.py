@@ -15,7 +15,7 @@ Feed-forward: the log's `torque_feedforward_nm` column (the robot
 controller's expected torque) goes into hd_pipeline_run's feedforward_nm,
 which adds it to T_exp exactly as the firmware adds the CAN feed-forward.
 
-Fixed angle profile (model.profile, docs/analyze.md "Profile"): output-locked
+Fixed angle profile (model.profile, docs/design/analyze.md "Profile"): output-locked
 lines the geometry fit found run as output blocks with output_learn_scale 0
 (they predict and turn with the output angle but never learn), their state
 imported into the C filter at each piece's first sample

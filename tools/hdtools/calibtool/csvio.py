@@ -1,4 +1,4 @@
-"""Calibration CSV reader (format in docs/calibration.md)."""
+"""Calibration CSV reader (format in docs/how-to/calibration.md)."""
 from __future__ import annotations
 
 import csv

@@ -1,2 +1,2 @@
 """`hdsense fleet`: gear-health trends over many joints and many hours, on Dask
-(docs/fleet.md)."""
+(docs/results/fleet.md)."""

@@ -1,5 +1,5 @@
 """Which files are logs, whose joint they are, when they start, and the key
-that says whether a stored record is up to date (docs/fleet.md, "Logs").
+that says whether a stored record is up to date (docs/results/fleet.md, "Logs").
 
 Identity, first that applies:
   1. a sidecar LOG.json next to the log: {"joint": "...", "start_utc":

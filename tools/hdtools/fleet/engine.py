@@ -1,4 +1,4 @@
-"""Running the per-log records on Dask (docs/fleet.md, "Engine").
+"""Running the per-log records on Dask (docs/results/fleet.md, "Engine").
 
 One task per log (`client.submit` of `task`); results stream back through
 `as_completed` and each record is written to the store as it arrives, by
@@ -76,7 +76,7 @@ def connect(scheduler=None, workers=2, memory_per_worker="2GiB"):
     # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which
     # also fixes glibc's mmap threshold: every large numpy array of a replay
     # becomes a fresh mmap and the task ran 1.8x slower than in the client
-    # (measured, docs/fleet.md).  Our workers keep glibc's default; the
+    # (measured, docs/results/fleet.md).  Our workers keep glibc's default; the
     # nanny's memory limit still bounds them.
     environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
                if k != "MALLOC_TRIM_THRESHOLD_"}

@@ -1,5 +1,5 @@
 """A simulated fleet: joints that run the same short health-check motion once
-or more a day, some of them wearing (docs/fleet.md, "Simulated fleet").
+or more a day, some of them wearing (docs/results/fleet.md, "Simulated fleet").
 
 Each log is one hdsim run of a scenario written here from the joint's base
 parameters, the day's wear and the log's own scatter (temperature,
@@ -15,7 +15,7 @@ Wear laws (t = days since onset, 0 before it):
             damaged tooth / wave-generator defect: a sudden change)
 
 Files: ROOT/<joint>/<YYYY-MM-DDTHH-MM-SS>.csv (the path convention of
-docs/fleet.md), ROOT/truth.json."""
+docs/results/fleet.md), ROOT/truth.json."""
 from __future__ import annotations
 
 import hashlib

@@ -1,7 +1,7 @@
 """Per joint, each indicator over time: a robust trend (Theil-Sen slope with
 its 95 % interval), a change-point test (the one split of the series that
 best separates two levels), and the alarm rules of THRESHOLDS
-(docs/fleet.md, "Alarms"; a thresholds file overrides any of them).
+(docs/results/fleet.md, "Alarms"; a thresholds file overrides any of them).
 
 An alarm compares the joint's recent level (median of the records in the
 last `recent_days`) with its own baseline (median of its first

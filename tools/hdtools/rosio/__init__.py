@@ -1,5 +1,5 @@
 """The joint's data in the robot stack's formats: MCAP files and rosbag2
-folders in and out, and a live Foxglove WebSocket view (docs/ros2.md).
+folders in and out, and a live Foxglove WebSocket view (docs/how-to/ros2.md).
 
 Library choice: `rosbags` writes and reads both (rosbag2 folders with
 mcap or sqlite3 storage, bare .mcap files), serializes CDR from its own
@@ -18,5 +18,5 @@ serves the live view (an optional extra: imported only by --foxglove).
   bagin      a bag -> the analysis log columns (the log contract)
   live       the Foxglove WebSocket server
   cli        the options of monitor / canlog convert, and canlog convert
-  bench      recording cost and analyze on MCAP vs CSV (docs/ros2.md)
+  bench      recording cost and analyze on MCAP vs CSV (docs/how-to/ros2.md)
 """

@@ -1,4 +1,4 @@
-"""A bag as `hdsense analyze` input: the log contract of docs/ros2.md
+"""A bag as `hdsense analyze` input: the log contract of docs/how-to/ros2.md
 ("Reading bags"), turned into the columns the CSV reader gives
 (hdtools.analysis.loading), so the same unit, gap and reset rules apply.
 EXTRA_COLUMNS and RAW_TORQUE_CHANNEL below are that table's channels; the

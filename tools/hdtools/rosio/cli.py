@@ -30,7 +30,7 @@ def _port(text: str) -> int:
 
 def add_output_arguments(p, live: bool = False) -> None:
     p.add_argument("--mcap", metavar="FILE.mcap",
-                   help="write ROS 2 messages (CDR) to this MCAP file (docs/ros2.md)")
+                   help="write ROS 2 messages (CDR) to this MCAP file (docs/how-to/ros2.md)")
     p.add_argument("--rosbag", metavar="DIR",
                    help="write a rosbag2 folder (metadata.yaml + .mcap) that ros2 bag play "
                         "takes; DIR must not exist")

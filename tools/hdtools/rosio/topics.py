@@ -1,4 +1,4 @@
-"""Topic names and message types of the joint's recordings (docs/ros2.md).
+"""Topic names and message types of the joint's recordings (docs/how-to/ros2.md).
 
 Nothing here lists a signal by hand: the extra channels are the signals of
 the telemetry frames in firmware/hdjoint.dbc (itself generated from

@@ -1,0 +1,158 @@
+"""The torque loop's tuning method (docs/results/control.md, "Tuning"), per feedback.
+
+1. Break the loop in the simulation at every benchmark speed, with the
+   output pressed against a stiff wall and with the output free (the
+   conditions)
+   (control_loop.measure_loop, with the variant's current gains): the plant
+   the controller sees, P_fb(jw) (feedback torque per drive current), and
+   the true output torque's, P_true(jw), on the same run.
+2. On a grid of gains (kp, ki = kp w_i, and kd on the feedback's rate)
+   compute, from P in closed form, L = C_fb P_fb (margins) and the
+   predicted tracking response H = P_true (ff + C_ref) / (1 + L) (its -3 dB
+   bandwidth; C_ref is C_fb without the rate term).
+3. Keep the gains whose loop has phase margin >= 45 deg and gain margin
+   >= 6 dB, and whose predicted tracking peak |H| is at most 10 dB, in EVERY
+   condition (one set of gains for all: what the firmware runs; the free
+   output is judged on the margins alone: it tracks nothing, its "response"
+   is the free flexspline mode), ranked by crossover (geometric mean over
+   the conditions), then predicted bandwidth.
+4. Measure the chosen loop again by breaking it (its margins are the ones
+   reported) and, if a condition misses a margin (the plant's nonlinearity:
+   friction at standstill, the stick-slip of a stiff contact), take the next
+   best candidate of the grid, up to CHECKED_MAX of them.
+The open-loop current (feedback none) has no loop and no tuning.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+
+from . import control_loop as cl
+
+PM_DEG, GM_DB = 45.0, 6.0
+PEAK_DB = 10.0
+KP_GRID = np.geomspace(0.05, 40.0, 48)
+WI_GRID_RAD_S = 2 * math.pi * np.array([1.0, 2.0, 5.0, 10.0, 20.0, 40.0])  # ki / kp
+CHECKED_MAX = 30          # candidates measured again, best predicted first
+MARGINS_ONLY = ("free",)   # conditions judged on the margins alone
+KD_GRID_S = (0.0, 5e-4, 1e-3, 1.5e-3, 2e-3, 3e-3, 4e-3)   # the feedback's rate term
+
+
+def bandwidth_hz(freq_hz, h) -> float | None:
+    """The lowest frequency where |h| falls below 1/sqrt(2) (log-linear
+    interpolation); None if |h| is below it at the lowest line, inf if
+    never within the band."""
+    f = np.asarray(freq_hz, dtype=float)
+    below = np.abs(h) < 1.0 / math.sqrt(2.0)
+    if below[0]:
+        return None
+    idx = np.flatnonzero(below)
+    if len(idx) == 0:
+        return math.inf
+    i = idx[0]
+    a0, a1 = 20 * np.log10(np.abs(h[i - 1])), 20 * np.log10(np.abs(h[i]))
+    t = (a0 + 3.0103) / (a0 - a1) if a0 != a1 else 0.0
+    return float(np.exp(np.log(f[i - 1]) + t * (np.log(f[i]) - np.log(f[i - 1]))))
+
+
+@dataclasses.dataclass
+class PlantAt:
+    condition: str
+    freq_hz: np.ndarray
+    p_fb: np.ndarray
+    p_true: np.ndarray
+
+
+def measure_plants(v: cl.Variant, conditions, measure=cl.measure_loop) -> list[PlantAt]:
+    out = []
+    for c in conditions:
+        r = measure(v, cl.scene_of(c))
+        out.append(PlantAt(c, r.freq_hz, r.plant, r.true_plant))
+    return out
+
+
+def predict(p: PlantAt, kp: float, ki: float, ff: float,
+            kd: float = 0.0) -> tuple[dict, float | None]:
+    """Margins of C P_fb and the predicted tracking bandwidth; margins gets
+    the tracking peak (peak_db) too.  The rate term acts on the feedback
+    only: L = C_fb P_fb, H = P_true (ff + C_ref) / (1 + L)."""
+    loop = cl.pi_response(p.freq_hz, kp, ki, kd) * p.p_fb
+    h = p.p_true * (ff + cl.pi_response(p.freq_hz, kp, ki)) / (1.0 + loop)
+    m = cl.margins(p.freq_hz, loop)
+    m["peak_db"] = float(20 * np.log10(np.abs(h).max()))
+    return m, bandwidth_hz(p.freq_hz, h)
+
+
+def acceptable(m: dict, tracking: bool = True) -> bool:
+    """The margins, and no tracking peak above PEAK_DB (a loop whose
+    feedback lags can meet the margins with a proportional kick that
+    overshoots many-fold: the peak rules it out).  A margins-only
+    condition (the free output: nothing holds the torque, it tracks no
+    setpoint; its "response" is the free flexspline mode) has no peak bound."""
+    return cl.meets(m, PM_DEG, GM_DB) and (not tracking or m.get("peak_db", 0.0) <= PEAK_DB)
+
+
+def _score(bws, crossovers) -> tuple[float, float]:
+    """(mean log crossover, mean log predicted bandwidth) over the conditions:
+    a crossover or bandwidth below the lowest line counts as 0.5 Hz, a
+    bandwidth beyond the band as 500 Hz."""
+    w = [0.5 if x is None else x for x in crossovers]
+    b = [0.5 if x is None else min(x, 500.0) for x in bws]
+    return float(np.mean(np.log(w))), float(np.mean(np.log(b)))
+
+
+def candidates(plants: list[PlantAt], ff: float) -> list[tuple[float, float, float, dict]]:
+    """The grid's gains meeting the margins in every condition, best first:
+    (kp, ki, kd, {condition: predicted margins and bandwidth})."""
+    scored = []
+    tracking = [p.condition not in MARGINS_ONLY for p in plants]
+    for kp, wi, kd in itertools.product(KP_GRID, WI_GRID_RAD_S, KD_GRID_S):
+        ki = float(kp * wi)
+        if ki > 5000.0:
+            continue
+        preds = [predict(p, float(kp), ki, ff, float(kd)) for p in plants]
+        if not all(acceptable(m, t) for (m, _), t in zip(preds, tracking)):
+            continue
+        score = _score([b for (_, b), t in zip(preds, tracking) if t],
+                       [m["crossover_hz"] for m, _ in preds])
+        scored.append((score, (float(kp), ki, float(kd),
+                               {p.condition: {"margins": m, "bandwidth_hz": b}
+                                for p, (m, b) in zip(plants, preds)})))
+    scored.sort(key=lambda x: x[0], reverse=True)
+    return [c for _, c in scored]
+
+
+def search(plants: list[PlantAt], ff: float) -> tuple[float, float, float, dict] | None:
+    """The best of `candidates`, or None."""
+    found = candidates(plants, ff)
+    return found[0] if found else None
+
+
+def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None) -> dict:
+    """Tunes v in place; returns what the method found (for the results)."""
+    if v.feedback == "none":
+        return {"method": "none (open loop)"}
+    plants = measure_plants(v, conditions, measure)
+    found = candidates(plants, v.ff)
+    if not found:
+        # reported with the grid's weakest loop, marked as not meeting the margins
+        v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
+        log(f"{v.key}: no gains on the grid meet the margins in every condition")
+        return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
+    checked, predicted = {}, found[0][3]
+    for kp, ki, kd, pred in found[:CHECKED_MAX]:
+        # as the law's defaults hold them
+        v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in (kp, ki, kd))
+        checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
+        if all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB) for r in checked.values()):
+            predicted = pred
+            break
+    ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
+    log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
+        + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
+    return {"method": "grid", "met": all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()),
+            "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": predicted, "measured": ms,
+            "loops": {s: r.to_json() for s, r in checked.items()}}
