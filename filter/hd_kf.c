@@ -317,10 +317,6 @@ static void build_layout(hd_kf_t *kf)
     kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     kf->jump_rearm_steps = steps_of(HD_KF_JUMP_REARM_S, kf->cfg.ts_s);
     kf->limit_restart_steps = steps_of(HD_KF_LIMIT_RESTART_S, kf->cfg.ts_s);
-    {
-        const float a = kf->cfg.ts_s / HD_KF_DRIFT_WINDOW_S;
-        kf->drift_alpha = a < 1.0f ? a : 1.0f;
-    }
     kf->drift_hold_total = steps_of(HD_KF_DRIFT_HOLD_S, kf->cfg.ts_s);
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
         build_slot(kf, i);
@@ -376,9 +372,7 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
     kf->load_scale = 1.0f;
-    kf->drift_mean_nm = 0.0f;
-    kf->drift_var_nm2 = kf->cfg.r_nm2;
-    kf->drift_hold_steps = kf->drift_hold_total; /* unknown until shown constant */
+    kf->drift_hold_steps = kf->drift_hold_total; /* the load unknown until the gate is quiet */
 }
 
 hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)

@@ -61,12 +61,12 @@
  *     jump left is HD_KF_STATUS_UNMODELLED, counted in jump_held_count (an
  *     effect the model lacks, not a load step);
  *   - offset drift: with offset_drift_q_nm2 > offset_q_nm2 (an offset told
- *     to be slow because the load is known), an innovation whose running
- *     mean stands beyond HD_KF_DRIFT_SIGMA of its spread says the load
- *     moves after all: for HD_KF_DRIFT_HOLD_S from then the offset's q per
- *     step is offset_drift_q_nm2 (drift_count counts those steps).  Left to
- *     the slow offset, a slowly turning block takes the load instead, a
- *     ramp of slope s as an amplitude s / omega.
+ *     to be slow because the load is known), a step beyond the jump gate
+ *     (OFFSET_JUMP or UNMODELLED) says the load is not the known one: for
+ *     HD_KF_DRIFT_HOLD_S from the next step (and from a (re)start) the
+ *     offset's q per step is offset_drift_q_nm2 (drift_count counts those
+ *     steps).  Left to the slow offset, a slowly turning block takes the
+ *     load instead, a ramp of slope s as an amplitude s / omega.
  *
  * Invariants kept every step:
  *   - P (the posterior's) is stored once (packed upper triangle), so it is
@@ -89,7 +89,8 @@
  *     that overflows in a correction is seen by the next step's prior);
  *   - the published filtered torque is always finite;
  *   - with correction_max_nm > 0, |T_meas - filtered| <= correction_max_nm:
- *     a correction beyond it is published at the limit (ripple_nm then is
+ *     a correction beyond it is wrong (beyond any modelled line), so the
+ *     step publishes the measurement itself (filtered = T_meas, ripple_nm
  *     the published correction), HD_KF_STATUS_LIMITED, counted in
  *     limit_count; once the steps at the limit outnumber those below it
  *     by HD_KF_LIMIT_RESTART_S, the filter restarts (hd_kf_reset after
@@ -145,13 +146,8 @@ extern "C" {
 #define HD_KF_JUMP_BURST 2u
 #define HD_KF_JUMP_REARM_S 0.2f
 
-/* Offset drift gate (offset_drift_q_nm2 > offset_q_nm2): the innovation's
- * running mean m over HD_KF_DRIFT_WINDOW_S, against its running mean
- * square v (a = ts / window): m^2 (2 - a) > HD_KF_DRIFT_SIGMA^2 a v, i.e.
- * m beyond that many sigma of the running mean of white innovations,
- * holds the gate for HD_KF_DRIFT_HOLD_S. */
-#define HD_KF_DRIFT_WINDOW_S 0.1f
-#define HD_KF_DRIFT_SIGMA 4.0f
+/* Offset drift gate (offset_drift_q_nm2 > offset_q_nm2): a step beyond the
+ * jump gate holds it for this long [s]. */
 #define HD_KF_DRIFT_HOLD_S 1.0f
 
 /* A filter whose steps at correction_max_nm outnumber the others by this
@@ -198,12 +194,13 @@ typedef struct {
     float output_learn_scale;      /* in [0, 1]: multiplies the gain and q of output-locked
                                       blocks (1: learn as the other blocks, the default;
                                       0: they predict and turn, but never learn) */
-    float correction_max_nm;       /* > 0: the published correction (T_meas minus the
-                                      filtered torque) is held within +-this, and a filter
-                                      that keeps reaching it restarts; 0: off */
+    float correction_max_nm;       /* > 0: a correction (T_meas minus the filtered
+                                      torque) beyond +-this is not published (the step
+                                      publishes T_meas), and a filter that keeps reaching
+                                      it restarts; 0: off */
     float offset_drift_q_nm2;      /* > offset_q_nm2: the offset's q per step while the
-                                      drift gate holds (an offset slowed for a known load
-                                      that the innovations say moves); 0: gate off */
+                                      drift gate holds (an offset slowed for a known load,
+                                      after a step beyond the jump gate); 0: gate off */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -228,7 +225,7 @@ typedef struct {
 #define HD_KF_STATUS_RESET       (1u << 2) /* non-finite state or covariance: filter reset */
 #define HD_KF_STATUS_P_CLAMPED   (1u << 3) /* covariance brought back to PSD, <= p_max */
 #define HD_KF_STATUS_OFFSET_JUMP (1u << 4) /* innovation beyond the gate: offset jump */
-#define HD_KF_STATUS_LIMITED     (1u << 5) /* correction held at correction_max_nm */
+#define HD_KF_STATUS_LIMITED     (1u << 5) /* correction beyond correction_max_nm: raw out */
 #define HD_KF_STATUS_UNMODELLED  (1u << 6) /* beyond the held jump gate: an effect the
                                               model lacks (jump_held_count) */
 #define HD_KF_STATUS_BITS 7u               /* bits [0, HD_KF_STATUS_BITS) are defined */
@@ -320,9 +317,6 @@ typedef struct {
     uint32_t limit_restart_steps;             /* HD_KF_LIMIT_RESTART_S in steps (at least 1) */
     uint32_t limit_steps;                     /* steps at the limit less those below it */
     uint32_t limit_count;                     /* steps with the correction held */
-    float drift_alpha;                        /* ts / HD_KF_DRIFT_WINDOW_S */
-    float drift_mean_nm;                      /* running mean of the innovation */
-    float drift_var_nm2;                      /* running mean of its square */
     uint32_t drift_hold_total;                /* HD_KF_DRIFT_HOLD_S in steps */
     uint32_t drift_hold_steps;                /* steps left at offset_drift_q_nm2 */
     uint32_t drift_count;                     /* steps at offset_drift_q_nm2 */

@@ -38,20 +38,10 @@ KF_INLINE uint32_t offset_jump(hd_kf_t *kf, float e, float s_var)
     return HD_KF_STATUS_OFFSET_JUMP;
 }
 
-/* Offset drift gate (hd_kf.h): the innovation's running mean and mean
- * square take e; a mean beyond HD_KF_DRIFT_SIGMA of the running mean's
- * spread (re)starts the hold, during which the offset's q is
- * offset_drift_q_nm2.  Returns the step's q. */
-KF_INLINE float offset_drift(hd_kf_t *kf, float e, float q_off)
+/* Offset drift gate (hd_kf.h): while the hold the jump gate (re)starts
+ * lasts, the offset's q is offset_drift_q_nm2.  Returns the step's q. */
+KF_INLINE float offset_drift(hd_kf_t *kf, float q_off)
 {
-    const float a = kf->drift_alpha;
-    const float m = kf->drift_mean_nm + a * (e - kf->drift_mean_nm);
-    const float v = kf->drift_var_nm2 + a * (e * e - kf->drift_var_nm2);
-    kf->drift_mean_nm = m;
-    kf->drift_var_nm2 = v;
-    if (m * m * (2.0f - a) > HD_KF_DRIFT_SIGMA * HD_KF_DRIFT_SIGMA * a * v) {
-        kf->drift_hold_steps = kf->drift_hold_total;
-    }
     if (kf->drift_hold_steps == 0u) {
         return q_off;
     }
@@ -60,8 +50,10 @@ KF_INLINE float offset_drift(hd_kf_t *kf, float e, float q_off)
     return kf->cfg.offset_drift_q_nm2;
 }
 
-/* The correction limit: a correction beyond +-correction_max_nm is
- * published at the limit (ripple_nm then carries the published one).
+/* The correction limit: a correction beyond +-correction_max_nm is wrong
+ * (no modelled line is that large), so the step publishes the measurement
+ * itself, never worse than raw (ripple_nm then carries the published
+ * correction, 0).
  * limit_steps counts up at the limit and down below it (a wrong estimate
  * oscillates, crossing zero twice a cycle): once the steps at the limit
  * outnumber the others by limit_restart_steps, the filter restarts after
@@ -74,9 +66,8 @@ static uint32_t limit_correction(hd_kf_t *kf, float meas_nm, float correction,
         kf->limit_steps -= kf->limit_steps > 0u ? 1u : 0u;
         return 0u;
     }
-    const float held = correction > lim ? lim : -lim;
-    *filtered = meas_nm - held;
-    out->ripple_nm = held - (kf->cfg.offset_is_sensor_error ? out->offset_nm : 0.0f);
+    *filtered = meas_nm;
+    out->ripple_nm = -(kf->cfg.offset_is_sensor_error ? out->offset_nm : 0.0f);
     kf->limit_count++;
     if (++kf->limit_steps >= kf->limit_restart_steps) {
         kf->limit_steps = 0u;

@@ -445,7 +445,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     const float innovation = y - ripple - offset;
     const bool drift_gated = valid && kf->cfg.offset_enabled &&
                              kf->cfg.offset_drift_q_nm2 > kf->offset_q_nm2;
-    const float q_off = UNLIKELY(drift_gated) ? offset_drift(kf, innovation, kf->offset_q_nm2)
+    const float q_off = UNLIKELY(drift_gated) ? offset_drift(kf, kf->offset_q_nm2)
                                               : kf->offset_q_nm2;
     float s_var = measurement_var(kf, in->torque_expected_var_nm2) +
                   cross_covariance(kf->p, h, q, q_off, g, nb);
@@ -453,13 +453,16 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     status |= gate;
     if (UNLIKELY(gate == HD_KF_STATUS_OFFSET_JUMP)) {
         /* an offset jump widens the offset's variance first; the jump takes
-         * the innovation, the drift gate starts again */
+         * the innovation */
         const float e2 = innovation * innovation;
         kf->p[packed_entries(nb) - 1u] += e2;
         g[o] += e2;
         s_var += e2;
-        kf->drift_mean_nm = 0.0f;
-        kf->drift_var_nm2 = kf->cfg.r_nm2;
+    }
+    if (UNLIKELY(gate != 0u) && drift_gated) {
+        /* beyond the jump gate: the load is not the known one, the offset
+         * follows at offset_drift_q_nm2 from the next step */
+        kf->drift_hold_steps = kf->drift_hold_total;
     }
 
     /* ---- outputs */

@@ -41,10 +41,11 @@ void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out)
                                   ? cfg->operating_output_learn_scale
                                   : 1.0f;
     if (cfg->learning_mode == HD_FW_LEARN_COMMISSIONING) {
-        /* slowed for a known load.  The filter's offset drift gate stays off
-         * (offset_drift_q_nm2 0): on, it costs the self-commissioned profile
-         * its ripple band at constant speed (docs/design/filter.md, "Offset drift"). */
+        /* slowed for a known load; at its own rate again for a while after
+         * each step beyond the jump gate (the load is not the known one:
+         * an operating log, not a bench run; docs/design/filter.md, "Offset drift") */
         out->offset_q_nm2 = cfg->kf.offset_q_nm2 * HD_FW_COMMISSIONING_OFFSET_Q_SCALE;
+        out->offset_drift_q_nm2 = cfg->kf.offset_q_nm2;
     }
 }
 

@@ -142,9 +142,6 @@ class KfState(ctypes.Structure):
                 ("limit_restart_steps", c_uint32),
                 ("limit_steps", c_uint32),
                 ("limit_count", c_uint32),
-                ("drift_alpha", c_float),
-                ("drift_mean_nm", c_float),
-                ("drift_var_nm2", c_float),
                 ("drift_hold_total", c_uint32),
                 ("drift_hold_steps", c_uint32),
                 ("drift_count", c_uint32)]
