@@ -39,6 +39,8 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .torque_ff = 1.0f,
         .torque_kd_s = 0.002f,
         .integral_limit_nm = 7.69f,  /* tools/bench --only control, as the gains */
+        /* a sweep on the simulated joint: docs/decisions/control-integral-schedule.md */
+        .integral_stiffness_nm_rad = 6000.0f,
         .lowpass_hz = 50.0f,
         .lowpass_order = 1u,
         .notch_mask = 0u,
@@ -68,6 +70,7 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
         within(k->torque_ki_per_s, 0.0f, HD_CTRL_KI_MAX_PER_S) &&
         within(k->torque_ff, 0.0f, 1.0f) && within(k->torque_kd_s, 0.0f, HD_CTRL_TORQUE_KD_MAX_S) &&
         within(k->integral_limit_nm, 0.0f, 1e4f) &&
+        within(k->integral_stiffness_nm_rad, 1.0f, HD_CTRL_INTEGRAL_STIFFNESS_MAX_NM_RAD) &&
         k->lowpass_hz > 0.0f &&
         k->lowpass_hz < 0.5f / k->ts_s &&
         (k->lowpass_order == 1u || k->lowpass_order == 2u || k->lowpass_order == 4u) &&
@@ -375,6 +378,50 @@ static float torque_reference(const hd_ctrl_config_t *k, hd_ctrl_mode_t m,
     return tau;
 }
 
+/* sqrt(x) for x in [0, 1] without libm (control/ has none): x is scaled by
+ * 16 into [1/16, 1] (sqrt by 4; at most 20 times, below 16^-20 the root is
+ * taken as 0), then Newton from (1 + x) / 2, which lies above the root and
+ * converges from above: 5 steps reach float precision on [1/16, 1]. */
+static float sqrt_unit(float x)
+{
+    if (!(x > 0.0f)) {
+        return 0.0f;
+    }
+    float scale = 1.0f;
+    for (unsigned k = 0; k < 20u && x < 0.0625f; k++) {
+        x *= 16.0f;
+        scale *= 0.25f;
+    }
+    if (x < 0.0625f) {
+        return 0.0f;
+    }
+    float y = 0.5f * (1.0f + x);
+    for (unsigned k = 0; k < 5u; k++) {
+        y = 0.5f * (y + x / y);
+    }
+    return scale * y;
+}
+
+/* The integral's gain this tick.  Under an impedance with a spring the
+ * integral closes a loop around the rendered mass-spring: the torque error it
+ * integrates is mostly the torque that moves the motor's inertia with the
+ * output, and an integral whose corner is not well below the mass-spring's
+ * frequency sqrt(kp / J) makes the motor's friction stick and slip: the pushed
+ * output hunts (docs/results/control.md, "Rendered stiffness").  The
+ * frequency scales with sqrt(kp) whatever J is, so the gain does:
+ * ki_t min(1, sqrt(kp / integral_stiffness_nm_rad)).  Without a spring (kp 0,
+ * a pure damper) nothing oscillates and the full ki_t compensates the
+ * friction. */
+static float integral_gain_per_s(const hd_ctrl_config_t *k, hd_ctrl_mode_t m,
+                                 const hd_ctrl_setpoint_t *sp)
+{
+    if (m != HD_CTRL_IMPEDANCE || !(sp->kp_nm_rad > 0.0f) ||
+        sp->kp_nm_rad >= k->integral_stiffness_nm_rad) {
+        return k->torque_ki_per_s;
+    }
+    return k->torque_ki_per_s * sqrt_unit(sp->kp_nm_rad / k->integral_stiffness_nm_rad);
+}
+
 static float friction_feedforward(const hd_ctrl_config_t *k, float v)
 {
     return k->friction_nm * clampf(v / k->friction_velocity_rad_s, -1.0f, 1.0f);
@@ -382,7 +429,7 @@ static float friction_feedforward(const hd_ctrl_config_t *k, float v)
 
 /* PI with the setpoint fed forward; the integral moves only while the
  * command is not saturated in the error's direction. */
-static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
+static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v, float ki_per_s)
 {
     const hd_ctrl_config_t *k = &c->cfg;
     const float e = tau_ref - fb;
@@ -396,7 +443,7 @@ static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v)
     const bool wind_up = (u >= u_max && e > 0.0f) || (u <= -u_max && e < 0.0f);
     if (!wind_up) {
         const float i_max = k->integral_limit_nm < u_max ? k->integral_limit_nm : u_max;
-        c->integral_nm = clampf(c->integral_nm + k->torque_ki_per_s * k->ts_s * e, -i_max, i_max);
+        c->integral_nm = clampf(c->integral_nm + ki_per_s * k->ts_s * e, -i_max, i_max);
     }
     return u;
 }
@@ -447,7 +494,7 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
         u = m == HD_CTRL_DAMP ? tau_ref : tau_ref + friction_feedforward(k, in->velocity_rad_s);
     } else {
         out->torque_fb_nm = fb; /* pick_mode's: the mode runs the loop, so it was read */
-        u = torque_loop(c, tau_ref, fb, in->velocity_rad_s);
+        u = torque_loop(c, tau_ref, fb, in->velocity_rad_s, integral_gain_per_s(k, m, sp));
     }
     float i = u / (k->gear_ratio * k->kt_nm_per_a);
     if (!finite_f(i)) {

@@ -19,14 +19,20 @@
  *   u     = ff tau_ref + kp_t e + I - kd_t d(tau_fb)/dt + friction_nm sat(v / v_eps)
  *                         (joint N m; the rate is the backward difference of the
  *                         feedback over one tick: it damps the flexspline's mode)
- *   I    += ki_t ts e     only while u is not saturated in e's direction
+ *   I    += ki ts e       only while u is not saturated in e's direction
  *                         (conditional integration: the anti-windup), and
  *                         |I| <= integral_limit_nm: the integral is there for
  *                         the drive train's friction; unbounded it also winds
  *                         up on the torque that accelerates a free output before
  *                         an impact and on the feedback's drift while a stiff
  *                         contact holds the motor still: a limit cycle at a wall
- *                         (docs/results/control.md, "Contact")
+ *                         (docs/results/control.md, "Contact");
+ *                         ki = ki_t, but in IMPEDANCE with 0 < kp <
+ *                         integral_stiffness_nm_rad ki = ki_t sqrt(kp /
+ *                         integral_stiffness_nm_rad): the integral's corner
+ *                         follows the rendered mass-spring's frequency
+ *                         sqrt(kp / J), kept below it, or the pushed output
+ *                         hunts (docs/results/control.md, "Rendered stiffness")
  *   i_q   = u / (N kt)
  * A PI on the torque error with the setpoint fed forward: the structure of
  * the torque controllers of Taghirad & Belanger's refs [5], [10] and the
@@ -108,6 +114,7 @@ typedef enum {
 #define HD_CTRL_TORQUE_GAIN_MAX 50.0f
 #define HD_CTRL_KI_MAX_PER_S 5000.0f
 #define HD_CTRL_TORQUE_KD_MAX_S 0.1f
+#define HD_CTRL_INTEGRAL_STIFFNESS_MAX_NM_RAD 1e6f
 
 typedef struct {
     float ts_s;                    /* tick period */
@@ -121,6 +128,8 @@ typedef struct {
     float torque_kd_s;             /* kd_t: joint N m of u per N m/s of the feedback's rate */
     float integral_limit_nm;       /* |I| at most this (joint N m; also at most the
                                       current limit's torque) */
+    float integral_stiffness_nm_rad; /* IMPEDANCE kp at which the integral runs at the full
+                                      ki_t; below, ki_t sqrt(kp / this) (see above) */
     float lowpass_hz;              /* HD_CTRL_FB_LOWPASS corner */
     uint8_t lowpass_order;         /* 1, 2 or 4 (2, 4: Butterworth) */
     uint8_t notch_mask;            /* bit k-1: a notch at motor order k on the raw torque */

@@ -56,6 +56,7 @@ static void loop_config(hd_ctrl_config_t *k, double kp, double lag_s)
     k->torque_ki_per_s = (float)(kp / lag_s);
     k->torque_ff = 0.0f;
     k->integral_limit_nm = 1e4f; /* without feed-forward the integral carries the setpoint */
+    k->integral_stiffness_nm_rad = 1.0f; /* the full ki at every kp: these loops have no spring */
 }
 
 static void test_config_check(void)
@@ -66,7 +67,7 @@ static void test_config_check(void)
     TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
     const hd_ctrl_config_t good = k;
     float *fields[] = {&k.ts_s, &k.gear_ratio, &k.kt_nm_per_a, &k.torque_kp, &k.torque_ki_per_s,
-                       &k.torque_ff, &k.torque_kd_s, &k.integral_limit_nm, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
+                       &k.torque_ff, &k.torque_kd_s, &k.integral_limit_nm, &k.integral_stiffness_nm_rad, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
                        &k.damp_nm_s_rad, &k.torque_limit_nm, &k.current_limit_a,
                        &k.velocity_limit_rad_s, &k.velocity_gain_nm_s_rad};
     const float bad[] = {NAN, INFINITY, -1.0f, 1e9f};
@@ -492,6 +493,46 @@ static void test_order_notch_tracks_the_speed(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-4, 1.0, still);
 }
 
+/* The integral's schedule under IMPEDANCE: with the feedback and the angle
+ * held, u grows each tick by exactly ki_eff ts e (the rate term is 0 after
+ * the first tick), ki_eff = ki sqrt(kp / integral_stiffness) below it (libm's
+ * sqrt in double as the reference), the full ki at and above it, at kp 0 and
+ * in TORQUE. */
+static void test_integral_scheduled_on_stiffness(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_config_default(&k);
+    k.torque_ki_per_s = 40.0f;
+    k.integral_stiffness_nm_rad = 1500.0f;
+    k.integral_limit_nm = 1e4f;
+    const double e_nm = 2.0, q = 1e-3; /* kp q within the current limit */
+    const double kps[7] = {1.0, 30.0, 100.0, 1000.0, 1500.0, 2000.0, 0.0};
+    for (int j = 0; j < 8; j++) {
+        const bool torque_mode = j == 7;
+        const double kp = torque_mode ? 500.0 : kps[j];
+        const double ref = torque_mode ? 5.0 : -kp * q; /* q_d 0, v 0: tau_ref */
+        const double ki = (kp > 0.0 && kp < 1500.0 && !torque_mode)
+                              ? 40.0 * sqrt(kp / 1500.0)
+                              : 40.0;
+        hd_ctrl_t c;
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        const hd_ctrl_setpoint_t sp = {.mode = torque_mode ? HD_CTRL_TORQUE : HD_CTRL_IMPEDANCE,
+                                       .torque_nm = torque_mode ? (float)ref : 0.0f,
+                                       .kp_nm_rad = (float)kp, .kd_nm_s_rad = 1.0f};
+        const hd_ctrl_input_t in = input_of(ref - e_nm, q, 0.0);
+        double u[3];
+        for (int n = 0; n < 3; n++) {
+            hd_ctrl_output_t o;
+            hd_ctrl_step(&c, &sp, &in, &o);
+            u[n] = (double)(o.current_a * k.gear_ratio * k.kt_nm_per_a);
+        }
+        const double growth = u[2] - u[1], expect = ki * (double)k.ts_s * e_nm;
+        printf("control: integral at kp %g (%s): %.6f N m per tick, expected %.6f\n", kp,
+               torque_mode ? "TORQUE" : "IMPEDANCE", growth, expect);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3 * expect + 2e-6, expect, growth); /* float32 u */
+    }
+}
+
 int main(int argc, char **argv)
 {
     if (UnityParseOptions(argc, argv) != 0) {
@@ -504,6 +545,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_integral_bounded_by_its_limit);
     RUN_TEST(test_rate_term_on_the_feedback);
     RUN_TEST(test_impedance_renders_kp);
+    RUN_TEST(test_integral_scheduled_on_stiffness);
     RUN_TEST(test_modes_and_fallbacks);
     RUN_TEST(test_velocity_and_position_limits);
     RUN_TEST(test_property_limits_hold_for_any_input);

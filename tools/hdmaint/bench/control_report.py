@@ -113,7 +113,8 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                  for r in res["impedance"]["rows"]]))
     out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, filtered feedback): "
                 "the true torque over the last second",
-                ["kd N m s/rad", "torque loop ki 1/s", "mean N m", "commanded (mean) N m",
+                ["kd N m s/rad", "torque loop ki_t 1/s (IMPEDANCE runs ki_t sqrt(kp / "
+                 "ctrl_integral_stiffness_nm_rad))", "mean N m", "commanded (mean) N m",
                  "filtered - true N m", "peak to peak N m", "contact losses",
                  "ticks without a valid torque", "limit cycle"],
                 [[f"{c['kd_nm_s_rad']:g}",
