@@ -40,7 +40,7 @@ def test_control_bench_quick_is_well_formed():
     js = json.loads(control_report.to_json(res), parse_constant=no_constants)
     assert js["rows"]["filtered"]["config"]["feedback"] == "filtered"
     md = control_report.markdown(control_report.tables(res))
-    assert "Goals of issue 23" in md and "| filtered |" in md
+    assert "The joint controller's goals" in md and "| filtered |" in md
     doc = f"# x\n{control_report.BEGIN}\nold\n{control_report.END}\ntail\n"
     new = control_report.splice(doc, md)
     assert "old" not in new and new.endswith(f"{control_report.END}\ntail\n")

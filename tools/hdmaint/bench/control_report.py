@@ -43,7 +43,7 @@ def _bw(chirp: dict) -> str:
 def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     speeds = [str(s) for s in res["speeds_rad_s"]]
     rows, out = res["rows"], []
-    out.append(("Goals of issue 23 against this run (benchmark numbers, not pass/fail tests)",
+    out.append(("The joint controller's goals against this run (benchmark numbers, not pass/fail tests)",
                 ["goal", "worst", "where", "status"],
                 [[g["goal"], _n(g["worst"], "{:.3g}"), g["where"],
                   "met" if g["met"] else "NOT met"] for g in res["goals"]]))
