@@ -125,3 +125,67 @@ def test_replay_without_the_current_differs(firmware):
     out = cfilter.run(kf, expected, raw, dm, do, ff, track_bandwidth_hz=bw)
     assert not np.array_equal(bits(out["torque_expected_nm"]), bits(texp))
     assert not np.array_equal(bits(out["torque_filtered_nm"]), bits(filt))
+
+
+def analysis_log(path, ticks):
+    """What the tick logged, in the analysis's log contract (docs/design/analyze.md
+    "Input"): absolute angles summed from the increments in float64 (exact, so
+    the loader's differences give the increments back), the feed-forward as
+    the tick used it, the motor current."""
+    raw, dm, do, ff, cur = ticks.T[:5]
+    th_m = np.cumsum(dm.astype(np.float64))
+    th_o = np.cumsum(do.astype(np.float64))
+    with open(path, "w") as f:
+        f.write("t_s,torque_nm,motor_angle_rad,output_angle_rad,torque_feedforward_nm,"
+                "motor_current_a\n")
+        for k, row in enumerate(zip(raw, th_m, th_o, ff, cur)):
+            f.write("%.17g,%.9g,%.17g,%.17g,%.9g,%.9g\n" % ((k * TS,) + row))
+
+
+@pytest.fixture(scope="module")
+def analysis_path(tmp_path_factory):
+    """One configuration text, the whole filter model as `hdsense analyze`
+    writes it (model.cfg) plus the joint's sensor, feed-forward and
+    motor-current keys, boots the firmware and, through the analysis's own
+    reading (Model.with_config_text), builds the model the analysis replays."""
+    from hdtools.analysis.model import Model
+    d = tmp_path_factory.mktemp("analysis")
+    start = Model.starting(GEAR, TS, 0.02, [2, 4], [1], inertia_kgm2=0.05)
+    start.viscous_nm_s_rad, start.coulomb_nm = 0.5, 0.3
+    # model.cfg gives gear_ratio and the expected-torque keys; the rest is the joint's
+    joint = [ln for ln in CONFIG.splitlines() if ln.split(" =")[0] not in start.config_text()]
+    text = start.config_text() + "\n".join(joint) + "\nlearning_mode = 0\n"
+    (d / "config.txt").write_text(text)
+    write_log(d / "log.csv")
+    subprocess.run([str(native.executable("fw_replay_dump")), str(d / "config.txt"),
+                    str(d / "log.csv"), str(d / "out.bin")], check=True)
+    _kf, _exp, _bw, ticks = read_dump(d / "out.bin")
+    analysis_log(d / "analysis.csv", ticks)
+    model = Model(1.0, TS, 1.0).with_config_text(text)
+    return text, model, d / "analysis.csv", ticks
+
+
+def test_analysis_replay_from_the_config_text_matches_the_firmware(analysis_path):
+    from hdtools.analysis import loading, replay
+    _text, model, log, ticks = analysis_path
+    assert model.current_nm_per_a == CURRENT["nm_per_a"] and len(model.blocks) == 3
+    data = loading.load(log)
+    assert len(data.pieces) == 1 and len(data.pieces[0]) == N and data.has_current
+    (run,) = replay.replay(data, model)
+    _raw, _dm, _do, _ff, _cur, filt, texp, var = ticks.T
+    assert np.array_equal(bits(run.out["torque_expected_nm"]), bits(texp))
+    assert np.array_equal(bits(run.out["torque_expected_var_nm2"]), bits(var))
+    assert np.array_equal(bits(run.out["torque_filtered_nm"]), bits(filt))
+    assert np.max(var) > 0.0
+
+
+def test_model_cfg_carries_the_current_term(analysis_path):
+    """model.cfg written back from that model gives the firmware's parser the
+    same current term (float32 round trip), and a model without one writes
+    no current line (logs without current: model.cfg unchanged)."""
+    from hdtools.analysis.model import CURRENT_KEYS, Model
+    _text, model, _log, _ticks = analysis_path
+    again = Model(1.0, TS, 1.0).with_config_text(model.config_text())
+    assert all(getattr(again, k) == getattr(model, k) for k in CURRENT_KEYS)
+    bare = Model.starting(GEAR, TS, 0.02, [2, 4], [1])
+    assert "current_" not in bare.config_text()

@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .. import cfgtext, protocol
 from . import cfilter
 
 # Default tuning (hd_kf_config_recommended): each ripple block settles in
@@ -22,6 +23,14 @@ SENSOR_DRIFT_SETTLE_S = 10.0   # offset as a slow sensor-zero estimate
 # p0 / R > 1e4 (float32 would lose P); 6 mN m keeps the recommended p0
 # (0.3 N m^2) inside it.
 NOISE_FLOOR_NM = 6e-3
+# The motor-current term's keys (firmware/hd_params.def), carried by the model
+# under the same names; hdsense current fits them, hd_slow.c runs them.
+CURRENT_KEYS = ("current_nm_per_a", "current_coulomb_nm", "current_viscous_nm_s_rad",
+                "current_inertia_kgm2", "current_backdrive_nm_per_a", "current_filter_hz")
+
+
+def _param_default(key: str) -> float:
+    return next(p.default for p in protocol.params() if p.key == key)
 
 
 @dataclass
@@ -81,6 +90,17 @@ class Model:
     # The data-driven floor of the offset q (starting(): the torque's slow
     # changes); kept when R changes.
     offset_q_floor_nm2: float = 0.0
+    # The motor-current term (0 nm_per_a: none), from a joint configuration
+    # text (with_config_text); defaults are the firmware's.
+    current_nm_per_a: float = field(default_factory=lambda: _param_default("current_nm_per_a"))
+    current_coulomb_nm: float = field(default_factory=lambda: _param_default("current_coulomb_nm"))
+    current_viscous_nm_s_rad: float = field(
+        default_factory=lambda: _param_default("current_viscous_nm_s_rad"))
+    current_inertia_kgm2: float = field(
+        default_factory=lambda: _param_default("current_inertia_kgm2"))
+    current_backdrive_nm_per_a: float = field(
+        default_factory=lambda: _param_default("current_backdrive_nm_per_a"))
+    current_filter_hz: float = field(default_factory=lambda: _param_default("current_filter_hz"))
 
     @classmethod
     def starting(cls, gear_ratio, ts_s, noise_nm, motor_orders, output_orders,
@@ -132,6 +152,25 @@ class Model:
         m.output_p0_nm2 = float(c.output_p0_nm2)
         return m
 
+    def with_config_text(self, text: str, keys=None) -> "Model":
+        """A copy with the values a configuration text gives (hdjoint-host
+        --config), as the firmware's own parser reads them (hdtools.cfgtext):
+        every key the model carries, or only those in `keys`; a text's block
+        lines replace the blocks (unless `keys` is given).  Keys the model
+        does not carry are ignored.  ValueError with the parser's message."""
+        parsed = cfgtext.parse(text)
+        m = self.copy()
+        for _line, param, value in parsed.values:
+            attr = "offset_enabled" if param.key == "offset" else param.key
+            if (keys is not None and param.key not in keys) or attr not in self.__dataclass_fields__:
+                continue
+            setattr(m, attr, bool(value) if param.type == "BOOL" else float(value))
+        if parsed.blocks is not None and keys is None:
+            if not all(b.enabled for b in parsed.blocks):
+                raise ValueError("a disabled block: the analysis model runs enabled blocks only")
+            m.blocks = [Block(b.kind, b.order, b.q_nm2) for b in parsed.blocks]
+        return m
+
     def copy(self) -> "Model":
         return copy.deepcopy(self)
 
@@ -155,6 +194,17 @@ class Model:
     def expected_config(self) -> cfilter.ExpectedConfig:
         return cfilter.ExpectedConfig(self.inertia_kgm2, self.viscous_nm_s_rad,
                                       self.coulomb_nm, self.coulomb_vel_eps_rad_s)
+
+    def current_config(self, ts_s: float | None = None) -> cfilter.CurrentConfig | None:
+        """The current term as the firmware forms it (hd_slow_current_config);
+        None when the model has none (current_nm_per_a 0)."""
+        if not self.current_nm_per_a > 0:
+            return None
+        term = cfilter.CurrentTerm(self.current_nm_per_a, self.current_coulomb_nm,
+                                   self.current_viscous_nm_s_rad, self.current_inertia_kgm2,
+                                   self.current_backdrive_nm_per_a)
+        return cfilter.current_config(term, self.current_filter_hz, self.gear_ratio,
+                                      ts_s or self.ts_s)
 
     # --- firmware forms -----------------------------------------------------
     def config_text(self) -> str:
@@ -183,6 +233,9 @@ class Model:
                   f"coulomb_nm = {self.coulomb_nm:.6g}",
                   f"coulomb_vel_eps_rad_s = {self.coulomb_vel_eps_rad_s:.6g}",
                   f"track_bandwidth_hz = {self.track_bandwidth_hz:.6g}"]
+        if self.current_nm_per_a > 0:
+            # .9g: float32 round-trips, so the joint runs the term replayed
+            lines += [f"{k} = {getattr(self, k):.9g}" for k in CURRENT_KEYS]
         return "\n".join(lines) + "\n"
 
     def can_commands(self, node_id: int = 1) -> list[dict]:

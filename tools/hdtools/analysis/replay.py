@@ -14,6 +14,10 @@ Residuals (per piece, after a warm-up):
 Feed-forward: the log's `torque_feedforward_nm` column (the robot
 controller's expected torque) goes into hd_pipeline_run's feedforward_nm,
 which adds it to T_exp exactly as the firmware adds the CAN feed-forward.
+Motor current: with the model's current term (model.current_config, from a
+joint configuration's current_* keys) the log's `motor_current_a` column goes
+to hd_pipeline_run too, which forms T_cur as the firmware's tick does
+(filter/hd_slow.c; a NaN sample gives T_cur = 0 and re-primes its low-pass).
 
 Fixed angle profile (model.profile, docs/design/analyze.md "Profile"): output-locked
 lines the geometry fit found run as output blocks with output_learn_scale 0
@@ -132,6 +136,7 @@ def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
     cfg = model.kf_config(data.ts_s)
     cfilter.check(cfg)
     exp = model.expected_config()
+    cur = model.current_config(data.ts_s)
     fold = folds(data) if fold is None else fold
     runs = []
     for k, (p, (th_m, th_o, dm, do)) in enumerate(zip(data.pieces,
@@ -143,7 +148,8 @@ def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
                      for ln in model.profile]
             imp = (lines, th_m[0], th_o[0], 0.0)
         out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff,
-                          track_bandwidth_hz=model.track_bandwidth_hz, profile=imp)
+                          track_bandwidth_hz=model.track_bandwidth_hz, profile=imp,
+                          motor_current_a=p.motor_current_a, current=cur)
         REPLAYED["samples"] += len(p)
         runs.append(PieceRun(p.t_s, th_m, th_o, p.torque_nm, p.torque_true_nm, out,
                              warmup_samples(len(p), data.ts_s), fold[k], ff, p.segment))
