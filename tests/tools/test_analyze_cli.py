@@ -9,6 +9,7 @@ import os
 import struct
 import subprocess
 
+import numpy as np
 import pytest
 
 from conftest import ROOT, SCENARIOS, analyze, read_csv, write_csv
@@ -210,3 +211,41 @@ def test_candump_telemetry_input(tmp_path):
     bad.write_text("(0.0) vcan0 7FF#00\n")
     with pytest.raises(InputError, match="telemetry"):
         analyze(bad)
+
+
+CURRENT_CFG = """# a joint's motor-current term (as `hdsense current --config` writes it)
+current_nm_per_a = 10
+current_coulomb_nm = 0.25
+current_viscous_nm_s_rad = 0.125
+current_inertia_kgm2 = 0.0625
+current_filter_hz = 20
+"""
+
+
+def test_config_current_term_is_replayed_and_written(simulate, tmp_path, capsys):
+    """--config: the configuration's current keys, as the firmware's parser
+    reads them, reach model.cfg (read back by the same parser, independent of
+    the model's writer) and the notes say they were replayed; errors in the
+    text are one line, exit 2, before the analysis."""
+    from hdtools import cfgtext
+    h, a = read_csv(simulate("motor6"))
+    log = write_csv(tmp_path / "cur.csv", h + ["motor_current_a"],
+                    np.column_stack([a, a[:, h.index("torque_nm")] / 10.0]))
+    cfg = tmp_path / "joint.cfg"
+    cfg.write_text(CURRENT_CFG)
+    res = run_here(capsys, log, "--config", cfg, "--json", tmp_path / "r.json",
+                   "--out", tmp_path / "o", "--quiet")
+    assert res.returncode == 0, res.stderr
+    given = {p.key: v for _, p, v in cfgtext.parse(CURRENT_CFG).values}
+    written = {p.key: v for _, p, v in cfgtext.parse((tmp_path / "o" / "model.cfg").read_text()
+                                                     ).values if p.key.startswith("current_")}
+    assert written == given | {"current_backdrive_nm_per_a": 0.0}
+    notes = json.loads((tmp_path / "r.json").read_text())["data"]["notes"]
+    assert any("motor-current term" in n and "replayed" in n for n in notes), notes
+    bad = tmp_path / "bad.cfg"
+    bad.write_text("current_nm_per_a = -1\n")
+    one_line(run_here(capsys, log, "--config", bad, "--json", tmp_path / "r2.json"), 2,
+             "--config: line 1")
+    one_line(run_here(capsys, log, "--config", tmp_path / "nope.cfg", "--json",
+                      tmp_path / "r2.json"), 2, "--config")
+    assert not (tmp_path / "r2.json").exists()

@@ -28,6 +28,10 @@ def register(sub):
     p.add_argument("--output-orders", default="1", help="starting output orders (default 1; '' for none)")
     p.add_argument("--inertia", type=float, default=0.0, metavar="J_kgm2",
                    help="load inertia for the expected torque [kg m^2] (default 0)")
+    p.add_argument("--config", metavar="JOINT.cfg",
+                   help="the joint's configuration text (e.g. from `hdsense current --config`): "
+                        "its motor-current keys are replayed with the log's motor_current_a "
+                        "and written to model.cfg")
     p.add_argument("--fs", type=float, metavar="HZ", help="sample rate when there is no t_s column")
     p.add_argument("--time-unit", choices=("s", "ms", "us"),
                    help="unit of the t_s column (detected from its step when absent)")
@@ -79,6 +83,15 @@ def _check_args(args):
         raise UsageError(f"--fs must be > 0 (got {args.fs:g})")
 
 
+def _config_text(path) -> str:
+    try:
+        with open(path, encoding="utf-8") as f:
+            return f.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"--config {path}: cannot read ({getattr(exc, 'strerror', None) or exc})"
+                         ) from None
+
+
 def main(args) -> int:
     """Errors are raised as hdtools.safeio errors (one line and the exit
     status from hdtools.cli: 2 bad input, 3 an output could not be written,
@@ -92,6 +105,7 @@ def main(args) -> int:
     _check_args(args)
     motor = _orders(args.motor_orders, "motor-orders")
     output = _orders(args.output_orders, "output-orders")
+    config_text = _config_text(args.config) if args.config else None
     from .analysis import pipeline
     from .analysis.cfilter import FilterError
     log = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -100,7 +114,7 @@ def main(args) -> int:
             args.input, gear_ratio=args.gear_ratio, motor_orders=motor, output_orders=output,
             inertia_kgm2=args.inertia, fs_hz=args.fs, out_dir=args.out, json_path=args.json,
             node_id=args.node_id, log=log, time_unit=args.time_unit, angle_unit=args.angle_unit,
-            joint=args.joint)
+            joint=args.joint, config_text=config_text)
     except FilterError as exc:
         raise UsageError(f"the filter refuses this log's model: {exc}") from None
     print(report["summary"])

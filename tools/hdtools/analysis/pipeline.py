@@ -293,12 +293,16 @@ def _merge(effects, gear_ratio):
 
 def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), inertia_kgm2=0.0,
             fs_hz=None, out_dir=None, json_path=None, node_id=1, log=print, time_unit=None,
-            angle_unit=None, joint=None, window_ns=None):
+            angle_unit=None, joint=None, window_ns=None, config_text=None):
+    """config_text: a joint configuration whose motor-current keys
+    (model.CURRENT_KEYS) the models carry, replayed and written back."""
     t0 = time.perf_counter()
     rp.REPLAYED["samples"] = 0
     outputs = rep.Outputs(out_dir, json_path)      # refuses unwritable places now
     if gear_ratio is not None and not gear_ratio >= 1:
         raise loading.InputError(f"--gear-ratio must be >= 1 (got {gear_ratio})")
+    if config_text is not None:     # refused before the long computation
+        _with_current(Model(1.0, 1e-3, 1.0), config_text, None, log)
     data = loading.load(path, fs_hz, time_unit, angle_unit, joint, window_ns)
     for n in data.notes:
         log(n)
@@ -319,6 +323,8 @@ def analyze(path, gear_ratio=None, motor_orders=(2, 4), output_orders=(1,), iner
     # lines as a fixed angle profile (geometry.py).
     m_ref = Model.starting(g["value"], data.ts_s, noise_est, motor_orders, output_orders,
                            inertia_kgm2, slow_step_nm=slow)
+    if config_text is not None:
+        m_ref = _with_current(m_ref, config_text, data, log)
     ref_runs = rp.replay(data, m_ref, fold)
     ref_met = rp.metrics(ref_runs, bands=True)
     # The report keeps thinned copies of the reference and starting replays
@@ -433,6 +439,23 @@ def _without_feedforward(data, fold, models):
                                          "out_of_sample_innovation_rms_nm", "error_rms_nm",
                                          "out_of_sample_error_rms_nm") if k in met}
     return out
+
+
+def _with_current(model, text, data, log):
+    """The model with the configuration's current term (InputError with the
+    parser's message); said in the notes, and when the log cannot feed it."""
+    from .model import CURRENT_KEYS
+    try:
+        m = model.with_config_text(text, keys=CURRENT_KEYS)
+    except ValueError as exc:
+        raise loading.InputError(f"--config: {exc}") from None
+    if m.current_nm_per_a > 0 and data is not None:
+        note = (f"motor-current term from --config (current_nm_per_a {m.current_nm_per_a:.6g}): "
+                + ("replayed as the firmware runs it" if data.has_current else
+                   "the log has no motor_current_a column, so it is not replayed"))
+        data.notes.append(note)
+        log(note)
+    return m
 
 
 def _stem(path):
