@@ -6,7 +6,9 @@ increments, feed-forward after its fallback, current), through
 hdtools.analysis.cfilter.run (hd_pipeline_run, the call `hdsense analyze`
 makes).  The filtered torque, T_exp and its variance must agree bit for bit:
 any slow-torque term the firmware added outside filter/hd_slow.c, or the
-replay left out, shows here."""
+replay left out, shows here.  The analysis's own path is compared too: one
+configuration text boots the firmware and, read by Model.with_config_text,
+gives the model hdtools.analysis.replay runs on the tick's log as a CSV."""
 from __future__ import annotations
 
 import struct
