@@ -156,6 +156,8 @@ def analysis_path(tmp_path_factory):
     start.viscous_nm_s_rad, start.coulomb_nm = 0.5, 0.3
     # model.cfg gives gear_ratio and the expected-torque keys; the rest is the joint's
     joint = [ln for ln in CONFIG.splitlines() if ln.split(" =")[0] not in start.config_text()]
+    # learning_mode 0: model.cfg does not write it, and the firmware's default
+    # (operating, scale 0) would hold the output block the model lets learn
     text = start.config_text() + "\n".join(joint) + "\nlearning_mode = 0\n"
     (d / "config.txt").write_text(text)
     write_log(d / "log.csv")
