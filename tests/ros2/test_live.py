@@ -123,7 +123,9 @@ def test_foxglove_client_decodes_joint_states_of_the_frames_sent(tmp_path):
     client = threading.Thread(target=run_client, daemon=True)
     client.start()
     with emu.Emulator() as j, j.attach("virtual", channel):
-        monitor(channel, "--duration", "3", "--log", tmp_path / "run.log", "--foxglove",
+        # 300 samples take 0.3 s at the joint's rate; the rest of the duration is for a
+        # loaded machine, where the client connects and subscribes late (it stops at 300)
+        monitor(channel, "--duration", "8", "--log", tmp_path / "run.log", "--foxglove",
                 "--foxglove-port", port, "--joint", "elbow")
     client.join(timeout=10)
     assert not errors, errors
