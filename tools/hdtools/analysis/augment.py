@@ -38,6 +38,7 @@ import numpy as np
 
 from .. import canproto
 from . import detect, detect_slow, geometry, replay as rp
+from .cfilter import MAX_BLOCKS   # the filter's capacity, read from filter/hd_kf.h
 from .lineamp import (LINE_FIT_MAX_SAMPLES, line_amplitude, lines_left,  # noqa: F401
                       spectral_line_amplitude)
 from .model import NOISE_FLOOR_NM, Block, Model, ProfileLine
@@ -47,7 +48,6 @@ INNOV_EPS = 1e-6
 INNOV_GAIN = 0.002
 CHANGE_FACTOR = 2.0
 MAX_ROUNDS = 8
-MAX_BLOCKS = 8
 RETUNE_FACTOR = 10.0
 LOAD_GAIN = 0.05
 PROFILE_GAIN = 0.01

@@ -473,4 +473,4 @@ def _fold_summary(session):
     return {"in_sample_s": float(np.sum(f == rp.TRAIN) * ts),
             "out_of_sample_s": float(np.sum(f == rp.HELD_OUT) * ts),
             "warmup_s": float(np.sum(f == rp.WARMUP) * ts),
-            "block_s_min": rp.MIN_BLOCK_S, "max_blocks": rp.MAX_BLOCKS}
+            "block_s_min": rp.MIN_BLOCK_S, "max_blocks": rp.MAX_TIMELINE_BLOCKS}

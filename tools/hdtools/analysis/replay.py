@@ -38,9 +38,9 @@ from .model import Model
 TRAIN, HELD_OUT, WARMUP = 0, 1, -1
 FOLD_NAMES = {TRAIN: "in_sample", HELD_OUT: "out_of_sample"}
 # Blocks of the timeline alternate A, B, A, B...: at least MIN_BLOCK_S long,
-# at most MAX_BLOCKS of them.
+# at most MAX_TIMELINE_BLOCKS of them (not the filter's blocks).
 MIN_BLOCK_S = 8.0
-MAX_BLOCKS = 8
+MAX_TIMELINE_BLOCKS = 8
 
 
 @dataclass
@@ -85,11 +85,11 @@ def folds(data: Data) -> list[np.ndarray]:
     """Per piece, each sample's fold: the usable samples (after each piece's
     warm-up), laid end to end, are cut into 2 m blocks of equal length
     (m = the most that keeps a block >= MIN_BLOCK_S, at least 1, at most
-    MAX_BLOCKS / 2) that alternate TRAIN, HELD_OUT.  Deterministic in the
+    MAX_TIMELINE_BLOCKS / 2) that alternate TRAIN, HELD_OUT.  Deterministic in the
     piece lengths."""
     warm = [warmup_samples(len(p), data.ts_s) for p in data.pieces]
     usable = sum(len(p) - w for p, w in zip(data.pieces, warm))
-    m = int(np.clip(usable * data.ts_s // (2 * MIN_BLOCK_S), 1, MAX_BLOCKS // 2))
+    m = int(np.clip(usable * data.ts_s // (2 * MIN_BLOCK_S), 1, MAX_TIMELINE_BLOCKS // 2))
     edges = np.linspace(0, usable, 2 * m + 1)
     out, pos = [], 0
     for p, w in zip(data.pieces, warm):
