@@ -3,10 +3,10 @@ sources that define them (firmware/hd_protocol.def, firmware/hd_params.def),
 and the DBC generated from them.
 
 Nothing here is typed twice: frame types, opcodes, results, fault bits,
-states, record statuses, info items and parameters come from the .def files;
-the byte layouts of the frames are written once, below (DBC_LAYOUT), and
-firmware/hdjoint.dbc is generated from them (`python -m hdtools.protocol
---write-dbc`).  tests/firmware/test_protocol_tables.py checks that the
+states, record statuses, info items, parameters and the frames' signal
+layouts (HD_SIGNAL rows) come from the .def files; firmware/hdjoint.dbc
+(hdtools.protocol_dbc), the C codec (hdtools.protocol_c) and the docs tables
+are generated from them (`python -m hdtools.protocol --write`).  tests/firmware/test_protocol_tables.py checks that the
 committed DBC equals the generated one and that the C encoder's bytes decode
 through it.
 """
