@@ -6,9 +6,9 @@ Nothing here is typed twice: frame types, opcodes, results, fault bits,
 states, record statuses, info items, parameters and the frames' signal
 layouts (HD_SIGNAL rows) come from the .def files; firmware/hdjoint.dbc
 (hdtools.protocol_dbc), the C codec (hdtools.protocol_c) and the docs tables
-are generated from them (`python -m hdtools.protocol --write`).  tests/firmware/test_protocol_tables.py checks that the
-committed DBC equals the generated one and that the C encoder's bytes decode
-through it.
+are generated from them (`python -m hdtools.protocol --write`).
+tests/firmware/test_protocol_tables.py checks that the committed DBC equals
+the generated one and that the C encoder's bytes decode through it.
 """
 from __future__ import annotations
 
