@@ -89,9 +89,21 @@ async def _client(port: int, want: int, got: dict) -> None:
     else:
         raise AssertionError("no server")
     decoder = None
+    subscribe, waited_s = None, 0.0
     async with ws:
         while len(got["messages"]) < want:
-            m = await asyncio.wait_for(ws.recv(), timeout=10)
+            try:
+                m = await asyncio.wait_for(ws.recv(), timeout=0.5)
+            except asyncio.TimeoutError:
+                # foxglove-sdk can drop a subscription sent right after the channel's
+                # advertisement ("subscribe to unknown channel"): say it again until
+                # data comes (the same subscription id; a duplicate is only logged)
+                waited_s += 0.5
+                if waited_s >= 10:
+                    raise
+                if subscribe is not None and not got["messages"]:
+                    await ws.send(subscribe)
+                continue
             if isinstance(m, str):
                 op = json.loads(m)
                 got.setdefault("ops", []).append(op["op"])
@@ -102,8 +114,9 @@ async def _client(port: int, want: int, got: dict) -> None:
                                         encoding=ch["schemaEncoding"],
                                         data=ch["schema"].encode())
                         decoder = DecoderFactory().decoder_for(ch["encoding"], schema)
-                        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                            {"id": 7, "channelId": ch["id"]}]}))
+                        subscribe = json.dumps({"op": "subscribe", "subscriptions": [
+                            {"id": 7, "channelId": ch["id"]}]})
+                        await ws.send(subscribe)
                 continue
             opcode, sub, log_time = struct.unpack_from("<BIQ", m)
             assert opcode == 1 and sub == 7                 # message data, our subscription
@@ -139,9 +152,10 @@ def test_foxglove_client_decodes_joint_states_of_the_frames_sent(tmp_path):
     effort = [m.effort[0] for _, m in msgs]
     starts = [k for k in range(len(filt) - len(effort) + 1)
               if filt[k:k + len(effort)] == effort]
-    assert len(starts) >= 1
-    k = starts[0]
-    assert np.allclose([m.velocity[0] for _, m in msgs], vel[k:k + len(msgs)], rtol=1e-12)
+    # the filtered torque can repeat (a still joint), so the run is the start whose
+    # velocities (one motor increment per tick, hd_fw_filter.c) match as well
+    got_vel = [m.velocity[0] for _, m in msgs]
+    assert any(np.allclose(got_vel, vel[k:k + len(msgs)], rtol=1e-12) for k in starts)
     times = np.array([t for t, _ in msgs])
     assert np.array_equal(np.diff(times), np.full(len(msgs) - 1, 1_000_000))
     stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in msgs]
