@@ -28,6 +28,24 @@ def line_amplitudes(err_nm, motor_rad, output_rad, motor_orders=(2, 4), output_o
     return {n: float(np.hypot(coef[1 + 2 * i], coef[2 + 2 * i])) for i, n in enumerate(names)}
 
 
+def load_kept(err_slow, load_slow, ripple_slow=None) -> float:
+    """The fraction of a slow external load an output keeps: 1 + the
+    least-squares slope of its error's slow part on the load's slow part (0
+    when the output lost the load, 1 when it follows it).  ripple_slow, the
+    slow part of the simulator's true ripple, is a second regressor: a line
+    the output leaves in (an output-locked line turns below 1 Hz at slow
+    output speeds) is correlated with any load over a finite record by
+    chance, and counted on the load it would score the raw measurement,
+    which keeps the load whole, at other than 1.  Means are removed."""
+    y = np.asarray(err_slow, float)
+    cols = [np.asarray(load_slow, float)]
+    if ripple_slow is not None:
+        cols.append(np.asarray(ripple_slow, float))
+    a = np.column_stack([c - c.mean() for c in cols])
+    coef, *_ = np.linalg.lstsq(a, y - y.mean(), rcond=None)
+    return 1.0 + float(coef[0])
+
+
 def attenuation_db(before_nm: float, after_nm: float) -> float:
     return float(20.0 * np.log10(before_nm / max(after_nm, 1e-12)))
 

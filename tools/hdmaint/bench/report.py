@@ -162,7 +162,8 @@ def slow_tables(slow: dict | None) -> list:
     out.append(("Slow torque: RMS error after the first second [mN m] (x the noise floor)",
                 ["row"] + scs, [[r] + [cell(r, s) for s in scs] for r in rows]))
     out.append(("Slow torque: slow load kept [%] (1 + slope of the error below 1 Hz on the "
-                "load below 1 Hz)", ["row"] + scs,
+                "load below 1 Hz, the true ripple below 1 Hz a second regressor: the raw "
+                "measurement keeps 100 %)", ["row"] + scs,
                 [[r] + [_f(_slow_get(slow, s, r, "load_kept"), 100, "{:.1f}") for s in scs]
                  for r in rows]))
     out.append(("Slow torque: boot, RMS error in the first second [mN m]", ["row"] + scs,

@@ -18,9 +18,10 @@ Each row's configuration is kept in the results (`told`).
 Metrics against the simulator's ripple-free truth: RMS error after the first
 second, RMS in the first second (boot), the ratio to the noise floor (the
 `ideal` row: measured minus the true ripple), the fraction of the slow
-external load kept (1 + the regression slope of the error's part below 1 Hz
-on the load's varying part below 1 Hz: 0 when the output lost the load, 1
-when it follows it, whatever else the error holds), and line attenuation in
+external load kept (metrics.load_kept: 1 + the regression slope of the
+error's part below 1 Hz on the load's varying part below 1 Hz, with the true
+ripple's part below 1 Hz as a second regressor: 0 when the output lost the
+load, 1 when it follows it, whatever ripple the error holds), and line attenuation in
 a constant-speed window.
 """
 from __future__ import annotations
@@ -239,12 +240,9 @@ def row_metrics(y, d, sc: Scenario, ang, out_angle, floor_rms: float | None) -> 
         if k in d:
             load = load + d[k]
     lp_load = _lowpass(load - load.mean(), ts)[after]
-    lp_err = _lowpass(err, ts)[after]
     if metrics.rms(lp_load) > 1e-6:
-        # the part of the slow error that follows the load: -1 removed it all
-        lp_load = lp_load - lp_load.mean()
-        r["load_kept"] = 1.0 + float(np.dot(lp_err - lp_err.mean(), lp_load) /
-                                     np.dot(lp_load, lp_load))
+        r["load_kept"] = metrics.load_kept(_lowpass(err, ts)[after], lp_load,
+                                           _lowpass(d["ripple_true_nm"], ts)[after])
     if sc.steady and t[-1] > sc.steady[1]:
         w = metrics.window(t, *sc.steady)
         r["line_amplitude_nm"] = metrics.line_amplitudes(err[w] - err[w].mean(), ang[0][w],
