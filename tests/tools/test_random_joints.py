@@ -180,3 +180,16 @@ def test_fixed_line_found_where_the_speed_varies(hdsim, tmp_path):
             ("motor_order", "fixed_frequency")]
     assert kept, reports["commission"]["summary"]
     assert all("ambiguous" in e for e in kept), kept
+
+
+@pytest.mark.parametrize("undeclared", [False, True], ids=["declared", "undeclared"])
+def test_never_commissioned_keeps_the_slow_load(ci_sample, undeclared):
+    """The first boot of a never-commissioned joint (operating mode, no
+    profile, no slow-torque information) keeps at least LOAD_KEPT_MIN of
+    the unknown slow loads in its output (metrics.load_kept against the
+    simulated load; item 5), on every joint of the sample."""
+    from hdmaint.bench.goals import LOAD_KEPT_MIN
+    runs = ci_sample[undeclared]["runs"]
+    kept = {x["name"]: x["paths"]["operating"]["load_kept"] for x in runs}
+    assert all(k is not None for k in kept.values()), kept
+    assert min(kept.values()) >= LOAD_KEPT_MIN, kept

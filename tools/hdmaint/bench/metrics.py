@@ -3,6 +3,9 @@ ripple-free truth (torque_true_nm), never against another method."""
 from __future__ import annotations
 
 import numpy as np
+from scipy import signal
+
+SLOW_HZ = 1.0          # "slow": below this
 
 
 def window(t_s, t0, t1):
@@ -44,6 +47,30 @@ def load_kept(err_slow, load_slow, ripple_slow=None) -> float:
     a = np.column_stack([c - c.mean() for c in cols])
     coef, *_ = np.linalg.lstsq(a, y - y.mean(), rcond=None)
     return 1.0 + float(coef[0])
+
+
+def slow_part(x, ts_s: float):
+    """x below SLOW_HZ (4th-order Butterworth, forward and back: no lag)."""
+    b, a = signal.butter(4, SLOW_HZ, fs=1.0 / ts_s)
+    return signal.filtfilt(b, a, x)
+
+
+def slow_load_kept(err_nm, sim: dict, after) -> float | None:
+    """load_kept of an output whose error against the truth is err_nm, on a
+    simulated run (its load_torque_nm + gravity_nm is the external load, its
+    ripple_true_nm the nuisance), over the samples `after`; None when the
+    run's load does not vary below SLOW_HZ."""
+    t = sim["t_s"]
+    ts = float(t[1] - t[0])
+    load = np.zeros(len(t))
+    for k in ("load_torque_nm", "gravity_nm"):
+        if k in sim:
+            load = load + sim[k]
+    lp_load = slow_part(load - load.mean(), ts)[after]
+    if rms(lp_load) <= 1e-6:
+        return None
+    return load_kept(slow_part(err_nm, ts)[after], lp_load,
+                     slow_part(sim["ripple_true_nm"], ts)[after])
 
 
 def attenuation_db(before_nm: float, after_nm: float) -> float:

@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from . import randjoint
+from . import metrics
+from .goals import LOAD_KEPT_MIN
 from .metrics import rms
 from .joint import (HDSENSE, compose_config, firmware_commissioning, load_csv, nominal,
                     run_firmware, run_tool, simulate)
@@ -49,6 +51,7 @@ class Score:
     error_nm: float
     raw_nm: float
     floor_nm: float
+    load_kept: float | None = None   # metrics.slow_load_kept; None: no slow load
 
     @property
     def ratio(self) -> float:
@@ -57,7 +60,8 @@ class Score:
     def to_dict(self) -> dict:
         return {"error_rms_nm": self.error_nm, "raw_rms_nm": self.raw_nm,
                 "floor_rms_nm": self.floor_nm, "ratio_to_floor": self.ratio,
-                "worse_than_raw": bool(self.error_nm > self.raw_nm)}
+                "worse_than_raw": bool(self.error_nm > self.raw_nm),
+                "load_kept": self.load_kept}
 
 
 def score(filtered, sim: dict) -> Score:
@@ -67,7 +71,9 @@ def score(filtered, sim: dict) -> Score:
     truth = sim["torque_true_nm"][keep]
     meas = sim["torque_nm"][keep]
     floor = meas - sim["ripple_true_nm"][keep] - truth
-    return Score(rms(np.asarray(filtered)[keep] - truth), rms(meas - truth), rms(floor))
+    err = np.asarray(filtered) - sim["torque_true_nm"]
+    return Score(rms(err[keep]), rms(meas - truth), rms(floor),
+                 metrics.slow_load_kept(err, sim, keep))
 
 
 def _analyze(com_csv: Path, wd: Path, nom: dict, tag: str = "analyze"
@@ -144,7 +150,18 @@ def distribution(runs: list[dict], path: str) -> dict:
             "within_goal": int(np.sum(ratio <= GOAL_RATIO)),
             "fraction_within_goal": float(np.mean(ratio <= GOAL_RATIO)),
             "worse_than_raw": int(sum(x["worse_than_raw"] for x in r)),
-            "worst_error_over_raw": float(max(x["error_rms_nm"] / x["raw_rms_nm"] for x in r))}
+            "worst_error_over_raw": float(max(x["error_rms_nm"] / x["raw_rms_nm"] for x in r)),
+            **_kept(r)}
+
+
+def _kept(r: list[dict]) -> dict:
+    """The least slow load kept over the runs that have one, and how many
+    keep at least LOAD_KEPT_MIN of it."""
+    kept = [x["load_kept"] for x in r if x.get("load_kept") is not None]
+    if not kept:
+        return {}
+    return {"load_kept_min": float(min(kept)), "load_kept_runs": len(kept),
+            "load_kept_within": int(sum(k >= LOAD_KEPT_MIN for k in kept))}
 
 
 def run(seeds, undeclared: bool, paths=PATHS, log=None, loaded: bool = False) -> dict:

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
 
 from . import accuracy, metrics, peers
 from .accuracy import Method  # a row of the slow tables: key, label, kind, params
@@ -42,7 +41,6 @@ from .joint import (HDSENSE, ROOT, cfg_lines, compose_config, encoder_angles,
                     run_firmware, run_tool, simulate)
 
 SCENARIO_DIR = ROOT / "tests" / "bench" / "scenarios" / "slow"
-SLOW_HZ = 1.0          # "slow": below this
 FF_TIMEOUT_MS = 20     # feed-forward rows: 20 frames missed = stale
 CURRENT_SEED_OFFSET = 1000
 QUICK_DURATION_S = 12.0  # --quick: every run of a scenario and its commissioning this long
@@ -222,27 +220,16 @@ def _paper(d, nom, ang):
 
 # ----------------------------------------------------------------- metrics
 
-def _lowpass(x, ts_s):
-    b, a = signal.butter(4, SLOW_HZ, fs=1.0 / ts_s)
-    return signal.filtfilt(b, a, x)
-
-
 def row_metrics(y, d, sc: Scenario, ang, out_angle, floor_rms: float | None) -> dict:
     t, truth = d["t_s"], d["torque_true_nm"]
-    ts = float(t[1] - t[0])
     err = y - truth
     after = t >= 1.0
     r = {"rms_nm": metrics.rms(err[after]), "first_s_rms_nm": metrics.rms(err[t < 1.0])}
     if floor_rms:
         r["x_floor"] = r["rms_nm"] / floor_rms
-    load = np.zeros(len(t))
-    for k in ("load_torque_nm", "gravity_nm"):
-        if k in d:
-            load = load + d[k]
-    lp_load = _lowpass(load - load.mean(), ts)[after]
-    if metrics.rms(lp_load) > 1e-6:
-        r["load_kept"] = metrics.load_kept(_lowpass(err, ts)[after], lp_load,
-                                           _lowpass(d["ripple_true_nm"], ts)[after])
+    kept = metrics.slow_load_kept(err, d, after)
+    if kept is not None:
+        r["load_kept"] = kept
     if sc.steady and t[-1] > sc.steady[1]:
         w = metrics.window(t, *sc.steady)
         r["line_amplitude_nm"] = metrics.line_amplitudes(err[w] - err[w].mean(), ang[0][w],
