@@ -31,8 +31,7 @@ hd_kf_err_t hd_expected_config_check(const hd_expected_config_t *cfg)
 
 static float smooth_sign(const hd_expected_config_t *cfg, float vel_out_rad_s)
 {
-    const float abs_vel = vel_out_rad_s < 0.0f ? -vel_out_rad_s : vel_out_rad_s;
-    return vel_out_rad_s / (abs_vel + cfg->coulomb_vel_eps_rad_s);
+    return smooth_sign_f(vel_out_rad_s, cfg->coulomb_vel_eps_rad_s);
 }
 
 float hd_expected_torque_nm(const hd_expected_config_t *cfg,
@@ -48,9 +47,9 @@ hd_kf_err_t hd_expected_current_check(const hd_expected_current_config_t *cur)
     if (cur == NULL) {
         return HD_KF_ERR_NULL;
     }
-    const float v[5] = {cur->nm_per_a, cur->coulomb_nm, cur->viscous_nm_s_rad, cur->inertia_kgm2,
-                        cur->backdrive_nm_per_a};
-    for (unsigned i = 0; i < 5u; i++) {
+    const float v[6] = {cur->nm_per_a,     cur->coulomb_nm,         cur->viscous_nm_s_rad,
+                        cur->inertia_kgm2, cur->backdrive_nm_per_a, cur->error_nm};
+    for (unsigned i = 0; i < 6u; i++) {
         if (!is_finite(v[i]) || v[i] < 0.0f) {
             return HD_KF_ERR_EXPECTED_CONFIG;
         }

@@ -50,6 +50,9 @@ typedef struct {
     float inertia_kgm2;      /* J_r [kg m^2] */
     float backdrive_nm_per_a; /* k_b = N kt / eta_b [N m per A] when the load drives
                                  the motor; 0 = k_i (one efficiency) */
+    float error_nm;          /* RMS error of the term beyond its lag (the model's fit
+                                residual, current noise) [N m]; hd_slow adds its
+                                square to the variance T_exp is given */
 } hd_expected_current_config_t;
 
 void hd_expected_config_default(hd_expected_config_t *cfg);
@@ -66,7 +69,7 @@ float hd_expected_torque_nm(const hd_expected_config_t *cfg,
  * imply: below it no gear transmits. */
 #define HD_EXPECTED_MIN_EFFICIENCY_PRODUCT 0.01f
 
-/* HD_KF_OK if every field is finite and >= 0 and, with both gains set, the
+/* HD_KF_OK if every field (error_nm too) is finite and >= 0 and, with both gains set, the
  * efficiencies they imply are physical: nm_per_a / backdrive_nm_per_a =
  * eta x eta_b in [HD_EXPECTED_MIN_EFFICIENCY_PRODUCT, 1] (backdrive at
  * least nm_per_a); HD_KF_ERR_NULL for NULL, else

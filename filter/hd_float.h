@@ -11,4 +11,15 @@ static inline bool is_finite(float x)
     return (x - x) == 0.0f;
 }
 
+static inline float abs_f(float x)
+{
+    return x < 0.0f ? -x : x;
+}
+
+/* v / (|v| + eps): a sign function smoothed over eps > 0 (continuous). */
+static inline float smooth_sign_f(float v, float eps)
+{
+    return v / (abs_f(v) + eps);
+}
+
 #endif /* HD_FLOAT_H */

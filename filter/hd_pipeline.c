@@ -88,7 +88,7 @@ void hd_pipeline_run(hd_pipeline_t *p, const hd_pipeline_io_t *io)
     hd_pipeline_slow_t slow;
     float amp_prior[HD_KF_MAX_BLOCKS];
     /* no current term: a zero configuration (nm_per_a = 0), a spare state */
-    static const hd_slow_current_config_t no_current = {{0.0f, 0.0f, 0.0f, 0.0f, 0.0f},
+    static const hd_slow_current_config_t no_current = {{0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f},
                                                         1.0f, 0.0f, 1.0f, 1.0f};
     hd_slow_current_t spare = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0u};
     const int with_current = io->current != NULL && io->current_state != NULL;

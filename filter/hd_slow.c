@@ -46,10 +46,14 @@ float hd_slow_current_nm(hd_slow_current_t *st, const hd_slow_current_config_t *
     const int first = !st->primed;
     const float acc = low_pass(st, c->alpha, motor_current_a, output_velocity_rad_s) / c->ts_s;
     const float t = hd_expected_current_nm(&c->term, e, st->i2_a, st->w2_rad_s, acc);
-    const float lag_nm = first ? 0.0f : c->lag_steps * (t - st->torque_nm);
-    *var_nm2 = lag_nm * lag_nm;
+    const float lead_nm = first ? 0.0f : c->lag_steps * (t - st->torque_nm);
     st->torque_nm = t;
-    return t;
+    const float dv = abs_f(acc) * c->lag_steps * c->ts_s + e->coulomb_vel_eps_rad_s;
+    const float spread_nm = 0.5f * c->term.coulomb_nm *
+                            (smooth_sign_f(st->w2_rad_s + dv, e->coulomb_vel_eps_rad_s) -
+                             smooth_sign_f(st->w2_rad_s - dv, e->coulomb_vel_eps_rad_s));
+    *var_nm2 = lead_nm * lead_nm + spread_nm * spread_nm + c->term.error_nm * c->term.error_nm;
+    return t + lead_nm;
 }
 
 float hd_slow_feedforward_ramp_nm(float last_nm, uint32_t stale_ticks, uint32_t ramp_ticks)

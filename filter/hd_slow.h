@@ -17,9 +17,18 @@
  *             the rotor's inertia torque against a lagging acceleration
  *             would enter the innovation (docs/design/slow-torque.md, "Motor
  *             current").
- *   var       (lag_steps x T_cur's change per step)^2: the low-pass lags a
- *             changing torque by that much, and the filter is told so
- *             instead of learning it as ripple.
+ *             T_cur is the model's value plus lag_steps x its change per
+ *             step: the two stages lag a ramp by lag_steps samples, and
+ *             the change extrapolates that lag away (a first-order lead;
+ *             on a step it overshoots by 1/e at most, which var covers).
+ *   var       the sum of three squares: the lead's own size (what a wrong
+ *             extrapolation can cost); the Coulomb term's spread,
+ *             Fc_r (sgn(v + dv) - sgn(v - dv)) / 2 with the smoothed sign,
+ *             over the velocity the lag leaves unknown, dv = |acc| x
+ *             lag_steps x ts + v_eps (near a stop the friction's sign, and
+ *             at a standstill its value, is not known: Fc_r / 2 there); and
+ *             term.error_nm, what the model misses beyond its lag.  The
+ *             filter is told so instead of learning these as ripple.
  *
  * Contract: one call per sample, in sample order; a sample without a
  * usable current (NaN, or term.nm_per_a = 0) gives T_cur = 0, var = 0 and

@@ -25,7 +25,7 @@ static void test_current_term_matches_the_closed_form(void)
     hd_expected_config_default(&e);
     e.coulomb_vel_eps_rad_s = 0.02f;
     e.coulomb_nm = 123.0f; /* the load model's own terms do not enter T_cur */
-    const hd_expected_current_config_t c = {161.5f, 1.7f, 0.9f, 2.4f, 0.0f}; /* one efficiency */
+    const hd_expected_current_config_t c = {161.5f, 1.7f, 0.9f, 2.4f, 0.0f, 0.0f}; /* one efficiency */
     const float cur[] = {-12.0f, -0.3f, 0.0f, 0.05f, 7.5f};
     const float vel[] = {-3.0f, -0.01f, 0.0f, 1e-4f, 0.5f, 2.9f};
     const float acc[] = {-40.0f, 0.0f, 12.5f};
@@ -47,7 +47,7 @@ static void test_current_term_matches_the_closed_form(void)
                             hd_expected_current_nm(&c, &e, -2.0f, 0.0f, 0.0f));
     TEST_ASSERT_TRUE(hd_expected_current_nm(&c, &e, 0.0f, 1.0f, 0.0f) < 0.0f);
     /* all zero: no term */
-    const hd_expected_current_config_t off = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    const hd_expected_current_config_t off = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     TEST_ASSERT_EQUAL_FLOAT(0.0f, hd_expected_current_nm(&off, &e, 30.0f, 2.0f, 100.0f));
 }
 
@@ -61,7 +61,7 @@ static void test_backdrive_gain_where_the_load_drives_the_motor(void)
     hd_expected_config_default(&e);
     e.coulomb_vel_eps_rad_s = 0.02f;
     const double ki = 100.0 * 0.9 * 0.1, kb = 100.0 * 0.1 / 0.85;
-    const hd_expected_current_config_t c = {(float)ki, 1.7f, 0.9f, 2.4f, (float)kb};
+    const hd_expected_current_config_t c = {(float)ki, 1.7f, 0.9f, 2.4f, (float)kb, 0.0f};
     const float cur[] = {-12.0f, -0.3f, 0.0f, 0.05f, 7.5f};
     const float vel[] = {-3.0f, -0.01f, 0.0f, 1e-4f, 0.5f, 2.9f};
     const float acc[] = {-40.0f, 0.0f, 12.5f};
@@ -81,7 +81,7 @@ static void test_backdrive_gain_where_the_load_drives_the_motor(void)
     }
     /* lifting (torque with the motion) and lowering (against it), fast:
      * the same current means 1 / (eta eta_b) = 1.307 times the torque */
-    const hd_expected_current_config_t bare = {(float)ki, 0.0f, 0.0f, 0.0f, (float)kb};
+    const hd_expected_current_config_t bare = {(float)ki, 0.0f, 0.0f, 0.0f, (float)kb, 0.0f};
     const float lift = hd_expected_current_nm(&bare, &e, 5.0f, 2.0f, 0.0f);
     const float lower = hd_expected_current_nm(&bare, &e, 5.0f, -2.0f, 0.0f);
     TEST_ASSERT_FLOAT_WITHIN(0.01f * 5.0f * (float)ki, 5.0f * (float)ki, lift);
@@ -93,13 +93,13 @@ static void test_backdrive_gain_where_the_load_drives_the_motor(void)
 
 static void test_current_config_check(void)
 {
-    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f, 12.0f};
+    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f, 12.0f, 0.05f};
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));
     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_NULL, hd_expected_current_check(NULL));
-    float *f[5] = {&c.nm_per_a, &c.coulomb_nm, &c.viscous_nm_s_rad, &c.inertia_kgm2,
-                   &c.backdrive_nm_per_a};
+    float *f[6] = {&c.nm_per_a,     &c.coulomb_nm,         &c.viscous_nm_s_rad,
+                   &c.inertia_kgm2, &c.backdrive_nm_per_a, &c.error_nm};
     const float bad[3] = {-1.0f, NAN, INFINITY};
-    for (unsigned i = 0; i < 5; i++) {
+    for (unsigned i = 0; i < 6; i++) {
         for (unsigned k = 0; k < 3; k++) {
             const float keep = *f[i];
             *f[i] = bad[k];
@@ -115,7 +115,7 @@ static void test_current_config_check(void)
  * efficiency of 1) and either gain alone are accepted. */
 static void test_current_efficiencies_must_be_physical(void)
 {
-    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f, 9.9f};
+    hd_expected_current_config_t c = {10.0f, 0.1f, 0.2f, 0.3f, 9.9f, 0.0f};
     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_EXPECTED_CONFIG, hd_expected_current_check(&c));
     c.backdrive_nm_per_a = 10.0f;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_expected_current_check(&c));

@@ -187,9 +187,10 @@ static void test_no_feedforward_expected_ignores_frames(void)
 
 /* ----------------------------------------------------------- motor current */
 
-static void push_current(float amps, int rc, bool fault)
+/* One tick with this current reading; the motor turns by `counts`. */
+static void push_sample_current(float amps, int rc, bool fault, uint32_t counts)
 {
-    motor += 3u;
+    motor += counts;
     hal_mock_sample_t s;
     memset(&s, 0, sizeof s);
     s.adc.bridge_counts = 1000;
@@ -200,6 +201,16 @@ static void push_current(float amps, int rc, bool fault)
     TEST_ASSERT_EQUAL_INT(0, hal_mock_push_sample(&mock, &s));
     hd_fw_isr(&fw);
     hd_fw_background(&fw);
+}
+
+static void push_current(float amps, int rc, bool fault)
+{
+    push_sample_current(amps, rc, fault, 3u);
+}
+
+static void push_current_still(float amps)
+{
+    push_sample_current(amps, HAL_OK, false, 0u);
 }
 
 static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
@@ -237,8 +248,11 @@ static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
 /* The current term's low-pass: two first-order stages, backward Euler,
  * y_n = y_{n-1} + a (u_n - y_{n-1}), a = w / (1 + w), w = 2 pi f ts, on the
  * current; the velocity (from the motor increments / N) likewise, the
- * acceleration is the filtered velocity's difference / ts.  Computed here in
- * double from that description. */
+ * acceleration is the filtered velocity's difference / ts.  The two stages
+ * lag a ramp by L = 2 (1 - a) / a ticks: T_exp is the model on the filtered
+ * inputs plus L times its change over the tick (the lag extrapolated away),
+ * and the filter is given that correction's square as variance (no Coulomb
+ * term, no error_nm here).  Computed here in double from that description. */
 static void test_motor_current_low_pass(void)
 {
     mock.current_channel = true;
@@ -252,11 +266,9 @@ static void test_motor_current_low_pass(void)
     const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
     const double v0 = 3.0 * 2.0 * TEST_PI / 4096.0 / 100.0 / 0.001; /* output rad/s */
     double i1 = 0.0, i2 = 0.0, w1 = 0.0, w2 = 0.0; /* the first reading has no increment */
-    /* the two stages lag a ramp by 2 (1 - a) / a ticks: T_exp is that many
-     * ticks' change off, and the filter is given its square as variance */
     const double lag_ticks = 2.0 * (1.0 - a) / a;
     TEST_ASSERT_EQUAL_FLOAT(0.0f, last()->torque_expected_var_nm2); /* priming tick */
-    double prev = (double)last()->torque_expected_nm;
+    double prev = 0.0; /* the model at the priming tick */
     for (unsigned n = 1; n <= 200; n++) {
         push_current(1.0f, HAL_OK, false);
         i1 += a * (1.0 - i1);
@@ -264,15 +276,66 @@ static void test_motor_current_low_pass(void)
         w1 += a * (v0 - w1);
         double dw = a * (w1 - w2);
         w2 += dw;
-        double expect = 10.0 * i2 - 0.5 * dw / 0.001 - 2.0 * w2;
-        TEST_ASSERT_DOUBLE_WITHIN(2e-4, expect, (double)last()->torque_expected_nm);
-        const double got = (double)last()->torque_expected_nm;
-        const double lag_var = pow(lag_ticks * (got - prev), 2.0);
-        TEST_ASSERT_DOUBLE_WITHIN(1e-3 * lag_var + 1e-9, lag_var,
+        const double model = 10.0 * i2 - 0.5 * dw / 0.001 - 2.0 * w2;
+        const double lead = lag_ticks * (model - prev);
+        TEST_ASSERT_DOUBLE_WITHIN(5e-3, model + lead, (double)last()->torque_expected_nm);
+        TEST_ASSERT_DOUBLE_WITHIN(5e-3 * lead * lead + 1e-6, lead * lead,
                                   (double)last()->torque_expected_var_nm2);
-        prev = got;
+        prev = model;
     }
     TEST_ASSERT_DOUBLE_WITHIN(0.02, 10.0 - 2.0 * v0, (double)last()->torque_expected_nm);
+}
+
+/* A ramp of current (a load growing at a constant rate, no motion): after
+ * the stages settle, T_exp is k_i times the current of this very tick, where
+ * the low-pass alone lags it by L ticks' growth. */
+static void test_motor_current_lag_is_extrapolated_away(void)
+{
+    mock.current_channel = true;
+    hal_mock_bind(&mock, &hal);
+    cfg.current.nm_per_a = 10.0f;
+    cfg.current_filter_hz = 10.0f;
+    init_fw();
+    const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
+    const double lag_ticks = 2.0 * (1.0 - a) / a, slope_a = 1e-3; /* per tick */
+    for (unsigned n = 0; n <= 600; n++) {
+        const double amps = slope_a * (double)n;
+        push_current_still((float)amps);
+        if (n > 400) {
+            TEST_ASSERT_DOUBLE_WITHIN(2e-3, 10.0 * amps, (double)last()->torque_expected_nm);
+            /* (the filtered current alone is lag_ticks x slope behind) */
+            TEST_ASSERT_DOUBLE_WITHIN(2e-3, pow(10.0 * slope_a * lag_ticks, 2.0),
+                                      (double)last()->torque_expected_var_nm2);
+        }
+    }
+}
+
+/* The variance's other two terms: near a stop the Coulomb friction's sign is
+ * not known, at a standstill its value is anywhere in +-Fc_r (the smoothed
+ * sign spread over +-v_eps: Fc_r / 2), and current_error_nm is added as its
+ * square; at a steady speed far above v_eps only error_nm is left. */
+static void test_motor_current_variance_at_standstill_and_speed(void)
+{
+    mock.current_channel = true;
+    hal_mock_bind(&mock, &hal);
+    cfg.current.nm_per_a = 10.0f;
+    cfg.current.coulomb_nm = 0.8f;
+    cfg.current.error_nm = 0.05f;
+    cfg.current_filter_hz = 10.0f;
+    init_fw();
+    for (unsigned n = 0; n < 300; n++) {
+        push_current_still(0.5f);
+    }
+    TEST_ASSERT_DOUBLE_WITHIN(1e-5, 0.4 * 0.4 + 0.05 * 0.05,
+                              (double)last()->torque_expected_var_nm2);
+    for (unsigned n = 0; n < 600; n++) {
+        push_sample_current(0.5f, HAL_OK, false, 60u);
+    }
+    /* 60 counts per tick: v = 0.92 rad/s at the output, 92 v_eps */
+    const double v = 60.0 * 2.0 * TEST_PI / 4096.0 / 100.0 / 0.001, eps = 0.01;
+    const double spread = 0.4 * ((v + eps) / (v + 2.0 * eps) - (v - eps) / v);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.05 * 0.05 + spread * spread,
+                              (double)last()->torque_expected_var_nm2);
 }
 
 static void test_no_current_channel(void)
@@ -889,6 +952,8 @@ int main(int argc, char **argv)
     RUN_TEST(test_no_feedforward_expected_ignores_frames);
     RUN_TEST(test_motor_current_enters_t_exp_and_a_bad_reading_holds);
     RUN_TEST(test_motor_current_low_pass);
+    RUN_TEST(test_motor_current_lag_is_extrapolated_away);
+    RUN_TEST(test_motor_current_variance_at_standstill_and_speed);
     RUN_TEST(test_no_current_channel);
     RUN_TEST(test_boot_predicts_the_stored_profile_from_the_first_sample);
     RUN_TEST(test_without_an_output_encoder_output_lines_are_not_used);

@@ -218,6 +218,7 @@ current_nm_per_a = 10
 current_coulomb_nm = 0.25
 current_viscous_nm_s_rad = 0.125
 current_inertia_kgm2 = 0.0625
+current_error_nm = 0.03125
 current_filter_hz = 20
 """
 

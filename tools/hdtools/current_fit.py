@@ -224,6 +224,8 @@ def fit(data, gear_ratio: float | None = None, name: str = "log", lines=None) ->
     if gear_ratio:
         notes.append(f"eta kt = k_i / N = {ki / gear_ratio:.5g} +- {ski / gear_ratio:.2g} N m/A "
                      f"at the motor (gear ratio {gear_ratio:g})")
+    # what the model misses: the filter is told it as T_cur's variance
+    written["current_error_nm"] = float(math.sqrt(s2))
     return Fit(value, sigma, written, notes, float(math.sqrt(s2)), len(T),
                len(T) / DECIMATE_HZ)
 

@@ -166,7 +166,8 @@ class ExpectedConfig(ctypes.Structure):
 class CurrentTerm(ctypes.Structure):
     """hd_expected_current_config_t (all zero: no current term)."""
     _fields_ = [("nm_per_a", c_float), ("coulomb_nm", c_float), ("viscous_nm_s_rad", c_float),
-                ("inertia_kgm2", c_float), ("backdrive_nm_per_a", c_float)]
+                ("inertia_kgm2", c_float), ("backdrive_nm_per_a", c_float),
+                ("error_nm", c_float)]
 
 
 class CurrentConfig(ctypes.Structure):

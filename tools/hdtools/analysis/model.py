@@ -26,7 +26,8 @@ NOISE_FLOOR_NM = 6e-3
 # The motor-current term's keys (firmware/hd_params.def), carried by the model
 # under the same names; hdsense current fits them, hd_slow.c runs them.
 CURRENT_KEYS = ("current_nm_per_a", "current_coulomb_nm", "current_viscous_nm_s_rad",
-                "current_inertia_kgm2", "current_backdrive_nm_per_a", "current_filter_hz")
+                "current_inertia_kgm2", "current_backdrive_nm_per_a", "current_error_nm",
+                "current_filter_hz")
 
 
 def _param_default(key: str) -> float:
@@ -100,6 +101,7 @@ class Model:
         default_factory=lambda: _param_default("current_inertia_kgm2"))
     current_backdrive_nm_per_a: float = field(
         default_factory=lambda: _param_default("current_backdrive_nm_per_a"))
+    current_error_nm: float = field(default_factory=lambda: _param_default("current_error_nm"))
     current_filter_hz: float = field(default_factory=lambda: _param_default("current_filter_hz"))
 
     @classmethod
@@ -202,7 +204,7 @@ class Model:
             return None
         term = cfilter.CurrentTerm(self.current_nm_per_a, self.current_coulomb_nm,
                                    self.current_viscous_nm_s_rad, self.current_inertia_kgm2,
-                                   self.current_backdrive_nm_per_a)
+                                   self.current_backdrive_nm_per_a, self.current_error_nm)
         return cfilter.current_config(term, self.current_filter_hz, self.gear_ratio,
                                       ts_s or self.ts_s)
 
