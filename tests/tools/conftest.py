@@ -86,7 +86,8 @@ def doc_section(name, lines):
 def assert_summary_current(part, entries):
     """docs/results/analyze.json (the README's headline source, written in
     the same run as docs/results/analyze-results.md) holds these entries of `part`
-    ("cases" or "iiwa"): numbers to 1e-9 relative."""
+    ("cases" or "iiwa"): numbers to the tables' tolerance (DOC_NUMBER_REL,
+    DOC_NUMBER_ABS: the processor's rounding)."""
     import json
     from hdtools.analysis import results
     stale = ("docs/results/analyze.json is stale: run "
@@ -98,7 +99,8 @@ def assert_summary_current(part, entries):
         assert set(stored.get(name, {})) == set(now), f"{stale} ({name})"
         for key, value in now.items():
             if isinstance(value, float):
-                assert stored[name][key] == pytest.approx(value, rel=1e-9), f"{stale} ({name} {key})"
+                assert stored[name][key] == pytest.approx(
+                    value, rel=DOC_NUMBER_REL, abs=DOC_NUMBER_ABS), f"{stale} ({name} {key})"
             else:
                 assert stored[name][key] == value, f"{stale} ({name} {key})"
 
@@ -107,11 +109,17 @@ def assert_summary_current(part, entries):
 # one processor to another (numpy's BLAS kernels round differently); a table
 # is stale when its words differ or a number moves by more than this.
 DOC_NUMBER_REL = 5e-3
+# ... or by less than this in absolute value: a residual of a millinewton-metre
+# (a twentieth of the sensor noise) is where the kernels' rounding reaches
+# the analysis' choices (output3's slow error after the loop read 1.47 mN m
+# on one processor and 1.14 on another).
+DOC_NUMBER_ABS = 5e-4
 _NUMBER = re.compile(r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 
 
-def same_text_but_rounding(a, b, rel=DOC_NUMBER_REL):
-    """a and b are the same text, each number within rel of the other's."""
+def same_text_but_rounding(a, b, rel=DOC_NUMBER_REL, abs_tol=DOC_NUMBER_ABS):
+    """a and b are the same text, each number within rel of the other's or
+    within abs_tol of it."""
     pa, pb = _NUMBER.split(a), _NUMBER.split(b)
     if len(pa) != len(pb):
         return False
@@ -119,7 +127,8 @@ def same_text_but_rounding(a, b, rel=DOC_NUMBER_REL):
         if i % 2 == 0:
             if x != y:
                 return False
-        elif x != y and abs(float(x) - float(y)) > rel * max(abs(float(x)), abs(float(y))):
+        elif x != y and abs(float(x) - float(y)) > max(
+                abs_tol, rel * max(abs(float(x)), abs(float(y)))):
             return False
     return True
 
