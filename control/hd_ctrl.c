@@ -436,9 +436,12 @@ static float integral_gain_per_s(const hd_ctrl_config_t *k, hd_ctrl_mode_t m,
 static float friction_feedforward(const hd_ctrl_config_t *k, float v, float rate_nm_s)
 {
     const float s = clampf(v / k->friction_velocity_rad_s, -1.0f, 1.0f);
-    const float rest = 1.0f - (s < 0.0f ? -s : s);
-    return k->friction_nm * s +
-           k->friction_rest_nm * rest * clampf(rate_nm_s / k->friction_rate_nm_s, -1.0f, 1.0f);
+    float u = k->friction_nm * s;
+    if (k->friction_rest_nm > 0.0f) { /* off by default: no division in the tick */
+        const float rest = 1.0f - (s < 0.0f ? -s : s);
+        u += k->friction_rest_nm * rest * clampf(rate_nm_s / k->friction_rate_nm_s, -1.0f, 1.0f);
+    }
+    return u;
 }
 
 /* PI with the setpoint fed forward; the integral moves only while the
@@ -505,7 +508,7 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
     const float tau_ref = torque_reference(k, m, sp, in, &out->limits);
     /* the setpoint torque's rate (TORQUE: the torque, IMPEDANCE: its feed-forward) */
     const bool sp_finite = finite_f(sp->torque_nm); /* not in a fallback to DAMP */
-    const float sp_rate = c->sp_torque_primed && sp_finite
+    const float sp_rate = k->friction_rest_nm > 0.0f && c->sp_torque_primed && sp_finite
                               ? (sp->torque_nm - c->sp_torque_prev_nm) / k->ts_s
                               : 0.0f;
     c->sp_torque_prev_nm = sp_finite ? sp->torque_nm : 0.0f;
