@@ -506,13 +506,14 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
     }
     const hd_ctrl_config_t *k = &c->cfg;
     const float tau_ref = torque_reference(k, m, sp, in, &out->limits);
-    /* the setpoint torque's rate (TORQUE: the torque, IMPEDANCE: its feed-forward) */
-    const bool sp_finite = finite_f(sp->torque_nm); /* not in a fallback to DAMP */
-    const float sp_rate = k->friction_rest_nm > 0.0f && c->sp_torque_primed && sp_finite
+    /* the setpoint torque's rate: TORQUE's torque, IMPEDANCE's feed-forward;
+     * none in the other modes, and none across a refused (non-finite) one */
+    const bool rated = (m == HD_CTRL_TORQUE || m == HD_CTRL_IMPEDANCE) && finite_f(sp->torque_nm);
+    const float sp_rate = k->friction_rest_nm > 0.0f && c->sp_torque_primed && rated
                               ? (sp->torque_nm - c->sp_torque_prev_nm) / k->ts_s
                               : 0.0f;
-    c->sp_torque_prev_nm = sp_finite ? sp->torque_nm : 0.0f;
-    c->sp_torque_primed = sp_finite;
+    c->sp_torque_prev_nm = rated ? sp->torque_nm : 0.0f;
+    c->sp_torque_primed = rated;
     float u;
     if (!uses_torque_loop(m) || k->feedback == HD_CTRL_FB_NONE) {
         c->integral_nm = 0.0f;

@@ -20,7 +20,9 @@
  *           + friction_rest_nm sat(r / r_eps) max(0, 1 - |v| / v_eps)
  *                         (joint N m; the rate is the backward difference of the
  *                         feedback over one tick: it damps the flexspline's mode;
- *                         r the setpoint torque's rate over one tick: at rest
+ *                         r the rate of TORQUE's torque or IMPEDANCE's tau_ff
+ *                         over one tick (a stream slower than the tick gives
+ *                         pulses on its updates; 0 in the other modes): at rest
  *                         the motor moves only by the flexspline's windup, in
  *                         the direction the torque is asked to move, and its
  *                         static friction holds a loop of a few Hz there

@@ -264,6 +264,14 @@ static void test_friction_at_rest_follows_the_setpoint_rate(void)
     }
     (void)rest_current(&c, NAN, 0.0f);                       /* DAMP: refused setpoint */
     TEST_ASSERT_DOUBLE_WITHIN(2e-5, 12.0 / nkt, (double)rest_current(&c, 12.0f, 0.0f));
+    hd_ctrl_setpoint_t zt = {.mode = HD_CTRL_ZERO_TORQUE, .torque_nm = 20.0f}; /* torque unused */
+    hd_ctrl_output_t oz;
+    const hd_ctrl_input_t rest_in = input_of(0.0, 0.0, 0.0);
+    hd_ctrl_step(&c, &zt, &rest_in, &oz);
+    zt.torque_nm = 30.0f;
+    hd_ctrl_step(&c, &zt, &rest_in, &oz);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, 0.0, (double)oz.current_a);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, 12.0 / nkt, (double)rest_current(&c, 12.0f, 0.0f));
     const hd_ctrl_setpoint_t stop = {.mode = HD_CTRL_STOP};
     const hd_ctrl_input_t in = input_of(0.0, 0.0, 0.0);
     hd_ctrl_output_t o;
