@@ -47,6 +47,8 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .notch_width_hz = 10.0f,
         .friction_nm = 0.0f,
         .friction_velocity_rad_s = 0.05f,
+        .friction_rest_nm = 0.0f,
+        .friction_rate_nm_s = 1.0f,
         .damp_nm_s_rad = 1.0f,
         .torque_limit_nm = 40.0f,
         .current_limit_a = 8.0f,
@@ -76,6 +78,8 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
         (k->lowpass_order == 1u || k->lowpass_order == 2u || k->lowpass_order == 4u) &&
         within(k->notch_width_hz, 0.1f, 0.1f / k->ts_s) && within(k->friction_nm, 0.0f, 1000.0f) &&
         within(k->friction_velocity_rad_s, 1e-4f, 100.0f) &&
+        within(k->friction_rest_nm, 0.0f, 1000.0f) &&
+        within(k->friction_rate_nm_s, 1e-3f, 1e6f) &&
         within(k->damp_nm_s_rad, 0.0f, 1000.0f) && within(k->torque_limit_nm, 1e-3f, 1e4f) &&
         within(k->current_limit_a, 1e-3f, 1000.0f) &&
         within(k->velocity_limit_rad_s, 1e-3f, 1e4f) &&
@@ -96,6 +100,8 @@ void hd_ctrl_reset(hd_ctrl_t *c)
     c->lowpass_nm = 0.0f;
     c->lowpass_primed = false;
     c->raw_notched_nm = 0.0f;
+    c->sp_torque_prev_nm = 0.0f;
+    c->sp_torque_primed = false;
     for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
         c->butter[i].s0 = c->butter[i].s1 = 0.0f;
     }
@@ -422,14 +428,26 @@ static float integral_gain_per_s(const hd_ctrl_config_t *k, hd_ctrl_mode_t m,
     return k->torque_ki_per_s * sqrt_unit(sp->kp_nm_rad / k->integral_stiffness_nm_rad);
 }
 
-static float friction_feedforward(const hd_ctrl_config_t *k, float v)
+/* The friction's compensation: in the direction the output moves
+ * (friction_nm), and at rest in the direction the setpoint torque moves
+ * (friction_rest_nm): with the output still the motor moves only by the
+ * flexspline's windup, toward more torque when more is asked; faded out as
+ * the speed reaches v_eps, where the first term has the motor's direction. */
+static float friction_feedforward(const hd_ctrl_config_t *k, float v, float rate_nm_s)
 {
-    return k->friction_nm * clampf(v / k->friction_velocity_rad_s, -1.0f, 1.0f);
+    const float s = clampf(v / k->friction_velocity_rad_s, -1.0f, 1.0f);
+    float u = k->friction_nm * s;
+    if (k->friction_rest_nm > 0.0f) { /* off by default: no division in the tick */
+        const float rest = 1.0f - (s < 0.0f ? -s : s);
+        u += k->friction_rest_nm * rest * clampf(rate_nm_s / k->friction_rate_nm_s, -1.0f, 1.0f);
+    }
+    return u;
 }
 
 /* PI with the setpoint fed forward; the integral moves only while the
  * command is not saturated in the error's direction. */
-static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v, float ki_per_s)
+static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v, float sp_rate,
+                         float ki_per_s)
 {
     const hd_ctrl_config_t *k = &c->cfg;
     const float e = tau_ref - fb;
@@ -438,7 +456,7 @@ static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v, float k
     c->fb_prev_nm = fb;
     c->fb_primed = true;
     const float u = k->torque_ff * tau_ref + k->torque_kp * e + c->integral_nm -
-                    k->torque_kd_s * rate + friction_feedforward(k, v);
+                    k->torque_kd_s * rate + friction_feedforward(k, v, sp_rate);
     const float u_max = k->current_limit_a * k->kt_nm_per_a * k->gear_ratio;
     const bool wind_up = (u >= u_max && e > 0.0f) || (u <= -u_max && e < 0.0f);
     if (!wind_up) {
@@ -452,6 +470,7 @@ static void stop(hd_ctrl_t *c, hd_ctrl_output_t *out)
 {
     c->integral_nm = 0.0f;
     c->fb_primed = false;
+    c->sp_torque_primed = false;
     out->enable = false;
     out->current_a = 0.0f;
     out->motor_torque_nm = 0.0f;
@@ -487,14 +506,24 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
     }
     const hd_ctrl_config_t *k = &c->cfg;
     const float tau_ref = torque_reference(k, m, sp, in, &out->limits);
+    /* the setpoint torque's rate: TORQUE's torque, IMPEDANCE's feed-forward;
+     * none in the other modes, and none across a refused (non-finite) one */
+    const bool rated = (m == HD_CTRL_TORQUE || m == HD_CTRL_IMPEDANCE) && finite_f(sp->torque_nm);
+    const float sp_rate = k->friction_rest_nm > 0.0f && c->sp_torque_primed && rated
+                              ? (sp->torque_nm - c->sp_torque_prev_nm) / k->ts_s
+                              : 0.0f;
+    c->sp_torque_prev_nm = rated ? sp->torque_nm : 0.0f;
+    c->sp_torque_primed = rated;
     float u;
     if (!uses_torque_loop(m) || k->feedback == HD_CTRL_FB_NONE) {
         c->integral_nm = 0.0f;
         c->fb_primed = false;
-        u = m == HD_CTRL_DAMP ? tau_ref : tau_ref + friction_feedforward(k, in->velocity_rad_s);
+        u = m == HD_CTRL_DAMP ? tau_ref
+                               : tau_ref + friction_feedforward(k, in->velocity_rad_s, sp_rate);
     } else {
         out->torque_fb_nm = fb; /* pick_mode's: the mode runs the loop, so it was read */
-        u = torque_loop(c, tau_ref, fb, in->velocity_rad_s, integral_gain_per_s(k, m, sp));
+        u = torque_loop(c, tau_ref, fb, in->velocity_rad_s, sp_rate,
+                        integral_gain_per_s(k, m, sp));
     }
     float i = u / (k->gear_ratio * k->kt_nm_per_a);
     if (!finite_f(i)) {

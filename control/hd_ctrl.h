@@ -17,8 +17,16 @@
  * TORQUE, IMPEDANCE and ZERO_TORQUE track tau_ref with the torque loop:
  *   e     = tau_ref - tau_fb
  *   u     = ff tau_ref + kp_t e + I - kd_t d(tau_fb)/dt + friction_nm sat(v / v_eps)
+ *           + friction_rest_nm sat(r / r_eps) max(0, 1 - |v| / v_eps)
  *                         (joint N m; the rate is the backward difference of the
- *                         feedback over one tick: it damps the flexspline's mode)
+ *                         feedback over one tick: it damps the flexspline's mode;
+ *                         r the rate of TORQUE's torque or IMPEDANCE's tau_ff
+ *                         over one tick (a stream slower than the tick gives
+ *                         pulses on its updates; 0 in the other modes): at rest
+ *                         the motor moves only by the flexspline's windup, in
+ *                         the direction the torque is asked to move, and its
+ *                         static friction holds a loop of a few Hz there
+ *                         (docs/decisions/control-bandwidth.md))
  *   I    += ki ts e       only while u is not saturated in e's direction
  *                         (conditional integration: the anti-windup), and
  *                         |I| <= integral_limit_nm: the integral is there for
@@ -136,6 +144,9 @@ typedef struct {
     float notch_width_hz;          /* each notch's -3 dB width */
     float friction_nm;             /* joint-side Coulomb friction compensated (0: off) */
     float friction_velocity_rad_s; /* v_eps: the compensation fades in over |v| < v_eps */
+    float friction_rest_nm;        /* F_r: joint-side friction compensated at rest in the
+                                      direction the setpoint torque moves (0: off) */
+    float friction_rate_nm_s;      /* r_eps: F_r fades in over |setpoint rate| < r_eps */
     float damp_nm_s_rad;           /* DAMP's damping */
     float torque_limit_nm;         /* |tau_ref| */
     float current_limit_a;         /* |i_q| */
@@ -191,6 +202,8 @@ typedef struct {
     float lowpass_nm;         /* the low-pass state */
     bool lowpass_primed;
     float raw_notched_nm;     /* the raw torque after the notches, this tick */
+    float sp_torque_prev_nm;  /* the setpoint torque of the last tick (its rate) */
+    bool sp_torque_primed;
 } hd_ctrl_t;
 
 /* Defaults of a 40 N m class joint (docs/results/control.md). */

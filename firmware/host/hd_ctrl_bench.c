@@ -49,6 +49,7 @@ typedef struct {
     int mode;
     int feedback;
     double kp, ki, kd, ff, ilim, lowpass_hz, notch_width_hz;
+    double friction_rest_nm, friction_rate;
     int lowpass_order, notch_mask;
     int load;           /* 0 dyno, 1 free, 2 wall */
     double dyno_kv, dyno_ki, person_nm;
@@ -111,7 +112,8 @@ static int parse(int argc, char **argv, opts_t *o)
                   .ki = d->torque_ki_per_s, .ff = d->torque_ff,
                   .ilim = d->integral_limit_nm, .kd = d->torque_kd_s, .lowpass_hz = d->lowpass_hz,
                   .notch_width_hz = d->notch_width_hz, .lowpass_order = d->lowpass_order,
-                  .notch_mask = d->notch_mask, .dyno_kv = 50.0, .dyno_ki = 5000.0,
+                  .notch_mask = d->notch_mask, .friction_rest_nm = d->friction_rest_nm,
+                  .friction_rate = d->friction_rate_nm_s, .dyno_kv = 50.0, .dyno_ki = 5000.0,
                   .wall_k = 2e4, .wall_d = 5.0, .imp_kd = 0.0, .seed = 0x5EEDu};
     for (int i = 1; i < argc; i++) {
         const char *k = argv[i];
@@ -125,6 +127,7 @@ static int parse(int argc, char **argv, opts_t *o)
         struct { const char *name; double *dst; } nums[] = {
             {"--kp", &o->kp}, {"--ki", &o->ki}, {"--kd", &o->kd}, {"--ff", &o->ff}, {"--ilim", &o->ilim},
             {"--lowpass-hz", &o->lowpass_hz}, {"--notch-width-hz", &o->notch_width_hz},
+            {"--friction-rest-nm", &o->friction_rest_nm}, {"--friction-rate", &o->friction_rate},
             {"--dyno-kv", &o->dyno_kv}, {"--dyno-ki", &o->dyno_ki},
             {"--person-nm", &o->person_nm}, {"--wall-rad", &o->wall_rad},
             {"--wall-stiffness", &o->wall_k}, {"--wall-damping", &o->wall_d},
@@ -166,7 +169,7 @@ static int parse(int argc, char **argv, opts_t *o)
     if (o->input == NULL || o->out == NULL) {
         fprintf(stderr, "usage: hdctrl-bench --input IN --out OUT.csv [--mode M] [--feedback F] "
                         "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
-                        "--notch-width-hz] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
+                        "--notch-width-hz --friction-rest-nm --friction-rate] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
                         "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
                         "--imp-q] [--preroll N] [--seed]\n");
         return -1;
@@ -262,6 +265,8 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
     k->lowpass_order = (uint8_t)o->lowpass_order;
     k->notch_mask = (uint8_t)o->notch_mask;
     k->notch_width_hz = (float)o->notch_width_hz;
+    k->friction_rest_nm = (float)o->friction_rest_nm;
+    k->friction_rate_nm_s = (float)o->friction_rate;
     const int rc = hd_fw_init(&fw, &hal, cfg);
     if (rc != HD_FW_OK) {
         return fail("firmware configuration rejected", hd_fw_err_str(rc));

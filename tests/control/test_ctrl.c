@@ -68,6 +68,7 @@ static void test_config_check(void)
     const hd_ctrl_config_t good = k;
     float *fields[] = {&k.ts_s, &k.gear_ratio, &k.kt_nm_per_a, &k.torque_kp, &k.torque_ki_per_s,
                        &k.torque_ff, &k.torque_kd_s, &k.integral_limit_nm, &k.integral_stiffness_nm_rad, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
+                       &k.friction_rest_nm, &k.friction_rate_nm_s,
                        &k.damp_nm_s_rad, &k.torque_limit_nm, &k.current_limit_a,
                        &k.velocity_limit_rad_s, &k.velocity_gain_nm_s_rad};
     const float bad[] = {NAN, INFINITY, -1.0f, 1e9f};
@@ -217,6 +218,71 @@ static void test_rate_term_on_the_feedback(void)
     in = input_of(0.0, 0.0, 0.0);
     hd_ctrl_step(&c, &sp, &in, &o);
     TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, (double)o.current_a);
+}
+
+/* The friction compensation at rest, open loop (feedback none: u = tau_ref +
+ * compensation) against its closed form F_r sat(r / r_eps) max(0, 1 - |v| /
+ * v_eps), r the setpoint torque's rate over one tick: the sign of a ramp, its
+ * share below r_eps, the fade with the speed, nothing on a held setpoint or
+ * the first tick, and no rate across a non-finite setpoint (its DAMP tick)
+ * or a STOP. */
+static float rest_current(hd_ctrl_t *c, float torque_nm, float v)
+{
+    const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = torque_nm};
+    const hd_ctrl_input_t in = input_of(0.0, 0.0, v);
+    hd_ctrl_output_t o;
+    hd_ctrl_step(c, &sp, &in, &o);
+    return o.current_a;
+}
+
+static void test_friction_at_rest_follows_the_setpoint_rate(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_t c;
+    hd_ctrl_config_default(&k);
+    k.feedback = HD_CTRL_FB_NONE;
+    k.friction_rest_nm = 2.0f, k.friction_rate_nm_s = 1000.0f, k.friction_velocity_rad_s = 0.05f;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    const double nkt = (double)k.gear_ratio * (double)k.kt_nm_per_a;
+    const struct {
+        float torque, v;
+        double comp; /* the compensation expected, joint N m */
+    } rows[] = {
+        {10.0f, 0.0f, 0.0},     /* first tick: no rate yet */
+        {12.0f, 0.0f, 2.0},     /* 2000 N m/s up, at rest: +F_r */
+        {12.0f, 0.0f, 0.0},     /* held: none */
+        {10.0f, 0.0f, -2.0},    /* down */
+        {10.5f, 0.0f, 1.0},     /* 500 N m/s: half of it */
+        {12.5f, 0.025f, 1.0},   /* half v_eps: faded to half */
+        {14.5f, -0.025f, 1.0},  /* whichever way the output turns */
+        {16.5f, 0.05f, 0.0},    /* at v_eps: gone */
+        {18.5f, 3.0f, 0.0},
+    };
+    for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++) {
+        const float i_a = rest_current(&c, rows[i].torque, rows[i].v);
+        TEST_ASSERT_DOUBLE_WITHIN(2e-5, ((double)rows[i].torque + rows[i].comp) / nkt, (double)i_a);
+    }
+    (void)rest_current(&c, NAN, 0.0f);                       /* DAMP: refused setpoint */
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, 12.0 / nkt, (double)rest_current(&c, 12.0f, 0.0f));
+    hd_ctrl_setpoint_t zt = {.mode = HD_CTRL_ZERO_TORQUE, .torque_nm = 20.0f}; /* torque unused */
+    hd_ctrl_output_t oz;
+    const hd_ctrl_input_t rest_in = input_of(0.0, 0.0, 0.0);
+    hd_ctrl_step(&c, &zt, &rest_in, &oz);
+    zt.torque_nm = 30.0f;
+    hd_ctrl_step(&c, &zt, &rest_in, &oz);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, 0.0, (double)oz.current_a);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, 12.0 / nkt, (double)rest_current(&c, 12.0f, 0.0f));
+    const hd_ctrl_setpoint_t stop = {.mode = HD_CTRL_STOP};
+    const hd_ctrl_input_t in = input_of(0.0, 0.0, 0.0);
+    hd_ctrl_output_t o;
+    hd_ctrl_step(&c, &stop, &in, &o);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, 5.0 / nkt, (double)rest_current(&c, 5.0f, 0.0f));
+    /* in the loop too, beside the PI (kp 0.5, no integral, no feed-forward) */
+    k.feedback = HD_CTRL_FB_FILTERED;
+    k.torque_kp = 0.5f, k.torque_ki_per_s = 0.0f, k.torque_ff = 0.0f, k.torque_kd_s = 0.0f;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    (void)rest_current(&c, 10.0f, 0.0f);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, (0.5 * 8.0 - 2.0) / nkt, (double)rest_current(&c, 8.0f, 0.0f));
 }
 
 /* Impedance through the torque loop against a fixed output: the torque the
@@ -388,6 +454,8 @@ static void test_property_limits_hold_for_any_input(void)
         k.torque_ki_per_s = unit() * HD_CTRL_KI_MAX_PER_S;
         k.torque_ff = unit();
         k.friction_nm = unit() * 1000.0f;
+        k.friction_rest_nm = unit() * 1000.0f;
+        k.friction_rate_nm_s = 1e-3f + unit() * 10.0f;
         k.damp_nm_s_rad = unit() * 1000.0f;
         k.current_limit_a = 0.01f + unit() * 50.0f;
         k.torque_limit_nm = 0.01f + unit() * 100.0f;
@@ -544,6 +612,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_antiwindup_recovers_like_a_fresh_step);
     RUN_TEST(test_integral_bounded_by_its_limit);
     RUN_TEST(test_rate_term_on_the_feedback);
+    RUN_TEST(test_friction_at_rest_follows_the_setpoint_rate);
     RUN_TEST(test_impedance_renders_kp);
     RUN_TEST(test_integral_scheduled_on_stiffness);
     RUN_TEST(test_modes_and_fallbacks);

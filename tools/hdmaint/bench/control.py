@@ -198,6 +198,18 @@ def integral_limit_nm(drive_friction_nm: float) -> float:
     return float(f"{INTEGRAL_MARGIN * drive_friction_nm:.3g}")
 
 
+def friction_rest_nm(open_nm: dict) -> float:
+    """The law's friction compensation at rest (ctrl_friction_rest_nm): the
+    open-loop drive train's back-drive torque at the slowest speed measured
+    (its Coulomb part: the least of the rows, which grow with the speed),
+    rounded as the law's parameters hold it.  At rest the motor moves only by
+    the flexspline's windup and this friction holds it (docs/decisions/
+    control-bandwidth.md); measured, not told: the breakaway above it is
+    not compensated."""
+    slowest = min(open_nm, key=float)
+    return float(f"{abs(open_nm[slowest]):.3g}")
+
+
 def run(quick: bool = False, log=lambda s: None) -> dict:
     vs = variants()
     if quick:
@@ -207,8 +219,10 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
     log("measuring the open-loop drive train...")
     open_nm = {str(s): back_drive_nm(opn, s) for s in speeds_t}
     ilim = integral_limit_nm(max(abs(x) for x in open_nm.values()))
+    f_rest = friction_rest_nm(open_nm)
     for v in vs:   # every feedback alike
         v.ilim = ilim
+        v.friction_rest_nm = f_rest
     tuning = {}
     for v in vs:
         log(f"tuning {v.key}...")
@@ -219,7 +233,7 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
         log(f"measuring {v.key}...")
         r = {"config": {k: getattr(v, k) for k in ("feedback", "kp", "ki", "kd", "ff", "ilim",
                                                      "lowpass_hz", "lowpass_order", "notch_mask",
-                                                     "notch_width_hz")},
+                                                     "notch_width_hz", "friction_rest_nm")},
              "speeds": {}}
         for s in SPEEDS_RAD_S:
             r["speeds"][str(s)] = {"chirp": chirp_response(v, s, 4.0 if quick else CHIRP_S),
@@ -236,7 +250,7 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
     if not quick:   # the same loop without its integral: what the contact's cycle needs
         wall.append(wall_contact(dataclasses.replace(filt, ki=0.0), WALL["kds"][0]))
     return {"speeds_rad_s": list(SPEEDS_RAD_S), "margins": {"pm_deg": ct.PM_DEG, "gm_db": ct.GM_DB},
-            "integral_limit_nm": ilim,
+            "integral_limit_nm": ilim, "friction_rest_nm": f_rest,
             "tuning": tuning, "rows": rows, "best_butterworth": best.key,
             "transparency": transp, "impedance": imp, "wall": wall,
             "goals": goals(rows, best.key, transp, imp, wall), "quick": quick}

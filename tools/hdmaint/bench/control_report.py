@@ -11,6 +11,7 @@ from hdtools import docblock
 BLOCK = "control-results"
 BEGIN, END = docblock.markers(BLOCK)
 INTEGRAL_NOTE = "1.25x the largest open-loop back-drive torque of the transparency rows"
+FRICTION_REST_NOTE = "ctrl_friction_rest_nm: the open-loop back-drive torque at the slowest row"
 
 
 def clean(x):
@@ -71,7 +72,10 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     out.append((f"Tuned gains and the margins measured by breaking the loop (phase margin deg / "
                 f"gain margin dB; goal >= {res['margins']['pm_deg']:g} / "
                 f">= {res['margins']['gm_db']:g}); every loop's integral within "
-                f"+-{res['integral_limit_nm']:.3g} N m ({INTEGRAL_NOTE})",
+                f"+-{res['integral_limit_nm']:.3g} N m ({INTEGRAL_NOTE})"
+                + (f"; every loop's friction compensated at rest "
+                   f"{res['friction_rest_nm']:.3g} N m ({FRICTION_REST_NOTE})"
+                   if res.get("friction_rest_nm") else ""),
                 ["variant", "feedback", "kp", "ki [1/s]", "kd [ms]"]
                 + [{"wall": "wall contact", "free": "free output"}.get(c, f"{c} rad/s")
                    for c in conds]
