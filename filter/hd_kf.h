@@ -141,6 +141,15 @@ extern "C" {
  * overflow float32). */
 #define HD_KF_MAX_LOAD_COEFF_PER_NM 100.0f
 
+/* Largest accepted output_row_max: a held output line may follow the motor
+ * lines to at most this times its profile's amplitude. */
+#define HD_KF_MAX_OUTPUT_ROW 100.0f
+/* The held output rows follow the motor lines' growth through a first-order
+ * low-pass of this time constant [s]. */
+#ifndef HD_KF_OUTPUT_ROW_TAU_S
+#define HD_KF_OUTPUT_ROW_TAU_S 0.1f
+#endif
+
 /* The offset-jump gate takes at most HD_KF_JUMP_BURST jumps (a step, or a
  * spike and its return), then holds until this long within it [s]. */
 #define HD_KF_JUMP_BURST 2u
@@ -201,6 +210,13 @@ typedef struct {
     float offset_drift_q_nm2;      /* > offset_q_nm2: the offset's q per step while the
                                       drift gate holds (an offset slowed for a known load,
                                       after a step beyond the jump gate); 0: gate off */
+    float output_row_follow;       /* in [0, 1]: the rows of held output-locked blocks
+                                      (output_learn_scale 0) follow the motor lines' growth
+                                      since the profile import: 1 + this (rho - 1), rho
+                                      the motor blocks' projection on their imported
+                                      states; 0: off (rows 1) */
+    float output_row_max;          /* with output_row_follow > 0: the envelope of that
+                                      row, [1 / this, this]; in [1, HD_KF_MAX_OUTPUT_ROW] */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -228,7 +244,10 @@ typedef struct {
 #define HD_KF_STATUS_LIMITED     (1u << 5) /* correction beyond correction_max_nm: raw out */
 #define HD_KF_STATUS_UNMODELLED  (1u << 6) /* beyond the held jump gate: an effect the
                                               model lacks (jump_held_count) */
-#define HD_KF_STATUS_BITS 7u               /* bits [0, HD_KF_STATUS_BITS) are defined */
+#define HD_KF_STATUS_LOAD_BOUND  (1u << 7) /* the held output rows' target left
+                                              [1 / output_row_max, output_row_max]:
+                                              held at the bound (load_bound_count) */
+#define HD_KF_STATUS_BITS 8u               /* bits [0, HD_KF_STATUS_BITS) are defined */
 
 typedef struct {
     float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */
@@ -320,6 +339,12 @@ typedef struct {
     uint32_t drift_hold_total;                /* HD_KF_DRIFT_HOLD_S in steps */
     uint32_t drift_hold_steps;                /* steps left at offset_drift_q_nm2 */
     uint32_t drift_count;                     /* steps at offset_drift_q_nm2 */
+    uint32_t output_follow;                   /* 1: held output rows follow the motor lines */
+    uint32_t load_bound_count;                /* steps with the follow target at a bound */
+    float output_row;                         /* the held output blocks' row (1: as profiled) */
+    float output_row_alpha;                   /* ts / HD_KF_OUTPUT_ROW_TAU_S */
+    float motor_ref_inv;                      /* 1 / sum |motor_ref|^2 (0: no reference) */
+    float motor_ref[2 * HD_KF_MAX_BLOCKS];    /* motor blocks' imported states (frames) */
 } hd_kf_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,

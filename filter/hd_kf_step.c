@@ -36,6 +36,36 @@ static float update_load_scale(hd_kf_t *kf, float torque_expected_nm, float d_mo
     return 1.0f + kf->cfg.ripple_load_coeff_per_nm * (t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM);
 }
 
+/* The held output blocks' row (output_follow): rho = the motor blocks'
+ * states projected on their imported ones, sum x.ref / sum |ref|^2 (1 as
+ * imported, 1 + c |T| / (1 + c |T_c|) for lines grown by a common load
+ * factor), the target 1 + follow (rho - 1) refused beyond [1 / max, max]
+ * (held at the bound: HD_KF_STATUS_LOAD_BOUND), low-passed into
+ * output_row.  No reference (no profile imported): 1. */
+static uint32_t follow_motor_lines(hd_kf_t *kf)
+{
+    if (kf->motor_ref_inv <= 0.0f) {
+        kf->output_row = 1.0f;
+        return 0u;
+    }
+    float dot = 0.0f;
+    for (uint32_t left = kf->motor_slots; left != 0u; left &= left - 1u) {
+        const unsigned s = (unsigned)__builtin_ctz(left);
+        dot += kf->x[2u * s] * kf->motor_ref[2u * s];
+        dot += kf->x[2u * s + 1u] * kf->motor_ref[2u * s + 1u];
+    }
+    const float hi = kf->cfg.output_row_max, lo = 1.0f / hi;
+    float target = 1.0f + kf->cfg.output_row_follow * (dot * kf->motor_ref_inv - 1.0f);
+    uint32_t status = 0u;
+    if (!(target >= lo && target <= hi)) {
+        target = target > hi ? hi : lo; /* NaN: the lower bound */
+        status = HD_KF_STATUS_LOAD_BOUND;
+        kf->load_bound_count++;
+    }
+    kf->output_row += kf->output_row_alpha * (target - kf->output_row);
+    return status;
+}
+
 /* The step's probes: a block tile with trace in [0, p_max] and
  * determinant >= 0 has both model-coordinate diagonals in [0, p_max]
  * whatever its frame; the sum of the traces (and P_oo) is compared with
@@ -88,8 +118,9 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
          * (partial slots: set by the caller) */
         const float a = fabsf(sl->theta_per_unit * io->inc[HD_KF_LOCK_OUTPUT]);
         const float motion = a * sl->motion_inv + sl->motion_bias;
-        h[0] = kf->phasor_cos[sl->frame];
-        h[1] = kf->phasor_sin[sl->frame];
+        const float row = io->rows[HD_KF_LOCK_OUTPUT];
+        h[0] = row * kf->phasor_cos[sl->frame];
+        h[1] = row * kf->phasor_sin[sl->frame];
         *f = sl->learn;
         *q = sl->q_nm2 * (motion < 1.0f ? motion : 1.0f);
         sum->ripple += h[0] * kf->x[2u * s];
@@ -416,6 +447,10 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
                              : 1.0f;
     io.rows[HD_KF_LOCK_MOTOR] = c_load;
     io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
+    if (UNLIKELY(kf->output_follow != 0u)) {
+        status |= follow_motor_lines(kf);
+        io.rows[HD_KF_LOCK_OUTPUT] = kf->output_row;
+    }
 
     /* ---- time update: the posterior of the last sample turns by this
      * sample's increments (Phi is a turn of the frames; the plan below
