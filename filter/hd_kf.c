@@ -277,6 +277,7 @@ static void build_slot(hd_kf_t *kf, unsigned block)
 static void short_plan_ranges(hd_kf_t *kf)
 {
     kf->motor_full_rad = kf->motor_frozen_rad = kf->output_frozen_rad = 0.0f;
+    kf->follow_min_rad = 0.0f;
     kf->motor_slots = kf->output_slots = kf->output_partial_slots = 0u;
     for (unsigned s = 0; s < kf->n_blocks; s++) {
         const hd_kf_slot_t *sl = &kf->slot[s];
@@ -292,6 +293,10 @@ static void short_plan_ranges(hd_kf_t *kf)
                 kf->motor_frozen_rad = sl->frozen_rad;
             }
             kf->motor_slots |= 1u << s;
+            const float min_rad = HD_KF_FOLLOW_MIN_RAD / sl->theta_per_unit;
+            if (first || min_rad > kf->follow_min_rad) {
+                kf->follow_min_rad = min_rad;
+            }
         } else if (sl->lock == HD_KF_LOCK_OUTPUT) {
             if (kf->output_slots == 0u || sl->frozen_rad < kf->output_frozen_rad) {
                 kf->output_frozen_rad = sl->frozen_rad;
@@ -346,6 +351,14 @@ static void build_layout(hd_kf_t *kf)
                                ? kf->cfg.ts_s / HD_KF_OUTPUT_ROW_TAU_S : 1.0f;
 }
 
+void hd_kf_follow_restart(hd_kf_t *kf)
+{
+    kf->output_row = 1.0f;
+    kf->follow_primed = 0u;
+    kf->follow_mean_t = kf->follow_var_t = kf->follow_cov_tg = 0.0f;
+    kf->follow_mean_g = 1.0f;
+}
+
 void hd_kf_follow_reference(hd_kf_t *kf)
 {
     float sum = 0.0f;
@@ -395,7 +408,7 @@ void hd_kf_reset(hd_kf_t *kf)
         kf->motor_ref[i] = 0.0f; /* the next profile import sets it again */
     }
     kf->motor_ref_inv = 0.0f;
-    kf->output_row = 1.0f;
+    hd_kf_follow_restart(kf);
     kf->drift_hold_steps = kf->drift_hold_total; /* the load unknown until the gate is quiet */
 }
 

@@ -146,8 +146,17 @@ extern "C" {
 #define HD_KF_MAX_OUTPUT_ROW 100.0f
 /* The held output rows follow the motor lines' growth through a first-order
  * low-pass of this time constant [s]. */
+/* The growth is measured while every motor block turns at least this far
+ * per step (below, the offset's random walk and the motor lines share a
+ * band) and predicted from |T_ref| by a regression of this memory [s]
+ * otherwise (docs/design/filter.md, "Load-modulated output lines"). */
+#ifndef HD_KF_FOLLOW_MIN_RAD
+#define HD_KF_FOLLOW_MIN_RAD 0.05f
+#endif
+#define HD_KF_FOLLOW_MEMORY_S 10.0f
+#define HD_KF_FOLLOW_MIN_VAR_NM2 0.01f
 #ifndef HD_KF_OUTPUT_ROW_TAU_S
-#define HD_KF_OUTPUT_ROW_TAU_S 0.1f
+#define HD_KF_OUTPUT_ROW_TAU_S 0.01f
 #endif
 
 /* The offset-jump gate takes at most HD_KF_JUMP_BURST jumps (a step, or a
@@ -344,6 +353,13 @@ typedef struct {
     float output_row;                         /* the held output blocks' row (1: as profiled) */
     float output_row_alpha;                   /* ts / HD_KF_OUTPUT_ROW_TAU_S */
     float motor_ref_inv;                      /* 1 / sum |motor_ref|^2 (0: no reference) */
+    float follow_min_rad;                     /* |motor increment| from which every motor
+                                                 block turns HD_KF_FOLLOW_MIN_RAD per step */
+    uint32_t follow_primed;                   /* the growth's regression has a sample */
+    float follow_mean_t;                      /* its exponentially weighted mean |T_ref| */
+    float follow_mean_g;                      /* ... mean growth */
+    float follow_var_t;                       /* ... variance of |T_ref| */
+    float follow_cov_tg;                      /* ... covariance of |T_ref| and growth */
     float motor_ref[2 * HD_KF_MAX_BLOCKS];    /* motor blocks' imported states (frames) */
 } hd_kf_t;
 

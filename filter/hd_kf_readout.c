@@ -273,6 +273,6 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
         kf->motor_ref[2u * s + 1u] = ref ? kf->x[2u * s + 1u] : 0.0f;
     }
     hd_kf_follow_reference(kf);
-    kf->output_row = 1.0f;
+    hd_kf_follow_restart(kf);
     return count;
 }
