@@ -355,7 +355,7 @@ void hd_kf_follow_restart(hd_kf_t *kf)
 {
     kf->output_row = 1.0f;
     kf->follow_primed = 0u;
-    kf->follow_mean_t = kf->follow_var_t = kf->follow_cov_tg = 0.0f;
+    kf->follow_mean_t = kf->follow_var_t = kf->follow_cov_tg = kf->follow_weight = 0.0f;
     kf->follow_mean_g = 1.0f;
 }
 
@@ -408,6 +408,7 @@ void hd_kf_reset(hd_kf_t *kf)
         kf->motor_ref[i] = 0.0f; /* the next profile import sets it again */
     }
     kf->motor_ref_inv = 0.0f;
+    kf->follow_slots = 0u;
     hd_kf_follow_restart(kf);
     kf->drift_hold_steps = kf->drift_hold_total; /* the load unknown until the gate is quiet */
 }
@@ -465,6 +466,7 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     hd_kf_clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
     short_plan_ranges(kf);
     kf->motor_ref[2u * block] = kf->motor_ref[2u * block + 1u] = 0.0f;
+    kf->follow_slots &= ~(1u << block);
     hd_kf_follow_reference(kf);
     kf->n_states = (uint8_t)(enabled ? kf->n_states + 2u : kf->n_states - 2u);
     kf->frozen_mask &= ~(1u << block);

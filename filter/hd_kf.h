@@ -349,6 +349,8 @@ typedef struct {
     uint32_t drift_hold_steps;                /* steps left at offset_drift_q_nm2 */
     uint32_t drift_count;                     /* steps at offset_drift_q_nm2 */
     uint32_t output_follow;                   /* 1: held output rows follow the motor lines */
+    uint32_t follow_slots;                    /* bit s: an output block given a profile line
+                                                 (its row is output_row; the others' 1) */
     uint32_t load_bound_count;                /* steps with the follow target at a bound */
     float output_row;                         /* the held output blocks' row (1: as profiled) */
     float output_row_alpha;                   /* ts / HD_KF_OUTPUT_ROW_TAU_S */
@@ -360,6 +362,7 @@ typedef struct {
     float follow_mean_g;                      /* ... mean growth */
     float follow_var_t;                       /* ... variance of |T_ref| */
     float follow_cov_tg;                      /* ... covariance of |T_ref| and growth */
+    float follow_weight;                      /* ... its filled weight, 0 to 1 */
     float motor_ref[2 * HD_KF_MAX_BLOCKS];    /* motor blocks' imported states (frames) */
 } hd_kf_t;
 

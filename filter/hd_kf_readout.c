@@ -63,7 +63,9 @@ float hd_kf_block_row(const hd_kf_t *kf, unsigned block)
     }
     const unsigned lock = kf->slot[block].lock;
     return lock == HD_KF_LOCK_MOTOR                      ? kf->load_scale
-           : lock == HD_KF_LOCK_OUTPUT && kf->output_follow ? kf->output_row
+           : lock == HD_KF_LOCK_OUTPUT && kf->output_follow &&
+                   (kf->follow_slots & (1u << block)) != 0u
+               ? kf->output_row
                                                            : 1.0f;
 }
 
@@ -272,6 +274,7 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
         kf->motor_ref[2u * s] = ref ? kf->x[2u * s] : 0.0f;
         kf->motor_ref[2u * s + 1u] = ref ? kf->x[2u * s + 1u] : 0.0f;
     }
+    kf->follow_slots = matched & kf->output_slots;
     hd_kf_follow_reference(kf);
     hd_kf_follow_restart(kf);
     return count;

@@ -72,12 +72,21 @@ static uint32_t follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
             kf->follow_mean_t += a * dt;
             kf->follow_mean_g += a * dg;
             kf->follow_var_t = (1.0f - a) * (kf->follow_var_t + a * dt * dt);
+            kf->follow_weight += a * (1.0f - kf->follow_weight);
             kf->follow_cov_tg = (1.0f - a) * (kf->follow_cov_tg + a * dt * dg);
         }
     } else if (kf->follow_primed) {
-        const float slope = kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2
-                                ? kf->follow_cov_tg / kf->follow_var_t : 0.0f;
-        g = kf->follow_mean_g + slope * (t_abs - kf->follow_mean_t);
+        /* the slope once the regression has a memory's worth of spread in
+         * |T_ref| (half its weight filled: HD_KF_FOLLOW_MEMORY_S ln 2 of
+         * measured growth), within two of its standard deviations of the mean */
+        float g_off = 0.0f;
+        if (kf->follow_weight >= 0.5f && kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2) {
+            const float span = 2.0f * sqrtf(kf->follow_var_t);
+            float dt = t_abs - kf->follow_mean_t;
+            dt = dt > span ? span : (dt < -span ? -span : dt);
+            g_off = kf->follow_cov_tg / kf->follow_var_t * dt;
+        }
+        g = kf->follow_mean_g + g_off;
     } else {
         return 0u;
     }
@@ -145,7 +154,8 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
          * (partial slots: set by the caller) */
         const float a = fabsf(sl->theta_per_unit * io->inc[HD_KF_LOCK_OUTPUT]);
         const float motion = a * sl->motion_inv + sl->motion_bias;
-        const float row = io->rows[HD_KF_LOCK_OUTPUT];
+        const float row = (kf->follow_slots & (1u << s)) != 0u ? io->rows[HD_KF_LOCK_OUTPUT]
+                                                               : 1.0f;
         h[0] = row * kf->phasor_cos[sl->frame];
         h[1] = row * kf->phasor_sin[sl->frame];
         *f = sl->learn;
@@ -166,7 +176,8 @@ KF_INLINE void plan_block(const hd_kf_t *kf, unsigned s, const step_io_t *io, fl
     /* a motor block learns as it turns; learn is 1 for motor blocks */
     float gain = lock == HD_KF_LOCK_MOTOR ? motion : sl->learn;
     float qs = sl->q_nm2 * motion;
-    float row = io->rows[lock];
+    float row = lock != HD_KF_LOCK_OUTPUT || (kf->follow_slots & (1u << s)) != 0u ? io->rows[lock]
+                                                                                : 1.0f;
     if (UNLIKELY(!(a <= kf->nyquist_limit_rad))) {
         /* Held: not observed, not corrected, no process noise, still
          * turned by the increment (exact at any speed), unless no motion

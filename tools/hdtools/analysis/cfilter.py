@@ -149,6 +149,7 @@ class KfState(ctypes.Structure):
                 ("drift_hold_steps", c_uint32),
                 ("drift_count", c_uint32),
                 ("output_follow", c_uint32),
+                ("follow_slots", c_uint32),
                 ("load_bound_count", c_uint32),
                 ("output_row", c_float),
                 ("output_row_alpha", c_float),
@@ -159,6 +160,7 @@ class KfState(ctypes.Structure):
                 ("follow_mean_g", c_float),
                 ("follow_var_t", c_float),
                 ("follow_cov_tg", c_float),
+                ("follow_weight", c_float),
                 ("motor_ref", c_float * (2 * MAX_BLOCKS))]
 
 
