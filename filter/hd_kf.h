@@ -36,10 +36,30 @@
  *
  * Per-block rules (docs/design/filter.md explains each):
  *   - measurement row: c = 1 + ripple_load_coeff_per_nm |T_ref| for
- *     motor-locked blocks (1 when the coefficient is 0), 1 for output-locked
- *     and fixed blocks, 0 for a frozen block; the offset's entry is 1.
- *     T_ref starts at T_exp (+ the offset when it is real torque and primed)
- *     and follows it by the motor's motion fraction: held at standstill;
+ *     motor-locked blocks (1 when the coefficient is 0), output_row for
+ *     held output-locked blocks given a profile line when following (below),
+ *     1 for the other output-locked and fixed blocks, 0 for a frozen block;
+ *     the offset's entry is 1.  T_ref starts at T_exp (+ the offset when it
+ *     is real torque and primed) and follows it by the motor's motion
+ *     fraction: held at standstill;
+ *   - held output rows (output_row_follow > 0 and output_learn_scale 0):
+ *     hd_kf_profile_import keeps the imported motor blocks' states as the
+ *     reference; the growth g = sqrt(sum |x_m|^2 / sum |ref_m|^2) over them
+ *     is measured on steps where every enabled motor block is at motion 1,
+ *     none frozen, and turns at least HD_KF_FOLLOW_MIN_RAD; those steps feed
+ *     an exponentially weighted regression of g on |T_ref| (memory
+ *     HD_KF_FOLLOW_MEMORY_S); on the other steps g is its prediction at
+ *     |T_ref| (slope used once half its weight is filled and |T_ref| has
+ *     varied by more than HD_KF_FOLLOW_MIN_VAR_NM2, |T_ref| taken within 2
+ *     standard deviations of its mean; g held before the first measured
+ *     step).  The target 1 + output_row_follow (g - 1) beyond
+ *     [1 / output_row_max, output_row_max] (or not a number) is refused:
+ *     the bound is taken, HD_KF_STATUS_LOAD_BOUND, load_bound_count.
+ *     output_row follows the target through a low-pass of
+ *     HD_KF_OUTPUT_ROW_TAU_S; it is 1 with no imported motor line, and
+ *     restarts at 1 at each import and reset.  The assumption: the output
+ *     lines grow by the same factor as the motor lines (one strain path;
+ *     docs/design/filter.md, "Load-modulated output lines");
  *   - motion fraction m = min(1, |theta| / q_motion_ref_rad) for motor- and
  *     output-locked blocks (1 when q_motion_ref_rad is 0, and for fixed
  *     blocks); process noise per state per step = q_nm2 m, times
@@ -150,14 +170,10 @@ extern "C" {
  * per step (below, the offset's random walk and the motor lines share a
  * band) and predicted from |T_ref| by a regression of this memory [s]
  * otherwise (docs/design/filter.md, "Load-modulated output lines"). */
-#ifndef HD_KF_FOLLOW_MIN_RAD
 #define HD_KF_FOLLOW_MIN_RAD 0.05f
-#endif
 #define HD_KF_FOLLOW_MEMORY_S 10.0f
 #define HD_KF_FOLLOW_MIN_VAR_NM2 0.01f
-#ifndef HD_KF_OUTPUT_ROW_TAU_S
 #define HD_KF_OUTPUT_ROW_TAU_S 0.01f
-#endif
 
 /* The offset-jump gate takes at most HD_KF_JUMP_BURST jumps (a step, or a
  * spike and its return), then holds until this long within it [s]. */
