@@ -76,9 +76,10 @@ static uint32_t follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
             kf->follow_cov_tg = (1.0f - a) * (kf->follow_cov_tg + a * dt * dg);
         }
     } else if (kf->follow_primed) {
-        /* the slope once the regression has a memory's worth of spread in
-         * |T_ref| (half its weight filled: HD_KF_FOLLOW_MEMORY_S ln 2 of
-         * measured growth), within two of its standard deviations of the mean */
+        /* the slope once half the regression's weight is filled
+         * (HD_KF_FOLLOW_MEMORY_S ln 2 of measured steps) and |T_ref| has
+         * spread, |T_ref| within two of its standard deviations of its mean:
+         * no extrapolation from a short, narrow fit */
         float g_off = 0.0f;
         if (kf->follow_weight >= 0.5f && kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2) {
             const float span = 2.0f * sqrtf(kf->follow_var_t);
