@@ -842,7 +842,8 @@ static void test_follow_output_line_grown_by_the_load(void)
 /* The envelope: output_row_follow and output_row_max are checked, and a
  * growth that would put the held output row beyond [1 / max, max] (motor
  * lines 4x their profile, or gone) is refused: the row stays at the bound,
- * LOAD_BOUND is raised and counted; within it, no LOAD_BOUND. */
+ * LOAD_BOUND is raised and counted; within it, no LOAD_BOUND.  An output
+ * block that learns does not follow. */
 static void test_follow_refuses_rows_beyond_the_envelope(void)
 {
     hd_kf_config_t cfg;
@@ -865,6 +866,23 @@ static void test_follow_refuses_rows_beyond_the_envelope(void)
     cfg.output_row_max = 2.0f;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
 
+    /* a block that learns (output_learn_scale > 0: adaptive, commissioning)
+     * never follows: its row stays 1 whatever the motor lines do */
+    {
+        static hd_kf_t kf;
+        hd_kf_config_t learning = cfg;
+        learning.output_learn_scale = 1.0f;
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &learning));
+        joint_t j;
+        joint_init(&j, 35u);
+        import_zero_load_profile(&kf, &j);
+        for (int k = 1; k <= 2000; k++) {
+            hd_kf_input_t in = joint_next_grown(&j, SPEED_OUT_RAD_S * TS_S, 1.0, 1.5, 1.0);
+            hd_kf_output_t o;
+            hd_kf_step(&kf, &in, &o);
+        }
+        TEST_ASSERT_EQUAL_FLOAT(1.0f, hd_kf_block_row(&kf, 2u));
+    }
     const double grow[] = {1.5, 4.0, 0.0};
     const double expect[] = {1.5, 2.0, 0.5};
     for (unsigned c = 0; c < 3; c++) {
