@@ -141,6 +141,11 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         !is_nonneg(cfg->offset_drift_q_nm2) || cfg->offset_drift_q_nm2 > cfg->p_max_nm2) {
         return HD_KF_ERR_NOISE;
     }
+    if (!is_nonneg(cfg->output_row_follow) || cfg->output_row_follow > 1.0f ||
+        (cfg->output_row_follow > 0.0f &&
+         (!(cfg->output_row_max >= 1.0f) || cfg->output_row_max > HD_KF_MAX_OUTPUT_ROW))) {
+        return HD_KF_ERR_LEARN_SCALE;
+    }
     if (cfg->p0_nm2 > HD_KF_MAX_P0_OVER_R * cfg->r_nm2 ||
         cfg->output_p0_nm2 > HD_KF_MAX_P0_OVER_R * cfg->r_nm2) {
         return HD_KF_ERR_CONDITION;
@@ -167,7 +172,8 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
 const char *hd_kf_status_name(unsigned bit)
 {
     static const char *const NAMES[HD_KF_STATUS_BITS] = {
-        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP", "LIMITED", "UNMODELLED"};
+        "FROZEN", "BAD_INPUT", "RESET", "P_CLAMPED", "OFFSET_JUMP", "LIMITED", "UNMODELLED",
+        "LOAD_BOUND"};
     return bit < HD_KF_STATUS_BITS ? NAMES[bit] : NULL;
 }
 
@@ -271,6 +277,7 @@ static void build_slot(hd_kf_t *kf, unsigned block)
 static void short_plan_ranges(hd_kf_t *kf)
 {
     kf->motor_full_rad = kf->motor_frozen_rad = kf->output_frozen_rad = 0.0f;
+    kf->follow_min_rad = 0.0f;
     kf->motor_slots = kf->output_slots = kf->output_partial_slots = 0u;
     for (unsigned s = 0; s < kf->n_blocks; s++) {
         const hd_kf_slot_t *sl = &kf->slot[s];
@@ -286,6 +293,10 @@ static void short_plan_ranges(hd_kf_t *kf)
                 kf->motor_frozen_rad = sl->frozen_rad;
             }
             kf->motor_slots |= 1u << s;
+            const float min_rad = HD_KF_FOLLOW_MIN_RAD / sl->theta_per_unit;
+            if (first || min_rad > kf->follow_min_rad) {
+                kf->follow_min_rad = min_rad;
+            }
         } else if (sl->lock == HD_KF_LOCK_OUTPUT) {
             if (kf->output_slots == 0u || sl->frozen_rad < kf->output_frozen_rad) {
                 kf->output_frozen_rad = sl->frozen_rad;
@@ -334,6 +345,27 @@ static void build_layout(hd_kf_t *kf)
     kf->q_motion_inv_rad = kf->cfg.q_motion_ref_rad > 0.0f ? 1.0f / kf->cfg.q_motion_ref_rad
                                                             : 0.0f;
     short_plan_ranges(kf);
+    kf->output_follow = (kf->cfg.output_row_follow > 0.0f && kf->cfg.output_learn_scale == 0.0f)
+                            ? 1u : 0u;
+    kf->output_row_alpha = kf->cfg.ts_s < HD_KF_OUTPUT_ROW_TAU_S
+                               ? kf->cfg.ts_s / HD_KF_OUTPUT_ROW_TAU_S : 1.0f;
+}
+
+void hd_kf_follow_restart(hd_kf_t *kf)
+{
+    kf->output_row = 1.0f;
+    kf->follow_primed = 0u;
+    kf->follow_mean_t = kf->follow_var_t = kf->follow_cov_tg = kf->follow_weight = 0.0f;
+    kf->follow_mean_g = 1.0f;
+}
+
+void hd_kf_follow_reference(hd_kf_t *kf)
+{
+    float sum = 0.0f;
+    for (unsigned i = 0; i < 2u * HD_KF_MAX_BLOCKS; i++) {
+        sum += kf->motor_ref[i] * kf->motor_ref[i];
+    }
+    kf->motor_ref_inv = (sum > 0.0f && is_finite(sum)) ? 1.0f / sum : 0.0f;
 }
 
 /* Block s starts again: state zero, its tile v I, zero covariance with
@@ -372,6 +404,12 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
     kf->load_scale = 1.0f;
+    for (unsigned i = 0; i < 2u * HD_KF_MAX_BLOCKS; i++) {
+        kf->motor_ref[i] = 0.0f; /* the next profile import sets it again */
+    }
+    kf->motor_ref_inv = 0.0f;
+    kf->follow_slots = 0u;
+    hd_kf_follow_restart(kf);
     kf->drift_hold_steps = kf->drift_hold_total; /* the load unknown until the gate is quiet */
 }
 
@@ -404,6 +442,7 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     kf->jump_held_count = 0u;
     kf->limit_count = 0u;
     kf->drift_count = 0u;
+    kf->load_bound_count = 0u;
     return HD_KF_OK;
 }
 
@@ -426,6 +465,9 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     kf->slot[block].enabled = enabled ? 1u : 0u;
     hd_kf_clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
     short_plan_ranges(kf);
+    kf->motor_ref[2u * block] = kf->motor_ref[2u * block + 1u] = 0.0f;
+    kf->follow_slots &= ~(1u << block);
+    hd_kf_follow_reference(kf);
     kf->n_states = (uint8_t)(enabled ? kf->n_states + 2u : kf->n_states - 2u);
     kf->frozen_mask &= ~(1u << block);
     return HD_KF_OK;

@@ -36,10 +36,30 @@
  *
  * Per-block rules (docs/design/filter.md explains each):
  *   - measurement row: c = 1 + ripple_load_coeff_per_nm |T_ref| for
- *     motor-locked blocks (1 when the coefficient is 0), 1 for output-locked
- *     and fixed blocks, 0 for a frozen block; the offset's entry is 1.
- *     T_ref starts at T_exp (+ the offset when it is real torque and primed)
- *     and follows it by the motor's motion fraction: held at standstill;
+ *     motor-locked blocks (1 when the coefficient is 0), output_row for
+ *     held output-locked blocks given a profile line when following (below),
+ *     1 for the other output-locked and fixed blocks, 0 for a frozen block;
+ *     the offset's entry is 1.  T_ref starts at T_exp (+ the offset when it
+ *     is real torque and primed) and follows it by the motor's motion
+ *     fraction: held at standstill;
+ *   - held output rows (output_row_follow > 0 and output_learn_scale 0):
+ *     hd_kf_profile_import keeps the imported motor blocks' states as the
+ *     reference; the growth g = sqrt(sum |x_m|^2 / sum |ref_m|^2) over them
+ *     is measured on steps where every enabled motor block is at motion 1,
+ *     none frozen, and turns at least HD_KF_FOLLOW_MIN_RAD; those steps feed
+ *     an exponentially weighted regression of g on |T_ref| (memory
+ *     HD_KF_FOLLOW_MEMORY_S); on the other steps g is its prediction at
+ *     |T_ref| (slope used once half its weight is filled and |T_ref| has
+ *     varied by more than HD_KF_FOLLOW_MIN_VAR_NM2, |T_ref| taken within 2
+ *     standard deviations of its mean; g held before the first measured
+ *     step).  The target 1 + output_row_follow (g - 1) beyond
+ *     [1 / output_row_max, output_row_max] (or not a number) is refused:
+ *     the bound is taken, HD_KF_STATUS_LOAD_BOUND, load_bound_count.
+ *     output_row follows the target through a low-pass of
+ *     HD_KF_OUTPUT_ROW_TAU_S; it is 1 with no imported motor line, and
+ *     restarts at 1 at each import and reset.  The assumption: the output
+ *     lines grow by the same factor as the motor lines (one strain path;
+ *     docs/design/filter.md, "Load-modulated output lines");
  *   - motion fraction m = min(1, |theta| / q_motion_ref_rad) for motor- and
  *     output-locked blocks (1 when q_motion_ref_rad is 0, and for fixed
  *     blocks); process noise per state per step = q_nm2 m, times
@@ -141,6 +161,20 @@ extern "C" {
  * overflow float32). */
 #define HD_KF_MAX_LOAD_COEFF_PER_NM 100.0f
 
+/* Largest accepted output_row_max: a held output line may follow the motor
+ * lines to at most this times its profile's amplitude. */
+#define HD_KF_MAX_OUTPUT_ROW 100.0f
+/* The held output rows follow the motor lines' growth through a first-order
+ * low-pass of this time constant [s]. */
+/* The growth is measured while every motor block turns at least this far
+ * per step (below, the offset's random walk and the motor lines share a
+ * band) and predicted from |T_ref| by a regression of this memory [s]
+ * otherwise (docs/design/filter.md, "Load-modulated output lines"). */
+#define HD_KF_FOLLOW_MIN_RAD 0.05f
+#define HD_KF_FOLLOW_MEMORY_S 10.0f
+#define HD_KF_FOLLOW_MIN_VAR_NM2 0.01f
+#define HD_KF_OUTPUT_ROW_TAU_S 0.01f
+
 /* The offset-jump gate takes at most HD_KF_JUMP_BURST jumps (a step, or a
  * spike and its return), then holds until this long within it [s]. */
 #define HD_KF_JUMP_BURST 2u
@@ -201,6 +235,13 @@ typedef struct {
     float offset_drift_q_nm2;      /* > offset_q_nm2: the offset's q per step while the
                                       drift gate holds (an offset slowed for a known load,
                                       after a step beyond the jump gate); 0: gate off */
+    float output_row_follow;       /* in [0, 1]: the rows of held output-locked blocks
+                                      (output_learn_scale 0) follow the motor lines' growth
+                                      since the profile import: 1 + this (rho - 1), rho
+                                      the motor blocks' projection on their imported
+                                      states; 0: off (rows 1) */
+    float output_row_max;          /* with output_row_follow > 0: the envelope of that
+                                      row, [1 / this, this]; in [1, HD_KF_MAX_OUTPUT_ROW] */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -228,7 +269,10 @@ typedef struct {
 #define HD_KF_STATUS_LIMITED     (1u << 5) /* correction beyond correction_max_nm: raw out */
 #define HD_KF_STATUS_UNMODELLED  (1u << 6) /* beyond the held jump gate: an effect the
                                               model lacks (jump_held_count) */
-#define HD_KF_STATUS_BITS 7u               /* bits [0, HD_KF_STATUS_BITS) are defined */
+#define HD_KF_STATUS_LOAD_BOUND  (1u << 7) /* the held output rows' target left
+                                              [1 / output_row_max, output_row_max]:
+                                              held at the bound (load_bound_count) */
+#define HD_KF_STATUS_BITS 8u               /* bits [0, HD_KF_STATUS_BITS) are defined */
 
 typedef struct {
     float torque_filtered_nm;  /* T_meas - ripple (- offset if sensor error) */
@@ -320,6 +364,22 @@ typedef struct {
     uint32_t drift_hold_total;                /* HD_KF_DRIFT_HOLD_S in steps */
     uint32_t drift_hold_steps;                /* steps left at offset_drift_q_nm2 */
     uint32_t drift_count;                     /* steps at offset_drift_q_nm2 */
+    uint32_t output_follow;                   /* 1: held output rows follow the motor lines */
+    uint32_t follow_slots;                    /* bit s: an output block given a profile line
+                                                 (its row is output_row; the others' 1) */
+    uint32_t load_bound_count;                /* steps with the follow target at a bound */
+    float output_row;                         /* the held output blocks' row (1: as profiled) */
+    float output_row_alpha;                   /* ts / HD_KF_OUTPUT_ROW_TAU_S */
+    float motor_ref_inv;                      /* 1 / sum |motor_ref|^2 (0: no reference) */
+    float follow_min_rad;                     /* |motor increment| from which every motor
+                                                 block turns HD_KF_FOLLOW_MIN_RAD per step */
+    uint32_t follow_primed;                   /* the growth's regression has a sample */
+    float follow_mean_t;                      /* its exponentially weighted mean |T_ref| */
+    float follow_mean_g;                      /* ... mean growth */
+    float follow_var_t;                       /* ... variance of |T_ref| */
+    float follow_cov_tg;                      /* ... covariance of |T_ref| and growth */
+    float follow_weight;                      /* ... its filled weight, 0 to 1 */
+    float motor_ref[2 * HD_KF_MAX_BLOCKS];    /* motor blocks' imported states (frames) */
 } hd_kf_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,

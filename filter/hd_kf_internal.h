@@ -101,6 +101,10 @@ KF_INLINE void zero_tiles(float *p, unsigned n)
 /* Block s starts again: state zero, its tile v I, zero covariance with
  * every other state (hd_kf.c). */
 void hd_kf_clear_block(hd_kf_t *kf, unsigned s, float v);
+/* motor_ref_inv from motor_ref (hd_kf.c). */
+void hd_kf_follow_reference(hd_kf_t *kf);
+/* The held output rows start again at 1, their regression empty (hd_kf.c). */
+void hd_kf_follow_restart(hd_kf_t *kf);
 
 /* Phase lost: the blocks of `lost` restart from zero with their priors,
  * decorrelated, in one pass over P (hd_kf_bounds.c). */

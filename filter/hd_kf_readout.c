@@ -61,7 +61,12 @@ float hd_kf_block_row(const hd_kf_t *kf, unsigned block)
     if (!block_enabled(kf, block) || (kf->frozen_mask & (1u << block)) != 0u) {
         return 0.0f;
     }
-    return kf->slot[block].lock == HD_KF_LOCK_MOTOR ? kf->load_scale : 1.0f;
+    const unsigned lock = kf->slot[block].lock;
+    return lock == HD_KF_LOCK_MOTOR                      ? kf->load_scale
+           : lock == HD_KF_LOCK_OUTPUT && kf->output_follow &&
+                   (kf->follow_slots & (1u << block)) != 0u
+               ? kf->output_row
+                                                           : 1.0f;
 }
 
 unsigned hd_kf_state_count(const hd_kf_t *kf)
@@ -263,5 +268,14 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
             break;
         }
     }
+    /* the held output rows' reference: the motor blocks as imported */
+    for (unsigned s = 0; s < kf->n_blocks; s++) {
+        const bool ref = (matched & kf->motor_slots & (1u << s)) != 0u;
+        kf->motor_ref[2u * s] = ref ? kf->x[2u * s] : 0.0f;
+        kf->motor_ref[2u * s + 1u] = ref ? kf->x[2u * s + 1u] : 0.0f;
+    }
+    kf->follow_slots = matched & kf->output_slots;
+    hd_kf_follow_reference(kf);
+    hd_kf_follow_restart(kf);
     return count;
 }

@@ -254,6 +254,12 @@ def profile_rows(c: Cases) -> list[list[str]]:
                  f"filtered {' / '.join(x['filtered'] for x in ms)} N m; output-block variance "
                  f"{' / '.join(x['var_rel'] for x in ms)} relative",
                  f"{ms[0]['bound']} N m; {ms[0]['var_bound']}"])
+    m = c("follow_output_grown")
+    rows.append(["lines growing as 1 + 0.1 |T| under +-4.5 N m, output line held, profile "
+                 "at zero load",
+                 f"filtered RMS error {m['follow']} N m with output_row_follow, {m['off']} N m "
+                 f"without; the same joint's lines not growing: {m['still']} N m",
+                 f"< {m['bound']} the still joint's; without > 2x"])
     return rows
 
 

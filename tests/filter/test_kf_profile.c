@@ -749,6 +749,167 @@ static void test_learn_scale_matches_reference(void)
     }
 }
 
+/* ---- held output lines that grow with the load (output_row_follow) ------ */
+
+/* The sample with every line times its own growth: motor lines times gm,
+ * the output line times go (hdsim's law: both 1 + c |T|). */
+static hd_kf_input_t joint_next_grown(joint_t *j, double dao, double load_nm, double gm,
+                                      double go)
+{
+    j->dao = dao;
+    j->dam = dao * GEAR_RATIO;
+    j->ao += j->dao;
+    j->am += j->dam;
+    const double motor = A2_NM * cos(2.0 * j->am) + B2_NM * sin(2.0 * j->am);
+    const double output = A1_NM * cos(j->ao) + B1_NM * sin(j->ao);
+    hd_kf_input_t in = {0};
+    in.torque_meas_nm =
+        (float)(load_nm + gm * motor + go * output + NOISE_NM * tu_gauss(&j->rng));
+    in.d_motor_angle_rad = (float)j->dam;
+    in.d_output_angle_rad = (float)j->dao;
+    return in;
+}
+
+/* The zero-load profile (the truth's lines), imported before the first step. */
+static void import_zero_load_profile(hd_kf_t *kf, const joint_t *j)
+{
+    hd_kf_profile_t p = {0};
+    p.line_count = 2u;
+    p.lines[0] = (hd_kf_profile_line_t){HD_KF_LOCK_MOTOR, 2u, (float)A2_NM, (float)B2_NM};
+    p.lines[1] = (hd_kf_profile_line_t){HD_KF_LOCK_OUTPUT, 1u, (float)A1_NM, (float)B1_NM};
+    TEST_ASSERT_EQUAL_INT(2, hd_kf_profile_import(kf, &p, (float)wrap(j->am), (float)wrap(j->ao),
+                                                  (float)(NOISE_NM * NOISE_NM)));
+}
+
+#define GROW_C_PER_NM 0.1 /* every line 1 + c |T| times its zero-load amplitude */
+
+/* Operating mode (output block held) on a joint whose lines all grow as
+ * 1 + c |T| under a slow load of either sign (a sine through zero plus a
+ * step), 12 s at 156 rad/s at the motor (the growth measured) and 8 s at
+ * 20 rad/s (a motor line 0.04 rad per step: predicted from |T_ref|).  The
+ * reference is the same filter on the same joint whose lines do not grow:
+ * with output_row_follow the filtered torque's RMS error is within 1.3x of
+ * it (and within 1.5x the noise while the growth is measured); without,
+ * the output line's load share stays (over 2x). */
+static void test_follow_output_line_grown_by_the_load(void)
+{
+    double rms[3], fast[3]; /* off, follow, follow on lines that do not grow */
+    for (int run = 0; run < 3; run++) {
+        static hd_kf_t kf;
+        hd_kf_config_t cfg;
+        profile_cfg(&cfg, 0.0f);
+        cfg.output_row_follow = run > 0 ? 1.0f : 0.0f;
+        cfg.output_row_max = 3.0f;
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+        joint_t j;
+        joint_init(&j, 31u);
+        import_zero_load_profile(&kf, &j);
+        double sum = 0.0, sum_fast = 0.0;
+        long n = 0, n_fast = 0;
+        for (int k = 1; k <= 20000; k++) {
+            const double t = k * TS_S;
+            const double load = 4.0 * sin(2.0 * TU_PI * t / 6.0) + (t > 9.0 ? -1.5 : 0.5);
+            const double g = run == 2 ? 1.0 : 1.0 + GROW_C_PER_NM * fabs(load);
+            const double speed = k <= 12000 ? SPEED_OUT_RAD_S : 0.2;
+            hd_kf_input_t in = joint_next_grown(&j, speed * TS_S, load, g, g);
+            hd_kf_output_t o;
+            hd_kf_step(&kf, &in, &o);
+            if (k > 2000) {
+                const double e = (double)o.torque_filtered_nm - load;
+                sum += e * e;
+                n++;
+                if (k <= 12000) {
+                    sum_fast += e * e;
+                    n_fast++;
+                }
+            }
+        }
+        rms[run] = sqrt(sum / (double)n);
+        fast[run] = sqrt(sum_fast / (double)n_fast);
+    }
+    msg("lines growing as 1 + %.2f |T| (load +-4.5 N m), output line %.2f N m held: filtered "
+        "RMS error %.4f N m with output_row_follow (%.4f at 156 rad/s), %.4f without (%.4f); "
+        "lines that do not grow %.4f (%.4f); noise %.3f",
+        GROW_C_PER_NM, hypot(A1_NM, B1_NM), rms[1], fast[1], rms[0], fast[0], rms[2], fast[2],
+        NOISE_NM);
+    rel_measured("follow_output_grown", "follow=%.4f off=%.4f still=%.4f bound=1.3x", rms[1],
+                 rms[0], rms[2]);
+    TEST_ASSERT_LESS_THAN_DOUBLE(1.3 * rms[2], rms[1]);
+    TEST_ASSERT_LESS_THAN_DOUBLE(1.5 * NOISE_NM, fast[1]);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(2.0 * rms[2], rms[0]);
+}
+
+/* The envelope: output_row_follow and output_row_max are checked, and a
+ * growth that would put the held output row beyond [1 / max, max] (motor
+ * lines 4x their profile, or gone) is refused: the row stays at the bound,
+ * LOAD_BOUND is raised and counted; within it, no LOAD_BOUND.  An output
+ * block that learns does not follow. */
+static void test_follow_refuses_rows_beyond_the_envelope(void)
+{
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 0.0f);
+    const float bad_follow[] = {-0.1f, 1.5f, NAN};
+    for (unsigned i = 0; i < 3; i++) {
+        cfg.output_row_follow = bad_follow[i];
+        cfg.output_row_max = 2.0f;
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_LEARN_SCALE, hd_kf_config_check(&cfg));
+    }
+    const float bad_max[] = {0.5f, HD_KF_MAX_OUTPUT_ROW * 1.01f, NAN, INFINITY};
+    for (unsigned i = 0; i < 4; i++) {
+        cfg.output_row_follow = 1.0f;
+        cfg.output_row_max = bad_max[i];
+        TEST_ASSERT_EQUAL_INT(HD_KF_ERR_LEARN_SCALE, hd_kf_config_check(&cfg));
+    }
+    cfg.output_row_follow = 0.0f; /* off: the envelope is not used */
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+    cfg.output_row_follow = 1.0f;
+    cfg.output_row_max = 2.0f;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_config_check(&cfg));
+
+    /* a block that learns (output_learn_scale > 0: adaptive, commissioning)
+     * never follows: its row stays 1 whatever the motor lines do */
+    {
+        static hd_kf_t kf;
+        hd_kf_config_t learning = cfg;
+        learning.output_learn_scale = 1.0f;
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &learning));
+        joint_t j;
+        joint_init(&j, 35u);
+        import_zero_load_profile(&kf, &j);
+        for (int k = 1; k <= 2000; k++) {
+            hd_kf_input_t in = joint_next_grown(&j, SPEED_OUT_RAD_S * TS_S, 1.0, 1.5, 1.0);
+            hd_kf_output_t o;
+            hd_kf_step(&kf, &in, &o);
+        }
+        TEST_ASSERT_EQUAL_FLOAT(1.0f, hd_kf_block_row(&kf, 2u));
+    }
+    const double grow[] = {1.5, 4.0, 0.0};
+    const double expect[] = {1.5, 2.0, 0.5};
+    for (unsigned c = 0; c < 3; c++) {
+        static hd_kf_t kf;
+        TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+        joint_t j;
+        joint_init(&j, 32u + c);
+        import_zero_load_profile(&kf, &j);
+        for (int k = 1; k <= 4000; k++) {
+            hd_kf_input_t in = joint_next_grown(&j, SPEED_OUT_RAD_S * TS_S, 1.0, grow[c], 1.0);
+            hd_kf_output_t o;
+            hd_kf_step(&kf, &in, &o);
+        }
+        const float row = hd_kf_block_row(&kf, 2u); /* the output block */
+        msg("motor lines %.1fx their profile, output_row_max 2: held output row %.4f, "
+            "LOAD_BOUND steps %u", grow[c], (double)row, (unsigned)kf.load_bound_count);
+        TEST_ASSERT_FLOAT_WITHIN(0.03f, (float)expect[c], row);
+        TEST_ASSERT_TRUE(row <= 2.0f && row >= 0.5f);
+        if (c == 0) {
+            TEST_ASSERT_EQUAL_UINT32(0u, kf.status_sticky & HD_KF_STATUS_LOAD_BOUND);
+        } else {
+            TEST_ASSERT_TRUE((kf.status_sticky & HD_KF_STATUS_LOAD_BOUND) != 0u);
+            TEST_ASSERT_TRUE(kf.load_bound_count > 1000u);
+        }
+    }
+}
+
 int main(int argc, char **argv)
 {
     if (UnityParseOptions(argc, argv) != 0) {
@@ -767,5 +928,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_learn_scale_slow_loads_measured);
     RUN_TEST(test_learn_scale_zero_profile_holds_for_long_runs);
     RUN_TEST(test_learn_scale_matches_reference);
+    RUN_TEST(test_follow_output_line_grown_by_the_load);
+    RUN_TEST(test_follow_refuses_rows_beyond_the_envelope);
     return UNITY_END();
 }

@@ -44,10 +44,11 @@ LOCK_BY_NAME = {v: k for k, v in LOCK_NAMES.items()}
 # are the C library's (hd_kf_status_name); tests/filter/test_cfilter_names.py
 # checks every bit against it.
 (STATUS_FROZEN, STATUS_BAD_INPUT, STATUS_RESET, STATUS_P_CLAMPED, STATUS_OFFSET_JUMP,
- STATUS_LIMITED, STATUS_UNMODELLED) = (1, 2, 4, 8, 16, 32, 64)
+ STATUS_LIMITED, STATUS_UNMODELLED, STATUS_LOAD_BOUND) = (1, 2, 4, 8, 16, 32, 64, 128)
 STATUS_BITS = {"FROZEN": STATUS_FROZEN, "BAD_INPUT": STATUS_BAD_INPUT, "RESET": STATUS_RESET,
                "P_CLAMPED": STATUS_P_CLAMPED, "OFFSET_JUMP": STATUS_OFFSET_JUMP,
-               "LIMITED": STATUS_LIMITED, "UNMODELLED": STATUS_UNMODELLED}
+               "LIMITED": STATUS_LIMITED, "UNMODELLED": STATUS_UNMODELLED,
+               "LOAD_BOUND": STATUS_LOAD_BOUND}
 
 
 class BlockConfig(ctypes.Structure):
@@ -74,7 +75,9 @@ class KfConfig(ctypes.Structure):
                 ("ripple_load_coeff_per_nm", c_float),
                 ("output_learn_scale", c_float),
                 ("correction_max_nm", c_float),
-                ("offset_drift_q_nm2", c_float)]
+                ("offset_drift_q_nm2", c_float),
+                ("output_row_follow", c_float),
+                ("output_row_max", c_float)]
 
     # Fields the analysis model carries one-to-one (see model.Model).
     SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
@@ -144,7 +147,21 @@ class KfState(ctypes.Structure):
                 ("limit_count", c_uint32),
                 ("drift_hold_total", c_uint32),
                 ("drift_hold_steps", c_uint32),
-                ("drift_count", c_uint32)]
+                ("drift_count", c_uint32),
+                ("output_follow", c_uint32),
+                ("follow_slots", c_uint32),
+                ("load_bound_count", c_uint32),
+                ("output_row", c_float),
+                ("output_row_alpha", c_float),
+                ("motor_ref_inv", c_float),
+                ("follow_min_rad", c_float),
+                ("follow_primed", c_uint32),
+                ("follow_mean_t", c_float),
+                ("follow_mean_g", c_float),
+                ("follow_var_t", c_float),
+                ("follow_cov_tg", c_float),
+                ("follow_weight", c_float),
+                ("motor_ref", c_float * (2 * MAX_BLOCKS))]
 
 
 class Track(ctypes.Structure):
