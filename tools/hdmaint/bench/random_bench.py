@@ -8,6 +8,8 @@ and encoder counts, and the nominal calibration; everything else it learns
 or is told by the project's own tools from the commissioning log):
   self        learning_mode 2 on the commissioning run, PROFILE_SAVE, then
               the operating run booted from that NVM (operating mode);
+  self_follow the same with output_row_follow = 1 (off by default: the held
+              output rows follow the motor lines' growth; loaded set only);
   analyze     `hdsense analyze` of the commissioning log -> model.cfg +
               profile.json -> `hdsense profile record` -> the operating run;
   analyze_op  the same from the operating log of another day of the joint
@@ -38,6 +40,8 @@ from .joint import (HDSENSE, compose_config, firmware_commissioning, load_csv, n
                     run_firmware, run_tool, simulate)
 
 PATHS = ("self", "analyze", "analyze_op", "adaptive", "commission", "operating")
+REPORT_ORDER = ("self", "self_follow") + PATHS[1:]
+FOLLOW = "output_row_follow = 1\n"
 MODES = {"adaptive": "0", "commission": "2", "operating": "1"}
 GOAL_RATIO = 1.5
 SKIP_S = 1.0
@@ -103,12 +107,14 @@ def run_joint(joint: randjoint.Joint, wd: Path, paths=PATHS) -> dict:
     nom = nominal(op_ini)
     op_sim = simulate(op_ini, wd / "operate_sim.csv")
     out = {"joint": joint.describe(), "name": joint.name, "paths": {}, "notes": {}}
-    if "self" in paths:
+    selfs = [p for p in ("self", "self_follow") if p in paths]
+    if selfs:
         nvm, note = firmware_commissioning(com_ini, wd, nom, None, "")
         out["notes"]["self"] = note
-        if nvm is not None:
-            filt, _ = run_firmware(op_ini, "learning_mode = 1\n", wd, "self", nvm=nvm)
-            out["paths"]["self"] = score(filt, op_sim).to_dict()
+        for p in selfs if nvm is not None else ():
+            extra = FOLLOW if p == "self_follow" else ""
+            filt, _ = run_firmware(op_ini, "learning_mode = 1\n" + extra, wd, p, nvm=nvm)
+            out["paths"][p] = score(filt, op_sim).to_dict()
     if "analyze" in paths:
         com_csv = wd / "commission_sim.csv"
         simulate(com_ini, com_csv)
@@ -189,7 +195,7 @@ def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> d
 
 QUICK_PATHS = ("self", "adaptive")     # tools/bench --quick: a smoke run
 # Load-modulated lines: the product path and the analysis loops.
-LOADED_PATHS = ("self", "analyze", "analyze_op")
+LOADED_PATHS = ("self", "self_follow", "analyze", "analyze_op")
 
 
 def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
@@ -202,7 +208,9 @@ def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
            "goal_ratio": GOAL_RATIO}
     for key, und in (("declared", False), ("undeclared", True)):
         out[key] = run(seeds, und, paths, log)
-    out["loaded"] = run(seeds, False, [p for p in paths if p in LOADED_PATHS], log, loaded=True)
+    out["loaded"] = run(seeds, False, [p for p in REPORT_ORDER
+                                       if p in LOADED_PATHS and (p in paths or (p == "self_follow" and "self" in paths))],
+                        log, loaded=True)
     if ci_sample:
         out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])
     return out
