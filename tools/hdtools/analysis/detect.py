@@ -154,6 +154,11 @@ def _step(ctx, kind):
     return ctx.spec_motor.resolution * (ctx.gear_ratio if kind == "output_order" else 1.0)
 
 
+def _spectrum(ctx, kind):
+    return {"fixed_frequency": ctx.spec_time, "motor_order": ctx.spec_motor,
+            "output_order": ctx.spec_output}[kind]
+
+
 def window_demod(ctx, phases_, win):
     """Per window of win samples of every piece: the line's amplitude at
     these phases (2 |mean((x - mean) e^-i phase)|), the line's mean
@@ -197,13 +202,22 @@ def classify_line(ctx, kind, order):
     if not len(a_own) or not np.any(a_own > 0):
         return own + (order, {})
     present = a_own >= LOCK_PRESENT * np.percentile(a_own, 90)
+    # The other reading where the own one is present, known to the window's
+    # resolution (the speed may vary within a stretch): the one with the
+    # most line in the windows within that, then refined.
     if kind == "fixed_frequency":
         r = float(np.median(rate[present]))
         if not r > 0:
             return own + (order, {})
         alt_kind, alt_order = _angle_kind(own[1] / r, ratio)
+        half = 1.0 / (LOCK_WINDOW_S * r) * (ratio if alt_kind == "output_order" else 1.0)
     else:
         alt_kind, alt_order = "fixed_frequency", float(np.median(hz_own[present]))
+        half = 1.0 / LOCK_WINDOW_S
+    grid = [o for o in alt_order + max(half, _step(ctx, alt_kind)) * np.linspace(-1, 1, 9)
+            if o > 0]
+    alt_order = max(grid, key=lambda o: float(np.mean(
+        window_demod(ctx, phases(ctx, alt_kind, o), win)[0])))
     alt = (alt_kind, _refine(ctx, alt_kind, alt_order, _step(ctx, alt_kind)))
     a_alt, hz_alt, _ = window_demod(ctx, phases(ctx, *alt), win)
     lo = LOCK_MIN_CYCLES / (win * ctx.ts_s)
@@ -251,43 +265,37 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
     cands = []
     seen = set()
     for domain, at, peak in raw:
-        if domain == "angle":
-            f_equiv = at * speed_hz
-            motor_order = at
-        else:
-            f_equiv = at
-            motor_order = at / speed_hz if speed_hz else float("nan")
-        r_angle, _ = spectra.peak_ratio_at(ctx.spec_motor, motor_order)
-        r_out, _ = spectra.peak_ratio_at(ctx.spec_output, motor_order * ratio)
-        r_time, _ = spectra.peak_ratio_at(ctx.spec_time, f_equiv)
-        r_angle = max(r_angle, r_out)
-        ev = {"peak_ratio_order_spectrum": round(r_angle, 1),
-              "peak_ratio_time_spectrum": round(r_time, 1),
-              "speed_spread": round(ctx.motor_speed_spread, 3),
-              "found_in": "order spectrum" if domain == "angle" else "time spectrum"}
         own = (("fixed_frequency", at) if domain == "time" else _angle_kind(at, ratio))
         kind, order, peak_order, lock_ev = classify_line(ctx, *own)
-        ev.update(lock_ev)
         step = _step(ctx, kind)
         if kind != "fixed_frequency" and _near_int(order, max(0.5 * step, INTEGER_TOL)):
             order = float(round(order))
         if any(k == kind and abs(o - order) <= max(step, 0.01 * order) for k, o in seen):
             continue
         seen.add((kind, order))
+        # The reading's sharpness in both spectra (the other one's at the
+        # median speed: evidence, not the decision).
+        motor_order = (order / speed_hz if speed_hz else float("nan")) if (
+            kind == "fixed_frequency") else (order / ratio if kind == "output_order" else order)
+        f_equiv = order if kind == "fixed_frequency" else motor_order * speed_hz
+        r_angle, x_m = spectra.peak_ratio_at(ctx.spec_motor, motor_order)
+        r_out, x_o = spectra.peak_ratio_at(ctx.spec_output, motor_order * ratio)
+        r_time, x_t = spectra.peak_ratio_at(ctx.spec_time, f_equiv)
+        r_angle = max(r_angle, r_out)
+        ev = {"peak_ratio_order_spectrum": round(r_angle, 1),
+              "peak_ratio_time_spectrum": round(r_time, 1),
+              "speed_spread": round(ctx.motor_speed_spread, 3),
+              "found_in": "order spectrum" if domain == "angle" else "time spectrum", **lock_ev}
         spec_amp = peak["amplitude_nm"]
         if (kind == "fixed_frequency") != (domain == "time"):
-            # Read in the other domain than found: its strength and
-            # amplitude are that domain's.
-            spec = {"fixed_frequency": ctx.spec_time, "motor_order": ctx.spec_motor,
-                    "output_order": ctx.spec_output}[kind]
-            r_at, x_at = spectra.peak_ratio_at(spec, order)
-            if kind == "fixed_frequency":
-                r_time = max(r_time, r_at)
-            else:
-                r_angle = max(r_angle, r_at)
-            if r_at > 0:
-                spec_amp = float(np.sqrt(spec.amp2[int(round((x_at - spec.axis[0]) /
-                                                              (spec.axis[1] - spec.axis[0])))]))
+            # Read in the other domain than found: its amplitude is that
+            # domain's, and the found peak's strength counts.
+            spec, x = ((ctx.spec_time, x_t) if kind == "fixed_frequency" else
+                       (ctx.spec_output, x_o) if kind == "output_order" else (ctx.spec_motor, x_m))
+            if spec is not None and x:
+                spec_amp = float(np.sqrt(np.interp(x, spec.axis, spec.amp2)))
+            r_time, r_angle = ((max(r_time, peak["ratio"]), r_angle) if kind == "fixed_frequency"
+                               else (r_time, max(r_angle, peak["ratio"])))
         ph_all = phases(ctx, kind, order)
         amp, ph, expl = spectra.fit_line(
             _decimated(spectra.highpass_for_line(ctx.signals, ph_all, ctx.ts_s)),
