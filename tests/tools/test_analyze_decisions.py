@@ -107,6 +107,7 @@ def test_with_the_slow_torque_known_the_drift_is_removed(drift_with_load):
 # noise floor on the operating run).
 
 LOCK_SECONDS = 30.0
+LOCK_LINE_NM = 0.4
 
 
 def _lock_context(seed, line, phase, one_speed=False, ts=1e-3):
@@ -128,32 +129,40 @@ def _lock_context(seed, line, phase, one_speed=False, ts=1e-3):
     rng = np.random.default_rng(seed)
     kind, order = line
     ph = 2 * np.pi * order * t if kind == "fixed" else order * th_m
-    x = (0.4 * np.cos(ph + phase) + 0.5 * np.sin(2 * np.pi * t / 17.0)
+    x = (LOCK_LINE_NM * np.cos(ph + phase) + 0.5 * np.sin(2 * np.pi * t / 17.0)
          + 0.03 * rng.standard_normal(len(t)))
     run = SimpleNamespace(warm=0, residual=x, motor_angle_rad=th_m, output_angle_rad=th_o, t_s=t,
                           out={"output_velocity_rad_s": vel}, torque_nm=x, segment=0)
     return detect.build_context([run], ts, j.gear_ratio), j
 
 
-def _strongest_line(ctx, gear_ratio):
+def _line_candidates(ctx, gear_ratio):
+    """The line candidates (output-order readings are the profile's
+    business), strongest first."""
     m = Model.starting(gear_ratio, ctx.ts_s, 0.03, [2, 4], [])
     cands = [c for c in detect.line_candidates(ctx, m) if c.kind != "output_order"]
     assert cands
-    return max(cands, key=lambda c: c.amplitude_nm)
+    return sorted(cands, key=lambda c: -c.amplitude_nm)
 
 
 @pytest.mark.parametrize("line", [("fixed", 50.0), ("motor", 1.0), ("motor", 3.0),
                                   ("motor", 6.0)])
 def test_lock_of_a_line_where_the_speed_varies(line):
-    """Over drawn joints' operating plans and line phases: a fixed line is
-    kept as fixed at its frequency, a motor-locked one as that motor order."""
+    """Over drawn joints' operating plans and line phases: every peak of a
+    fixed line (its time peak and the order peak of each constant-speed
+    stretch) is read as the fixed line at its frequency, every peak of a
+    motor-locked one as that motor order (specks of a tenth of the line, and
+    peaks that hold in half the windows under neither lock, aside)."""
     kind = {"fixed": "fixed_frequency", "motor": "motor_order"}[line[0]]
     for seed in (3, 8):
         for phase in np.linspace(0, 2 * np.pi, 3, endpoint=False):
             ctx, j = _lock_context(seed, line, phase)
-            c = _strongest_line(ctx, j.gear_ratio)
-            assert (c.kind, "ambiguous" in c.evidence) == (kind, False), (seed, phase, c)
-            assert c.order == pytest.approx(line[1], abs=0.1 if kind == "fixed_frequency" else 0.02)
+            for c in [c for c in _line_candidates(ctx, j.gear_ratio)
+                      if c.amplitude_nm > 0.1 * LOCK_LINE_NM and max(
+                          c.evidence.get("windows_present", {0: 1}).values()) >= 0.5]:
+                assert (c.kind, "ambiguous" in c.evidence) == (kind, False), (seed, phase, c)
+                assert c.order == pytest.approx(line[1], abs=0.1 if kind == "fixed_frequency"
+                                                else 0.02), (seed, phase, c)
 
 
 @pytest.mark.parametrize("line", [("fixed", 50.0), ("motor", 3.0)])
@@ -163,7 +172,7 @@ def test_one_speed_cannot_tell_and_says_so(line):
     non-integer one is kept as the fixed line."""
     for seed in (3, 8):
         ctx, j = _lock_context(seed, line, 1.0, one_speed=True)
-        c = _strongest_line(ctx, j.gear_ratio)
+        c = _line_candidates(ctx, j.gear_ratio)[0]
         assert "ambiguous" in c.evidence, c
         if line[0] == "motor":
             assert (c.kind, c.order) == ("motor_order", line[1]), c

@@ -39,11 +39,12 @@ SPEED_VARIES = 0.05         # (p90 - p10) / median motor speed above this (evide
 # Lock of a line (classify_line): windows of LOCK_WINDOW_S in which a
 # reading's line has LOCK_PRESENT of the larger reading's 90th-percentile
 # window amplitude; the reading present in LOCK_MARGIN more of the windows
-# wins.  Windows where a reading's line makes fewer than LOCK_MIN_CYCLES
-# cycles do not count (slow torque).
+# wins (if one holds in LOCK_HOLDS of them).  Windows where a reading's line
+# makes fewer than LOCK_MIN_CYCLES cycles do not count (slow torque).
 LOCK_WINDOW_S = 1.0
 LOCK_PRESENT = 0.3
 LOCK_MARGIN = 0.2
+LOCK_HOLDS = 0.5            # a reading must hold in this share of the windows to win
 LOCK_MIN_CYCLES = 4.0
 SLOW_MIN_PARTIAL = 0.02     # slow term must explain >= 2 % of slow residual variance
 INTEGER_TOL = 0.03
@@ -229,6 +230,8 @@ def classify_line(ctx, kind, order):
     s_alt = float(np.mean(a_alt[valid] >= LOCK_PRESENT * ref))
     ev = {"windows_present": {own[0]: round(s_own, 3), alt[0]: round(s_alt, 3)},
           "windows": int(np.sum(valid))}
+    if max(s_own, s_alt) < LOCK_HOLDS:
+        return own + (order, ev)       # no steady line under either lock: as found
     if s_own >= s_alt + LOCK_MARGIN:
         return own + (order, ev)
     if s_alt >= s_own + LOCK_MARGIN:
