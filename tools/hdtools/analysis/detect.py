@@ -35,7 +35,6 @@ MIN_EXPLAINED = 0.002       # line must explain >= 0.2 % of residual variance
 # floor is raised by leakage of slow torque, which hides strong lines.
 LINE_WEAK_RATIO = 8.0
 WEAK_EXPLAINED = 0.05
-SPEED_VARIES = 0.05         # (p90 - p10) / median motor speed above this (evidence)
 # Lock of a line (classify_line): windows of LOCK_WINDOW_S in which a
 # reading's line has LOCK_PRESENT of the larger reading's 90th-percentile
 # window amplitude; the reading present in LOCK_MARGIN more of the windows
@@ -155,11 +154,6 @@ def _step(ctx, kind):
     return ctx.spec_motor.resolution * (ctx.gear_ratio if kind == "output_order" else 1.0)
 
 
-def _spectrum(ctx, kind):
-    return {"fixed_frequency": ctx.spec_time, "motor_order": ctx.spec_motor,
-            "output_order": ctx.spec_output}[kind]
-
-
 def window_demod(ctx, phases_, win):
     """Per window of win samples of every piece: the line's amplitude at
     these phases (2 |mean((x - mean) e^-i phase)|), the line's mean
@@ -198,6 +192,8 @@ def classify_line(ctx, kind, order):
     integer orders) is preferred, else the fixed line."""
     ratio = ctx.gear_ratio
     win = max(16, int(round(LOCK_WINDOW_S / ctx.ts_s)))
+    if ctx.spec_time is None or ctx.spec_motor is None:
+        return kind, order, order, {}
     own = (kind, _refine(ctx, kind, order, _step(ctx, kind)))
     a_own, hz_own, rate = window_demod(ctx, phases(ctx, *own), win)
     if not len(a_own) or not np.any(a_own > 0):
