@@ -94,3 +94,89 @@ def test_with_the_slow_torque_known_the_drift_is_removed(drift_with_load):
     # Same q, so the same innovation: never worse out of sample.
     assert ff["out_of_sample_residual_rms_after_nm"] == pytest.approx(
         ff["out_of_sample_residual_rms_before_nm"], rel=1e-6)
+
+
+# --- the lock of a line (detect.classify_line) ---------------------------------
+# A fixed-frequency line stays at its frequency while the speed changes; a
+# motor-locked one moves with the speed.  Synthetic residuals (the line, a
+# slow load, white noise) over the motion of drawn joints (their gear ratio
+# and operating speed plan, hdmaint.bench.randjoint): the closed form is the
+# truth.  Before, the lock was read from the spectra's sharpness at the
+# median speed, and a fixed line read as the sharp order peak of one
+# constant-speed stretch was kept as a motor order (j100017+fixed50: 34x the
+# noise floor on the operating run).
+
+LOCK_SECONDS = 30.0
+LOCK_LINE_NM = 0.4
+
+
+def _lock_context(seed, line, phase, one_speed=False, ts=1e-3):
+    """detect's context of a drawn joint's motion (its operating plan, or
+    one |speed| with a reversal) with one line: ("fixed", Hz) or ("motor",
+    order)."""
+    from types import SimpleNamespace
+    from hdmaint.bench import randjoint
+    j = randjoint.draw(seed)
+    t = np.arange(int(LOCK_SECONDS / ts)) * ts + 2.0
+    if one_speed:
+        v = j.commission_speed_rad_s
+        plan = [(0.0, v), (t[-1] - 2.0, v), (t[-1] - 1.5, -v), (t[-1] + 1, -v)]
+    else:
+        plan = j.operate_plan
+    vel = np.interp(t, *zip(*plan))
+    th_o = np.cumsum(vel) * ts
+    th_m = th_o * j.gear_ratio
+    rng = np.random.default_rng(seed)
+    kind, order = line
+    ph = 2 * np.pi * order * t if kind == "fixed" else order * th_m
+    x = (LOCK_LINE_NM * np.cos(ph + phase) + 0.5 * np.sin(2 * np.pi * t / 17.0)
+         + 0.03 * rng.standard_normal(len(t)))
+    run = SimpleNamespace(warm=0, residual=x, motor_angle_rad=th_m, output_angle_rad=th_o, t_s=t,
+                          out={"output_velocity_rad_s": vel}, torque_nm=x, segment=0)
+    return detect.build_context([run], ts, j.gear_ratio), j
+
+
+def _line_candidates(ctx, gear_ratio):
+    """The line candidates (output-order readings are the profile's
+    business), strongest first."""
+    m = Model.starting(gear_ratio, ctx.ts_s, 0.03, [2, 4], [])
+    cands = [c for c in detect.line_candidates(ctx, m) if c.kind != "output_order"]
+    assert cands
+    return sorted(cands, key=lambda c: -c.amplitude_nm)
+
+
+@pytest.mark.parametrize("line", [("fixed", 50.0), ("motor", 1.0), ("motor", 3.0),
+                                  ("motor", 6.0)])
+def test_lock_of_a_line_where_the_speed_varies(line):
+    """Over drawn joints' operating plans and line phases: every peak of a
+    fixed line (its time peak and the order peak of each constant-speed
+    stretch) is read as the fixed line at its frequency, every peak of a
+    motor-locked one as that motor order (specks of a tenth of the line, and
+    peaks that hold in half the windows under neither lock, aside)."""
+    kind = {"fixed": "fixed_frequency", "motor": "motor_order"}[line[0]]
+    for seed in (3, 8):
+        for phase in np.linspace(0, 2 * np.pi, 3, endpoint=False):
+            ctx, j = _lock_context(seed, line, phase)
+            for c in [c for c in _line_candidates(ctx, j.gear_ratio)
+                      if c.amplitude_nm > 0.1 * LOCK_LINE_NM and max(
+                          c.evidence.get("windows_present", {0: 1}).values()) >= 0.5]:
+                assert (c.kind, "ambiguous" in c.evidence) == (kind, False), (seed, phase, c)
+                assert c.order == pytest.approx(line[1], abs=0.1 if kind == "fixed_frequency"
+                                                else 0.02), (seed, phase, c)
+
+
+@pytest.mark.parametrize("line", [("fixed", 50.0), ("motor", 3.0)])
+def test_one_speed_cannot_tell_and_says_so(line):
+    """At one |speed| the two locks hold equally: the finding says so, and
+    an integer motor order stays a motor order while a line at a
+    non-integer one is kept as the fixed line."""
+    for seed in (3, 8):
+        ctx, j = _lock_context(seed, line, 1.0, one_speed=True)
+        c = _line_candidates(ctx, j.gear_ratio)[0]
+        assert "ambiguous" in c.evidence, c
+        if line[0] == "motor":
+            assert (c.kind, c.order) == ("motor_order", line[1]), c
+        else:
+            motor_order = 50.0 / (j.commission_speed_rad_s * j.gear_ratio / (2 * np.pi))
+            assert abs(motor_order - round(motor_order)) > 0.05   # the seed is such a case
+            assert c.kind == "fixed_frequency" and abs(c.order - 50.0) < 0.1, c

@@ -193,3 +193,20 @@ def test_never_commissioned_keeps_the_slow_load(ci_sample, undeclared):
     kept = {x["name"]: x["paths"]["operating"]["load_kept"] for x in runs}
     assert all(k is not None for k in kept.values()), kept
     assert min(kept.values()) >= LOAD_KEPT_MIN, kept
+
+
+def test_motor_line_stays_motor_locked_where_the_speed_varies(hdsim, tmp_path):
+    """The other side of the lock test (detect.classify_line): an undeclared
+    motor order 3 on another day's operating log is kept as motor order 3,
+    and no fixed-frequency line is made of its time peaks at each speed."""
+    import subprocess
+    j = randjoint.draw(CI_SEEDS[1], undeclared=randjoint.UNDECLARED.index(("motor", 3)))
+    day = tmp_path / "day1.ini"
+    day.write_text(j.another_day(1).operating_ini())
+    csv = tmp_path / "operate.csv"
+    subprocess.run([str(hdsim), str(day), "--csv", str(csv)], check=True, capture_output=True)
+    r = analyze(csv, gear_ratio=j.gear_ratio)
+    kept = [e for e in r["effects"] if e["added"] and e["kind"] in
+            ("motor_order", "fixed_frequency")]
+    assert [(e["kind"], e["order_per_motor_rev"]) for e in kept] == [("motor_order", 3.0)], \
+        r["summary"]

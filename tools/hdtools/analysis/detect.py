@@ -35,8 +35,16 @@ MIN_EXPLAINED = 0.002       # line must explain >= 0.2 % of residual variance
 # floor is raised by leakage of slow torque, which hides strong lines.
 LINE_WEAK_RATIO = 8.0
 WEAK_EXPLAINED = 0.05
-SPEED_VARIES = 0.05         # (p90 - p10) / median motor speed above this
-SHARPNESS_FACTOR = 4.0      # ratio in the right domain over the other
+# Lock of a line (classify_line): windows of LOCK_WINDOW_S in which a
+# reading's line has LOCK_PRESENT of the larger reading's 90th-percentile
+# window amplitude; the reading present in LOCK_MARGIN more of the windows
+# wins (if one holds in LOCK_HOLDS of them).  Windows where a reading's line
+# makes fewer than LOCK_MIN_CYCLES cycles do not count (slow torque).
+LOCK_WINDOW_S = 1.0
+LOCK_PRESENT = 0.3
+LOCK_MARGIN = 0.2
+LOCK_HOLDS = 0.5            # a reading must hold in this share of the windows to win
+LOCK_MIN_CYCLES = 4.0
 SLOW_MIN_PARTIAL = 0.02     # slow term must explain >= 2 % of slow residual variance
 INTEGER_TOL = 0.03
 # Below this a fixed-frequency line may well be real periodic load torque
@@ -139,6 +147,99 @@ def _refine(ctx, kind, order, step):
     return best[1]
 
 
+def _step(ctx, kind):
+    """One spectral bin of this kind's spectrum, in its unit."""
+    if kind == "fixed_frequency":
+        return ctx.spec_time.resolution
+    return ctx.spec_motor.resolution * (ctx.gear_ratio if kind == "output_order" else 1.0)
+
+
+def window_demod(ctx, phases_, win):
+    """Per window of win samples of every piece: the line's amplitude at
+    these phases (2 |mean((x - mean) e^-i phase)|), the line's mean
+    frequency there [Hz] and the motor's mean turning rate [rev/s]."""
+    amp, hz, rate = [], [], []
+    for x, p_, th in zip(ctx.signals, phases_, ctx.motor_angle):
+        m = (len(x) // win) * win
+        if m < win:
+            continue
+        xs = np.asarray(x[:m], float).reshape(-1, win)
+        ps = np.asarray(p_[:m], float).reshape(-1, win)
+        ms = np.asarray(th[:m], float).reshape(-1, win)
+        xc = xs - xs.mean(1, keepdims=True)
+        amp.append(2 * np.hypot((xc * np.cos(ps)).mean(1), (xc * np.sin(ps)).mean(1)))
+        span = (win - 1) * ctx.ts_s * 2 * math.pi
+        hz.append(np.abs(ps[:, -1] - ps[:, 0]) / span)
+        rate.append(np.abs(ms[:, -1] - ms[:, 0]) / span)
+    if not amp:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    return np.concatenate(amp), np.concatenate(hz), np.concatenate(rate)
+
+
+def classify_line(ctx, kind, order):
+    """Which lock a spectral peak is: (kind, order, the peak's own reading,
+    evidence).  Both readings of the line are tried window by window (1 s
+    windows of fold A): the peak's own one (the spectrum it was found in)
+    and the other (a fixed line at the frequency the angle-locked reading
+    has where it is present; an angle-locked line at the order the fixed
+    reading has at the motor's rate where it is present).  The true reading
+    holds in every window whatever the speed; the false one only in windows
+    at the speed where the two coincide (a fixed line shows as a sharp order
+    peak from each constant-speed stretch, a motor-locked one as a time peak
+    from each).  The reading present in clearly more windows wins; where
+    both hold about equally (one |speed|: the log cannot tell), the finding
+    says so and the integer-order reading (harmonic-drive lines are at
+    integer orders) is preferred, else the fixed line."""
+    ratio = ctx.gear_ratio
+    win = max(16, int(round(LOCK_WINDOW_S / ctx.ts_s)))
+    if ctx.spec_time is None or ctx.spec_motor is None:
+        return kind, order, order, {}
+    own = (kind, _refine(ctx, kind, order, _step(ctx, kind)))
+    a_own, hz_own, rate = window_demod(ctx, phases(ctx, *own), win)
+    if not len(a_own) or not np.any(a_own > 0):
+        return own + (order, {})
+    present = a_own >= LOCK_PRESENT * np.percentile(a_own, 90)
+    # The other reading where the own one is present, known to the window's
+    # resolution (the speed may vary within a stretch): the one with the
+    # most line in the windows within that, then refined.
+    if kind == "fixed_frequency":
+        r = float(np.median(rate[present]))
+        if not r > 0:
+            return own + (order, {})
+        alt_kind, alt_order = _angle_kind(own[1] / r, ratio)
+        half = 1.0 / (LOCK_WINDOW_S * r) * (ratio if alt_kind == "output_order" else 1.0)
+    else:
+        alt_kind, alt_order = "fixed_frequency", float(np.median(hz_own[present]))
+        half = 1.0 / LOCK_WINDOW_S
+    grid = [o for o in alt_order + max(half, _step(ctx, alt_kind)) * np.linspace(-1, 1, 9)
+            if o > 0]
+    alt_order = max(grid, key=lambda o: float(np.mean(
+        window_demod(ctx, phases(ctx, alt_kind, o), win)[0])))
+    alt = (alt_kind, _refine(ctx, alt_kind, alt_order, _step(ctx, alt_kind)))
+    a_alt, hz_alt, _ = window_demod(ctx, phases(ctx, *alt), win)
+    lo = LOCK_MIN_CYCLES / (win * ctx.ts_s)
+    valid = (hz_own >= lo) & (hz_alt >= lo)
+    if np.sum(valid) < 2:
+        return own + (order, {})
+    ref = max(np.percentile(a_own[valid], 90), np.percentile(a_alt[valid], 90))
+    s_own = float(np.mean(a_own[valid] >= LOCK_PRESENT * ref))
+    s_alt = float(np.mean(a_alt[valid] >= LOCK_PRESENT * ref))
+    ev = {"windows_present": {own[0]: round(s_own, 3), alt[0]: round(s_alt, 3)},
+          "windows": int(np.sum(valid))}
+    if max(s_own, s_alt) < LOCK_HOLDS:
+        return own + (order, ev)       # no steady line under either lock: as found
+    if s_own >= s_alt + LOCK_MARGIN:
+        return own + (order, ev)
+    if s_alt >= s_own + LOCK_MARGIN:
+        return alt + (alt_order, ev)
+    ev["ambiguous"] = ("the line holds as well at one lock as at the other (one |speed| in "
+                       "the analysed part)")
+    angle, fixed = (alt, own) if kind == "fixed_frequency" else (own, alt)
+    if _near_int(angle[1], max(0.5 * _step(ctx, angle[0]), INTEGER_TOL)):
+        return angle + (order if angle is own else alt_order, ev)
+    return fixed + (order if fixed is own else alt_order, ev)
+
+
 def _decimated(lst, max_total=400_000):
     total = sum(len(x) for x in lst)
     k = max(1, int(math.ceil(total / max_total)))
@@ -162,48 +263,43 @@ def line_candidates(ctx: Context, model) -> list[Candidate]:
             raw.append(("time", p["at"], p))
     cands = []
     seen = set()
-    varies = ctx.motor_speed_spread > SPEED_VARIES
     for domain, at, peak in raw:
-        if domain == "angle":
-            f_equiv = at * speed_hz
-            motor_order = at
-        else:
-            f_equiv = at
-            motor_order = at / speed_hz if speed_hz else float("nan")
-        r_angle, _ = spectra.peak_ratio_at(ctx.spec_motor, motor_order)
-        r_out, _ = spectra.peak_ratio_at(ctx.spec_output, motor_order * ratio)
-        r_time, _ = spectra.peak_ratio_at(ctx.spec_time, f_equiv)
+        own = (("fixed_frequency", at) if domain == "time" else _angle_kind(at, ratio))
+        kind, order, peak_order, lock_ev = classify_line(ctx, *own)
+        step = _step(ctx, kind)
+        if kind != "fixed_frequency" and _near_int(order, max(0.5 * step, INTEGER_TOL)):
+            order = float(round(order))
+        if any(k == kind and abs(o - order) <= max(step, 0.01 * order) for k, o in seen):
+            continue
+        seen.add((kind, order))
+        # The reading's sharpness in both spectra (the other one's at the
+        # median speed: evidence, not the decision).
+        motor_order = (order / speed_hz if speed_hz else float("nan")) if (
+            kind == "fixed_frequency") else (order / ratio if kind == "output_order" else order)
+        f_equiv = order if kind == "fixed_frequency" else motor_order * speed_hz
+        r_angle, x_m = spectra.peak_ratio_at(ctx.spec_motor, motor_order)
+        r_out, x_o = spectra.peak_ratio_at(ctx.spec_output, motor_order * ratio)
+        r_time, x_t = spectra.peak_ratio_at(ctx.spec_time, f_equiv)
         r_angle = max(r_angle, r_out)
         ev = {"peak_ratio_order_spectrum": round(r_angle, 1),
               "peak_ratio_time_spectrum": round(r_time, 1),
               "speed_spread": round(ctx.motor_speed_spread, 3),
-              "found_in": "order spectrum" if domain == "angle" else "time spectrum"}
-        if varies and r_time > SHARPNESS_FACTOR * r_angle:
-            kind, order = "fixed_frequency", f_equiv
-        elif varies and r_angle > SHARPNESS_FACTOR * r_time:
-            kind, order = _angle_kind(motor_order, ratio)
-        else:
-            ev["ambiguous"] = ("speed nearly constant" if not varies else
-                               "equally sharp in order and time spectra")
-            k2, o2 = _angle_kind(motor_order, ratio)
-            integer = _near_int(o2)
-            kind, order = (k2, o2) if integer or domain == "angle" else ("fixed_frequency", f_equiv)
-        step = (ctx.spec_time.resolution if kind == "fixed_frequency" else
-                ctx.spec_motor.resolution * (ratio if kind == "output_order" else 1.0))
-        peak_order = order
-        order = _refine(ctx, kind, order, step)
-        if kind != "fixed_frequency" and _near_int(order, max(0.5 * step, INTEGER_TOL)):
-            order = float(round(order))
-        key = (kind, round(order, 1))
-        if key in seen:
-            continue
-        seen.add(key)
+              "found_in": "order spectrum" if domain == "angle" else "time spectrum", **lock_ev}
+        spec_amp = peak["amplitude_nm"]
+        if (kind == "fixed_frequency") != (domain == "time"):
+            # Read in the other domain than found: its amplitude is that
+            # domain's, and the found peak's strength counts.
+            spec, x = ((ctx.spec_time, x_t) if kind == "fixed_frequency" else
+                       (ctx.spec_output, x_o) if kind == "output_order" else (ctx.spec_motor, x_m))
+            if spec is not None and x:
+                spec_amp = float(np.sqrt(np.interp(x, spec.axis, spec.amp2)))
+            r_time, r_angle = ((max(r_time, peak["ratio"]), r_angle) if kind == "fixed_frequency"
+                               else (r_time, max(r_angle, peak["ratio"])))
         ph_all = phases(ctx, kind, order)
         amp, ph, expl = spectra.fit_line(
             _decimated(spectra.highpass_for_line(ctx.signals, ph_all, ctx.ts_s)),
             _decimated(ph_all))
         strong = max(r_angle, r_time) >= LINE_MIN_RATIO
-        spec_amp = peak["amplitude_nm"]
         # The global fit is trusted when it agrees with the spectral peak and
         # explains a measurable share; otherwise it is noise projection.
         coherent = 0.5 * spec_amp <= amp <= 2.0 * spec_amp and expl >= MIN_EXPLAINED
