@@ -213,6 +213,16 @@ static void push_current_still(float amps)
     push_sample_current(amps, HAL_OK, false, 0u);
 }
 
+/* The firmware booted with a current channel and this current term. */
+static void init_fw_with_current(hd_expected_current_config_t term, float filter_hz)
+{
+    mock.current_channel = true;
+    hal_mock_bind(&mock, &hal);
+    cfg.current = term;
+    cfg.current_filter_hz = filter_hz;
+    init_fw();
+}
+
 static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
 {
     mock.current_channel = true;
@@ -255,13 +265,10 @@ static void test_motor_current_enters_t_exp_and_a_bad_reading_holds(void)
  * term, no error_nm here).  Computed here in double from that description. */
 static void test_motor_current_low_pass(void)
 {
-    mock.current_channel = true;
-    hal_mock_bind(&mock, &hal);
-    cfg.current.nm_per_a = 10.0f;
-    cfg.current.viscous_nm_s_rad = 2.0f;
-    cfg.current.inertia_kgm2 = 0.5f;
-    cfg.current_filter_hz = 10.0f;
-    init_fw();
+    init_fw_with_current((hd_expected_current_config_t){.nm_per_a = 10.0f,
+                                                        .viscous_nm_s_rad = 2.0f,
+                                                        .inertia_kgm2 = 0.5f},
+                         10.0f);
     push_current(0.0f, HAL_OK, false); /* primes at 0 A and 0 rad/s; then 3 counts/tick */
     const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
     const double v0 = 3.0 * 2.0 * TEST_PI / 4096.0 / 100.0 / 0.001; /* output rad/s */
@@ -291,11 +298,7 @@ static void test_motor_current_low_pass(void)
  * the low-pass alone lags it by L ticks' growth. */
 static void test_motor_current_lag_is_extrapolated_away(void)
 {
-    mock.current_channel = true;
-    hal_mock_bind(&mock, &hal);
-    cfg.current.nm_per_a = 10.0f;
-    cfg.current_filter_hz = 10.0f;
-    init_fw();
+    init_fw_with_current((hd_expected_current_config_t){.nm_per_a = 10.0f}, 10.0f);
     const double w = 2.0 * TEST_PI * 10.0 * 0.001, a = w / (1.0 + w);
     const double lag_ticks = 2.0 * (1.0 - a) / a, slope_a = 1e-3; /* per tick */
     for (unsigned n = 0; n <= 600; n++) {
@@ -316,13 +319,9 @@ static void test_motor_current_lag_is_extrapolated_away(void)
  * square; at a steady speed far above v_eps only error_nm is left. */
 static void test_motor_current_variance_at_standstill_and_speed(void)
 {
-    mock.current_channel = true;
-    hal_mock_bind(&mock, &hal);
-    cfg.current.nm_per_a = 10.0f;
-    cfg.current.coulomb_nm = 0.8f;
-    cfg.current.error_nm = 0.05f;
-    cfg.current_filter_hz = 10.0f;
-    init_fw();
+    init_fw_with_current(
+        (hd_expected_current_config_t){.nm_per_a = 10.0f, .coulomb_nm = 0.8f, .error_nm = 0.05f},
+        10.0f);
     for (unsigned n = 0; n < 300; n++) {
         push_current_still(0.5f);
     }
