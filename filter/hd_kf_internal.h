@@ -1,5 +1,6 @@
 /* hd_kf_internal: what the filter's source files share (hd_kf.c:
- * configuration, layout, init; hd_kf_step.c: the step; hd_kf_bounds.c: its
+ * configuration, layout, init; hd_kf_step.c: the step; hd_kf_rows.c: its
+ * load-dependent rows; hd_kf_bounds.c: its
  * slow paths; hd_kf_readout.c: read-out and profiles).  Private to filter/. */
 #ifndef HD_KF_INTERNAL_H
 #define HD_KF_INTERNAL_H
@@ -112,5 +113,15 @@ void hd_kf_restart_lost_blocks(hd_kf_t *kf, uint32_t lost);
 
 /* The bounds' slow path (hd_kf_bounds.c): the status bits raised. */
 uint32_t hd_kf_bound_covariance(hd_kf_t *kf, float finite_probe);
+
+/* hd_kf_rows.c.  |T_ref| of the load-dependent rows after this sample
+ * (T_exp plus the real-torque offset, followed by the motor's motion
+ * fraction, held at standstill; capped at HD_KF_MAX_ABS_Y_NM). */
+float hd_kf_load_ref(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad);
+/* The held output rows' next value into kf->output_row (output_follow):
+ * the motor lines' growth since the profile import, read while `observed`,
+ * else predicted from |T_ref|; HD_KF_STATUS_LOAD_BOUND where the target
+ * is refused at the envelope, else 0. */
+uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed);
 
 #endif

@@ -1,0 +1,103 @@
+/* hd_kf_rows: the load-dependent measurement rows the step uses (hd_kf.h:
+ * ripple_load_coeff_per_nm for motor-locked rows, output_row_follow for the
+ * held output rows; docs/design/filter.md, "Load-modulated output lines").
+ * Called by hd_kf_step only when one of them is on. */
+#include <math.h> /* fabsf, sqrtf (VSQRT on Cortex-M4F) */
+
+#include "hd_kf_internal.h"
+
+/* The motion fraction min(1, |angle| / q_motion_ref_rad); 1 when off. */
+static float motion_fraction(const hd_kf_t *kf, float angle_rad)
+{
+    const float a = fabsf(angle_rad);
+    return (kf->q_motion_inv_rad <= 0.0f || a >= kf->cfg.q_motion_ref_rad)
+               ? 1.0f
+               : a * kf->q_motion_inv_rad;
+}
+
+/* |T_ref| of the load-dependent rows: T_ref starts at T_exp (+ the offset
+ * when it is real torque and primed) and follows it by the motor's motion
+ * fraction, held at standstill; capped at HD_KF_MAX_ABS_Y_NM so every row
+ * stays finite. */
+float hd_kf_load_ref(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad)
+{
+    float t_now = is_finite(torque_expected_nm) ? torque_expected_nm : 0.0f;
+    if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
+        t_now += kf->x[kf->offset_slot];
+    }
+    if (!kf->load_ref_primed) {
+        kf->load_ref_nm = t_now;
+        kf->load_ref_primed = 1u;
+    } else {
+        kf->load_ref_nm += motion_fraction(kf, d_motor_rad) * (t_now - kf->load_ref_nm);
+    }
+    const float t = fabsf(kf->load_ref_nm);
+    return t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM;
+}
+
+/* The held output blocks' row (output_follow).  The growth g of the motor
+ * lines since the profile import, sqrt(sum |x|^2 / sum |ref|^2) over the
+ * imported motor blocks (1 as imported, (1 + c |T|) / (1 + c |T_c|) for
+ * lines grown by a common load factor), is measured while `observed` (every
+ * motor block at full motion, turning at least HD_KF_FOLLOW_MIN_RAD per
+ * step) and feeds an exponentially weighted regression of g on |T_ref|;
+ * otherwise g is that regression's prediction at |T_ref| (held before its
+ * first sample).  The target 1 + follow (g - 1) is refused beyond
+ * [1 / max, max] (held at the bound: HD_KF_STATUS_LOAD_BOUND) and
+ * low-passed into output_row.  No reference (no profile imported): 1. */
+uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
+{
+    if (kf->motor_ref_inv <= 0.0f) {
+        kf->output_row = 1.0f;
+        return 0u;
+    }
+    float g;
+    if (observed) {
+        float sq = 0.0f;
+        for (uint32_t left = kf->motor_slots; left != 0u; left &= left - 1u) {
+            const unsigned s = (unsigned)__builtin_ctz(left);
+            const float w = (kf->motor_ref[2u * s] != 0.0f || kf->motor_ref[2u * s + 1u] != 0.0f)
+                                ? 1.0f : 0.0f;
+            sq += w * (kf->x[2u * s] * kf->x[2u * s] + kf->x[2u * s + 1u] * kf->x[2u * s + 1u]);
+        }
+        g = sqrtf(sq * kf->motor_ref_inv);
+        if (!kf->follow_primed) {
+            kf->follow_mean_t = t_abs;
+            kf->follow_mean_g = g;
+            kf->follow_primed = 1u;
+        } else {
+            const float a = kf->cfg.ts_s * (1.0f / HD_KF_FOLLOW_MEMORY_S);
+            const float dt = t_abs - kf->follow_mean_t, dg = g - kf->follow_mean_g;
+            kf->follow_mean_t += a * dt;
+            kf->follow_mean_g += a * dg;
+            kf->follow_var_t = (1.0f - a) * (kf->follow_var_t + a * dt * dt);
+            kf->follow_weight += a * (1.0f - kf->follow_weight);
+            kf->follow_cov_tg = (1.0f - a) * (kf->follow_cov_tg + a * dt * dg);
+        }
+    } else if (kf->follow_primed) {
+        /* the slope once half the regression's weight is filled
+         * (HD_KF_FOLLOW_MEMORY_S ln 2 of measured steps) and |T_ref| has
+         * spread, |T_ref| within two of its standard deviations of its mean:
+         * no extrapolation from a short, narrow fit */
+        float g_off = 0.0f;
+        if (kf->follow_weight >= 0.5f && kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2) {
+            const float span = 2.0f * sqrtf(kf->follow_var_t);
+            float dt = t_abs - kf->follow_mean_t;
+            dt = dt > span ? span : (dt < -span ? -span : dt);
+            g_off = kf->follow_cov_tg / kf->follow_var_t * dt;
+        }
+        g = kf->follow_mean_g + g_off;
+    } else {
+        return 0u;
+    }
+    const float hi = kf->cfg.output_row_max, lo = 1.0f / hi;
+    float target = 1.0f + kf->cfg.output_row_follow * (g - 1.0f);
+    uint32_t status = 0u;
+    if (!(target >= lo && target <= hi)) {
+        target = target > hi ? hi : lo; /* NaN: the lower bound */
+        status = HD_KF_STATUS_LOAD_BOUND;
+        kf->load_bound_count++;
+    }
+    kf->output_row += kf->output_row_alpha * (target - kf->output_row);
+    return status;
+}
