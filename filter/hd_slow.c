@@ -48,10 +48,13 @@ float hd_slow_current_nm(hd_slow_current_t *st, const hd_slow_current_config_t *
     const float t = hd_expected_current_nm(&c->term, e, st->i2_a, st->w2_rad_s, acc);
     const float lead_nm = first ? 0.0f : c->lag_steps * (t - st->torque_nm);
     st->torque_nm = t;
-    const float dv = abs_f(acc) * c->lag_steps * c->ts_s + e->coulomb_vel_eps_rad_s;
-    const float spread_nm = 0.5f * c->term.coulomb_nm *
-                            (smooth_sign_f(st->w2_rad_s + dv, e->coulomb_vel_eps_rad_s) -
-                             smooth_sign_f(st->w2_rad_s - dv, e->coulomb_vel_eps_rad_s));
+    float spread_nm = 0.0f;
+    if (c->term.coulomb_nm > 0.0f) { /* two divisions only where there is a Coulomb term */
+        const float dv = abs_f(acc) * c->lag_steps * c->ts_s + e->coulomb_vel_eps_rad_s;
+        spread_nm = 0.5f * c->term.coulomb_nm *
+                    (smooth_sign_f(st->w2_rad_s + dv, e->coulomb_vel_eps_rad_s) -
+                     smooth_sign_f(st->w2_rad_s - dv, e->coulomb_vel_eps_rad_s));
+    }
     *var_nm2 = lead_nm * lead_nm + spread_nm * spread_nm + c->term.error_nm * c->term.error_nm;
     return t + lead_nm;
 }
