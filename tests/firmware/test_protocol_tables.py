@@ -52,7 +52,7 @@ def test_every_command_argument_and_frame_signal_fits_its_frame():
     header = [s for s in protocol.frame_signals("CMD")]
     for e in protocol.commands():
         bits(header + list(protocol.command_args(e.name)))
-    h, _ = protocol.generate_c()
+    h = protocol.generate_c()[protocol.paths.firmware_file("hd_can_gen.h")]
     for e in protocol.commands():
         if protocol.command_args(e.name):
             assert f"hd_can_cmd_{e.name.lower()}_t {e.name.lower()};" in h

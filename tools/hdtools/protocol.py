@@ -31,8 +31,6 @@ ROOT = paths.source_root() or paths.PACKAGE
 PROTOCOL_DEF = paths.firmware_file("hd_protocol.def")
 PARAMS_DEF = paths.firmware_file("hd_params.def")
 DBC_PATH = paths.firmware_file("hdjoint.dbc")
-GEN_H = paths.firmware_file("hd_can_gen.h")
-GEN_C = paths.firmware_file("hd_can_gen.c")
 FIRMWARE = PARAMS_DEF.parent
 
 ID_PREFIX = 0x01D00000
@@ -394,16 +392,16 @@ def stale_docs() -> list[Path]:
     return [p for p in sorted(DOCS.rglob("*.md")) if render_docs(p.read_text()) != p.read_text()]
 
 
-def generate_c() -> tuple[str, str]:
-    """firmware/hd_can_gen.h and hd_can_gen.c (hdtools.protocol_c)."""
-    return protocol_c.generate(frames(), frame_signals, commands(), command_args,
-                               U32_ACK_OPCODES)
+def generate_c() -> dict[Path, str]:
+    """firmware/hd_can_gen*.[ch] (hdtools.protocol_c): {path: text}."""
+    files = protocol_c.generate(frames(), frame_signals, commands(), command_args,
+                                U32_ACK_OPCODES)
+    return {paths.firmware_file(name): text for name, text in files.items()}
 
 
 def generated_files() -> dict[Path, str]:
     """Every file generated from the .def files, with its current text."""
-    h, c = generate_c()
-    return {DBC_PATH: generate_dbc(), GEN_H: h, GEN_C: c}
+    return {DBC_PATH: generate_dbc(), **generate_c()}
 
 
 def stale_files() -> list[Path]:
@@ -418,7 +416,7 @@ def main(argv=None) -> int:
                                              "firmware/hd_protocol.def and hd_params.def: the DBC, "
                                              "the C codec and the tables in docs/**/*.md.")
     ap.add_argument("--write", action="store_true",
-                    help="rewrite firmware/hdjoint.dbc, hd_can_gen.[ch] and the docs' tables")
+                    help="rewrite firmware/hdjoint.dbc, hd_can_gen*.[ch] and the docs' tables")
     ap.add_argument("--write-dbc", action="store_true", help="rewrite firmware/hdjoint.dbc only")
     ap.add_argument("--check", action="store_true",
                     help="exit 1 if a generated file or doc table differs from the generated one")

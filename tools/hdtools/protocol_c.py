@@ -2,8 +2,10 @@
 firmware/hd_protocol.def (hdtools.protocol reads them and calls generate()).
 
 Out come firmware/hd_can_gen.h (a struct per frame, a typed argument struct
-per command, the scales) and firmware/hd_can_gen.c (pack / unpack of the 8
-data bytes, encode / decode of whole frames).  The firmware build needs
+per command, the scales), firmware/hd_can_gen.c (pack / unpack of the 8
+data bytes, encode / decode of whole frames), hd_can_gen_cmd.c (the same for
+the command frames, CMD and ACK, and the opcode predicates) and
+hd_can_gen_internal.h (the byte helpers both .c files inline).  The firmware build needs
 nothing new: both files are committed, and tests/firmware/
 test_protocol_tables.py fails when they differ from what this module makes
 of the .def file.  Each signal is packed into one little-endian 64-bit word,
@@ -98,35 +100,49 @@ def _na_bits(owner: str, sigs) -> list[str]:
             for i, s in enumerate(sigs) if s.type in ("I", "F32")]
 
 
-def generate(frames, frame_signals, commands, command_args, u32_replies) -> tuple[str, str]:
-    """(hd_can_gen.h, hd_can_gen.c).  frames: objects with name, type,
+COMMAND_FRAMES = ("CMD", "ACK")   # their codec goes to hd_can_gen_cmd.c
+
+
+def _c_file(name: str, what: str) -> list[str]:
+    return [f"/* {name}: {what}", f" * {GENERATED} */", '#include "hd_can_proto.h"', "",
+            "#include <math.h> /* isfinite: a compiler builtin, no libm call */",
+            "#include <string.h>", "", '#include "hd_can_gen_internal.h"', ""]
+
+
+def generate(frames, frame_signals, commands, command_args, u32_replies) -> dict[str, str]:
+    """{file name in firmware/: text} for hd_can_gen.h, hd_can_gen_internal.h,
+    hd_can_gen.c and hd_can_gen_cmd.c.  frames: objects with name, type,
     direction, doc; frame_signals(name) / command_args(opcode): the rows;
     commands: opcode entries (code, name, doc) a host may send; u32_replies:
     the opcodes whose ACK value is a u32."""
     h = [f"/* hd_can_gen.h: the frames and commands of the CAN protocol as C types.",
          f" * {GENERATED} */", "#ifndef HD_CAN_GEN_H", "#define HD_CAN_GEN_H", "",
          "/* Included by hd_can_proto.h (hal.h, the enums and the helpers first). */", ""]
-    c = [f"/* hd_can_gen.c: pack / unpack / encode / decode of every frame.",
-         f" * {GENERATED} */", '#include "hd_can_proto.h"', "",
-         "#include <math.h> /* isfinite: a compiler builtin, no libm call */",
-         "#include <string.h>", "",
-         "static uint32_t f32_bits(float v) { uint32_t u; memcpy(&u, &v, sizeof u); return u; }",
-         "static float bits_f32(uint32_t u) { float v; memcpy(&v, &u, sizeof v); return v; }",
-         "static int32_t sext(uint32_t raw, unsigned bits)",
+    c = _c_file("hd_can_gen.c", "pack / unpack / encode / decode of every frame but the "
+                "commands' (hd_can_gen_cmd.c).")
+    c_cmd = _c_file("hd_can_gen_cmd.c", "pack / unpack / encode / decode of the command "
+                    "frames (CMD, ACK) and the opcode predicates.")
+    inl = ["/* hd_can_gen_internal.h: the byte helpers of hd_can_gen.c and hd_can_gen_cmd.c.",
+         f" * {GENERATED} */", "#ifndef HD_CAN_GEN_INTERNAL_H", "#define HD_CAN_GEN_INTERNAL_H",
+         "", "#include <stdint.h>", "#include <string.h>", "",
+         "static inline uint32_t f32_bits(float v) { uint32_t u; memcpy(&u, &v, sizeof u); return u; }",
+         "static inline float bits_f32(uint32_t u) { float v; memcpy(&v, &u, sizeof v); return v; }",
+         "static inline int32_t sext(uint32_t raw, unsigned bits)",
          "{", "    const uint32_t sign = 1u << (bits - 1u);",
          "    return (int32_t)(raw ^ sign) - (int32_t)sign;", "}",
          "/* Two 32-bit halves with constant shifts: a loop over a 64-bit",
          " * variable shift costs the Cortex-M4 a libgcc-style sequence per byte. */",
-         "static uint32_t load_u32(const uint8_t *d)",
+         "static inline uint32_t load_u32(const uint8_t *d)",
          "{", "    return (uint32_t)d[0] | (uint32_t)d[1] << 8 | (uint32_t)d[2] << 16 | (uint32_t)d[3] << 24;",
          "}",
-         "static uint64_t load_word(const uint8_t *d)",
+         "static inline uint64_t load_word(const uint8_t *d)",
          "{", "    return (uint64_t)load_u32(d) | (uint64_t)load_u32(d + 4) << 32;", "}",
-         "static void store_u32(uint8_t *d, uint32_t u)",
+         "static inline void store_u32(uint8_t *d, uint32_t u)",
          "{", "    d[0] = (uint8_t)u;", "    d[1] = (uint8_t)(u >> 8);", "    d[2] = (uint8_t)(u >> 16);",
          "    d[3] = (uint8_t)(u >> 24);", "}",
-         "static void store_word(uint8_t *d, uint64_t w)",
-         "{", "    store_u32(d, (uint32_t)w);", "    store_u32(d + 4, (uint32_t)(w >> 32));", "}", ""]
+         "static inline void store_word(uint8_t *d, uint64_t w)",
+         "{", "    store_u32(d, (uint32_t)w);", "    store_u32(d + 4, (uint32_t)(w >> 32));", "}", "",
+         "#endif /* HD_CAN_GEN_INTERNAL_H */"]
 
     # -- commands: a typed struct per command with arguments, one union
     cmd_with_args = [e for e in commands if command_args(e.name)]
@@ -139,14 +155,16 @@ def generate(frames, frame_signals, commands, command_args, u32_replies) -> tupl
           "bool hd_can_is_command(uint8_t opcode);",
           "/* Opcodes whose ACK carries a u32 (value_u32) instead of a float. */",
           "bool hd_can_ack_is_u32(uint8_t opcode);", ""]
-    c += ["bool hd_can_is_command(uint8_t opcode)", "{", "    switch (opcode) {"]
-    c += [f"    case 0x{e.code:02X}u: /* {e.name} */" for e in commands]
-    c += ["        return true;", "    default:", "        return false;", "    }", "}", "",
-          "bool hd_can_ack_is_u32(uint8_t opcode)", "{", "    switch (opcode) {"]
-    c += [f"    case HD_CMD_{n}:" for n in u32_replies]
-    c += ["        return true;", "    default:", "        return false;", "    }", "}", ""]
+    c_cmd += ["bool hd_can_is_command(uint8_t opcode)", "{", "    switch (opcode) {"]
+    c_cmd += [f"    case 0x{e.code:02X}u: /* {e.name} */" for e in commands]
+    c_cmd += ["        return true;", "    default:", "        return false;", "    }", "}", "",
+              "bool hd_can_ack_is_u32(uint8_t opcode)", "{", "    switch (opcode) {"]
+    c_cmd += [f"    case HD_CMD_{n}:" for n in u32_replies]
+    c_cmd += ["        return true;", "    default:", "        return false;", "    }", "}", ""]
 
+    codec = {False: c, True: c_cmd}
     for fr in frames:
+        c = codec[fr.name in COMMAND_FRAMES]
         sigs = list(frame_signals(fr.name))
         low = fr.name.lower()
         t = f"hd_can_{low}_t"
@@ -236,4 +254,8 @@ def generate(frames, frame_signals, commands, command_args, u32_replies) -> tupl
                   f"    return hd_can_unpack_{low}(f->data, v) == 0u ? HD_CAN_RES_OK "
                   f": HD_CAN_RES_NOT_FINITE;", "}", ""]
     h += ["#endif /* HD_CAN_GEN_H */"]
-    return "\n".join(h) + "\n", "\n".join(c).rstrip("\n") + "\n"
+
+    def text(lines):
+        return "\n".join(lines).rstrip("\n") + "\n"
+    return {"hd_can_gen.h": "\n".join(h) + "\n", "hd_can_gen_internal.h": text(inl),
+            "hd_can_gen.c": text(codec[False]), "hd_can_gen_cmd.c": text(codec[True])}
