@@ -329,6 +329,7 @@ static void build_layout(hd_kf_t *kf)
     kf->jump_rearm_steps = steps_of(HD_KF_JUMP_REARM_S, kf->cfg.ts_s);
     kf->limit_restart_steps = steps_of(HD_KF_LIMIT_RESTART_S, kf->cfg.ts_s);
     kf->drift_hold_total = steps_of(HD_KF_DRIFT_HOLD_S, kf->cfg.ts_s);
+    kf->follow_settle_total = steps_of(HD_KF_FOLLOW_SETTLE_S, kf->cfg.ts_s);
     for (unsigned i = 0; i < kf->cfg.block_count; i++) {
         build_slot(kf, i);
         enabled += kf->slot[i].enabled;
@@ -355,6 +356,7 @@ void hd_kf_follow_restart(hd_kf_t *kf)
 {
     kf->output_row = 1.0f;
     kf->follow_primed = 0u;
+    kf->follow_settle_steps = kf->follow_settle_total;
     kf->follow_mean_t = kf->follow_var_t = kf->follow_cov_tg = kf->follow_weight = 0.0f;
     kf->follow_mean_g = 1.0f;
 }
@@ -409,6 +411,8 @@ void hd_kf_reset(hd_kf_t *kf)
     }
     kf->motor_ref_inv = 0.0f;
     kf->follow_slots = 0u;
+    kf->follow_load_nm = -1.0f;
+    kf->learn_load_nm = kf->learn_load_weight = 0.0f;
     hd_kf_follow_restart(kf);
     kf->drift_hold_steps = kf->drift_hold_total; /* the load unknown until the gate is quiet */
 }

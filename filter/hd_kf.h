@@ -44,15 +44,19 @@
  *     fraction: held at standstill;
  *   - held output rows (output_row_follow > 0 and output_learn_scale 0):
  *     hd_kf_profile_import keeps the imported motor blocks' states as the
- *     reference; the growth g = sqrt(sum |x_m|^2 / sum |ref_m|^2) over them
- *     is measured on steps where every enabled motor block is at motion 1,
- *     none frozen, and turns at least HD_KF_FOLLOW_MIN_RAD; those steps feed
- *     an exponentially weighted regression of g on |T_ref| (memory
- *     HD_KF_FOLLOW_MEMORY_S); on the other steps g is its prediction at
- *     |T_ref| (slope used once half its weight is filled and |T_ref| has
- *     varied by more than HD_KF_FOLLOW_MIN_VAR_NM2, |T_ref| taken within 2
- *     standard deviations of its mean; g held before the first measured
- *     step).  The target 1 + output_row_follow (g - 1) beyond
+ *     reference and the profile's load_nm as T_c; the growth
+ *     g = sqrt(sum |x_m|^2 / sum |ref_m|^2) over them is measured on steps
+ *     where every enabled motor block is at motion 1, none frozen, and turns
+ *     at least HD_KF_FOLLOW_MIN_RAD, from HD_KF_FOLLOW_SETTLE_S after the
+ *     import; those steps feed an exponentially weighted regression of g on
+ *     |T_ref| (memory HD_KF_FOLLOW_MEMORY_S; its slope used once
+ *     HD_KF_FOLLOW_MIN_WEIGHT of its weight is filled and |T_ref| has varied
+ *     by more than HD_KF_FOLLOW_MIN_VAR_NM2, |T| taken within 2 standard
+ *     deviations of its mean).  T_c known: the growth the load explains,
+ *     the regression at |T_ref| over the regression at T_c (lines changed
+ *     at a constant load, by wear or temperature, do not move the row);
+ *     T_c unknown: the measured g, its prediction on the other steps.  The
+ *     target 1 + output_row_follow (g - 1) beyond
  *     [1 / output_row_max, output_row_max] (or not a number) is refused:
  *     the bound is taken, HD_KF_STATUS_LOAD_BOUND, load_bound_count.
  *     output_row follows the target through a low-pass of
@@ -164,15 +168,19 @@ extern "C" {
 /* Largest accepted output_row_max: a held output line may follow the motor
  * lines to at most this times its profile's amplitude. */
 #define HD_KF_MAX_OUTPUT_ROW 100.0f
-/* The held output rows follow the motor lines' growth through a first-order
- * low-pass of this time constant [s]. */
 /* The growth is measured while every motor block turns at least this far
  * per step (below, the offset's random walk and the motor lines share a
- * band) and predicted from |T_ref| by a regression of this memory [s]
- * otherwise (docs/design/filter.md, "Load-modulated output lines"). */
+ * band), not in the first HD_KF_FOLLOW_SETTLE_S [s] after an import, and
+ * regressed on |T_ref| with this memory [s]; the slope is used once
+ * HD_KF_FOLLOW_MIN_WEIGHT of the regression's weight is filled and |T_ref|
+ * varies by more than HD_KF_FOLLOW_MIN_VAR_NM2 (docs/design/filter.md,
+ * "Load-modulated output lines").  The held output rows follow the target
+ * through a first-order low-pass of HD_KF_OUTPUT_ROW_TAU_S [s]. */
 #define HD_KF_FOLLOW_MIN_RAD 0.05f
 #define HD_KF_FOLLOW_MEMORY_S 10.0f
 #define HD_KF_FOLLOW_MIN_VAR_NM2 0.01f
+#define HD_KF_FOLLOW_MIN_WEIGHT 0.05f
+#define HD_KF_FOLLOW_SETTLE_S 0.5f
 #define HD_KF_OUTPUT_ROW_TAU_S 0.01f
 
 /* The offset-jump gate takes at most HD_KF_JUMP_BURST jumps (a step, or a
@@ -380,6 +388,12 @@ typedef struct {
     float follow_cov_tg;                      /* ... covariance of |T_ref| and growth */
     float follow_weight;                      /* ... its filled weight, 0 to 1 */
     float motor_ref[2 * HD_KF_MAX_BLOCKS];    /* motor blocks' imported states (frames) */
+    float follow_load_nm;                     /* the imported profile's load_nm (< 0: unknown) */
+    uint32_t follow_settle_steps;             /* steps left before the growth is read */
+    uint32_t follow_settle_total;             /* HD_KF_FOLLOW_SETTLE_S in steps */
+    float learn_load_nm;                      /* exponentially weighted |T_ref| over the steps */
+    float learn_load_weight;                  /* the motor blocks learn at full motion, and
+                                                 its filled weight (0 to 1): export's load_nm */
 } hd_kf_t;
 
 /* A configuration with no blocks and these defaults: R = 1 Nm^2,
@@ -495,10 +509,16 @@ typedef struct {
 typedef struct {
     uint8_t line_count;                          /* lines[0, line_count) */
     hd_kf_profile_line_t lines[HD_KF_MAX_BLOCKS];
+    float load_nm; /* |T_ref| the lines were learned at (the commissioning
+                      load; 0 for the unloaded commissioning motion);
+                      negative: unknown (the held output rows then take
+                      the motor lines' whole growth) */
 } hd_kf_profile_t;
 
 /* Writes one line per enabled motor- or output-locked block of integral
- * order 1..255, in configuration order.  Returns the number of lines, or
+ * order 1..255, in configuration order, and load_nm: |T_ref| exponentially
+ * weighted (HD_KF_FOLLOW_MEMORY_S) over the steps at which every motor
+ * block learned at full motion (-1 when there was none).  Returns the number of lines, or
  * HD_KF_ERR_NULL / HD_KF_ERR_ANGLE (profile untouched). */
 int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_angle_rad,
                          hd_kf_profile_t *profile);
@@ -507,10 +527,12 @@ int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_
  * matched by an earlier line takes the line's ripple: its state is set from
  * (a, b) at the angle above, its covariance block to prior_var_nm2 I with
  * zero covariance to every other state.  Lines without such a block are
- * ignored.  Returns the number of lines matched, or an error with the
- * filter unchanged: HD_KF_ERR_NULL, HD_KF_ERR_ANGLE, HD_KF_ERR_PROFILE
+ * ignored.  load_nm becomes the held output rows' T_c (negative or not a
+ * number: unknown).  Returns the number of lines matched, or an error with
+ * the filter unchanged: HD_KF_ERR_NULL, HD_KF_ERR_ANGLE, HD_KF_ERR_PROFILE
  * (line_count > HD_KF_MAX_BLOCKS, a lock other than motor/output, order 0,
- * a non-finite a or b, prior_var_nm2 not finite or outside [0, p_max]). */
+ * a non-finite a or b, load_nm above HD_KF_MAX_ABS_Y_NM, prior_var_nm2 not
+ * finite or outside [0, p_max]). */
 int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float motor_angle_rad,
                          float output_angle_rad, float prior_var_nm2);
 

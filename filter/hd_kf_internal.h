@@ -118,6 +118,8 @@ uint32_t hd_kf_bound_covariance(hd_kf_t *kf, float finite_probe);
  * (T_exp plus the real-torque offset, followed by the motor's motion
  * fraction, held at standstill; capped at HD_KF_MAX_ABS_Y_NM). */
 float hd_kf_load_ref(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad);
+/* One step of the load the motor blocks learn at (hd_kf_t.learn_load_nm). */
+void hd_kf_learn_load(hd_kf_t *kf, float torque_expected_nm);
 /* The held output rows' next value into kf->output_row (output_follow):
  * the motor lines' growth since the profile import, read while `observed`,
  * else predicted from |T_ref|; HD_KF_STATUS_LOAD_BOUND where the target

@@ -201,6 +201,8 @@ int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_
         line->b_nm = sn * x1 + c * x2;
     }
     profile->line_count = (uint8_t)n;
+    profile->load_nm = kf->learn_load_weight > 0.0f ? kf->learn_load_nm / kf->learn_load_weight
+                                                    : -1.0f;
     return (int)n;
 }
 
@@ -215,7 +217,7 @@ static hd_kf_err_t check_profile(const hd_kf_t *kf, const hd_kf_profile_t *profi
         return HD_KF_ERR_ANGLE;
     }
     if (profile->line_count > HD_KF_MAX_BLOCKS || !is_nonneg(prior_var_nm2) ||
-        prior_var_nm2 > kf->cfg.p_max_nm2) {
+        prior_var_nm2 > kf->cfg.p_max_nm2 || profile->load_nm > HD_KF_MAX_ABS_Y_NM) {
         return HD_KF_ERR_PROFILE;
     }
     for (unsigned i = 0; i < profile->line_count; i++) {
@@ -275,6 +277,7 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
         kf->motor_ref[2u * s + 1u] = ref ? kf->x[2u * s + 1u] : 0.0f;
     }
     kf->follow_slots = matched & kf->output_slots;
+    kf->follow_load_nm = is_finite(profile->load_nm) ? profile->load_nm : -1.0f;
     hd_kf_follow_reference(kf);
     hd_kf_follow_restart(kf);
     return count;

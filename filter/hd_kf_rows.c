@@ -15,24 +15,66 @@ static float motion_fraction(const hd_kf_t *kf, float angle_rad)
                : a * kf->q_motion_inv_rad;
 }
 
+/* T_exp (+ the offset when it is real torque and primed): the torque the
+ * load-dependent rows scale with. */
+static float torque_now(const hd_kf_t *kf, float torque_expected_nm)
+{
+    float t_now = is_finite(torque_expected_nm) ? torque_expected_nm : 0.0f;
+    if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
+        t_now += kf->x[kf->offset_slot];
+    }
+    return t_now;
+}
+
+static float capped_abs(float t_nm)
+{
+    const float t = fabsf(t_nm);
+    return t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM;
+}
+
 /* |T_ref| of the load-dependent rows: T_ref starts at T_exp (+ the offset
  * when it is real torque and primed) and follows it by the motor's motion
  * fraction, held at standstill; capped at HD_KF_MAX_ABS_Y_NM so every row
  * stays finite. */
 float hd_kf_load_ref(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad)
 {
-    float t_now = is_finite(torque_expected_nm) ? torque_expected_nm : 0.0f;
-    if (kf->cfg.offset_enabled && !kf->cfg.offset_is_sensor_error && kf->offset_primed) {
-        t_now += kf->x[kf->offset_slot];
-    }
+    const float t_now = torque_now(kf, torque_expected_nm);
     if (!kf->load_ref_primed) {
         kf->load_ref_nm = t_now;
         kf->load_ref_primed = 1u;
     } else {
         kf->load_ref_nm += motion_fraction(kf, d_motor_rad) * (t_now - kf->load_ref_nm);
     }
-    const float t = fabsf(kf->load_ref_nm);
-    return t < HD_KF_MAX_ABS_Y_NM ? t : HD_KF_MAX_ABS_Y_NM;
+    return capped_abs(kf->load_ref_nm);
+}
+
+/* The load the motor blocks learn at: |T_now| exponentially weighted over
+ * the steps at which they learn at full motion (memory
+ * HD_KF_FOLLOW_MEMORY_S), kept unnormalized with its filled weight (no
+ * division per step); export's load_nm is their ratio. */
+void hd_kf_learn_load(hd_kf_t *kf, float torque_expected_nm)
+{
+    const float a = kf->cfg.ts_s * (1.0f / HD_KF_FOLLOW_MEMORY_S);
+    const float t = capped_abs(torque_now(kf, torque_expected_nm));
+    kf->learn_load_weight += a * (1.0f - kf->learn_load_weight);
+    kf->learn_load_nm += a * (t - kf->learn_load_nm);
+}
+
+/* The growth's regression at |T_ref| = t: its mean, plus the slope once
+ * HD_KF_FOLLOW_MIN_WEIGHT of its weight is filled (about that times
+ * HD_KF_FOLLOW_MEMORY_S of measured steps)
+ * and |T_ref| has spread, t taken within two of its standard deviations
+ * of its mean: no extrapolation from a short, narrow fit. */
+static float follow_predict(const hd_kf_t *kf, float t)
+{
+    float g_off = 0.0f;
+    if (kf->follow_weight >= HD_KF_FOLLOW_MIN_WEIGHT && kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2) {
+        const float span = 2.0f * sqrtf(kf->follow_var_t);
+        float dt = t - kf->follow_mean_t;
+        dt = dt > span ? span : (dt < -span ? -span : dt);
+        g_off = kf->follow_cov_tg / kf->follow_var_t * dt;
+    }
+    return kf->follow_mean_g + g_off;
 }
 
 /* The held output blocks' row (output_follow).  The growth g of the motor
@@ -40,11 +82,17 @@ float hd_kf_load_ref(hd_kf_t *kf, float torque_expected_nm, float d_motor_rad)
  * imported motor blocks (1 as imported, (1 + c |T|) / (1 + c |T_c|) for
  * lines grown by a common load factor), is measured while `observed` (every
  * motor block at full motion, turning at least HD_KF_FOLLOW_MIN_RAD per
- * step) and feeds an exponentially weighted regression of g on |T_ref|;
- * otherwise g is that regression's prediction at |T_ref| (held before its
- * first sample).  The target 1 + follow (g - 1) is refused beyond
- * [1 / max, max] (held at the bound: HD_KF_STATUS_LOAD_BOUND) and
- * low-passed into output_row.  No reference (no profile imported): 1. */
+ * step; not in the first HD_KF_FOLLOW_SETTLE_S after the import, while the
+ * motor blocks settle) and feeds an exponentially weighted regression of g
+ * on |T_ref|.  With the profile's load T_c known, g is that regression's
+ * prediction at |T_ref| over its prediction at T_c: only the growth the load
+ * explains (a constant |T_ref| explains none; lines changed since the
+ * commissioning by wear or temperature give the same g at both).  With T_c
+ * unknown (a version-1 record, a CAN upload), g is the measured growth, or
+ * the prediction on steps without a measurement: the whole growth.  The
+ * target 1 + follow (g - 1) is refused beyond [1 / max, max] (held at the
+ * bound: HD_KF_STATUS_LOAD_BOUND) and low-passed into output_row.  No
+ * reference (no profile imported) or no sample yet: 1. */
 uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
 {
     if (kf->motor_ref_inv <= 0.0f) {
@@ -52,6 +100,10 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
         return 0u;
     }
     float g;
+    if (kf->follow_settle_steps != 0u) {
+        kf->follow_settle_steps--; /* the motor blocks still settle on the joint as it is now */
+        observed = false;
+    }
     if (observed) {
         float sq = 0.0f;
         for (uint32_t left = kf->motor_slots; left != 0u; left &= left - 1u) {
@@ -75,20 +127,17 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
             kf->follow_cov_tg = (1.0f - a) * (kf->follow_cov_tg + a * dt * dg);
         }
     } else if (kf->follow_primed) {
-        /* the slope once half the regression's weight is filled
-         * (HD_KF_FOLLOW_MEMORY_S ln 2 of measured steps) and |T_ref| has
-         * spread, |T_ref| within two of its standard deviations of its mean:
-         * no extrapolation from a short, narrow fit */
-        float g_off = 0.0f;
-        if (kf->follow_weight >= 0.5f && kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2) {
-            const float span = 2.0f * sqrtf(kf->follow_var_t);
-            float dt = t_abs - kf->follow_mean_t;
-            dt = dt > span ? span : (dt < -span ? -span : dt);
-            g_off = kf->follow_cov_tg / kf->follow_var_t * dt;
-        }
-        g = kf->follow_mean_g + g_off;
+        g = follow_predict(kf, t_abs);
     } else {
         return 0u;
+    }
+    if (kf->follow_load_nm >= 0.0f) {
+        /* the growth the load explains: g's regression at |T_ref| over its
+         * value at the profile's load, which is what the lines changed by
+         * anything else (wear, temperature) give at that load */
+        g = follow_predict(kf, t_abs);
+        const float g_c = follow_predict(kf, kf->follow_load_nm);
+        g = g_c > 0.0f ? g / g_c : 1.0f;
     }
     const float hi = kf->cfg.output_row_max, lo = 1.0f / hi;
     float target = 1.0f + kf->cfg.output_row_follow * (g - 1.0f);

@@ -28,6 +28,7 @@ static void known_lines(const hd_fw_encoder_t *k, const hd_kf_profile_t *in,
         }
     }
     out->line_count = (uint8_t)n;
+    out->load_nm = in->load_nm;
 }
 
 static float wrap_angle(float a)

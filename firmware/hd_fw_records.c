@@ -104,7 +104,8 @@ size_t hd_profile_record_encode(const hd_profile_record_t *r, uint8_t *buf, size
     hd_le_put_f32(buf, r->gear_ratio);
     hd_le_put_u32(buf + 4u, r->motor_cpr);
     hd_le_put_u32(buf + 8u, r->output_cpr);
-    buf[12] = (uint8_t)n;
+    hd_le_put_f32(buf + 12u, r->profile.load_nm);
+    buf[16] = (uint8_t)n;
     uint8_t *at = buf + HD_PROFILE_RECORD_HEADER;
     for (unsigned i = 0; i < n; i++, at += HD_PROFILE_RECORD_LINE) {
         const hd_kf_profile_line_t *l = &r->profile.lines[i];
@@ -121,10 +122,15 @@ static bool finite_f32(float v)
     return (v - v) == 0.0f;
 }
 
-hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len,
+hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len, uint16_t version,
                                             hd_profile_record_t *out)
 {
-    if (buf == NULL || out == NULL || len < HD_PROFILE_RECORD_HEADER) {
+    if (version != HD_PROFILE_RECORD_VERSION && version != HD_PROFILE_RECORD_VERSION_V1) {
+        return HD_RECORD_BAD_VERSION;
+    }
+    const bool v1 = version == HD_PROFILE_RECORD_VERSION_V1;
+    const size_t header = v1 ? HD_PROFILE_RECORD_HEADER_V1 : HD_PROFILE_RECORD_HEADER;
+    if (buf == NULL || out == NULL || len < header) {
         return HD_RECORD_CORRUPT;
     }
     hd_profile_record_t r;
@@ -132,13 +138,15 @@ hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len,
     r.gear_ratio = hd_le_get_f32(buf);
     r.motor_cpr = hd_le_get_u32(buf + 4u);
     r.output_cpr = hd_le_get_u32(buf + 8u);
-    const unsigned n = buf[12];
-    if (n > HD_KF_MAX_BLOCKS || len != HD_PROFILE_RECORD_HEADER + HD_PROFILE_RECORD_LINE * n ||
+    r.profile.load_nm = v1 ? -1.0f : hd_le_get_f32(buf + 12u);
+    const unsigned n = buf[header - 1u];
+    if (n > HD_KF_MAX_BLOCKS || len != header + HD_PROFILE_RECORD_LINE * n ||
         !finite_f32(r.gear_ratio) || !(r.gear_ratio >= 1.0f) || r.motor_cpr == 0u ||
-        r.output_cpr == 0u) {
+        r.output_cpr == 0u || !finite_f32(r.profile.load_nm) ||
+        r.profile.load_nm > HD_KF_MAX_ABS_Y_NM) {
         return HD_RECORD_CORRUPT;
     }
-    const uint8_t *at = buf + HD_PROFILE_RECORD_HEADER;
+    const uint8_t *at = buf + header;
     for (unsigned i = 0; i < n; i++, at += HD_PROFILE_RECORD_LINE) {
         hd_kf_profile_line_t *l = &r.profile.lines[i];
         l->lock = at[0];
@@ -258,13 +266,18 @@ static hd_record_status_t load_profile(const hd_fw_t *fw, const hd_fw_config_t *
     hd_store_io_t io = hd_fw_store_io(fw->hal, NULL, 0u);
     uint8_t buf[HD_PROFILE_RECORD_MAX];
     size_t len = 0u;
-    hd_record_status_t st = hd_store_load(&io, HD_RECORD_KIND_PROFILE, HD_PROFILE_RECORD_VERSION,
-                                          buf, sizeof buf, &len, NULL, NULL);
+    uint16_t version = HD_PROFILE_RECORD_VERSION;
+    hd_record_status_t st = hd_store_load(&io, HD_RECORD_KIND_PROFILE, version, buf, sizeof buf,
+                                          &len, NULL, &version);
+    if (st == HD_RECORD_BAD_VERSION && version == HD_PROFILE_RECORD_VERSION_V1) {
+        st = hd_store_load(&io, HD_RECORD_KIND_PROFILE, version, buf, sizeof buf, &len, NULL,
+                           NULL); /* saved before the profile kept its load */
+    }
     if (!usable(st)) {
         return st;
     }
     hd_profile_record_t r;
-    hd_record_status_t dec = hd_profile_record_decode(buf, len, &r);
+    hd_record_status_t dec = hd_profile_record_decode(buf, len, version, &r);
     if (dec == HD_RECORD_OK) {
         dec = profile_fits(c, &r);
     }

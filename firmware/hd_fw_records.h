@@ -13,7 +13,11 @@
  *
  * The profile record's payload (HD_PROFILE_RECORD_VERSION), little-endian:
  *   f32 gear_ratio, u32 motor_cpr, u32 output_cpr   the joint it was made on
+ *   f32 load_nm    |T| the lines were learned at (hd_kf_profile_t.load_nm;
+ *                  negative: unknown)
  *   u8  n;  n x { u8 lock (0 motor, 1 output), u8 order, f32 a_nm, f32 b_nm }
+ * Version 1 (HD_PROFILE_RECORD_VERSION_V1) had no load_nm; it is still read,
+ * its load unknown.
  * ripple(alpha) = a cos(order alpha) + b sin(order alpha), alpha the absolute
  * motor or output angle (hd_kf.h, "angle-referenced profiles";
  * docs/design/slow-torque.md).  A record for another gear ratio or encoder
@@ -37,8 +41,10 @@ extern "C" {
 #define HD_CONFIG_RECORD_VERSION 1u
 #define HD_CONFIG_RECORD_MAX 512u
 
-#define HD_PROFILE_RECORD_VERSION 1u
-#define HD_PROFILE_RECORD_HEADER 13u
+#define HD_PROFILE_RECORD_VERSION 2u
+#define HD_PROFILE_RECORD_VERSION_V1 1u
+#define HD_PROFILE_RECORD_HEADER 17u
+#define HD_PROFILE_RECORD_HEADER_V1 13u
 #define HD_PROFILE_RECORD_LINE 10u
 #define HD_PROFILE_RECORD_MAX (HD_PROFILE_RECORD_HEADER + HD_PROFILE_RECORD_LINE * HD_KF_MAX_BLOCKS)
 
@@ -61,11 +67,13 @@ hd_record_status_t hd_config_record_decode(const uint8_t *buf, size_t len,
 /* Encodes r; returns the length, or 0 if cap is too small or r holds more
  * than HD_KF_MAX_BLOCKS lines. */
 size_t hd_profile_record_encode(const hd_profile_record_t *r, uint8_t *buf, size_t cap);
-/* Decodes a payload.  HD_RECORD_OK, or HD_RECORD_CORRUPT (length, more
- * lines than HD_KF_MAX_BLOCKS, a lock other than motor/output, order 0, a
- * non-finite number, a gear ratio below 1 or a cpr of 0); *out is written
- * only on OK. */
-hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len,
+/* Decodes a payload of `version` (HD_PROFILE_RECORD_VERSION, or _V1: its
+ * load_nm is -1, unknown).  HD_RECORD_OK, HD_RECORD_BAD_VERSION (another
+ * version), or HD_RECORD_CORRUPT (length, more lines than
+ * HD_KF_MAX_BLOCKS, a lock other than motor/output, order 0, a non-finite
+ * number, a gear ratio below 1, a cpr of 0, a load_nm that is not a
+ * number or above HD_KF_MAX_ABS_Y_NM); *out is written only on OK. */
+hd_record_status_t hd_profile_record_decode(const uint8_t *buf, size_t len, uint16_t version,
                                             hd_profile_record_t *out);
 
 #ifdef __cplusplus

@@ -36,16 +36,18 @@ int host_provision_profile(hal_t *hal, const char *path, char *err, size_t err_l
     int rc = -1;
     if (len < 12u || memcmp(b, "HDPF", 4) != 0) {
         snprintf(err, err_len, "%s: not a profile record file (no HDPF header)", path);
-    } else if (hd_le_get_u16(b + 4) != HD_PROFILE_RECORD_VERSION) {
-        snprintf(err, err_len, "%s: profile record format %u, this firmware reads %u", path,
-                 (unsigned)hd_le_get_u16(b + 4), (unsigned)HD_PROFILE_RECORD_VERSION);
+    } else if (hd_le_get_u16(b + 4) != HD_PROFILE_RECORD_VERSION &&
+               hd_le_get_u16(b + 4) != HD_PROFILE_RECORD_VERSION_V1) {
+        snprintf(err, err_len, "%s: profile record format %u, this firmware reads %u and %u", path,
+                 (unsigned)hd_le_get_u16(b + 4), (unsigned)HD_PROFILE_RECORD_VERSION_V1,
+                 (unsigned)HD_PROFILE_RECORD_VERSION);
     } else if ((size_t)hd_le_get_u16(b + 6) + 12u != len ||
                hd_crc32(b, len - 4u) != hd_le_get_u32(b + len - 4u)) {
         snprintf(err, err_len, "%s: profile record file damaged (length or CRC)", path);
     } else {
         static uint8_t work[HD_STORE_IMAGE_MAX];
         const hd_store_io_t s = hd_fw_store_io(hal, work, sizeof work);
-        rc = hd_store_save(&s, HD_RECORD_KIND_PROFILE, HD_PROFILE_RECORD_VERSION, b + 8,
+        rc = hd_store_save(&s, HD_RECORD_KIND_PROFILE, hd_le_get_u16(b + 4), b + 8,
                            len - 12u) == HD_RECORD_OK ? 0 : -1;
         if (rc != 0) {
             snprintf(err, err_len, "could not store the profile record in NVM");

@@ -73,7 +73,7 @@ int main(void)
     }
     hd_kf_profile_t p = {3, {{HD_KF_LOCK_MOTOR, 2, 0.7f, -0.4f},
                              {HD_KF_LOCK_MOTOR, 4, 0.1f, 0.25f},
-                             {HD_KF_LOCK_OUTPUT, 1, 0.3f, 0.2f}}};
+                             {HD_KF_LOCK_OUTPUT, 1, 0.3f, 0.2f}}, -1.0f};
     fw.bg.profile = p;
     double plain[3], imp[3], snap[3];
     for (int r = 0; r < 3; r++) { /* interleaved, three rounds */

@@ -356,23 +356,36 @@ typedef struct {
 } line_t;
 
 /* The payload of hd_fw_records.h, byte by byte. */
-static size_t payload(uint8_t *p, float gear, uint32_t mcpr, uint32_t ocpr, const line_t *l,
-                      unsigned n)
+/* The profile record's payload, written from hd_fw_records.h's layout:
+ * version 2 with its load_nm, or version 1 (no load_nm) when load_nm is
+ * NAN. */
+static size_t payload_load(uint8_t *p, float gear, uint32_t mcpr, uint32_t ocpr, const line_t *l,
+                           unsigned n, float load_nm)
 {
+    const size_t head = isnan(load_nm) ? 13u : 17u;
     memcpy(p, &gear, 4);
     for (int i = 0; i < 4; i++) {
         p[4 + i] = (uint8_t)(mcpr >> (8 * i));
         p[8 + i] = (uint8_t)(ocpr >> (8 * i));
     }
-    p[12] = (uint8_t)n;
+    if (head == 17u) {
+        memcpy(p + 12, &load_nm, 4);
+    }
+    p[head - 1u] = (uint8_t)n;
     for (unsigned i = 0; i < n; i++) {
-        uint8_t *q = p + 13 + 10 * i;
+        uint8_t *q = p + head + 10 * i;
         q[0] = l[i].lock;
         q[1] = l[i].order;
         memcpy(q + 2, &l[i].a, 4);
         memcpy(q + 6, &l[i].b, 4);
     }
-    return 13u + 10u * n;
+    return head + 10u * n;
+}
+
+static size_t payload(uint8_t *p, float gear, uint32_t mcpr, uint32_t ocpr, const line_t *l,
+                      unsigned n)
+{
+    return payload_load(p, gear, mcpr, ocpr, l, n, 0.0f);
 }
 
 static void store_payload(const uint8_t *p, size_t len, uint16_t version)
@@ -438,6 +451,32 @@ static void test_boot_predicts_the_stored_profile_from_the_first_sample(void)
     TEST_ASSERT_TRUE(fabs(expect) > 0.3); /* not a zero crossing by chance */
     TEST_ASSERT_EQUAL_UINT32(1, hd_fw_counters(&fw)->profile_imports);
     TEST_ASSERT_EQUAL_HEX32(0, last()->faults & HD_FAULT_PROFILE_UNUSABLE);
+}
+
+/* The record's load_nm reaches the filter as the held output rows' T_c; a
+ * version-1 record (saved before the profile kept its load) still boots,
+ * its lines the same, its load unknown (-1). */
+static void boot_payload(float load_nm)
+{
+    uint8_t p[128];
+    with_output = true;
+    const size_t len = payload_load(p, 100.0f, CPR, CPR, LINES, 3, load_nm);
+    store_payload(p, len, isnan(load_nm) ? HD_PROFILE_RECORD_VERSION_V1
+                                         : HD_PROFILE_RECORD_VERSION);
+    boot_filtering();
+    TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, hd_fw_record_status(&fw, HD_RECORD_KIND_PROFILE));
+    tick_n(1, 1000, 5);
+    TEST_ASSERT_EQUAL_UINT32(1, hd_fw_counters(&fw)->profile_imports);
+    TEST_ASSERT_DOUBLE_WITHIN(2e-5, predicted(LINES, 3, motor, outc, true),
+                              (double)last()->ripple_nm);
+}
+
+static void test_profile_load_reaches_the_filter_and_version_1_still_boots(void)
+{
+    boot_payload(2.5f);
+    TEST_ASSERT_EQUAL_FLOAT(2.5f, live_pipe()->kf.follow_load_nm);
+    boot_payload(NAN);
+    TEST_ASSERT_EQUAL_FLOAT(-1.0f, live_pipe()->kf.follow_load_nm);
 }
 
 static void test_without_an_output_encoder_output_lines_are_not_used(void)
@@ -632,6 +671,9 @@ static void upload(const line_t *l, unsigned n)
     }
 }
 
+/* The stored record's load_nm, as stored_lines last read it. */
+static float stored_load_nm;
+
 /* Reads the stored record and parses it by the documented layout. */
 static unsigned stored_lines(line_t *l, float *gear)
 {
@@ -645,13 +687,14 @@ static unsigned stored_lines(line_t *l, float *gear)
     }
     TEST_ASSERT_EQUAL_INT(HD_RECORD_OK, st);
     memcpy(gear, p, 4);
-    unsigned n = p[12];
-    TEST_ASSERT_EQUAL_UINT(13u + 10u * n, len);
+    memcpy(&stored_load_nm, p + 12, 4);
+    unsigned n = p[16];
+    TEST_ASSERT_EQUAL_UINT(17u + 10u * n, len);
     for (unsigned i = 0; i < n; i++) {
-        l[i].lock = p[13 + 10 * i];
-        l[i].order = p[14 + 10 * i];
-        memcpy(&l[i].a, p + 15 + 10 * i, 4);
-        memcpy(&l[i].b, p + 19 + 10 * i, 4);
+        l[i].lock = p[17 + 10 * i];
+        l[i].order = p[18 + 10 * i];
+        memcpy(&l[i].a, p + 19 + 10 * i, 4);
+        memcpy(&l[i].b, p + 23 + 10 * i, 4);
     }
     return n;
 }
@@ -807,6 +850,7 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
     hal_mock_push_rx(&mock, &f);
     const uint32_t seq0 = fw.filter.snapshot_seq;
     float x[3][2] = {{0}};
+    float load_nm = -2.0f;
     uint32_t at_m = 0, at_o = 0;
     hd_can_ack_t a;
     memset(&a, 0xEE, sizeof a);
@@ -822,6 +866,9 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
                 x[s][0] = hd_kf_state(&live_pipe()->kf, 2 * s);
                 x[s][1] = hd_kf_state(&live_pipe()->kf, 2 * s + 1);
             }
+            const hd_kf_t *kf = &live_pipe()->kf;
+            load_nm = kf->learn_load_weight > 0.0f ? kf->learn_load_nm / kf->learn_load_weight
+                                                   : -1.0f; /* hd_kf.h: none learned */
         }
         for (uint32_t k = before; k < hal_mock_tx_count(&mock); k++) {
             if (hal_mock_tx(&mock, k)->id == id_of(HD_CAN_FRAME_ACK, 1)) {
@@ -848,6 +895,9 @@ static void test_snapshot_save_is_the_filter_at_a_tick_boundary(void)
     }
     /* the filter has moved away from the booted profile: this saved its own */
     TEST_ASSERT_TRUE(fabsf(back[0].a - LINES[0].a) + fabsf(back[0].b - LINES[0].b) > 1e-3f);
+    /* and the load its motor lines were learned at, at the same tick */
+    TEST_ASSERT_TRUE(load_nm != -2.0f);
+    TEST_ASSERT_EQUAL_FLOAT(load_nm, stored_load_nm);
 }
 
 /* Operating mode with a learn scale of 0: output-locked blocks keep the
@@ -955,6 +1005,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_motor_current_variance_at_standstill_and_speed);
     RUN_TEST(test_no_current_channel);
     RUN_TEST(test_boot_predicts_the_stored_profile_from_the_first_sample);
+    RUN_TEST(test_profile_load_reaches_the_filter_and_version_1_still_boots);
     RUN_TEST(test_without_an_output_encoder_output_lines_are_not_used);
     RUN_TEST(test_profile_for_another_gear_ratio_is_refused);
     RUN_TEST(test_profile_for_another_motor_encoder_is_refused);

@@ -84,11 +84,12 @@ def test_record_round_trip_and_layout(tmp_path):
     # the documented layout, read here independently
     assert data[:4] == b"HDPF"
     version, length = struct.unpack_from("<HH", data, 4)
-    assert (version, length, len(data)) == (1, 13 + 10 * 3, 12 + 13 + 30)
+    assert (version, length, len(data)) == (2, 17 + 10 * 3, 12 + 17 + 30)
     assert zlib.crc32(data[:-4]) == struct.unpack("<I", data[-4:])[0]
-    gear, mcpr, ocpr, n = struct.unpack_from("<fIIB", data, 8)
-    assert (gear, mcpr, ocpr, n) == (100.0, 4096, 4096, 3)   # the joint's ratio, not the log's
-    assert struct.unpack_from("<BBff", data, 8 + 13 + 20)[:2] == (1, 3)
+    gear, mcpr, ocpr, load, n = struct.unpack_from("<fIIfB", data, 8)
+    # the joint's ratio, not the log's; no load_nm in the json: unknown
+    assert (gear, mcpr, ocpr, load, n) == (100.0, 4096, 4096, -1.0, 3)
+    assert struct.unpack_from("<BBff", data, 8 + 17 + 20)[:2] == (1, 3)
     back = json.loads(hdsense("profile", "json", rec).stdout)
     assert len(back["lines"]) == 3  # zip below stops at the shorter list
     for (lock, order, a, b), ln in zip(MOCK_LINES + [("output", 3, -0.25, 0.125)], back["lines"]):
@@ -115,6 +116,34 @@ def test_bad_profiles_are_refused_in_one_line(tmp_path, lines, gear, why):
     assert not out.exists()
 
 
+def test_record_load_and_version_1(tmp_path):
+    """profile.json's load_nm travels in the record (version 2); a version-1
+    file (no load_nm, 13-byte header), written here from the documented
+    layout, is still read and stored by hdjoint-host, its load unknown."""
+    src = profile_json(tmp_path / "p.json", MOCK_LINES)
+    doc = json.loads(src.read_text())
+    doc["load_nm"] = 2.5
+    src.write_text(json.dumps(doc))
+    rec = tmp_path / "p.hdprofile"
+    hdsense("profile", "record", src, "-o", rec, *JOINT)
+    assert struct.unpack_from("<f", rec.read_bytes(), 8 + 12)[0] == 2.5
+    assert json.loads(hdsense("profile", "json", rec).stdout)["load_nm"] == 2.5
+    body = struct.pack("<fIIB", 100.0, 4096, 4096, 2) + b"".join(
+        struct.pack("<BBff", 0, o, a, b) for _, o, a, b in MOCK_LINES)
+    head = b"HDPF" + struct.pack("<HH", 1, len(body)) + body
+    v1 = tmp_path / "v1.hdprofile"
+    v1.write_bytes(head + struct.pack("<I", zlib.crc32(head)))
+    back = json.loads(hdsense("profile", "json", v1).stdout)
+    assert back["load_nm"] is None and len(back["lines"]) == 2
+    h = subprocess.run([str(need(HOST)), "--sensors", "mock", "--duration", "0.1",
+                        "--profile", str(v1)], capture_output=True, text=True)
+    assert h.returncode == 0, h.stderr
+    doc["load_nm"] = -1.0
+    src.write_text(json.dumps(doc))
+    p = hdsense("profile", "record", src, "-o", tmp_path / "neg.hdprofile", *JOINT, check=False)
+    assert p.returncode == 2 and "load_nm" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
 def test_bad_record_files_are_refused(tmp_path):
     rec = tmp_path / "p.hdprofile"
     hdsense("profile", "record", profile_json(tmp_path / "p.json", MOCK_LINES), "-o", rec, *JOINT)
@@ -122,9 +151,9 @@ def test_bad_record_files_are_refused(tmp_path):
     cases = {"damaged": good[:20] + bytes([good[20] ^ 1]) + good[21:],
              "magic": b"XXXX" + good[4:],
              "short": good[:-1]}
-    v2 = bytearray(good[:-4])
-    v2[4] = 2
-    cases["version"] = bytes(v2) + struct.pack("<I", zlib.crc32(bytes(v2)))
+    v3 = bytearray(good[:-4])
+    v3[4] = 3
+    cases["version"] = bytes(v3) + struct.pack("<I", zlib.crc32(bytes(v3)))
     for name, blob in cases.items():
         bad = tmp_path / f"{name}.hdprofile"
         bad.write_bytes(blob)

@@ -93,9 +93,11 @@ def load_profile(path: str) -> tuple[list, float]:
 
 def _record(args) -> int:
     lines, gear = load_profile(args.profile)
+    doc = json.loads(read_text(args.profile, 1 << 20).removeprefix("\ufeff"))
     joint_gear, mcpr, ocpr = _joint(args)
     pr.check_gear(gear, joint_gear, args.profile)
-    data = pr.file_bytes(pr.Record(joint_gear, mcpr, ocpr, lines))
+    data = pr.file_bytes(pr.Record(joint_gear, mcpr, ocpr, lines,
+                                   pr.load_from_json(doc, args.profile)))
     with Outputs() as out:
         out.write_bytes(args.out, data)
         out.commit()

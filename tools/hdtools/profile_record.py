@@ -3,8 +3,10 @@
 hdjoint-host --profile stores <-> the CAN commands that upload it.
 
 Payload (firmware/hd_fw_records.h, HD_PROFILE_RECORD_VERSION), little-endian:
-  f32 gear_ratio, u32 motor_cpr, u32 output_cpr, u8 n,
+  f32 gear_ratio, u32 motor_cpr, u32 output_cpr, f32 load_nm, u8 n,
   n x {u8 lock (0 motor, 1 output), u8 order, f32 a_nm, f32 b_nm}
+load_nm: |T| the lines were learned at, negative when unknown; version 1
+(HD_PROFILE_RECORD_VERSION_V1) had no load_nm and is still read.
 Record file: b"HDPF", u16 format version, u16 payload length, payload, u32
 CRC-32 (zlib) of everything before it.  A line predicts
 a cos(order alpha) + b sin(order alpha), alpha the absolute motor or output
@@ -38,8 +40,10 @@ def _define(path: str, name: str) -> int:
 
 
 VERSION = _define("firmware/hd_fw_records.h", "HD_PROFILE_RECORD_VERSION")
+VERSION_V1 = _define("firmware/hd_fw_records.h", "HD_PROFILE_RECORD_VERSION_V1")
 MAX_LINES = _define("filter/hd_kf.h", "HD_KF_MAX_BLOCKS")
-_HEAD = struct.Struct("<fIIB")
+_HEAD = struct.Struct("<fIIfB")
+_HEAD_V1 = struct.Struct("<fIIB")
 _LINE = struct.Struct("<BBff")
 
 
@@ -57,6 +61,7 @@ class Record:
     motor_cpr: int
     output_cpr: int
     lines: list[Line] = field(default_factory=list)
+    load_nm: float = -1.0   # |T| the lines were learned at; negative: unknown
 
 
 def check_joint(gear_ratio: float, motor_cpr: int, output_cpr: int) -> None:
@@ -85,7 +90,10 @@ def check_lines(lines: list[Line], where: str) -> None:
 def payload(rec: Record) -> bytes:
     check_joint(rec.gear_ratio, rec.motor_cpr, rec.output_cpr)
     check_lines(rec.lines, "profile")
-    out = [_HEAD.pack(rec.gear_ratio, rec.motor_cpr, rec.output_cpr, len(rec.lines))]
+    if not math.isfinite(rec.load_nm):
+        raise UsageError(f"profile: load_nm {rec.load_nm} is not a finite number")
+    out = [_HEAD.pack(rec.gear_ratio, rec.motor_cpr, rec.output_cpr, rec.load_nm,
+                      len(rec.lines))]
     out += [_LINE.pack(LOCKS.index(ln.lock), ln.order, ln.a_nm, ln.b_nm) for ln in rec.lines]
     return b"".join(out)
 
@@ -101,21 +109,30 @@ def parse_file(data: bytes, name: str) -> Record:
     if len(data) < 12 or data[:4] != MAGIC:
         raise UsageError(f"{name}: not a profile record file (no HDPF header)")
     version, length = struct.unpack_from("<HH", data, 4)
-    if version != VERSION:
-        raise UsageError(f"{name}: profile record format {version}, this tool reads {VERSION}")
+    if version not in (VERSION, VERSION_V1):
+        raise UsageError(f"{name}: profile record format {version}, this tool reads "
+                         f"{VERSION_V1} and {VERSION}")
     if length + 12 != len(data) or zlib.crc32(data[:-4]) != struct.unpack("<I", data[-4:])[0]:
         raise UsageError(f"{name}: damaged (length or CRC-32)")
     body = data[8:-4]
-    gear, mcpr, ocpr, n = _HEAD.unpack_from(body, 0)
-    if len(body) != _HEAD.size + n * _LINE.size:
+    head = _HEAD if version == VERSION else _HEAD_V1
+    if len(body) < head.size:
+        raise UsageError(f"{name}: damaged (payload shorter than its header)")
+    if version == VERSION:
+        gear, mcpr, ocpr, load, n = head.unpack_from(body, 0)
+    else:
+        (gear, mcpr, ocpr, n), load = head.unpack_from(body, 0), -1.0
+    if len(body) != head.size + n * _LINE.size:
         raise UsageError(f"{name}: {n} lines do not fill the payload")
+    if not math.isfinite(load):
+        raise UsageError(f"{name}: load_nm is not a finite number")
     lines = []
     for i in range(n):
-        lock, order, a, b = _LINE.unpack_from(body, _HEAD.size + i * _LINE.size)
+        lock, order, a, b = _LINE.unpack_from(body, head.size + i * _LINE.size)
         if lock >= len(LOCKS):
             raise UsageError(f"{name}: line {i + 1}: lock {lock} (0 motor, 1 output)")
         lines.append(Line(LOCKS[lock], order, a, b))
-    rec = Record(gear, mcpr, ocpr, lines)
+    rec = Record(gear, mcpr, ocpr, lines, load)
     check_lines(lines, name)
     return rec
 
@@ -150,6 +167,17 @@ def lines_from_json(doc, name: str) -> tuple[list[Line], float]:
     return lines, gear
 
 
+def load_from_json(doc: dict, name: str) -> float:
+    """A profile.json's optional load_nm (|T| its lines were learned at);
+    -1 (unknown) when absent or null."""
+    if doc.get("load_nm") is None:
+        return -1.0
+    load = _number(doc, "load_nm", name)
+    if load < 0.0:
+        raise UsageError(f"{name}: load_nm {load:g} is negative (leave it out when unknown)")
+    return load
+
+
 def check_gear(profile_gear: float, joint_gear: float, name: str) -> None:
     if abs(profile_gear - joint_gear) > GEAR_TOLERANCE * joint_gear:
         raise UsageError(f"{name}: made for gear ratio {profile_gear:g}, the joint has "
@@ -162,6 +190,7 @@ def to_json(rec: Record, source: str) -> dict:
                                 "sin(order alpha); alpha = the absolute motor angle (lock motor) "
                                 "or output angle (lock output) in rad, 2 pi (counts mod cpr) / cpr",
             "ripple_load_coeff_per_nm": None,
+            "load_nm": rec.load_nm if rec.load_nm >= 0.0 else None,
             "lines": [{"lock": ln.lock, "order": ln.order, "a_nm": ln.a_nm, "b_nm": ln.b_nm}
                       for ln in rec.lines],
             "source": {"record": source, "motor_cpr": rec.motor_cpr,

@@ -161,7 +161,12 @@ class KfState(ctypes.Structure):
                 ("follow_var_t", c_float),
                 ("follow_cov_tg", c_float),
                 ("follow_weight", c_float),
-                ("motor_ref", c_float * (2 * MAX_BLOCKS))]
+                ("motor_ref", c_float * (2 * MAX_BLOCKS)),
+                ("follow_load_nm", c_float),
+                ("follow_settle_steps", c_uint32),
+                ("follow_settle_total", c_uint32),
+                ("learn_load_nm", c_float),
+                ("learn_load_weight", c_float)]
 
 
 class Track(ctypes.Structure):
@@ -215,7 +220,8 @@ class ProfileLine(ctypes.Structure):
 
 class Profile(ctypes.Structure):
     """hd_kf_profile_t"""
-    _fields_ = [("line_count", c_uint8), ("lines", ProfileLine * MAX_BLOCKS)]
+    _fields_ = [("line_count", c_uint8), ("lines", ProfileLine * MAX_BLOCKS),
+                ("load_nm", c_float)]
 
 
 class PipelineIO(ctypes.Structure):
@@ -371,6 +377,7 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
     if profile is not None:
         lines, th_m0, th_o0, prior = profile
         pr = Profile()
+        pr.load_nm = -1.0     # unknown: the analysis does not estimate it
         pr.line_count = len(lines)
         for i, (lock, order, a, b) in enumerate(lines):
             pr.lines[i].lock, pr.lines[i].order = lock, int(order)
