@@ -25,6 +25,14 @@
  * --preroll N: the first N ticks run ZERO_TORQUE with the dynamometer on
  * the input's speed whatever the load (the joint back-driven, so that the
  * filter has seen it move before the scene starts).
+ * --sensor gauge|ideal: gauge (the default) is the simulated strain gauge,
+ * the true output torque plus its sensing artifact (the 2x line that moves
+ * nothing) and white noise; ideal is the same gauge with the artifact and
+ * the noise switched off (gauge_ripple_nm 0, noise_nm 0): it reads the
+ * simulation's true output torque (the real meshing ripple included) to
+ * the ADC's resolution, a tick late as the gauge does.  A bench-only
+ * diagnostic (the control benchmark's ideal-sensor bound), not a product
+ * sensor: the firmware is the same, only the simulated sensor changes.
  * Every other parameter is the firmware's default and the simulated joint's
  * default: the firmware is told nothing about the plant.
  * Exit 0 with OUT whole, or one line on stderr and 1 (2: usage).
@@ -57,6 +65,7 @@ typedef struct {
     double imp_kp, imp_kd, imp_q_rad;
     unsigned seed;
     size_t preroll;
+    int sensor;         /* 0 gauge, 1 ideal (bench-only: no artifact, no noise) */
 } opts_t;
 
 static hal_mock_t mock; /* the CAN part only */
@@ -104,6 +113,7 @@ static int parse(int argc, char **argv, opts_t *o)
     static const char *const modes[] = {"stop", "damp", "torque", "impedance", "zero_torque"};
     static const char *const fbs[] = {"filtered", "raw", "lowpass", "none"};
     static const char *const loads[] = {"dyno", "free", "wall"};
+    static const char *const sensors[] = {"gauge", "ideal"};
     const hd_ctrl_config_t *d = NULL;
     static hd_ctrl_config_t def;
     hd_ctrl_config_default(&def);
@@ -153,6 +163,7 @@ static int parse(int argc, char **argv, opts_t *o)
         } else if (strcmp(k, "--mode") == 0 && (o->mode = pick(v, modes, 5)) >= 0) {
         } else if (strcmp(k, "--feedback") == 0 && (o->feedback = pick(v, fbs, 4)) >= 0) {
         } else if (strcmp(k, "--load") == 0 && (o->load = pick(v, loads, 3)) >= 0) {
+        } else if (strcmp(k, "--sensor") == 0 && (o->sensor = pick(v, sensors, 2)) >= 0) {
         } else if (strcmp(k, "--lowpass-order") == 0 && num) {
             o->lowpass_order = (int)x;
         } else if (strcmp(k, "--notch-mask") == 0 && num && x >= 0 && x <= 255) {
@@ -171,7 +182,7 @@ static int parse(int argc, char **argv, opts_t *o)
                         "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
                         "--notch-width-hz --friction-rest-nm --friction-rate] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
                         "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
-                        "--imp-q] [--preroll N] [--seed]\n");
+                        "--imp-q] [--preroll N] [--seed] [--sensor gauge|ideal]\n");
         return -1;
     }
     return 0;
@@ -242,6 +253,10 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
     sc.offset_v = 0.0; /* the firmware's default calibration: no record stored */
     sc.gain_nm_per_v = HD_CALIB_NOMINAL_GAIN_NM_PER_V;
     sc.seed = o->seed;
+    if (o->sensor == 1) { /* the ideal-sensor bound: the gauge without what is not torque */
+        jp.gauge_ripple_nm = 0.0;
+        sc.noise_nm = 0.0;
+    }
     char err[120];
     if (hal_simdyn_init(&dyn, &jp, &dc, &sc, err, sizeof err) != 0) {
         return fail("simulated joint", err);

@@ -67,9 +67,10 @@ class Variant:
     notch_mask: int = 0
     notch_width_hz: float = 10.0
     friction_rest_nm: float = 0.0      # the law's friction compensation at rest
+    sensor: str = "gauge"              # gauge | ideal (hdctrl-bench --sensor: bench-only)
 
     def options(self) -> list[str]:
-        return ["--feedback", self.feedback, "--kp", f"{self.kp:.6g}", "--ki", f"{self.ki:.6g}",
+        return ["--sensor", self.sensor, "--feedback", self.feedback, "--kp", f"{self.kp:.6g}", "--ki", f"{self.ki:.6g}",
                 "--ff", f"{self.ff:.6g}", "--kd", f"{self.kd:.6g}", "--ilim", f"{self.ilim:.6g}", "--lowpass-hz", f"{self.lowpass_hz:.6g}",
                 "--lowpass-order", str(self.lowpass_order), "--notch-mask",
                 str(self.notch_mask), "--notch-width-hz", f"{self.notch_width_hz:.6g}",

@@ -8,6 +8,8 @@ import math
 
 from hdtools import docblock
 
+from .control import IDEAL_LABEL
+
 BLOCK = "control-results"
 BEGIN, END = docblock.markers(BLOCK)
 INTEGRAL_NOTE = "1.25x the largest open-loop back-drive torque of the transparency rows"
@@ -47,14 +49,17 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     out.append(("The joint controller's goals against this run (benchmark numbers, not pass/fail tests)",
                 ["goal", "worst", "where", "status"],
                 [[g["goal"], _n(g["worst"], "{:.3g}"), g["where"],
-                  "met" if g["met"] else "NOT met"] for g in res["goals"]]))
+                  g.get("status") or ("met" if g["met"] else "NOT met")]
+                 for g in res["goals"]]))
     conds = sorted({c for t in res["tuning"].values() for c in t.get("measured", {})},
                    key=lambda c: (c == "wall", c))
     tab = []
     for key, t in res["tuning"].items():
         cfg = rows[key]["config"]
         what = cfg["feedback"]
-        if cfg["feedback"] == "lowpass":
+        if cfg.get("sensor") == "ideal":
+            what = IDEAL_LABEL
+        elif cfg["feedback"] == "lowpass":
             what = f"Butterworth order {cfg['lowpass_order']}, {cfg['lowpass_hz']:g} Hz"
         elif cfg["notch_mask"]:
             what = f"raw, notches at orders 2 and 4 ({cfg['notch_width_hz']:g} Hz wide)"
@@ -84,7 +89,8 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     tab = []
     for key, r in rows.items():
         sp = r["speeds"]
-        tab.append([key + (" (best low-pass)" if key == best else "")]
+        tab.append([key + (" (best low-pass)" if key == best else "")
+                    + (f" ({IDEAL_LABEL})" if r["config"].get("sensor") == "ideal" else "")]
                    + [_bw(sp[s]["chirp"]) for s in speeds]
                    + [f"{_n(sp[s]['step']['overshoot_pct'], '{:.0f}')} / "
                       f"{_n(sp[s]['step']['settle_ms'], '{:.0f}')}" for s in speeds])
