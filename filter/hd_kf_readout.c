@@ -277,5 +277,6 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
     kf->follow_slots = matched & kf->output_slots;
     hd_kf_follow_reference(kf);
     hd_kf_follow_restart(kf);
+    hd_kf_profile_motion(kf, matched);
     return count;
 }
