@@ -135,6 +135,7 @@ hd_kf_err_t hd_kf_config_check(const hd_kf_config_t *cfg)
         return HD_KF_ERR_NOISE;
     }
     if (!is_nonneg(cfg->offset_jump_nm) || !is_nonneg(cfg->q_motion_ref_rad) ||
+        !is_nonneg(cfg->q_motion_ref_profiled_rad) ||
         !is_nonneg(cfg->ripple_load_coeff_per_nm) ||
         cfg->ripple_load_coeff_per_nm > HD_KF_MAX_LOAD_COEFF_PER_NM ||
         !is_nonneg(cfg->output_p0_nm2) || cfg->output_p0_nm2 > cfg->p_max_nm2 ||
@@ -227,17 +228,26 @@ static bool over_nyquist(const hd_kf_t *kf, const hd_kf_slot_t *sl, float d)
     return !(fabsf(sl->theta_per_unit * d) <= kf->nyquist_limit_rad);
 }
 
+/* Slot s's motion fraction from the reference ref_rad (0: none, motion 1;
+ * fixed blocks never scaled) and, for a motor block, the increment from
+ * which it is 1.  theta_per_unit set. */
+static void set_motion_ref(hd_kf_t *kf, unsigned s, float ref_rad)
+{
+    hd_kf_slot_t *sl = &kf->slot[s];
+    const bool motion_scaled = ref_rad > 0.0f && sl->lock != HD_KF_LOCK_FIXED;
+    sl->motion_inv = motion_scaled ? 1.0f / ref_rad : 0.0f;
+    sl->motion_bias = motion_scaled ? 0.0f : 1.0f;
+    sl->full_rad = sl->lock == HD_KF_LOCK_MOTOR ? first_float(kf, sl, motion_full) : 0.0f;
+}
+
 static void build_slot(hd_kf_t *kf, unsigned block)
 {
     const hd_kf_block_config_t *b = &kf->cfg.blocks[block];
     hd_kf_slot_t *sl = &kf->slot[block];
-    const bool motion_scaled = kf->cfg.q_motion_ref_rad > 0.0f && b->lock != HD_KF_LOCK_FIXED;
     *sl = (hd_kf_slot_t){0};
     sl->lock = b->lock;
     sl->enabled = b->enabled ? 1u : 0u;
     sl->theta_per_unit = b->order;
-    sl->motion_inv = motion_scaled ? 1.0f / kf->cfg.q_motion_ref_rad : 0.0f;
-    sl->motion_bias = motion_scaled ? 0.0f : 1.0f;
     sl->q_nm2 = b->q_nm2;
     sl->p0_nm2 = kf->cfg.p0_nm2;
     sl->learn = 1.0f;
@@ -250,9 +260,7 @@ static void build_slot(hd_kf_t *kf, unsigned block)
         sl->theta_per_unit = HD_TWO_PI_F * b->order * kf->cfg.ts_s;
         hd_sincosf(sl->theta_per_unit, &sl->fixed_sin, &sl->fixed_cos);
     }
-    if (b->lock == HD_KF_LOCK_MOTOR) {
-        sl->full_rad = first_float(kf, sl, motion_full);
-    }
+    set_motion_ref(kf, block, kf->cfg.q_motion_ref_rad);
     if (b->lock != HD_KF_LOCK_FIXED) {
         sl->frozen_rad = first_float(kf, sl, over_nyquist);
     }
@@ -307,6 +315,18 @@ static void short_plan_ranges(hd_kf_t *kf)
             }
         }
     }
+}
+
+void hd_kf_profile_motion(hd_kf_t *kf, uint32_t held)
+{
+    if (!(kf->cfg.q_motion_ref_profiled_rad > 0.0f)) {
+        return; /* off: every block keeps q_motion_ref_rad (build_slot's) */
+    }
+    for (unsigned s = 0; s < kf->cfg.block_count; s++) {
+        set_motion_ref(kf, s, (held & (1u << s)) != 0u ? kf->cfg.q_motion_ref_profiled_rad
+                                                       : kf->cfg.q_motion_ref_rad);
+    }
+    short_plan_ranges(kf);
 }
 
 /* Builds every configured block's slot and the per-step constants.  A
@@ -414,6 +434,7 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->follow_load_nm = -1.0f;
     kf->learn_load_nm = kf->learn_load_weight = 0.0f;
     hd_kf_follow_restart(kf);
+    hd_kf_profile_motion(kf, 0u); /* no line held any more */
     kf->drift_hold_steps = kf->drift_hold_total; /* the load unknown until the gate is quiet */
 }
 
@@ -468,6 +489,9 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     kf->cfg.blocks[block].enabled = enabled ? 1u : 0u;
     kf->slot[block].enabled = enabled ? 1u : 0u;
     hd_kf_clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
+    if (kf->cfg.q_motion_ref_profiled_rad > 0.0f) {
+        set_motion_ref(kf, block, kf->cfg.q_motion_ref_rad); /* its line is gone */
+    }
     short_plan_ranges(kf);
     kf->motor_ref[2u * block] = kf->motor_ref[2u * block + 1u] = 0.0f;
     kf->follow_slots &= ~(1u << block);

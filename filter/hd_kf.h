@@ -67,7 +67,12 @@
  *   - motion fraction m = min(1, |theta| / q_motion_ref_rad) for motor- and
  *     output-locked blocks (1 when q_motion_ref_rad is 0, and for fixed
  *     blocks); process noise per state per step = q_nm2 m, times
- *     output_learn_scale for output-locked blocks;
+ *     output_learn_scale for output-locked blocks.  With
+ *     q_motion_ref_profiled_rad > 0, a block given a line by
+ *     hd_kf_profile_import takes that reference instead, until an import
+ *     that gives it none, hd_kf_reset or its toggle (a line a profile holds
+ *     learns only from motion clearly faster than the offset settles:
+ *     docs/design/filter.md, "Slow motor blocks");
  *   - gain fraction: m for motor-locked blocks, output_learn_scale for
  *     output-locked blocks, 1 for fixed blocks and the offset, 0 for a frozen
  *     block;
@@ -250,6 +255,10 @@ typedef struct {
                                       states; 0: off (rows 1) */
     float output_row_max;          /* with output_row_follow > 0: the envelope of that
                                       row, [1 / this, this]; in [1, HD_KF_MAX_OUTPUT_ROW] */
+    float q_motion_ref_profiled_rad; /* > 0: the q_motion_ref_rad of a motor- or
+                                      output-locked block that holds an imported profile
+                                      line (hd_kf_profile_import; until a reset or its
+                                      toggle); 0: off (q_motion_ref_rad for every block) */
 } hd_kf_config_t;
 
 /* Per-step input. */
@@ -532,7 +541,9 @@ int hd_kf_profile_export(const hd_kf_t *kf, float motor_angle_rad, float output_
  * the filter unchanged: HD_KF_ERR_NULL, HD_KF_ERR_ANGLE, HD_KF_ERR_PROFILE
  * (line_count > HD_KF_MAX_BLOCKS, a lock other than motor/output, order 0,
  * a non-finite a or b, load_nm above HD_KF_MAX_ABS_Y_NM, prior_var_nm2 not
- * finite or outside [0, p_max]). */
+ * finite or outside [0, p_max]).  With q_motion_ref_profiled_rad > 0 the
+ * blocks matched take it as their motion reference, every other block
+ * q_motion_ref_rad. */
 int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float motor_angle_rad,
                          float output_angle_rad, float prior_var_nm2);
 

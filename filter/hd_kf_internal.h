@@ -106,6 +106,10 @@ void hd_kf_clear_block(hd_kf_t *kf, unsigned s, float v);
 void hd_kf_follow_reference(hd_kf_t *kf);
 /* The held output rows start again at 1, their regression empty (hd_kf.c). */
 void hd_kf_follow_restart(hd_kf_t *kf);
+/* With q_motion_ref_profiled_rad > 0: the blocks of `held` (by configured
+ * index) take it as their motion reference, the others q_motion_ref_rad,
+ * and the short plans' ranges follow; nothing when it is 0 (hd_kf.c). */
+void hd_kf_profile_motion(hd_kf_t *kf, uint32_t held);
 
 /* Phase lost: the blocks of `lost` restart from zero with their priors,
  * decorrelated, in one pass over P (hd_kf_bounds.c). */

@@ -280,5 +280,6 @@ int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float moto
     kf->follow_load_nm = is_finite(profile->load_nm) ? profile->load_nm : -1.0f;
     hd_kf_follow_reference(kf);
     hd_kf_follow_restart(kf);
+    hd_kf_profile_motion(kf, matched);
     return count;
 }

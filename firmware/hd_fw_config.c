@@ -40,6 +40,11 @@ void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out)
     out->output_learn_scale = (cfg->learning_mode == HD_FW_LEARN_OPERATING)
                                   ? cfg->operating_output_learn_scale
                                   : 1.0f;
+    /* the profile's lines held against slow motion only in operation (the
+     * learning modes learn them) */
+    out->q_motion_ref_profiled_rad = (cfg->learning_mode == HD_FW_LEARN_OPERATING)
+                                         ? cfg->kf.q_motion_ref_profiled_rad
+                                         : 0.0f;
     if (cfg->learning_mode == HD_FW_LEARN_COMMISSIONING) {
         /* slowed for a known load; at its own rate again for a while after
          * each step beyond the jump gate (the load is not the known one:

@@ -106,7 +106,8 @@ hd_fw_err_t hd_fw_config_check(const hd_fw_config_t *cfg, unsigned *bad_param);
 
 /* The filter configuration the firmware runs: cfg->kf with
  * output_learn_scale (and, commissioning, the offset's q) set by the
- * learning mode. */
+ * learning mode; q_motion_ref_profiled_rad only in operating mode (0, off,
+ * in the learning modes). */
 void hd_fw_kf_config(const hd_fw_config_t *cfg, hd_kf_config_t *out);
 
 /* The controller configuration the firmware runs: cfg->ctrl with the tick

@@ -731,14 +731,16 @@ static void test_upload_load_save_and_clear(void)
     }
     tick_n(1000, 1000, 5);
     TEST_ASSERT_EQUAL_UINT8(HD_RECORD_OK, heartbeat_profile_status());
-    /* cleared: no record, the running filter keeps its state */
-    float before = last()->ripple_nm;
+    /* cleared: no record, the running filter keeps its state (the motor
+     * order-2 line's amplitude: the ripple itself passes through zero) */
+    const float before = hd_kf_block_amplitude_nm(&live_pipe()->kf, 0);
     c.opcode = HD_CMD_PROFILE_CLEAR;
     a = send_cmd(&c);
     TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, a.result);
     TEST_ASSERT_EQUAL_UINT(0, stored_lines(back, &gear));
     TEST_ASSERT_EQUAL_INT(HD_RECORD_MISSING, hd_fw_record_status(&fw, HD_RECORD_KIND_PROFILE));
-    TEST_ASSERT_TRUE(fabsf(last()->ripple_nm) > 0.05f && fabsf(before) > 0.05f);
+    TEST_ASSERT_TRUE(before > 0.05f);
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, before, hd_kf_block_amplitude_nm(&live_pipe()->kf, 0));
     /* and the next restart is from zero */
     c.opcode = HD_CMD_FILTER_RESET;
     send_cmd(&c);
@@ -944,6 +946,44 @@ static void test_operating_mode_freezes_output_lines(void)
     TEST_ASSERT_EQUAL_FLOAT(cfg.kf.offset_q_nm2, live_cfg()->kf.offset_q_nm2); /* the setting */
 }
 
+/* The profile's lines against slow motion (q_motion_ref_profiled_rad,
+ * default 0.3 rad): only in operating mode and only once the stored profile
+ * is imported (again after a restart).  Read as the motor increment from
+ * which the order-2 block learns at its full rate: reference / 2. */
+static float order2_full_rad(void)
+{
+    return live_pipe()->kf.slot[0].full_rad;
+}
+
+static void test_profiled_reference_in_operating_mode_only(void)
+{
+    const float shared = cfg.kf.q_motion_ref_rad / 2.0f;
+    const float held = cfg.kf.q_motion_ref_profiled_rad / 2.0f;
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.15f, held); /* the row's default */
+    static const uint8_t modes[] = {HD_FW_LEARN_OPERATING, HD_FW_LEARN_ADAPTIVE,
+                                    HD_FW_LEARN_COMMISSIONING};
+    for (unsigned m = 0; m < 3u; m++) {
+        for (unsigned stored = 0; stored < 2u; stored++) {
+            setUp();
+            with_output = true;
+            cfg.learning_mode = modes[m];
+            if (stored) {
+                store_profile(100.0f, CPR, CPR, LINES, 3);
+            }
+            boot_filtering();
+            tick_n(1, 1000, 5);
+            const bool on = stored && modes[m] == HD_FW_LEARN_OPERATING;
+            TEST_ASSERT_FLOAT_WITHIN(1e-6f, on ? held : shared, order2_full_rad());
+            /* a restart: from zero, then the stored profile again */
+            hd_can_cmd_t c = {0};
+            c.opcode = HD_CMD_FILTER_RESET;
+            send_cmd(&c);
+            tick_n(1, 1000, 5);
+            TEST_ASSERT_FLOAT_WITHIN(1e-6f, on ? held : shared, order2_full_rad());
+        }
+    }
+}
+
 /* A speed change with the exact profile in the data: the filter turns by
  * each sample's own increment before predicting it, so it keeps predicting
  * the ripple at each sample's angle through the change (before it turned
@@ -1022,6 +1062,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_bad_uploads_are_refused);
     RUN_TEST(test_snapshot_save_is_the_filter_at_a_tick_boundary);
     RUN_TEST(test_operating_mode_freezes_output_lines);
+    RUN_TEST(test_profiled_reference_in_operating_mode_only);
     RUN_TEST(test_the_filter_keeps_the_phase_through_a_speed_change);
     RUN_TEST(test_profile_record_version_is_reported);
     return UNITY_END();

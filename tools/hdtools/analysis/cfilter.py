@@ -77,7 +77,8 @@ class KfConfig(ctypes.Structure):
                 ("correction_max_nm", c_float),
                 ("offset_drift_q_nm2", c_float),
                 ("output_row_follow", c_float),
-                ("output_row_max", c_float)]
+                ("output_row_max", c_float),
+                ("q_motion_ref_profiled_rad", c_float)]
 
     # Fields the analysis model carries one-to-one (see model.Model).
     SCALARS = ("offset_enabled", "offset_is_sensor_error", "offset_q_nm2", "r_nm2", "p0_nm2",
