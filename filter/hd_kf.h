@@ -52,10 +52,10 @@
  *     |T_ref| (memory HD_KF_FOLLOW_MEMORY_S; its slope used once
  *     HD_KF_FOLLOW_MIN_WEIGHT of its weight is filled and |T_ref| has varied
  *     by more than HD_KF_FOLLOW_MIN_VAR_NM2, |T| taken within 2 standard
- *     deviations of its mean).  T_c known: the growth the load explains,
- *     the regression at |T_ref| over the regression at T_c (lines changed
- *     at a constant load, by wear or temperature, do not move the row);
- *     T_c unknown: the measured g, its prediction on the other steps.  The
+ *     deviations of its mean).  The growth the load explains, the
+ *     regression at |T_ref| over the regression at T_c, is the target's g
+ *     (lines changed at a constant load, by wear or temperature, do not
+ *     move the row); T_c unknown (negative): the row stays 1.  The
  *     target 1 + output_row_follow (g - 1) beyond
  *     [1 / output_row_max, output_row_max] (or not a number) is refused:
  *     the bound is taken, HD_KF_STATUS_LOAD_BOUND, load_bound_count.
@@ -519,9 +519,8 @@ typedef struct {
     uint8_t line_count;                          /* lines[0, line_count) */
     hd_kf_profile_line_t lines[HD_KF_MAX_BLOCKS];
     float load_nm; /* |T_ref| the lines were learned at (the commissioning
-                      load; 0 for the unloaded commissioning motion);
-                      negative: unknown (the held output rows then take
-                      the motor lines' whole growth) */
+                      load); negative: unknown (the held output rows then
+                      do not follow the motor lines) */
 } hd_kf_profile_t;
 
 /* Writes one line per enabled motor- or output-locked block of integral

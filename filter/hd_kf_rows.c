@@ -84,22 +84,19 @@ static float follow_predict(const hd_kf_t *kf, float t)
  * motor block at full motion, turning at least HD_KF_FOLLOW_MIN_RAD per
  * step; not in the first HD_KF_FOLLOW_SETTLE_S after the import, while the
  * motor blocks settle) and feeds an exponentially weighted regression of g
- * on |T_ref|.  With the profile's load T_c known, g is that regression's
- * prediction at |T_ref| over its prediction at T_c: only the growth the load
- * explains (a constant |T_ref| explains none; lines changed since the
- * commissioning by wear or temperature give the same g at both).  With T_c
- * unknown (a version-1 record, a CAN upload), g is the measured growth, or
- * the prediction on steps without a measurement: the whole growth.  The
- * target 1 + follow (g - 1) is refused beyond [1 / max, max] (held at the
- * bound: HD_KF_STATUS_LOAD_BOUND) and low-passed into output_row.  No
- * reference (no profile imported) or no sample yet: 1. */
+ * on |T_ref|.  The row's target is the growth the load explains: the
+ * regression at |T_ref| over the regression at the profile's load T_c
+ * (lines changed at a constant load, by wear or temperature, give the same
+ * g at both and do not move the row), refused beyond [1 / max, max] (held
+ * at the bound: HD_KF_STATUS_LOAD_BOUND) and low-passed into output_row.
+ * No reference, T_c unknown (a version-1 record, a CAN upload: drift and
+ * load cannot be told apart) or no sample yet: 1. */
 uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
 {
-    if (kf->motor_ref_inv <= 0.0f) {
+    if (kf->motor_ref_inv <= 0.0f || kf->follow_load_nm < 0.0f) {
         kf->output_row = 1.0f;
         return 0u;
     }
-    float g;
     if (kf->follow_settle_steps != 0u) {
         kf->follow_settle_steps--; /* the motor blocks still settle on the joint as it is now */
         observed = false;
@@ -112,7 +109,7 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
                                 ? 1.0f : 0.0f;
             sq += w * (kf->x[2u * s] * kf->x[2u * s] + kf->x[2u * s + 1u] * kf->x[2u * s + 1u]);
         }
-        g = sqrtf(sq * kf->motor_ref_inv);
+        const float g = sqrtf(sq * kf->motor_ref_inv);
         if (!kf->follow_primed) {
             kf->follow_mean_t = t_abs;
             kf->follow_mean_g = g;
@@ -126,19 +123,11 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
             kf->follow_weight += a * (1.0f - kf->follow_weight);
             kf->follow_cov_tg = (1.0f - a) * (kf->follow_cov_tg + a * dt * dg);
         }
-    } else if (kf->follow_primed) {
-        g = follow_predict(kf, t_abs);
-    } else {
+    } else if (!kf->follow_primed) {
         return 0u;
     }
-    if (kf->follow_load_nm >= 0.0f) {
-        /* the growth the load explains: g's regression at |T_ref| over its
-         * value at the profile's load, which is what the lines changed by
-         * anything else (wear, temperature) give at that load */
-        g = follow_predict(kf, t_abs);
-        const float g_c = follow_predict(kf, kf->follow_load_nm);
-        g = g_c > 0.0f ? g / g_c : 1.0f;
-    }
+    const float g_c = follow_predict(kf, kf->follow_load_nm);
+    const float g = g_c > 0.0f ? follow_predict(kf, t_abs) / g_c : 1.0f;
     const float hi = kf->cfg.output_row_max, lo = 1.0f / hi;
     float target = 1.0f + kf->cfg.output_row_follow * (g - 1.0f);
     uint32_t status = 0u;

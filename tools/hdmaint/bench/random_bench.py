@@ -8,8 +8,9 @@ and encoder counts, and the nominal calibration; everything else it learns
 or is told by the project's own tools from the commissioning log):
   self        learning_mode 2 on the commissioning run, PROFILE_SAVE, then
               the operating run booted from that NVM (operating mode);
-  self_follow the same with output_row_follow = 1 (off by default: the held
-              output rows follow the motor lines' growth; loaded set only);
+  self_nofollow the same with output_row_follow = 0 (the held output rows
+              do not follow the motor lines' load growth; the default before
+              2026-12-06; loaded set only, for comparison);
   analyze     `hdsense analyze` of the commissioning log -> model.cfg +
               profile.json -> `hdsense profile record` -> the operating run;
   analyze_op  the same from the operating log of another day of the joint
@@ -40,8 +41,8 @@ from .joint import (HDSENSE, compose_config, firmware_commissioning, load_csv, n
                     run_firmware, run_tool, simulate)
 
 PATHS = ("self", "analyze", "analyze_op", "adaptive", "commission", "operating")
-REPORT_ORDER = ("self", "self_follow") + PATHS[1:]
-FOLLOW = "output_row_follow = 1\n"
+REPORT_ORDER = ("self", "self_nofollow") + PATHS[1:]
+NO_FOLLOW = "output_row_follow = 0\n"
 MODES = {"adaptive": "0", "commission": "2", "operating": "1"}
 GOAL_RATIO = 1.5
 SKIP_S = 1.0
@@ -107,12 +108,12 @@ def run_joint(joint: randjoint.Joint, wd: Path, paths=PATHS) -> dict:
     nom = nominal(op_ini)
     op_sim = simulate(op_ini, wd / "operate_sim.csv")
     out = {"joint": joint.describe(), "name": joint.name, "paths": {}, "notes": {}}
-    selfs = [p for p in ("self", "self_follow") if p in paths]
+    selfs = [p for p in ("self", "self_nofollow") if p in paths]
     if selfs:
         nvm, note = firmware_commissioning(com_ini, wd, nom, None, "")
         out["notes"]["self"] = note
         for p in selfs if nvm is not None else ():
-            extra = FOLLOW if p == "self_follow" else ""
+            extra = NO_FOLLOW if p == "self_nofollow" else ""
             filt, _ = run_firmware(op_ini, "learning_mode = 1\n" + extra, wd, p, nvm=nvm)
             out["paths"][p] = score(filt, op_sim).to_dict()
     if "analyze" in paths:
@@ -195,7 +196,7 @@ def ci_record(seeds, paths=("self", "adaptive", "commission", "operating")) -> d
 
 QUICK_PATHS = ("self", "adaptive")     # tools/bench --quick: a smoke run
 # Load-modulated lines: the product path and the analysis loops.
-LOADED_PATHS = ("self", "self_follow", "analyze", "analyze_op")
+LOADED_PATHS = ("self", "self_nofollow", "analyze", "analyze_op")
 
 
 def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
@@ -209,7 +210,7 @@ def bench(n_joints: int, log=None, paths=PATHS, ci_sample=True) -> dict:
     for key, und in (("declared", False), ("undeclared", True)):
         out[key] = run(seeds, und, paths, log)
     out["loaded"] = run(seeds, False, [p for p in REPORT_ORDER
-                                       if p in LOADED_PATHS and (p in paths or (p == "self_follow" and "self" in paths))],
+                                       if p in LOADED_PATHS and (p in paths or (p == "self_nofollow" and "self" in paths))],
                         log, loaded=True)
     if ci_sample:
         out["ci_sample"] = ci_record(randjoint.REPORT_SEEDS[:4])

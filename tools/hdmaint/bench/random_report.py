@@ -9,8 +9,8 @@ from .random_bench import GOAL_RATIO, REPORT_ORDER
 
 LABELS = {
     "self": "firmware commissions itself (learning mode 2, PROFILE_SAVE), reboot, operate",
-    "self_follow": "the same with `output_row_follow = 1` (off by default: held output rows "
-                   "follow the motor lines' growth)",
+    "self_nofollow": "the same with `output_row_follow = 0` (held output rows do not follow "
+                     "the motor lines' load growth; the default before 2026-12-06)",
     "analyze": "`hdsense analyze` of the commissioning log -> model.cfg + profile -> operate",
     "analyze_op": "`hdsense analyze` of another day's operating log -> model.cfg + profile -> "
                   "operate",
@@ -19,8 +19,7 @@ LABELS = {
     "operating": "learning mode 1 (operating, the default), no profile",
 }
 GOALS = (("declared", "self", 0.98), ("undeclared", "analyze", 0.90),
-         ("undeclared", "analyze_op", 0.90), ("loaded", "self", 0.90),
-         ("loaded", "self_follow", 0.90))
+         ("undeclared", "analyze_op", 0.90), ("loaded", "self", 0.90))
 PARTS = (("declared", "Declared effects only"),
          ("undeclared", "One undeclared effect per joint"),
          ("loaded", "Load-modulated lines (declared effects, every line times 1 + c |T|)"))

@@ -7,8 +7,14 @@ Schema (docs/design/analyze.md "Profile"; kept simple on purpose):
    "gear_ratio": N,
    "angle_convention": "...",
    "ripple_load_coeff_per_nm": k,
+   "load_nm": L,
    "lines": [{"lock": "motor" | "output", "order": k, "a_nm": a, "b_nm": b}, ...],
    "source": {...}}
+
+load_nm: the record's mean |slow torque| (measured - feed-forward over
+0.2 s) where the motor turns at least LOAD_MIN_MOTOR_RAD per sample: the
+load its line amplitudes are averages at, which the firmware's held
+output rows take as T_c (hd_kf.h, output_row_follow).
 
 ripple = sum a cos(order alpha) + b sin(order alpha), alpha the absolute
 motor angle (motor lines) or output angle (output lines) in rad, with the
@@ -39,20 +45,47 @@ CONVENTION = ("ripple_nm = sum over lines of a_nm cos(order alpha) + b_nm sin(or
               "by 1 + ripple_load_coeff_per_nm |T|)")
 
 
+LOAD_MIN_MOTOR_RAD = 0.05   # as the firmware's HD_KF_FOLLOW_MIN_RAD at order 1
+LOAD_SMOOTH_S = 0.2
+
+
+def _smoothed(x, ts_s):
+    """x averaged over LOAD_SMOOTH_S (centred; the mean of x when shorter)."""
+    w = max(1, int(round(LOAD_SMOOTH_S / ts_s)))
+    if len(x) <= w:
+        return np.full(len(x), x.mean())
+    c = np.cumsum(np.r_[0.0, x])
+    return np.interp(np.arange(len(x)), np.arange(w // 2, w // 2 + len(x) - w + 1),
+                     (c[w:] - c[:-w]) / w)
+
+
+def _slow_torque(r):
+    return np.asarray(r.torque_nm, float) - (0.0 if r.feedforward_nm is None else r.feedforward_nm)
+
+
+def learned_load(view, ts_s) -> float | None:
+    """The mean |slow torque| over the samples where the motor turns at
+    least LOAD_MIN_MOTOR_RAD; None when it never does."""
+    total, n = 0.0, 0
+    for r in view:
+        moving = np.abs(np.diff(np.asarray(r.motor_angle_rad, float), prepend=np.nan)) \
+            >= LOAD_MIN_MOTOR_RAD
+        t = np.abs(_smoothed(_slow_torque(r), ts_s))[moving]
+        total += float(t.sum())
+        n += int(t.size)
+    return total / n if n else None
+
+
 def _motor_fit(view, order, k_load, ts_s):
     """(a, b) of the motor line in measured - feed-forward, slow torque
     (output lines included) removed, load scale divided out."""
     sig, ph, sc = [], [], []
     for r in view:
-        x = np.asarray(r.torque_nm, float) - (0.0 if r.feedforward_nm is None else r.feedforward_nm)
+        x = _slow_torque(r)
         sig.append(x)
         ph.append(order * r.motor_angle_rad)
         if k_load > 0:
-            w = max(1, int(round(0.2 / ts_s)))
-            c = np.cumsum(np.r_[0.0, x])
-            sm = np.interp(np.arange(len(x)), np.arange(w // 2, w // 2 + len(x) - w + 1),
-                           (c[w:] - c[:-w]) / w) if len(x) > w else np.full(len(x), x.mean())
-            sc.append(1 + k_load * np.abs(sm))
+            sc.append(1 + k_load * np.abs(_smoothed(x, ts_s)))
         else:
             sc.append(np.ones(len(x)))
     hp = spectra.highpass_for_line(sig, ph, ts_s)
@@ -77,8 +110,10 @@ def _explained(view, order, a, b, ts_s):
 def build(data, model, gear, runs) -> dict:
     """The profile document (always returned, for the report) with
     `writable` and, if not, `why_not`."""
+    load = learned_load(rp.analysis_view(runs), data.ts_s)
     doc = {"schema": SCHEMA, "gear_ratio": gear["value"], "angle_convention": CONVENTION,
-           "ripple_load_coeff_per_nm": model.ripple_load_coeff_per_nm, "lines": [],
+           "ripple_load_coeff_per_nm": model.ripple_load_coeff_per_nm,
+           "load_nm": None if load is None else round(load, 4), "lines": [],
            "not_written": [], "source": {"samples": data.n, "ts_s": data.ts_s}}
     csv_abs = data.source in ("csv", "bag")     # a column (a bag's channel) of that angle
     out_abs = csv_abs and data.has_output
@@ -127,5 +162,6 @@ def file_content(doc) -> dict:
     return {"schema": doc["schema"], "gear_ratio": doc["gear_ratio"],
             "angle_convention": doc["angle_convention"],
             "ripple_load_coeff_per_nm": doc["ripple_load_coeff_per_nm"],
+            "load_nm": doc["load_nm"],
             "lines": [{k: ln[k] for k in ("lock", "order", "a_nm", "b_nm")} for ln in doc["lines"]],
             "source": doc["source"]}
