@@ -391,7 +391,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     const float c_load = 1.0f + kf->cfg.ripple_load_coeff_per_nm * t_abs;
     io.rows[HD_KF_LOCK_MOTOR] = c_load;
     io.rows[HD_KF_LOCK_OUTPUT] = io.rows[HD_KF_LOCK_FIXED] = 1.0f;
-    const bool lines_observed = io.short_slots != 0u && motor_abs >= kf->follow_min_rad;
+    const bool lines_observed = motor_abs >= kf->follow_min_rad && motor_abs < kf->motor_frozen_rad;
     if (lines_observed) {
         hd_kf_learn_load(kf, in->torque_expected_nm);
     }

@@ -947,7 +947,7 @@ static void test_operating_mode_freezes_output_lines(void)
 }
 
 /* The profile's lines against slow motion (q_motion_ref_profiled_rad,
- * default 0.3 rad): only in operating mode and only once the stored profile
+ * default 0.15 rad): only in operating mode and only once the stored profile
  * is imported (again after a restart).  Read as the motor increment from
  * which the order-2 block learns at its full rate: reference / 2. */
 static float order2_full_rad(void)
@@ -959,7 +959,7 @@ static void test_profiled_reference_in_operating_mode_only(void)
 {
     const float shared = cfg.kf.q_motion_ref_rad / 2.0f;
     const float held = cfg.kf.q_motion_ref_profiled_rad / 2.0f;
-    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.15f, held); /* the row's default */
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.075f, held); /* the row's default */
     static const uint8_t modes[] = {HD_FW_LEARN_OPERATING, HD_FW_LEARN_ADAPTIVE,
                                     HD_FW_LEARN_COMMISSIONING};
     for (unsigned m = 0; m < 3u; m++) {
