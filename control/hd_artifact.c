@@ -21,6 +21,12 @@ void hd_artifact_reset(hd_artifact_t *t)
 void hd_artifact_init(hd_artifact_t *t, uint8_t mask, float corner_hz, float ts_s)
 {
     t->mask = mask;
+    t->top = 0u;
+    for (unsigned k = 1; k <= HD_ARTIFACT_ORDER_MAX; k++) {
+        if ((mask & (1u << (k - 1u))) != 0u) {
+            t->top = (uint8_t)k;
+        }
+    }
     t->gain = TWO_PI_F * corner_hz * ts_s;
     hd_artifact_reset(t);
 }
@@ -46,7 +52,7 @@ float hd_artifact_step(hd_artifact_t *t, float a_nm, float motor_angle_rad, floa
     float ck[HD_ARTIFACT_ORDER_MAX + 1u], sk[HD_ARTIFACT_ORDER_MAX + 1u];
     ck[0] = 1.0f, sk[0] = 0.0f;
     float est = t->re[0];
-    for (unsigned k = 1; k <= HD_ARTIFACT_ORDER_MAX; k++) {
+    for (unsigned k = 1; k <= t->top; k++) { /* top <= HD_ARTIFACT_ORDER_MAX */
         ck[k] = ck[k - 1u] * c1 - sk[k - 1u] * s1;
         sk[k] = sk[k - 1u] * c1 + ck[k - 1u] * s1;
         if ((t->mask & (1u << (k - 1u))) != 0u) {
@@ -60,7 +66,7 @@ float hd_artifact_step(hd_artifact_t *t, float a_nm, float motor_angle_rad, floa
     const float w = m < 0.0f ? 0.0f : (m > 1.0f ? 1.0f : m);
     const float g = t->gain * w * e;
     t->re[0] += g;
-    for (unsigned k = 1; k <= HD_ARTIFACT_ORDER_MAX; k++) {
+    for (unsigned k = 1; k <= t->top; k++) {
         if ((t->mask & (1u << (k - 1u))) != 0u) {
             t->re[k] += 2.0f * g * ck[k];
             t->im[k] -= 2.0f * g * sk[k];

@@ -38,6 +38,7 @@ extern "C" {
 
 typedef struct {
     uint8_t mask;        /* bit k-1: a phasor at motor order k */
+    uint8_t top;         /* the highest order in mask (0: none) */
     float gain;          /* w ts */
     float re[HD_ARTIFACT_ORDER_MAX + 1u]; /* [0]: the slow term z_0; [k]: Re z_k */
     float im[HD_ARTIFACT_ORDER_MAX + 1u]; /* [k]: Im z_k ([0] unused) */
