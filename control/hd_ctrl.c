@@ -3,6 +3,8 @@
 
 #include <stddef.h>
 
+#include "hd_ctrl_trig.h"
+
 #define TWO_PI_F 6.28318530717958647692f
 #define PI_F 3.14159265358979323846f
 #define NOTCH_NYQUIST_SHARE 0.45f /* a notch above 0.45 / ts passes */
@@ -45,6 +47,8 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .lowpass_order = 1u,
         .notch_mask = 0u,
         .notch_width_hz = 10.0f,
+        .artifact_mask = 0u,         /* the firmware sets it from the filter's model */
+        .artifact_hz = 0.5f,
         .friction_nm = 0.0f,
         .friction_velocity_rad_s = 0.05f,
         .friction_rest_nm = 0.0f,
@@ -76,7 +80,8 @@ int hd_ctrl_config_check(const hd_ctrl_config_t *cfg)
         k->lowpass_hz > 0.0f &&
         k->lowpass_hz < 0.5f / k->ts_s &&
         (k->lowpass_order == 1u || k->lowpass_order == 2u || k->lowpass_order == 4u) &&
-        within(k->notch_width_hz, 0.1f, 0.1f / k->ts_s) && within(k->friction_nm, 0.0f, 1000.0f) &&
+        within(k->notch_width_hz, 0.1f, 0.1f / k->ts_s) &&
+        within(k->artifact_hz, 0.01f, 0.05f / k->ts_s) && within(k->friction_nm, 0.0f, 1000.0f) &&
         within(k->friction_velocity_rad_s, 1e-4f, 100.0f) &&
         within(k->friction_rest_nm, 0.0f, 1000.0f) &&
         within(k->friction_rate_nm_s, 1e-3f, 1e6f) &&
@@ -102,44 +107,15 @@ void hd_ctrl_reset(hd_ctrl_t *c)
     c->raw_notched_nm = 0.0f;
     c->sp_torque_prev_nm = 0.0f;
     c->sp_torque_primed = false;
+    c->narrow_nm = 0.0f;
+    c->narrow_ok = false;
+    hd_artifact_reset(&c->artifact);
     for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
         c->butter[i].s0 = c->butter[i].s1 = 0.0f;
     }
     for (unsigned i = 0; i < HD_CTRL_NOTCH_MAX; i++) {
         c->notch[i].s0 = c->notch[i].s1 = 0.0f;
     }
-}
-
-/* cos and sin by their Taylor series (Horner, to x^18 and x^19): |x| <= pi,
- * error < 2e-7; no libm in control/.  Term k divides by n (n - 1), n = 18,
- * 16, ..., 2 (cos) and 19, 17, ..., 3 (sin): multiplied by the reciprocal
- * instead (a division is 14 cycles on the M4F, in the tick when a notch
- * follows the speed). */
-static const float COS_RECIP[9] = {1.0f / 306.0f, 1.0f / 240.0f, 1.0f / 182.0f, 1.0f / 132.0f,
-                                   1.0f / 90.0f,  1.0f / 56.0f,  1.0f / 30.0f,  1.0f / 12.0f,
-                                   1.0f / 2.0f};
-static const float SIN_RECIP[9] = {1.0f / 342.0f, 1.0f / 272.0f, 1.0f / 210.0f, 1.0f / 156.0f,
-                                   1.0f / 110.0f, 1.0f / 72.0f,  1.0f / 42.0f,  1.0f / 20.0f,
-                                   1.0f / 6.0f};
-
-static float cos_poly(float x)
-{
-    const float x2 = x * x;
-    float r = 1.0f;
-    for (unsigned k = 0; k < 9u; k++) {
-        r = 1.0f - x2 * COS_RECIP[k] * r;
-    }
-    return r;
-}
-
-static float sin_poly(float x)
-{
-    const float x2 = x * x;
-    float r = 1.0f;
-    for (unsigned k = 0; k < 9u; k++) {
-        r = 1.0f - x2 * SIN_RECIP[k] * r;
-    }
-    return x * r;
 }
 
 /* A Butterworth low-pass section (bilinear; k = tan(pi fc ts), quality q). */
@@ -204,6 +180,8 @@ void hd_ctrl_init_prechecked(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
         }
     }
     c->notch_r = 1.0f - PI_F * cfg->notch_width_hz * cfg->ts_s;
+    hd_artifact_init(&c->artifact, cfg->artifact_mask, cfg->artifact_hz, cfg->ts_s);
+    c->narrow_inv_rad_s = 1.0f / (4.0f * TWO_PI_F * cfg->artifact_hz);
     hd_ctrl_reset(c);
 }
 
@@ -299,6 +277,35 @@ static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
     }
 }
 
+/* HD_CTRL_FB_NARROW's feedback (hd_ctrl.h): every tick the torque is usable
+ * while the feedback uses it. */
+static void narrow_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
+{
+    const hd_ctrl_config_t *k = &c->cfg;
+    c->narrow_ok = false;
+    if (k->feedback != HD_CTRL_FB_NARROW || !in->torque_valid ||
+        !finite_f(in->torque_raw_nm) || !finite_f(in->torque_filtered_nm) ||
+        !finite_f(in->velocity_rad_s)) {
+        return;
+    }
+    unsigned k_min = 1u;
+    while (k_min < HD_ARTIFACT_ORDER_MAX && (k->artifact_mask & (1u << (k_min - 1u))) == 0u) {
+        k_min++;
+    }
+    if (k->artifact_mask == 0u) {
+        k_min = 1u;
+    }
+    const float v = in->velocity_rad_s < 0.0f ? -in->velocity_rad_s : in->velocity_rad_s;
+    const bool angle = in->motor_angle_valid && finite_f(in->motor_angle_rad);
+    const float m = angle ? clampf((float)k_min * k->gear_ratio * v * c->narrow_inv_rad_s - 1.0f,
+                                   0.0f, 1.0f)
+                          : 0.0f;
+    const float a = in->torque_raw_nm - in->torque_filtered_nm;
+    const float a_hat = hd_artifact_step(&c->artifact, a, angle ? in->motor_angle_rad : 0.0f, m);
+    c->narrow_nm = in->torque_filtered_nm + m * (a - a_hat);
+    c->narrow_ok = true;
+}
+
 /* The feedback torque, or false when the selected source is unusable. */
 static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb)
 {
@@ -309,6 +316,12 @@ static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb
     case HD_CTRL_FB_RAW:
         *fb = c->cfg.notch_mask != 0u ? c->raw_notched_nm : in->torque_raw_nm;
         if (c->cfg.notch_mask != 0u && !c->lowpass_primed) {
+            return false;
+        }
+        break;
+    case HD_CTRL_FB_NARROW:
+        *fb = c->narrow_nm;
+        if (!c->narrow_ok) {
             return false;
         }
         break;
@@ -498,6 +511,7 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
         return;
     }
     lowpass_update(c, in);
+    narrow_update(c, in);
     float fb = 0.0f;
     const hd_ctrl_mode_t m = pick_mode(c, sp, in, &out->limits, &fb);
     if (m == HD_CTRL_STOP) {

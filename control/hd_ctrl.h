@@ -57,6 +57,22 @@
  * -3 dB width notch_width_hz, unity gain at DC.  A notch whose frequency is
  * below notch_width_hz or above 0.45 / ts passes the torque unchanged (a
  * notch at DC would remove the torque itself; above, it would alias).
+ * Narrowed filtered torque (HD_CTRL_FB_NARROW): the raw torque minus a
+ * narrowband copy of the filter's artifact estimate a = raw - filtered
+ * (hd_artifact.h: one phasor per motor order of artifact_mask, locked to the
+ * motor angle, following its line through a low-pass of corner
+ * artifact_hz, plus a slow term):
+ *   tau_fb = filtered + m (a - a_hat)
+ * The filter's ripple states act on the feedback as notches a few Hz wide
+ * at the motor orders, which take the real torque there with the artifact;
+ * a_hat removes only what stays locked to the angle for about
+ * 1 / (2 pi artifact_hz): notches 2 artifact_hz wide.  m, the motion
+ * fraction, fades the narrowing in as the lowest line's frequency
+ * k_min N |v| / (2 pi) goes from 4 to 8 artifact_hz (with no orders, k_min
+ * 1): below, the angle barely turns in the tracker's time, the phasors are
+ * held and the feedback is the filtered torque (a standstill, a reversal).
+ * Without a valid motor angle m = 0.  The firmware derives artifact_mask
+ * from the filter's enabled motor-locked blocks of integral order 1..8.
  * Benchmarks compare these feedbacks (docs/results/control.md).
  *
  * Limits, applied last so no path exceeds them whatever the input:
@@ -76,6 +92,8 @@
 
 #include <stdbool.h>
 #include <stdint.h>
+
+#include "hd_artifact.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -102,7 +120,8 @@ typedef enum {
     HD_CTRL_FB_RAW = 1,
     HD_CTRL_FB_LOWPASS = 2,
     HD_CTRL_FB_NONE = 3,
-    HD_CTRL_FB_COUNT = 4,
+    HD_CTRL_FB_NARROW = 4,
+    HD_CTRL_FB_COUNT = 5,
 } hd_ctrl_feedback_t;
 
 /* hd_ctrl_output_t.limits: which limit shaped this step's command. */
@@ -142,6 +161,8 @@ typedef struct {
     uint8_t lowpass_order;         /* 1, 2 or 4 (2, 4: Butterworth) */
     uint8_t notch_mask;            /* bit k-1: a notch at motor order k on the raw torque */
     float notch_width_hz;          /* each notch's -3 dB width */
+    uint8_t artifact_mask;         /* HD_CTRL_FB_NARROW: bit k-1, a phasor at motor order k */
+    float artifact_hz;             /* HD_CTRL_FB_NARROW: the phasors' corner */
     float friction_nm;             /* joint-side Coulomb friction compensated (0: off) */
     float friction_velocity_rad_s; /* v_eps: the compensation fades in over |v| < v_eps */
     float friction_rest_nm;        /* F_r: joint-side friction compensated at rest in the
@@ -171,6 +192,8 @@ typedef struct {
     bool torque_valid;        /* the gauge and the filter are usable this tick */
     float angle_rad;          /* output angle */
     float velocity_rad_s;     /* output velocity */
+    float motor_angle_rad;    /* motor angle (any origin, wrapped or not: HD_CTRL_FB_NARROW) */
+    bool motor_angle_valid;   /* false: HD_CTRL_FB_NARROW feeds back the filtered torque */
 } hd_ctrl_input_t;
 
 typedef struct {
@@ -202,6 +225,10 @@ typedef struct {
     float lowpass_nm;         /* the low-pass state */
     bool lowpass_primed;
     float raw_notched_nm;     /* the raw torque after the notches, this tick */
+    hd_artifact_t artifact;   /* HD_CTRL_FB_NARROW's phasors */
+    float narrow_inv_rad_s;   /* 1 / (4 (2 pi artifact_hz)): the motion fraction's scale */
+    float narrow_nm;          /* HD_CTRL_FB_NARROW's feedback, this tick */
+    bool narrow_ok;           /* narrow_nm is from this tick's inputs */
     float sp_torque_prev_nm;  /* the setpoint torque of the last tick (its rate) */
     bool sp_torque_primed;
 } hd_ctrl_t;

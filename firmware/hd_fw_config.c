@@ -13,6 +13,16 @@ void hd_fw_ctrl_config(const hd_fw_config_t *cfg, hd_ctrl_config_t *out)
     *out = cfg->ctrl;
     out->ts_s = HD_FW_TS_S;
     out->gear_ratio = cfg->gear_ratio;
+    /* the narrowed feedback's lines: the filter's motor-locked blocks */
+    out->artifact_mask = 0u;
+    for (unsigned i = 0; i < cfg->kf.block_count && i < HD_KF_MAX_BLOCKS; i++) {
+        const hd_kf_block_config_t *b = &cfg->kf.blocks[i];
+        const float k = b->order;
+        if (b->enabled != 0u && b->lock == (uint8_t)HD_KF_LOCK_MOTOR && k >= 1.0f &&
+            k <= (float)HD_ARTIFACT_ORDER_MAX && k == (float)(unsigned)k) {
+            out->artifact_mask |= (uint8_t)(1u << ((unsigned)k - 1u));
+        }
+    }
 }
 
 void hd_fw_config_default(hd_fw_config_t *cfg)

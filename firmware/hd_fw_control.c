@@ -257,6 +257,8 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
         .torque_valid = s->valid && (faults & (SENSOR_FAULTS | HD_FAULT_KF_RESET)) == 0u,
         .angle_rad = c->angle_rad + c->angle_fine_rad,
         .velocity_rad_s = hd_fw_live_pipe(fw)->output_track.vel_rad_s,
+        .motor_angle_rad = hd_fw_encoder_motor_rad(&fw->encoder, set),
+        .motor_angle_valid = fw->encoder.pos_valid,
     };
     hd_ctrl_step(&c->ctrl, &sp, &c->in, &c->out);
     if ((c->out.limits & HD_CTRL_LIM_FALLBACK) != 0u) {

@@ -56,7 +56,7 @@ typedef struct {
     const char *input, *out;
     int mode;
     int feedback;
-    double kp, ki, kd, ff, ilim, lowpass_hz, notch_width_hz;
+    double kp, ki, kd, ff, ilim, lowpass_hz, notch_width_hz, artifact_hz;
     double friction_rest_nm, friction_rate;
     int lowpass_order, notch_mask;
     int load;           /* 0 dyno, 1 free, 2 wall */
@@ -111,7 +111,7 @@ static int number(const char *v, double *out)
 static int parse(int argc, char **argv, opts_t *o)
 {
     static const char *const modes[] = {"stop", "damp", "torque", "impedance", "zero_torque"};
-    static const char *const fbs[] = {"filtered", "raw", "lowpass", "none"};
+    static const char *const fbs[] = {"filtered", "raw", "lowpass", "none", "narrow"};
     static const char *const loads[] = {"dyno", "free", "wall"};
     static const char *const sensors[] = {"gauge", "ideal"};
     const hd_ctrl_config_t *d = NULL;
@@ -121,7 +121,7 @@ static int parse(int argc, char **argv, opts_t *o)
     *o = (opts_t){.mode = HD_CTRL_TORQUE, .feedback = d->feedback, .kp = d->torque_kp,
                   .ki = d->torque_ki_per_s, .ff = d->torque_ff,
                   .ilim = d->integral_limit_nm, .kd = d->torque_kd_s, .lowpass_hz = d->lowpass_hz,
-                  .notch_width_hz = d->notch_width_hz, .lowpass_order = d->lowpass_order,
+                  .notch_width_hz = d->notch_width_hz, .artifact_hz = d->artifact_hz, .lowpass_order = d->lowpass_order,
                   .notch_mask = d->notch_mask, .friction_rest_nm = d->friction_rest_nm,
                   .friction_rate = d->friction_rate_nm_s, .dyno_kv = 50.0, .dyno_ki = 5000.0,
                   .wall_k = 2e4, .wall_d = 5.0, .imp_kd = 0.0, .seed = 0x5EEDu};
@@ -137,6 +137,7 @@ static int parse(int argc, char **argv, opts_t *o)
         struct { const char *name; double *dst; } nums[] = {
             {"--kp", &o->kp}, {"--ki", &o->ki}, {"--kd", &o->kd}, {"--ff", &o->ff}, {"--ilim", &o->ilim},
             {"--lowpass-hz", &o->lowpass_hz}, {"--notch-width-hz", &o->notch_width_hz},
+            {"--artifact-hz", &o->artifact_hz},
             {"--friction-rest-nm", &o->friction_rest_nm}, {"--friction-rate", &o->friction_rate},
             {"--dyno-kv", &o->dyno_kv}, {"--dyno-ki", &o->dyno_ki},
             {"--person-nm", &o->person_nm}, {"--wall-rad", &o->wall_rad},
@@ -161,7 +162,7 @@ static int parse(int argc, char **argv, opts_t *o)
         } else if (strcmp(k, "--out") == 0) {
             o->out = v;
         } else if (strcmp(k, "--mode") == 0 && (o->mode = pick(v, modes, 5)) >= 0) {
-        } else if (strcmp(k, "--feedback") == 0 && (o->feedback = pick(v, fbs, 4)) >= 0) {
+        } else if (strcmp(k, "--feedback") == 0 && (o->feedback = pick(v, fbs, 5)) >= 0) {
         } else if (strcmp(k, "--load") == 0 && (o->load = pick(v, loads, 3)) >= 0) {
         } else if (strcmp(k, "--sensor") == 0 && (o->sensor = pick(v, sensors, 2)) >= 0) {
         } else if (strcmp(k, "--lowpass-order") == 0 && num) {
@@ -180,7 +181,7 @@ static int parse(int argc, char **argv, opts_t *o)
     if (o->input == NULL || o->out == NULL) {
         fprintf(stderr, "usage: hdctrl-bench --input IN --out OUT.csv [--mode M] [--feedback F] "
                         "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
-                        "--notch-width-hz --friction-rest-nm --friction-rate] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
+                        "--notch-width-hz --artifact-hz --friction-rest-nm --friction-rate] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
                         "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
                         "--imp-q] [--preroll N] [--seed] [--sensor gauge|ideal]\n");
         return -1;
@@ -280,6 +281,7 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
     k->lowpass_order = (uint8_t)o->lowpass_order;
     k->notch_mask = (uint8_t)o->notch_mask;
     k->notch_width_hz = (float)o->notch_width_hz;
+    k->artifact_hz = (float)o->artifact_hz;
     k->friction_rest_nm = (float)o->friction_rest_nm;
     k->friction_rate_nm_s = (float)o->friction_rate;
     const int rc = hd_fw_init(&fw, &hal, cfg);

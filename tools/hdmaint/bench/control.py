@@ -59,7 +59,10 @@ def butterworth_cutoff_hz(order: int, line_hz: float, atten_db: float) -> float:
 def variants() -> list[cl.Variant]:
     slow = min(s for s in SPEEDS_RAD_S if s > 0)
     line_hz = 2 * cl.GEAR_RATIO * slow / (2 * math.pi)
-    out = [cl.Variant("filtered", "filtered"), cl.Variant("raw", "raw")]
+    # narrow: the raw torque minus the filter's artifact estimate held to the
+    # motor angle (ctrl_feedback 4, at the law's ctrl_artifact_hz)
+    out = [cl.Variant("filtered", "filtered"), cl.Variant("narrow", "narrow"),
+           cl.Variant("raw", "raw")]
     for n in BUTTER_ORDERS:
         fc = butterworth_cutoff_hz(n, line_hz, BUTTER_ATTEN_DB)
         out.append(cl.Variant(f"butter{n}", "lowpass", lowpass_hz=round(fc, 2), lowpass_order=n))
@@ -243,8 +246,8 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
         log(f"measuring {v.key}...")
         r = {"config": {k: getattr(v, k) for k in ("feedback", "kp", "ki", "kd", "ff", "ilim",
                                                      "lowpass_hz", "lowpass_order", "notch_mask",
-                                                     "notch_width_hz", "friction_rest_nm",
-                                                     "sensor")},
+                                                     "notch_width_hz", "artifact_hz",
+                                                     "friction_rest_nm", "sensor")},
              "speeds": {}}
         for s in SPEEDS_RAD_S:
             r["speeds"][str(s)] = {"chirp": chirp_response(v, s, 4.0 if quick else CHIRP_S),

@@ -56,7 +56,7 @@ def runner() -> Path:
 class Variant:
     """A feedback of the torque loop and its gains (the runner's options)."""
     key: str
-    feedback: str                      # filtered | raw | lowpass | none
+    feedback: str                      # filtered | raw | lowpass | none | narrow
     kp: float = 1.0
     ki: float = 30.0
     ff: float = 1.0
@@ -66,6 +66,7 @@ class Variant:
     lowpass_order: int = 1
     notch_mask: int = 0
     notch_width_hz: float = 10.0
+    artifact_hz: float | None = None   # narrow: the phasors' corner (None: the law's default)
     friction_rest_nm: float = 0.0      # the law's friction compensation at rest
     sensor: str = "gauge"              # gauge | ideal (hdctrl-bench --sensor: bench-only)
 
@@ -74,7 +75,8 @@ class Variant:
                 "--ff", f"{self.ff:.6g}", "--kd", f"{self.kd:.6g}", "--ilim", f"{self.ilim:.6g}", "--lowpass-hz", f"{self.lowpass_hz:.6g}",
                 "--lowpass-order", str(self.lowpass_order), "--notch-mask",
                 str(self.notch_mask), "--notch-width-hz", f"{self.notch_width_hz:.6g}",
-                "--friction-rest-nm", f"{self.friction_rest_nm:.6g}"]
+                "--friction-rest-nm", f"{self.friction_rest_nm:.6g}"] + (
+                    [] if self.artifact_hz is None else ["--artifact-hz", f"{self.artifact_hz:.6g}"])
 
 
 @dataclass

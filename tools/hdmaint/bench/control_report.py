@@ -61,6 +61,9 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
             what = IDEAL_LABEL
         elif cfg["feedback"] == "lowpass":
             what = f"Butterworth order {cfg['lowpass_order']}, {cfg['lowpass_hz']:g} Hz"
+        elif cfg["feedback"] == "narrow":
+            what = ("narrowed: raw minus the filter's artifact estimate held to the motor "
+                    "angle (ctrl_artifact_hz: the law's default)")
         elif cfg["notch_mask"]:
             what = f"raw, notches at orders 2 and 4 ({cfg['notch_width_hz']:g} Hz wide)"
         if "measured" not in t:
