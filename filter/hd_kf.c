@@ -229,15 +229,23 @@ static bool over_nyquist(const hd_kf_t *kf, const hd_kf_slot_t *sl, float d)
 }
 
 /* Slot s's motion fraction from the reference ref_rad (0: none, motion 1;
- * fixed blocks never scaled) and, for a motor block, the increment from
- * which it is 1.  theta_per_unit set. */
-static void set_motion_ref(hd_kf_t *kf, unsigned s, float ref_rad)
+ * fixed blocks never scaled) and its full-motion increment full_rad. */
+static void set_motion_ref(hd_kf_t *kf, unsigned s, float ref_rad, float full_rad)
 {
     hd_kf_slot_t *sl = &kf->slot[s];
     const bool motion_scaled = ref_rad > 0.0f && sl->lock != HD_KF_LOCK_FIXED;
     sl->motion_inv = motion_scaled ? 1.0f / ref_rad : 0.0f;
     sl->motion_bias = motion_scaled ? 0.0f : 1.0f;
-    sl->full_rad = sl->lock == HD_KF_LOCK_MOTOR ? first_float(kf, sl, motion_full) : 0.0f;
+    sl->full_rad = full_rad;
+}
+
+/* For a motor block, the increment from which its motion fraction is 1 at
+ * the reference ref_rad (set on the slot, which keeps it); 0 otherwise. */
+static float full_at(hd_kf_t *kf, unsigned s, float ref_rad)
+{
+    set_motion_ref(kf, s, ref_rad, 0.0f);
+    const hd_kf_slot_t *sl = &kf->slot[s];
+    return sl->lock == HD_KF_LOCK_MOTOR ? first_float(kf, sl, motion_full) : 0.0f;
 }
 
 static void build_slot(hd_kf_t *kf, unsigned block)
@@ -260,7 +268,11 @@ static void build_slot(hd_kf_t *kf, unsigned block)
         sl->theta_per_unit = HD_TWO_PI_F * b->order * kf->cfg.ts_s;
         hd_sincosf(sl->theta_per_unit, &sl->fixed_sin, &sl->fixed_cos);
     }
-    set_motion_ref(kf, block, kf->cfg.q_motion_ref_rad);
+    sl->full_profiled_rad = kf->cfg.q_motion_ref_profiled_rad > 0.0f
+                                ? full_at(kf, block, kf->cfg.q_motion_ref_profiled_rad)
+                                : 0.0f;
+    sl->full_shared_rad = full_at(kf, block, kf->cfg.q_motion_ref_rad);
+    sl->full_rad = sl->full_shared_rad;
     if (b->lock != HD_KF_LOCK_FIXED) {
         sl->frozen_rad = first_float(kf, sl, over_nyquist);
     }
@@ -323,8 +335,12 @@ void hd_kf_profile_motion(hd_kf_t *kf, uint32_t held)
         return; /* off: every block keeps q_motion_ref_rad (build_slot's) */
     }
     for (unsigned s = 0; s < kf->cfg.block_count; s++) {
-        set_motion_ref(kf, s, (held & (1u << s)) != 0u ? kf->cfg.q_motion_ref_profiled_rad
-                                                       : kf->cfg.q_motion_ref_rad);
+        const hd_kf_slot_t *sl = &kf->slot[s];
+        if ((held & (1u << s)) != 0u) {
+            set_motion_ref(kf, s, kf->cfg.q_motion_ref_profiled_rad, sl->full_profiled_rad);
+        } else {
+            set_motion_ref(kf, s, kf->cfg.q_motion_ref_rad, sl->full_shared_rad);
+        }
     }
     short_plan_ranges(kf);
 }
@@ -490,7 +506,8 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     kf->slot[block].enabled = enabled ? 1u : 0u;
     hd_kf_clear_block(kf, block, enabled ? kf->slot[block].p0_nm2 : 0.0f);
     if (kf->cfg.q_motion_ref_profiled_rad > 0.0f) {
-        set_motion_ref(kf, block, kf->cfg.q_motion_ref_rad); /* its line is gone */
+        set_motion_ref(kf, block, kf->cfg.q_motion_ref_rad,
+                       kf->slot[block].full_shared_rad); /* its line is gone */
     }
     short_plan_ranges(kf);
     kf->motor_ref[2u * block] = kf->motor_ref[2u * block + 1u] = 0.0f;

@@ -319,6 +319,9 @@ typedef struct {
     float fixed_sin;
     float full_rad;      /* MOTOR: |increment| from which its motion fraction is 1 */
     float frozen_rad;    /* MOTOR, OUTPUT: |increment| from which it is over Nyquist */
+    float full_shared_rad;   /* MOTOR: full_rad at q_motion_ref_rad, and */
+    float full_profiled_rad; /* at q_motion_ref_profiled_rad (built once, at init:
+                                switching needs no search in the tick) */
 } hd_kf_slot_t;
 
 /* Filter state.  Treat as opaque; it is public only so it can be allocated

@@ -100,7 +100,8 @@ class KfSlot(ctypes.Structure):
                 ("theta_per_unit", c_float), ("motion_inv", c_float), ("motion_bias", c_float),
                 ("q_nm2", c_float), ("p0_nm2", c_float), ("learn", c_float),
                 ("fixed_cos", c_float), ("fixed_sin", c_float), ("full_rad", c_float),
-                ("frozen_rad", c_float)]
+                ("frozen_rad", c_float), ("full_shared_rad", c_float),
+                ("full_profiled_rad", c_float)]
 
 
 class KfState(ctypes.Structure):
