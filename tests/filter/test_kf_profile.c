@@ -511,6 +511,9 @@ static void test_profile_refusals_leave_filter_unchanged(void)
     bad = good;
     bad.line_count = HD_KF_MAX_BLOCKS + 1;
     TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
+    bad = good;
+    bad.load_nm = 2.0f * HD_KF_MAX_ABS_Y_NM; /* not a load any row could scale with */
+    TEST_ASSERT_EQUAL_INT(HD_KF_ERR_PROFILE, hd_kf_profile_import(&kf, &bad, 1.0f, 1.0f, 1e-3f));
     /* a later bad line refuses the whole profile: the good first one is not applied */
     bad = good;
     bad.line_count = 2;

@@ -589,7 +589,8 @@ static void test_implausible_profile_contents_are_corrupt(void)
         int field; /* which mutation */
     } cases[] = {{"lock 2", 0},         {"order 0", 1},      {"a NaN", 2},
                  {"b infinite", 3},     {"9 lines", 4},      {"trailing byte", 5},
-                 {"beyond the limit", 6}, {"gear ratio 0.5", 7}, {"cpr 0", 8}};
+                 {"beyond the limit", 6}, {"gear ratio 0.5", 7}, {"cpr 0", 8},
+                 {"load NaN", 9},       {"load 2e6 N m", 10}};
     for (unsigned i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         setUp();
         line_t l[3];
@@ -608,9 +609,13 @@ static void test_implausible_profile_contents_are_corrupt(void)
         }
         uint8_t p[128];
         size_t len = payload(p, gear, mcpr, CPR, l, 3);
+        if (cases[i].field >= 9) { /* the load_nm field (payload_load's NAN means version 1) */
+            const float load_nm = cases[i].field == 9 ? NAN : 2e6f;
+            memcpy(p + 12, &load_nm, 4);
+        }
         if (cases[i].field == 4) {
-            p[12] = 9;
-            len = 13u + 90u;
+            p[16] = 9;
+            len = 17u + 90u;
         }
         if (cases[i].field == 5) {
             len++;
