@@ -334,7 +334,15 @@ void hd_kf_profile_motion(hd_kf_t *kf, uint32_t held)
     if (!(kf->cfg.q_motion_ref_profiled_rad > 0.0f)) {
         return; /* off: every block keeps q_motion_ref_rad (build_slot's) */
     }
+    held &= (1u << kf->cfg.block_count) - 1u;
+    const uint32_t changed = held ^ kf->profiled_slots;
+    if (changed == 0u) {
+        return; /* a reset with no line held: nothing to switch back (the tick's case) */
+    }
     for (unsigned s = 0; s < kf->cfg.block_count; s++) {
+        if ((changed & (1u << s)) == 0u) {
+            continue;
+        }
         const hd_kf_slot_t *sl = &kf->slot[s];
         if ((held & (1u << s)) != 0u) {
             set_motion_ref(kf, s, kf->cfg.q_motion_ref_profiled_rad, sl->full_profiled_rad);
@@ -342,6 +350,7 @@ void hd_kf_profile_motion(hd_kf_t *kf, uint32_t held)
             set_motion_ref(kf, s, kf->cfg.q_motion_ref_rad, sl->full_shared_rad);
         }
     }
+    kf->profiled_slots = held;
     short_plan_ranges(kf);
 }
 
@@ -361,6 +370,7 @@ static void build_layout(hd_kf_t *kf)
     kf->motor_powers = 0u;
     kf->output_powers = 0u;
     kf->own_frames = 0u;
+    kf->profiled_slots = 0u; /* build_slot: every slot at q_motion_ref_rad */
     kf->nyquist_limit_rad = kf->cfg.nyquist_fraction * HD_PI_F;
     kf->jump_rearm_steps = steps_of(HD_KF_JUMP_REARM_S, kf->cfg.ts_s);
     kf->limit_restart_steps = steps_of(HD_KF_LIMIT_RESTART_S, kf->cfg.ts_s);
@@ -508,6 +518,7 @@ hd_kf_err_t hd_kf_set_block_enabled(hd_kf_t *kf, unsigned block, bool enabled)
     if (kf->cfg.q_motion_ref_profiled_rad > 0.0f) {
         set_motion_ref(kf, block, kf->cfg.q_motion_ref_rad,
                        kf->slot[block].full_shared_rad); /* its line is gone */
+        kf->profiled_slots &= ~(1u << block);
     }
     short_plan_ranges(kf);
     kf->motor_ref[2u * block] = kf->motor_ref[2u * block + 1u] = 0.0f;

@@ -401,6 +401,7 @@ typedef struct {
     float follow_weight;                      /* ... its filled weight, 0 to 1 */
     float motor_ref[2 * HD_KF_MAX_BLOCKS];    /* motor blocks' imported states (frames) */
     float follow_load_nm;                     /* the imported profile's load_nm (< 0: unknown) */
+    uint32_t profiled_slots;                  /* bit s: slot s at q_motion_ref_profiled_rad */
     uint32_t follow_settle_steps;             /* steps left before the growth is read */
     uint32_t follow_settle_total;             /* HD_KF_FOLLOW_SETTLE_S in steps */
     float learn_load_nm;                      /* exponentially weighted |T_ref| over the steps */

@@ -165,6 +165,7 @@ class KfState(ctypes.Structure):
                 ("follow_weight", c_float),
                 ("motor_ref", c_float * (2 * MAX_BLOCKS)),
                 ("follow_load_nm", c_float),
+                ("profiled_slots", c_uint32),
                 ("follow_settle_steps", c_uint32),
                 ("follow_settle_total", c_uint32),
                 ("learn_load_nm", c_float),
