@@ -1,7 +1,8 @@
 /* hd_kf_rows: the load-dependent measurement rows the step uses (hd_kf.h:
  * ripple_load_coeff_per_nm for motor-locked rows, output_row_follow for the
- * held output rows; docs/design/filter.md, "Load-modulated output lines").
- * Called by hd_kf_step only when one of them is on. */
+ * held output rows; docs/design/filter.md, "Load-modulated output lines"),
+ * called by hd_kf_step only when one of them is on; and the load the motor
+ * blocks learn at (the profile's load_nm), on every step they learn fully. */
 #include <math.h> /* fabsf, sqrtf (VSQRT on Cortex-M4F) */
 
 #include "hd_kf_internal.h"
