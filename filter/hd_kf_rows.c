@@ -82,16 +82,18 @@ static float follow_predict(const hd_kf_t *kf, float t)
  * lines since the profile import, sqrt(sum |x|^2 / sum |ref|^2) over the
  * imported motor blocks (1 as imported, (1 + c |T|) / (1 + c |T_c|) for
  * lines grown by a common load factor), is measured while `observed` (every
- * motor block at full motion, turning at least HD_KF_FOLLOW_MIN_RAD per
- * step; not in the first HD_KF_FOLLOW_SETTLE_S after the import, while the
- * motor blocks settle) and feeds an exponentially weighted regression of g
- * on |T_ref|.  The row's target is the growth the load explains: the
+ * motor block turning at least HD_KF_FOLLOW_MIN_RAD per step, none frozen;
+ * not in the first HD_KF_FOLLOW_SETTLE_S after the import, while the motor
+ * blocks settle) and feeds an exponentially weighted regression of g on
+ * |T_ref| (1 before its first sample).  The row's target is the growth the load explains: the
  * regression at |T_ref| over the regression at the profile's load T_c
  * (lines changed at a constant load, by wear or temperature, give the same
- * g at both and do not move the row), refused beyond [1 / max, max] (held
- * at the bound: HD_KF_STATUS_LOAD_BOUND) and low-passed into output_row.
- * No reference, T_c unknown (a version-1 record, a CAN upload: drift and
- * load cannot be told apart) or no sample yet: 1. */
+ * g at both and do not move the row), times (1 + c |T_ref|) / (1 + c T_c)
+ * with a model load coefficient c (ripple_load_coeff_per_nm: the motor rows
+ * carry that factor, their states stay at zero load), refused beyond
+ * [1 / max, max] (held at the bound: HD_KF_STATUS_LOAD_BOUND) and
+ * low-passed into output_row.  No reference or T_c unknown (a version-1
+ * record, a CAN upload: drift and load cannot be told apart): 1. */
 uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
 {
     if (kf->motor_ref_inv <= 0.0f || kf->follow_load_nm < 0.0f) {
@@ -124,11 +126,18 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
             kf->follow_weight += a * (1.0f - kf->follow_weight);
             kf->follow_cov_tg = (1.0f - a) * (kf->follow_cov_tg + a * dt * dg);
         }
-    } else if (!kf->follow_primed) {
-        return 0u;
     }
-    const float g_c = follow_predict(kf, kf->follow_load_nm);
-    const float g = g_c > 0.0f ? follow_predict(kf, t_abs) / g_c : 1.0f;
+    float g = 1.0f;
+    if (kf->follow_primed) {
+        const float g_c = follow_predict(kf, kf->follow_load_nm);
+        g = g_c > 0.0f ? follow_predict(kf, t_abs) / g_c : 1.0f;
+    }
+    const float c = kf->cfg.ripple_load_coeff_per_nm;
+    if (c > 0.0f) {
+        /* the motor rows already carry the modelled factor (their states are
+         * zero-load lines): the output lines take it too, from T_c */
+        g *= (1.0f + c * t_abs) / (1.0f + c * kf->follow_load_nm);
+    }
     const float hi = kf->cfg.output_row_max, lo = 1.0f / hi;
     float target = 1.0f + kf->cfg.output_row_follow * (g - 1.0f);
     uint32_t status = 0u;

@@ -266,6 +266,11 @@ def profile_rows(c: Cases) -> list[list[str]]:
                  f"filtered RMS error {m['known']} N m with the profile's load known, "
                  f"{m['unknown']} N m unknown (no follow); without the drift {m['still']} N m",
                  f"known < {m['bound']} the drift-free joint's; unknown > 2x"])
+    m = c("follow_modelled")
+    rows.append(["lines growing as 1 + 0.1 |T|, the model's load coefficient 0.1 (motor rows "
+                 "scaled, held output row from the profile's load)",
+                 f"filtered RMS error {m['grown']} N m; lines not growing, no coefficient: "
+                 f"{m['plain']} N m", f"< {m['bound']} the latter's"])
     return rows
 
 

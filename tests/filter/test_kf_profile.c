@@ -964,6 +964,51 @@ static double drift_run(double drift, float profile_load_nm)
     return sqrt(sum / (double)n);
 }
 
+/* With the model's load coefficient (ripple_load_coeff_per_nm = c, the
+ * motor rows 1 + c |T_ref|, their states the zero-load lines) the motor
+ * lines' measured growth is 1, and the held output row takes the modelled
+ * factor from the profile's load: on lines that all grow as 1 + c |T| the
+ * RMS error after 3 s is within 1.3x that of the same joint whose lines do
+ * not grow, filtered without a coefficient. */
+static double modelled_run(double c_model, double c_truth)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    profile_cfg(&cfg, 0.0f);
+    cfg.output_row_follow = 1.0f;
+    cfg.output_row_max = 3.0f;
+    cfg.ripple_load_coeff_per_nm = (float)c_model;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    joint_t j;
+    joint_init(&j, 41u);
+    import_profile_at_load(&kf, &j, 0.0f);
+    double sum = 0.0;
+    long n = 0;
+    for (int k = 1; k <= 20000; k++) {
+        const double t = k * TS_S;
+        const double load = 4.0 * sin(2.0 * TU_PI * t / 6.0) + (t > 9.0 ? -1.5 : 0.5);
+        const double g = 1.0 + c_truth * fabs(load);
+        hd_kf_input_t in = joint_next_grown(&j, SPEED_OUT_RAD_S * TS_S, load, g, g);
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        if (k > 3000) {
+            const double e = (double)o.torque_filtered_nm - load;
+            sum += e * e;
+            n++;
+        }
+    }
+    return sqrt(sum / (double)n);
+}
+
+static void test_follow_takes_the_modelled_load_factor(void)
+{
+    const double plain = modelled_run(0.0, 0.0), grown = modelled_run(GROW_C_PER_NM, GROW_C_PER_NM);
+    msg("model load coefficient %.2f on lines growing as it says: filtered RMS error %.4f N m; "
+        "no coefficient on lines that do not grow %.4f", GROW_C_PER_NM, grown, plain);
+    rel_measured("follow_modelled", "grown=%.4f plain=%.4f bound=1.3x", grown, plain);
+    TEST_ASSERT_LESS_THAN_DOUBLE(1.3 * plain, grown);
+}
+
 static void test_follow_takes_only_the_growth_the_load_explains(void)
 {
     const double still = drift_run(1.0, 0.0f), known = drift_run(1.3, 0.0f),
@@ -1125,6 +1170,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_follow_output_line_grown_by_the_load);
     RUN_TEST(test_follow_refuses_rows_beyond_the_envelope);
     RUN_TEST(test_follow_takes_only_the_growth_the_load_explains);
+    RUN_TEST(test_follow_takes_the_modelled_load_factor);
     RUN_TEST(test_profiled_lines_hold_through_a_stop);
     RUN_TEST(test_profiled_reference_only_where_a_line_is_held);
     return UNITY_END();

@@ -363,7 +363,7 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
     hd_pipeline_run (one C call).  Returns float32 arrays named as in
     hd_pipeline_io_t, plus "status" (uint32) and, if amplitudes, "amplitude_nm"
     (n x MAX_BLOCKS).  profile: (lines, motor_angle_rad, output_angle_rad,
-    prior_var_nm2) imported with hd_kf_profile_import before the first
+    prior_var_nm2[, load_nm]) imported with hd_kf_profile_import before the first
     sample (lines: (lock, order, a_nm, b_nm); the angles of the first
     sample, absolute: the filter is given the angles of the sample before
     it, these minus the first increments, hd_kf.h "Which angle").
@@ -378,9 +378,9 @@ def run(cfg: KfConfig, expected: ExpectedConfig, torque_nm, d_motor_rad, d_outpu
         raise FilterError(f"hd_pipeline_init failed ({error_name(err)}): {error_text(err)}",
                           error_name(err))
     if profile is not None:
-        lines, th_m0, th_o0, prior = profile
+        lines, th_m0, th_o0, prior, *load = profile
         pr = Profile()
-        pr.load_nm = -1.0     # unknown: the analysis does not estimate it
+        pr.load_nm = load[0] if load else -1.0     # the load the lines are at; -1: unknown
         pr.line_count = len(lines)
         for i, (lock, order, a, b) in enumerate(lines):
             pr.lines[i].lock, pr.lines[i].order = lock, int(order)

@@ -189,6 +189,9 @@ class Model:
         for k in cfilter.KfConfig.SCALARS:
             setattr(cfg, k, getattr(self, k))
         cfg.output_learn_scale = self.output_learn_scale
+        # held output lines follow the load as the firmware's defaults have them
+        for key in ("output_row_follow", "output_row_max"):
+            setattr(cfg, key, protocol.param_by_key(key).default)
         for b in self.blocks:
             cfg.add_block(cfilter.LOCK_BY_NAME[b.lock], b.order, b.q_nm2)
         return cfg

@@ -11,10 +11,10 @@ Schema (docs/design/analyze.md "Profile"; kept simple on purpose):
    "lines": [{"lock": "motor" | "output", "order": k, "a_nm": a, "b_nm": b}, ...],
    "source": {...}}
 
-load_nm: the record's mean |slow torque| (measured - feed-forward over
-0.2 s) where the motor turns at least LOAD_MIN_MOTOR_RAD per sample: the
-load its line amplitudes are averages at, which the firmware's held
-output rows take as T_c (hd_kf.h, output_row_follow).
+load_nm: the record's mean |slow torque| (measured - feed-forward, in
+0.2 s blocks) where the motor turns at least 0.05 rad per sample
+(loadlevel.py): the load its line amplitudes are averages at, which the
+firmware's held output rows take as T_c (hd_kf.h, output_row_follow).
 
 ripple = sum a cos(order alpha) + b sin(order alpha), alpha the absolute
 motor angle (motor lines) or output angle (output lines) in rad, with the
@@ -38,6 +38,7 @@ import numpy as np
 
 from ..profile_record import SCHEMA
 from . import replay as rp, spectra
+from .loadlevel import load_of
 CONVENTION = ("ripple_nm = sum over lines of a_nm cos(order alpha) + b_nm sin(order alpha); "
               "alpha = the absolute motor angle (lock motor) or output angle (lock output) in rad, "
               "zero and sign as the log's motor_angle_rad / output_angle_rad columns (the "
@@ -45,7 +46,6 @@ CONVENTION = ("ripple_nm = sum over lines of a_nm cos(order alpha) + b_nm sin(or
               "by 1 + ripple_load_coeff_per_nm |T|)")
 
 
-LOAD_MIN_MOTOR_RAD = 0.05   # as the firmware's HD_KF_FOLLOW_MIN_RAD at order 1
 LOAD_SMOOTH_S = 0.2
 
 
@@ -64,16 +64,9 @@ def _slow_torque(r):
 
 
 def learned_load(view, ts_s) -> float | None:
-    """The mean |slow torque| over the samples where the motor turns at
-    least LOAD_MIN_MOTOR_RAD; None when it never does."""
-    total, n = 0.0, 0
-    for r in view:
-        moving = np.abs(np.diff(np.asarray(r.motor_angle_rad, float), prepend=np.nan)) \
-            >= LOAD_MIN_MOTOR_RAD
-        t = np.abs(_smoothed(_slow_torque(r), ts_s))[moving]
-        total += float(t.sum())
-        n += int(t.size)
-    return total / n if n else None
+    """loadlevel.load_of over runs with torque_nm, feedforward_nm and
+    motor_angle_rad (PieceRun); None when the motor never turns fast enough."""
+    return load_of(((r.torque_nm, r.feedforward_nm, r.motor_angle_rad) for r in view), ts_s)
 
 
 def _motor_fit(view, order, k_load, ts_s):

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import cfilter
+from .loadlevel import load_of
 from .loading import Data
 from .model import Model
 
@@ -132,6 +133,21 @@ def _angles_of(data: Data, gear_ratio):
     return _ANGLES[key][1]
 
 
+_LOADS: dict = {}   # id(data.pieces) -> (pieces, the record's load_nm): one per record
+
+
+def _record_load(data: Data, angles) -> float:
+    """The load a profile fitted on this record is an average at
+    (loadlevel.load_of: what `hdsense analyze` writes as load_nm); -1 when the
+    motor never turns fast enough to say."""
+    key = id(data.pieces)
+    if key not in _LOADS:
+        load = load_of(((p.torque_nm, p.feedforward_nm, a[0])
+                                     for p, a in zip(data.pieces, angles)), data.ts_s)
+        _LOADS[key] = (data.pieces, -1.0 if load is None else load)
+    return _LOADS[key][1]
+
+
 def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
     cfg = model.kf_config(data.ts_s)
     cfilter.check(cfg)
@@ -139,14 +155,15 @@ def replay(data: Data, model: Model, fold=None) -> list[PieceRun]:
     cur = model.current_config(data.ts_s)
     fold = folds(data) if fold is None else fold
     runs = []
-    for k, (p, (th_m, th_o, dm, do)) in enumerate(zip(data.pieces,
-                                                      _angles_of(data, model.gear_ratio))):
+    angles = _angles_of(data, model.gear_ratio)
+    load = _record_load(data, angles) if model.profile else -1.0
+    for k, (p, (th_m, th_o, dm, do)) in enumerate(zip(data.pieces, angles)):
         ff = p.feedforward_nm
         imp = None
         if model.profile:
             lines = [(cfilter.LOCK_BY_NAME[ln.lock], int(round(ln.order)), ln.a_nm, ln.b_nm)
                      for ln in model.profile]
-            imp = (lines, th_m[0], th_o[0], 0.0)
+            imp = (lines, th_m[0], th_o[0], 0.0, load)
         out = cfilter.run(cfg, exp, p.torque_nm, dm, do, ff,
                           track_bandwidth_hz=model.track_bandwidth_hz, profile=imp,
                           motor_current_a=p.motor_current_a, current=cur)
