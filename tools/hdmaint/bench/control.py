@@ -201,6 +201,14 @@ def wall_contact(v: cl.Variant, kd: float) -> dict:
             "limit_cycle": bool(losses > 0 or p2p > 0.1 * abs(float(force.mean())))}
 
 
+def wall_check(kds=WALL["kds"]):
+    """The tuning's contact condition (control_tune.tune's `contact`): the
+    benchmark's wall contact (wall_contact: the same wall, impedance and
+    limit-cycle criterion as the goals' rows) at every impedance kd of kds,
+    with the candidate's torque-loop gains."""
+    return lambda v: [wall_contact(v, kd) for kd in kds]
+
+
 def integral_limit_nm(drive_friction_nm: float) -> float:
     """The torque loop's integral bound: what the integral is for (the drive
     train's friction between the current and the flexspline, measured open
@@ -239,7 +247,8 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
     tuning = {}
     for v in vs:
         log(f"tuning {v.key}...")
-        tuning[v.key] = ct.tune(v, CONDITIONS, log=log)
+        tuning[v.key] = ct.tune(v, CONDITIONS, log=log,
+                                contact=wall_check(WALL["kds"][:1 if quick else None]))
     butters = [v for v in vs if v.key.startswith("butter")]
     rows = {}
     for v in vs:
