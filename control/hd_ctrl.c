@@ -35,11 +35,12 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .ts_s = 1e-3f,
         .gear_ratio = 100.0f,
         .kt_nm_per_a = 0.06f,
-        .feedback = HD_CTRL_FB_FILTERED,
-        .torque_kp = 0.991f,         /* tools/bench --only control: docs/results/control.md, "Tuning" */
-        .torque_ki_per_s = 31.1f,
+        /* the product feedback: docs/decisions/control-bandwidth.md, "Tuned against the wall" */
+        .feedback = HD_CTRL_FB_NARROW,
+        .torque_kp = 0.86f,          /* tools/bench --only control: docs/results/control.md, "Tuning" */
+        .torque_ki_per_s = 27.0f,    /*   (the product feedback's tuned row) */
         .torque_ff = 1.0f,
-        .torque_kd_s = 0.002f,
+        .torque_kd_s = 0.0015f,
         .integral_limit_nm = 7.69f,  /* tools/bench --only control, as the gains */
         /* a sweep on the simulated joint: docs/decisions/control-integral-schedule.md */
         .integral_stiffness_nm_rad = 6000.0f,

@@ -1,7 +1,8 @@
 """Staleness of the control benchmark's outputs (docs/results/control.json,
 written by `tools/bench --only control --update-docs`):
-  * the law's default torque gains (control/hd_ctrl.c) are the gains the
-    bench's tuning found for the filtered feedback, and its integral limit
+  * the law's default feedback (control/hd_ctrl.c) is the bench's product
+    feedback (control.PRODUCT_KEY), its default torque gains the gains the
+    bench's tuning found for that feedback, and its integral limit
     the one the bench derived from the open-loop drive train;
   * the generated section of docs/results/control.md is the tables of that JSON."""
 import json
@@ -10,7 +11,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
-from hdmaint.bench import control_report  # noqa: E402
+from hdmaint.bench import control, control_report  # noqa: E402
 
 RESULTS = json.loads((ROOT / "docs" / "results" / "control.json").read_text())
 
@@ -20,9 +21,22 @@ def _default(field: str) -> float:
     return float(re.search(rf"\.{field} = ([0-9.eE+-]+)f,", src).group(1))
 
 
+FEEDBACK_ENUM = {"filtered": "HD_CTRL_FB_FILTERED", "raw": "HD_CTRL_FB_RAW",
+                 "lowpass": "HD_CTRL_FB_LOWPASS", "none": "HD_CTRL_FB_NONE",
+                 "narrow": "HD_CTRL_FB_NARROW"}
+
+
+def test_default_feedback_is_the_product_one():
+    src = (ROOT / "control" / "hd_ctrl.c").read_text()
+    default = re.search(r"\.feedback = (HD_CTRL_FB_[A-Z]+),", src).group(1)
+    assert RESULTS["product"] == control.PRODUCT_KEY
+    assert default == FEEDBACK_ENUM[RESULTS["rows"][control.PRODUCT_KEY]["config"]["feedback"]]
+    assert RESULTS["goals"][0]["goal"].startswith(f"bandwidth {control.PRODUCT_KEY} ")
+
+
 def test_default_gains_are_the_tuned_ones():
-    t = RESULTS["tuning"]["filtered"]
-    assert t["met"]
+    t = RESULTS["tuning"][control.PRODUCT_KEY]
+    assert t["met"] and t["wall"] and not any(w["limit_cycle"] for w in t["wall"])
     assert _default("torque_kp") == t["kp"]
     assert _default("torque_ki_per_s") == t["ki_per_s"]
     assert _default("torque_kd_s") == t["kd_s"]

@@ -72,6 +72,7 @@ def _row(bw: dict, sensor: str = "gauge") -> dict:
 def test_bound_rows_per_speed():
     s0, s1, s2 = control.SPEEDS_RAD_S
     rows = {"filtered": _row({s0: 8.8, s1: 34.2, s2: 73.6}),
+            control.PRODUCT_KEY: _row({s0: 8.4, s1: 66.3, s2: 66.2}),
             "butter1": _row({s0: 6.8, s1: 30.8, s2: 30.8}),
             control.IDEAL_KEY: _row({s0: 9.0, s1: 80.0, s2: None}, "ideal")}
     g = control.goals(rows, "butter1", {"3.0": {"ratio": 0.02}},
@@ -80,6 +81,13 @@ def test_bound_rows_per_speed():
                         "kd_nm_s_rad": 2.0}])
     bw = next(x for x in g if x["goal"].startswith("bandwidth"))
     assert "butter1" in bw["goal"] and bw["met"] is False
+    # the goal is the product feedback's; the filtered loop's ratio a comparison, no goal
+    assert control.PRODUCT_KEY in bw["goal"] and bw["where"] == f"{s0} rad/s"
+    assert bw["worst"] == pytest.approx(8.4 / 6.8)
+    assert bw["ratios"][str(s1)] == pytest.approx(66.3 / 30.8)
+    cmp_, = (x for x in g if x.get("kind") == "comparison")
+    assert cmp_["met"] is None and cmp_["worst"] == pytest.approx(34.2 / 30.8)
+    assert cmp_["status"] == "would NOT be met" and "filtered" in cmp_["goal"]
     bounds = [x for x in g if x.get("kind") == "bound"]
     assert [b["speed_rad_s"] for b in bounds] == list(control.SPEEDS_RAD_S)
     assert all(b["met"] is None and control.IDEAL_LABEL in b["goal"] for b in bounds)

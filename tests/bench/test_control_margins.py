@@ -100,3 +100,52 @@ def test_bandwidth_of_a_first_order_response():
     assert abs(ct.bandwidth_hz(f, 1 / (1 + 1j * f / 25.0)) - 25.0) < 0.25
     assert ct.bandwidth_hz(f, 0.5 + 0 * f) is None
     assert ct.bandwidth_hz(f, 1 + 0 * f) == math.inf
+
+
+def _closed_form_measure(a=math.exp(-cl.TS_S / 0.004), delay=2):
+    """measure_loop's stand-in: the discrete first-order plant with a delay
+    of test_injection_measures_the_closed_form_loop, L = C(v) P."""
+    f = cl.multisine()[1] / (cl.MS_PERIOD * cl.TS_S)
+    z = np.exp(1j * 2 * math.pi * f * cl.TS_S)
+    p = (1 - a) * z ** (-delay) / (1 - a / z)
+
+    def measure(v, scene):
+        return cl.Response(f, cl.pi_response(f, v.kp, v.ki, v.kd) * p, p, p)
+    return measure
+
+
+def _rounded(c):
+    return tuple(float(f"{x:.3g}") for x in c[:3])
+
+
+def test_tune_rejects_a_candidate_that_limit_cycles_on_the_wall():
+    """Step 4: a candidate meeting every margin but limit-cycling in the
+    wall contact is rejected and the next one taken; without a cycle the
+    best is kept."""
+    measure, conds = _closed_form_measure(), ("0.5",)
+    found = ct.candidates(ct.measure_plants(cl.Variant("x", "raw"), conds, measure), 1.0)
+    assert len(found) > 2 and _rounded(found[0]) != _rounded(found[1])
+    calls = []
+
+    def contact(v):   # the best candidate cycles, every other one rests
+        calls.append((v.kp, v.ki, v.kd))
+        return [{"limit_cycle": len(calls) == 1, "p2p_nm": 3.0 if len(calls) == 1 else 0.01}]
+    v = cl.Variant("x", "raw")
+    t = ct.tune(v, conds, measure, contact=contact)
+    assert calls == [_rounded(found[0]), _rounded(found[1])]
+    assert (v.kp, v.ki, v.kd) == _rounded(found[1]) and t["met"]
+    assert t["wall_rejected"] == [dict(zip(("kp", "ki_per_s", "kd_s"), _rounded(found[0])),
+                                       wall_p2p_nm=3.0)]
+    assert not t["wall"][0]["limit_cycle"]
+    v = cl.Variant("x", "raw")
+    t = ct.tune(v, conds, measure, contact=lambda v: [{"limit_cycle": False, "p2p_nm": 0.0}])
+    assert (v.kp, v.ki, v.kd) == _rounded(found[0]) and t["met"] and t["wall_rejected"] == []
+
+
+def test_tune_reports_not_met_when_every_candidate_limit_cycles():
+    measure = _closed_form_measure()
+    v = cl.Variant("x", "raw")
+    t = ct.tune(v, ("0.5",), measure, contact=lambda v: [{"limit_cycle": True, "p2p_nm": 1.0}])
+    assert not t["met"] and len(t["wall_rejected"]) == min(
+        ct.CHECKED_MAX, len(ct.candidates(ct.measure_plants(
+            cl.Variant("x", "raw"), ("0.5",), measure), 1.0)))

@@ -205,6 +205,15 @@ static loop_result_t run_loop(const loop_case_t *lc)
     return out;
 }
 
+/* The product feedback: the law's default ctrl_feedback (hd_ctrl_config_default),
+ * which the default gains were tuned for (docs/results/control.md, "Tuning"). */
+static uint8_t product_fb(void)
+{
+    hd_ctrl_config_t k;
+    hd_ctrl_config_default(&k);
+    return k.feedback;
+}
+
 static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
 {
     const float tau = 10.0f;
@@ -214,9 +223,11 @@ static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
     const loop_result_t raw = run_loop(&lc);
     lc.feedback = HD_CTRL_FB_NONE;
     const loop_result_t open = run_loop(&lc);
-    const char *names[3] = {"filtered", "raw", "open loop"};
-    const loop_result_t *all[3] = {&filt, &raw, &open};
-    for (int i = 0; i < 3; i++) {
+    lc.feedback = product_fb();
+    const loop_result_t prod = run_loop(&lc);
+    const char *names[4] = {"filtered", "raw", "open loop", "product"};
+    const loop_result_t *all[4] = {&filt, &raw, &open, &prod};
+    for (int i = 0; i < 4; i++) {
         printf("closed_loop: %-9s feedback, setpoint %.1f N m: true torque mean %.3f N m, "
                "2x line %.4f N m, rms %.4f N m, speed %.3f rad/s\n",
                names[i], (double)tau, all[i]->mean_nm, all[i]->line2_nm, all[i]->rms_nm,
@@ -224,8 +235,12 @@ static void test_torque_tracking_and_ripple_filtered_vs_raw(void)
     }
     printf("closed_loop: true-torque 2x ripple filtered / raw = %.3f (goal <= 0.5)\n",
            filt.line2_nm / raw.line2_nm);
+    printf("closed_loop: true-torque 2x ripple product (ctrl_feedback %u) / raw = %.3f "
+           "(goal <= 0.5)\n", (unsigned)product_fb(), prod.line2_nm / raw.line2_nm);
     TEST_ASSERT_DOUBLE_WITHIN(0.03 * (double)tau, (double)tau, filt.mean_nm);
     TEST_ASSERT_TRUE(filt.line2_nm < 0.5 * raw.line2_nm);
+    TEST_ASSERT_DOUBLE_WITHIN(0.03 * (double)tau, (double)tau, prod.mean_nm);
+    TEST_ASSERT_TRUE(prod.line2_nm < 0.5 * raw.line2_nm);
 }
 
 /* Step metrics of trace_nm from tick `at` (from -> to), on a moving average
@@ -284,7 +299,7 @@ static void test_zero_torque_transparency(void)
     const double speeds[3] = {0.2, 1.0, 3.0};
     double worst = 0.0;
     for (int i = 0; i < 3; i++) {
-        loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_ZERO_TORQUE, 0.0f, 0.0f, 0.0f, 0.0,
+        loop_case_t lc = {product_fb(), HD_CTRL_ZERO_TORQUE, 0.0f, 0.0f, 0.0f, 0.0,
                           speeds[i], 0.0, 0, 0.0f, false};
         const loop_result_t zt = run_loop(&lc);
         lc.feedback = HD_CTRL_FB_NONE; /* zero current: the open-loop drive */
@@ -309,7 +324,7 @@ static void test_impedance_rendered_stiffness(void)
     const float kps[2] = {100.0f, 500.0f}, kd = 2.0f;
     const double push_nm = 10.0, count_rad = 2.0 * 3.14159265358979323846 / 4096.0;
     for (int i = 0; i < 2; i++) {
-        loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, kps[i], kd, 0.0, 0.0,
+        loop_case_t lc = {product_fb(), HD_CTRL_IMPEDANCE, 0.0f, kps[i], kd, 0.0, 0.0,
                           push_nm, 0, 0.0f, false};
         const loop_result_t r = run_loop(&lc);
         const double rendered = push_nm / r.angle_rad;
@@ -339,7 +354,7 @@ static void test_impedance_wall_contact_settles(void)
     enum { RAMP = 500, HOLD = 750, PRE = 4 * RAMP + 2 * HOLD, TICKS = PRE + 500 + 3000 };
     const float kds[2] = {2.0f, 10.0f};
     for (int i = 0; i < 2; i++) {
-        const loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_IMPEDANCE, 0.0f, 500.0f, kds[i],
+        const loop_case_t lc = {product_fb(), HD_CTRL_IMPEDANCE, 0.0f, 500.0f, kds[i],
                                 0.0, 0.0, 0.0, 0, 0.0f, true};
         hd_fw_config_t cfg;
         start_loop(&lc, &cfg);
@@ -421,7 +436,7 @@ static double dyno_nm(int k, double *servo_int)
 static double held_gain_at_5hz(float friction_rest_nm)
 {
     enum { PRESS = 1000, SINE = 2000, TICKS = PRE_TICKS + PRESS + SINE };
-    const loop_case_t lc = {HD_CTRL_FB_FILTERED, HD_CTRL_TORQUE, 10.0f, 0.0f, 0.0f, 0.0, 0.0, 0.0,
+    const loop_case_t lc = {product_fb(), HD_CTRL_TORQUE, 10.0f, 0.0f, 0.0f, 0.0, 0.0, 0.0,
                             0, 0.0f, false};
     hd_fw_config_t cfg;
     start_friction_rest_nm = friction_rest_nm;

@@ -54,6 +54,8 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
     conds = sorted({c for t in res["tuning"].values() for c in t.get("measured", {})},
                    key=lambda c: (c == "wall", c))
     tab = []
+    wall_kds = " / ".join(f"{c['kd_nm_s_rad']:g}" for c in res["wall"]
+                          if c["torque_ki_per_s"] > 0)
     for key, t in res["tuning"].items():
         cfg = rows[key]["config"]
         what = cfg["feedback"]
@@ -69,13 +71,17 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
         if "measured" not in t:
             note = ("open loop: no loop" if cfg["feedback"] == "none"
                     else "NO (no gains on the grid meet them)")
-            tab.append([key, what, "-", "-", "-"] + ["-"] * len(conds) + [note])
+            tab.append([key, what, "-", "-", "-"] + ["-"] * len(conds) + ["-", "-", note])
             continue
         cells = [f"{_n(t['measured'][c]['pm_deg'], '{:.0f}', 'no crossover')} / "
                  f"{_n(t['measured'][c]['gm_db'], '{:.1f}', 'no phase crossover')}"
                  for c in conds]
+        walls = t.get("wall", [])
+        wall = " / ".join(f"{w['p2p_nm']:.2f}" + (" (CYCLE)" if w["limit_cycle"] else "")
+                          for w in walls) or "-"
         tab.append([key, what, f"{t['kp']:.3g}", f"{t['ki_per_s']:.3g}",
                     f"{1e3 * t.get('kd_s', 0.0):.3g}"] + cells
+                   + [wall, str(len(t.get("wall_rejected", [])))]
                    + ["yes" if t["met"] else "NO"])
     out.append((f"Tuned gains and the margins measured by breaking the loop (phase margin deg / "
                 f"gain margin dB; goal >= {res['margins']['pm_deg']:g} / "
@@ -87,7 +93,9 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                 ["variant", "feedback", "kp", "ki [1/s]", "kd [ms]"]
                 + [{"wall": "wall contact", "free": "free output"}.get(c, f"{c} rad/s")
                    for c in conds]
-                + ["margins met"], tab))
+                + [f"stiff-wall contact peak to peak N m (IMPEDANCE kd {wall_kds}; "
+                   "the goals' wall rows)",
+                   "candidates rejected for a wall limit cycle", "margins met, no cycle"], tab))
     best = res["best_butterworth"]
     tab = []
     for key, r in rows.items():
@@ -111,12 +119,13 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                 ["variant"] + [f"2x line {s} rad/s" for s in moving]
                 + [f"rms {s} rad/s" for s in moving],
                 tab))
+    prod = res.get("product", "filtered")
     out.append(("Transparency: the torque needed to back-drive the output (ZERO_TORQUE on the "
-                "filtered torque, tuned gains) against the open-loop drive (zero current) [N m]",
+                f"product feedback, {prod}, tuned gains) against the open-loop drive (zero current) [N m]",
                 ["speed rad/s", "ZERO_TORQUE", "open-loop drive", "ratio"],
                 [[s, f"{t['zero_torque_nm']:.4f}", f"{t['open_loop_nm']:.3f}",
                   f"{t['ratio']:.4f}"] for s, t in res["transparency"].items()]))
-    out.append(("Impedance (filtered feedback): rendered against commanded (stiffness: a "
+    out.append((f"Impedance (the product feedback, {prod}): rendered against commanded (stiffness: a "
                 "10 N m push on the free output; damping: the slope of the torque between "
                 "0.5 and 1 rad/s at kp 0; the push's deflection is the mean of the last "
                 "second, over which it moves by the peak to peak)",
@@ -124,11 +133,11 @@ def tables(res: dict) -> list[tuple[str, list[str], list[list[str]]]]:
                 [[r["kind"], f"{r['commanded']:g}", f"{r['rendered']:.2f}",
                   f"{r['error_pct']:+.1f}", _n(r.get("p2p_pct"), "{:.1f}")]
                  for r in res["impedance"]["rows"]]))
-    out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, filtered feedback): "
-                "the true torque over the last second",
+    out.append(("Contact with a 2e4 N m/rad wall (IMPEDANCE kp 500 N m/rad, the product "
+                f"feedback, {prod}): the true torque over the last second",
                 ["kd N m s/rad", "torque loop ki_t 1/s (IMPEDANCE runs ki_t sqrt(kp / "
                  "ctrl_integral_stiffness_nm_rad))", "mean N m", "commanded (mean) N m",
-                 "filtered - true N m", "peak to peak N m", "contact losses",
+                 "the filter's torque - true N m", "peak to peak N m", "contact losses",
                  "ticks without a valid torque", "limit cycle"],
                 [[f"{c['kd_nm_s_rad']:g}",
                   f"{c['torque_ki_per_s']:.3g}" + ("" if c["torque_ki_per_s"] else
@@ -167,7 +176,8 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
     """The README's row (tools/hdmaint/headline.py)."""
     g = {x["goal"].split(" ")[0]: x for x in c["goals"]}
     bw = next(x for x in c["goals"] if x["goal"].startswith("bandwidth"))
-    f = c["rows"]["filtered"]["speeds"]
+    prod = c.get("product", "filtered")
+    f = c["rows"][prod]["speeds"]
     speeds = [str(s) for s in c["speeds_rad_s"]]
     src = "[control.json](docs/results/control.json), [control.md](docs/results/control.md)"
     ratios = " / ".join(f"{bw['ratios'][s]:.2f}x" for s in speeds)
@@ -176,7 +186,7 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
         "Torque loop on the simulated joint, gains from the project's own tuning "
         f"(PM >= {c['margins']['pm_deg']:g} deg, GM >= {c['margins']['gm_db']:g} dB, measured "
         "by breaking the loop)",
-        "filtered feedback -3 dB bandwidth " + " / ".join(_bw(f[s]["chirp"]) for s in speeds)
+        f"{prod} feedback (the product's) -3 dB bandwidth " + " / ".join(_bw(f[s]["chirp"]) for s in speeds)
         + f" Hz at {' / '.join(speeds)} rad/s = {ratios} the best low-pass-fed loop "
         f"(goal 2x: {status(bw)}); true-torque ripple {g['true-torque']['worst']:.2f}x raw "
         f"({status(g['true-torque'])}); back-drive {g['back-drive']['worst']:.3f}x the open "

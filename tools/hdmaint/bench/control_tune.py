@@ -17,9 +17,11 @@
    is the free flexspline mode), ranked by crossover (geometric mean over
    the conditions), then predicted bandwidth.
 4. Measure the chosen loop again by breaking it (its margins are the ones
-   reported) and, if a condition misses a margin (the plant's nonlinearity:
-   friction at standstill, the stick-slip of a stiff contact), take the next
-   best candidate of the grid, up to CHECKED_MAX of them.
+   reported) and run the benchmark's stiff-wall contact with it (`contact`:
+   control.wall_contact, its limit-cycle criterion); if a condition misses a
+   margin (the plant's nonlinearity: friction at standstill, the stick-slip
+   of a stiff contact) or the contact limit-cycles, take the next best
+   candidate of the grid, up to CHECKED_MAX of them.
 The open-loop current (feedback none) has no loop and no tuning.
 """
 from __future__ import annotations
@@ -133,8 +135,13 @@ def search(plants: list[PlantAt], ff: float) -> tuple[float, float, float, dict]
     return found[0] if found else None
 
 
-def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None) -> dict:
-    """Tunes v in place; returns what the method found (for the results)."""
+def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
+         contact=None) -> dict:
+    """Tunes v in place; returns what the method found (for the results).
+    contact(v) -> a list of wall-contact results (control.wall_contact's
+    dicts, each with "limit_cycle"): a candidate that meets the margins but
+    limit-cycles on any of them is rejected like one that misses a margin
+    (None: no contact check)."""
     if v.feedback == "none":
         return {"method": "none (open loop)"}
     plants = measure_plants(v, conditions, measure)
@@ -144,17 +151,30 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None)
         v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
         log(f"{v.key}: no gains on the grid meet the margins in every condition")
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
-    checked, predicted = {}, found[0][3]
+    checked, predicted, walls, rejected = {}, found[0][3], [], []
     for kp, ki, kd, pred in found[:CHECKED_MAX]:
+        walls = []
         # as the law's defaults hold them
         v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in (kp, ki, kd))
         checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
-        if all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB) for r in checked.values()):
-            predicted = pred
-            break
+        if not all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB)
+                   for r in checked.values()):
+            continue
+        walls = contact(v) if contact is not None else []
+        if any(w["limit_cycle"] for w in walls):
+            rejected.append({"kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd,
+                             "wall_p2p_nm": max(w["p2p_nm"] for w in walls)})
+            log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s meets the margins "
+                "but limit-cycles on the wall; next")
+            continue
+        predicted = pred
+        break
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
+    no_cycle = not any(w["limit_cycle"] for w in walls)
     log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
-    return {"method": "grid", "met": all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()),
+    return {"method": "grid",
+            "met": all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()) and no_cycle,
             "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": predicted, "measured": ms,
+            "wall": walls, "wall_rejected": rejected,
             "loops": {s: r.to_json() for s, r in checked.items()}}
