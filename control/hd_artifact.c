@@ -46,7 +46,8 @@ float hd_artifact_step(hd_artifact_t *t, float a_nm, float motor_angle_rad, floa
         return t->re[0];
     }
     const float x = wrap_pi(motor_angle_rad);
-    const float c1 = cos_poly(x), s1 = sin_poly(x);
+    float s1, c1;
+    sincos_quadrant(x, &s1, &c1);
     /* cos and sin of k theta by complex multiplication: one evaluation of
      * the series per tick, the orders by rotation */
     float ck[HD_ARTIFACT_ORDER_MAX + 1u], sk[HD_ARTIFACT_ORDER_MAX + 1u];

@@ -28,6 +28,16 @@ void hd_fw_derive(hd_fw_settings_t *s)
                            : (HD_FW_TICK_HZ + c->telemetry_rate_hz / 2u) / c->telemetry_rate_hz;
 }
 
+void hd_fw_derive_next(const hd_fw_t *fw, hd_fw_settings_t *spare)
+{
+    const hd_fw_settings_t *live = hd_fw_live(fw);
+    hd_fw_derive(spare);
+    /* memcmp errs only towards "changed" (padding, -0): a restart, never a
+     * stale law */
+    spare->ctrl_gen = live->ctrl_gen +
+                      (memcmp(&spare->ctrl, &live->ctrl, sizeof spare->ctrl) != 0 ? 1u : 0u);
+}
+
 /* ------------------------------------------------------------------ queues */
 
 bool hd_fw_queue_push(hd_fw_queue_t *q, const hal_can_frame_t *f)

@@ -105,6 +105,7 @@ typedef struct {
 typedef struct {
     hd_fw_config_t cfg;
     hd_ctrl_config_t ctrl;          /* hd_fw_ctrl_config(cfg) */
+    uint32_t ctrl_gen;              /* changes when ctrl does (hd_fw_derive_next) */
     float motor_rad_per_count;
     float output_rad_per_count;
     int32_t max_motor_delta_counts;
@@ -164,6 +165,7 @@ typedef struct {
 typedef struct {
     hd_ctrl_t ctrl;                 /* the law's state (built from the live settings) */
     const hd_fw_settings_t *built_from; /* the settings ctrl was built from */
+    uint32_t built_gen;             /* their ctrl_gen: the law restarts only when it moves */
     hd_ctrl_setpoint_t sp;          /* the last accepted setpoint (STOP at boot) */
     float kp_nm_rad;                /* the last accepted GAINS */
     float kd_nm_s_rad;

@@ -49,7 +49,7 @@ static int commit_with(hd_fw_t *fw, const hd_fw_settings_t *next, bool rebuild, 
     }
     hd_fw_settings_t *spare = hd_fw_spare(fw);
     *spare = *next;
-    hd_fw_derive(spare);
+    hd_fw_derive_next(fw, spare);
     post(fw, (uint8_t)(HD_FW_REQ_SETTINGS | (rebuild ? HD_FW_REQ_PIPE : 0u) | extra), 0u, 0u);
     return HD_CAN_RES_OK;
 }
@@ -157,7 +157,7 @@ static void block_enable(hd_fw_t *fw, const hd_can_cmd_t *cmd, reply_t *r)
     }
     hd_fw_settings_t *spare = hd_fw_spare(fw);
     *spare = next;
-    hd_fw_derive(spare);
+    hd_fw_derive_next(fw, spare);
     post(fw, HD_FW_REQ_SETTINGS | HD_FW_REQ_BLOCK, i, a->enable);
 }
 

@@ -229,6 +229,7 @@ void hd_fw_control_boot(hd_fw_t *fw)
     const hd_fw_settings_t *set = hd_fw_live(fw);
     hd_ctrl_init_prechecked(&fw->control.ctrl, &set->ctrl);
     fw->control.built_from = set;
+    fw->control.built_gen = set->ctrl_gen;
 }
 
 uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
@@ -239,9 +240,13 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
     hd_fw_ctrl_state_t *c = &fw->control;
     const hd_fw_settings_t *set = hd_fw_live(fw);
     if (c->built_from != set) {
-        /* new settings: the loop restarts from them (hd_fw_config_check passed
-         * them before they were built: no second check in the tick) */
-        hd_ctrl_init_prechecked(&c->ctrl, &set->ctrl);
+        /* new settings: the loop restarts from them when its own part
+         * changed (hd_fw_config_check passed them before they were built: no
+         * second check in the tick) */
+        if (set->ctrl_gen != c->built_gen) {
+            hd_ctrl_init_prechecked(&c->ctrl, &set->ctrl);
+            c->built_gen = set->ctrl_gen;
+        }
         c->built_from = set;
     }
     track_angle(c, s, set);

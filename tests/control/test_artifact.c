@@ -7,8 +7,10 @@
  * before a reversal is still removed after it.
  */
 #include <math.h>
+#include <stdio.h>
 
 #include "hd_artifact.h"
+#include "hd_ctrl_trig.h"
 #include "unity.h"
 
 #define TS 1e-3
@@ -43,6 +45,23 @@ static double resid[20000];
 
 /* A steady line is removed fully; after an amplitude step at t0 the
  * residual's amplitude is the step times exp(-(t - t0) / tau). */
+/* The tick's sine and cosine against libm in double over [-pi, pi] (every
+ * quadrant and both ends; 200001 points). */
+static void test_sincos_quadrant_against_libm(void)
+{
+    double worst = 0.0;
+    for (long i = -100000; i <= 100000; i++) {
+        const float x = (float)(3.14159265358979 * (double)i / 100000.0);
+        float s, c;
+        sincos_quadrant(x, &s, &c);
+        const double es = fabs((double)s - sin((double)x)), ec = fabs((double)c - cos((double)x));
+        worst = es > worst ? es : worst;
+        worst = ec > worst ? ec : worst;
+    }
+    printf("sincos_quadrant: worst error %.2e over [-pi, pi]\n", worst);
+    TEST_ASSERT_TRUE(worst < 3e-7);
+}
+
 static void test_steady_line_removed_and_step_after_tau(void)
 {
     hd_artifact_t t;
@@ -130,6 +149,7 @@ static void test_reversal_and_hold(void)
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_sincos_quadrant_against_libm);
     RUN_TEST(test_steady_line_removed_and_step_after_tau);
     RUN_TEST(test_unlocked_tone_passes_with_the_notch_gain);
     RUN_TEST(test_reversal_and_hold);

@@ -672,6 +672,31 @@ static void test_no_drive_sends_nothing_new(void)
     TEST_ASSERT_EQUAL_UINT32(refused, fw.counters.by_fault[HD_FAULT_BIT_SETPOINT_REFUSED]);
 }
 
+/* A setting outside the law (the telemetry rate) swaps the settings but
+ * keeps the loop's state: its integrator runs on; one of the law's own
+ * (ctrl_torque_ki_per_s) restarts it from zero.  The restart is the costly
+ * part of a settings swap in the tick (tools/target budget). */
+static void test_settings_swap_restarts_the_law_only_when_its_own_change(void)
+{
+    start(true);
+    for (int k = 0; k < 50; k++) {
+        setpoint_tick(HD_CTRL_TORQUE, 2.0f);
+    }
+    const float integral = fw.control.ctrl.integral_nm;
+    TEST_ASSERT_TRUE(fabsf(integral) > 1e-3f); /* the loop integrates the error */
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, set_param(HD_PARAM_TELEMETRY_RATE_HZ, 50.0f).result);
+    setpoint_tick(HD_CTRL_TORQUE, 2.0f);
+    TEST_ASSERT_EQUAL_UINT32(50u, live_cfg()->telemetry_rate_hz); /* swapped */
+    TEST_ASSERT_TRUE(fabsf(fw.control.ctrl.integral_nm) >= 0.5f * fabsf(integral));
+    TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK,
+                            set_param(HD_PARAM_CTRL_TORQUE_KI_PER_S,
+                                      0.5f * live_cfg()->ctrl.torque_ki_per_s).result);
+    setpoint_tick(HD_CTRL_TORQUE, 2.0f);
+    TEST_ASSERT_EQUAL_FLOAT(0.5f * fw.bg.defaults.ctrl.torque_ki_per_s,
+                            fw.control.ctrl.cfg.torque_ki_per_s);
+    TEST_ASSERT_TRUE(fabsf(fw.control.ctrl.integral_nm) < 0.2f * fabsf(integral));
+}
+
 static void test_ctrl_state_telemetry(void)
 {
     start(true);
@@ -709,5 +734,6 @@ int main(int argc, char **argv)
     RUN_TEST(test_no_command_beyond_the_limit_whatever_the_input);
     RUN_TEST(test_no_drive_sends_nothing_new);
     RUN_TEST(test_ctrl_state_telemetry);
+    RUN_TEST(test_settings_swap_restarts_the_law_only_when_its_own_change);
     return UNITY_END();
 }
