@@ -927,31 +927,30 @@ static void test_follow_refuses_rows_beyond_the_envelope(void)
     }
 }
 
-/* Lines that changed since the commissioning for another reason than the
- * load (wear, temperature): the motor lines 1.3x their profile at every
- * load, on top of the load's 1 + c |T|; the output line only grown by the
- * load.  With the profile's load known (0) the held output row takes only
- * the growth the load explains: the RMS error after 3 s within 1.3x that
- * of the same joint without the drift; with the load unknown the row
- * does not follow at all and keeps the load's growth in the torque (over
- * 2x). */
-static double drift_run(double drift, float profile_load_nm)
+/* Operating mode, held output line following, on a joint whose lines grow
+ * as 1 + c_truth |T| under a slow load of either sign (the motor lines
+ * `drift` times that besides), the model's load coefficient c_model, the
+ * zero-load profile imported with profile_load_nm: the filtered torque's
+ * RMS error after 3 s. */
+static double follow_run(double c_model, double c_truth, double drift, float profile_load_nm,
+                         unsigned seed)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
     profile_cfg(&cfg, 0.0f);
     cfg.output_row_follow = 1.0f;
     cfg.output_row_max = 3.0f;
+    cfg.ripple_load_coeff_per_nm = (float)c_model;
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     joint_t j;
-    joint_init(&j, 37u);
+    joint_init(&j, seed);
     import_profile_at_load(&kf, &j, profile_load_nm);
     double sum = 0.0;
     long n = 0;
     for (int k = 1; k <= 20000; k++) {
         const double t = k * TS_S;
         const double load = 4.0 * sin(2.0 * TU_PI * t / 6.0) + (t > 9.0 ? -1.5 : 0.5);
-        const double g = 1.0 + GROW_C_PER_NM * fabs(load);
+        const double g = 1.0 + c_truth * fabs(load);
         hd_kf_input_t in = joint_next_grown(&j, SPEED_OUT_RAD_S * TS_S, load, drift * g, g);
         hd_kf_output_t o;
         hd_kf_step(&kf, &in, &o);
@@ -964,6 +963,19 @@ static double drift_run(double drift, float profile_load_nm)
     return sqrt(sum / (double)n);
 }
 
+/* Lines that changed since the commissioning for another reason than the
+ * load (wear, temperature): the motor lines 1.3x their profile at every
+ * load, on top of the load's 1 + c |T|; the output line only grown by the
+ * load.  With the profile's load known (0) the held output row takes only
+ * the growth the load explains: the RMS error after 3 s within 1.3x that
+ * of the same joint without the drift; with the load unknown the row
+ * does not follow at all and keeps the load's growth in the torque (over
+ * 2x). */
+static double drift_run(double drift, float profile_load_nm)
+{
+    return follow_run(0.0, GROW_C_PER_NM, drift, profile_load_nm, 37u);
+}
+
 /* With the model's load coefficient (ripple_load_coeff_per_nm = c, the
  * motor rows 1 + c |T_ref|, their states the zero-load lines) the motor
  * lines' measured growth is 1, and the held output row takes the modelled
@@ -972,32 +984,7 @@ static double drift_run(double drift, float profile_load_nm)
  * not grow, filtered without a coefficient. */
 static double modelled_run(double c_model, double c_truth)
 {
-    static hd_kf_t kf;
-    hd_kf_config_t cfg;
-    profile_cfg(&cfg, 0.0f);
-    cfg.output_row_follow = 1.0f;
-    cfg.output_row_max = 3.0f;
-    cfg.ripple_load_coeff_per_nm = (float)c_model;
-    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
-    joint_t j;
-    joint_init(&j, 41u);
-    import_profile_at_load(&kf, &j, 0.0f);
-    double sum = 0.0;
-    long n = 0;
-    for (int k = 1; k <= 20000; k++) {
-        const double t = k * TS_S;
-        const double load = 4.0 * sin(2.0 * TU_PI * t / 6.0) + (t > 9.0 ? -1.5 : 0.5);
-        const double g = 1.0 + c_truth * fabs(load);
-        hd_kf_input_t in = joint_next_grown(&j, SPEED_OUT_RAD_S * TS_S, load, g, g);
-        hd_kf_output_t o;
-        hd_kf_step(&kf, &in, &o);
-        if (k > 3000) {
-            const double e = (double)o.torque_filtered_nm - load;
-            sum += e * e;
-            n++;
-        }
-    }
-    return sqrt(sum / (double)n);
+    return follow_run(c_model, c_truth, 1.0, 0.0f, 41u);
 }
 
 static void test_follow_takes_the_modelled_load_factor(void)
