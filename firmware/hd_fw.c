@@ -28,14 +28,30 @@ void hd_fw_derive(hd_fw_settings_t *s)
                            : (HD_FW_TICK_HZ + c->telemetry_rate_hz / 2u) / c->telemetry_rate_hz;
 }
 
+/* The control law's inputs are the same in both settings: every ctrl_*
+ * parameter (hd_params.def: the law's configuration) and what
+ * hd_fw_ctrl_config derives from the rest (the gear ratio, the filter's
+ * motor orders).  Member by member, not the bytes of hd_ctrl_config_t. */
+static bool ctrl_unchanged(const hd_fw_settings_t *a, const hd_fw_settings_t *b)
+{
+    if (a->ctrl.gear_ratio != b->ctrl.gear_ratio ||
+        a->ctrl.artifact_mask != b->ctrl.artifact_mask) {
+        return false;
+    }
+    for (size_t i = 0; i < hd_param_count(); i++) {
+        const hd_param_info_t *p = hd_param_at(i);
+        if (strncmp(p->key, "ctrl_", 5) == 0 && hd_param_get(p, &a->cfg) != hd_param_get(p, &b->cfg)) {
+            return false;
+        }
+    }
+    return true;
+}
+
 void hd_fw_derive_next(const hd_fw_t *fw, hd_fw_settings_t *spare)
 {
     const hd_fw_settings_t *live = hd_fw_live(fw);
     hd_fw_derive(spare);
-    /* memcmp errs only towards "changed" (padding, -0): a restart, never a
-     * stale law */
-    spare->ctrl_gen = live->ctrl_gen +
-                      (memcmp(&spare->ctrl, &live->ctrl, sizeof spare->ctrl) != 0 ? 1u : 0u);
+    spare->ctrl_gen = live->ctrl_gen + (ctrl_unchanged(spare, live) ? 0u : 1u);
 }
 
 /* ------------------------------------------------------------------ queues */
