@@ -32,6 +32,17 @@ void hd_fw_derive(hd_fw_settings_t *s)
  * parameter (hd_params.def: the law's configuration) and what
  * hd_fw_ctrl_config derives from the rest (the gear ratio, the filter's
  * motor orders).  Member by member, not the bytes of hd_ctrl_config_t. */
+static bool is_ctrl_key(const char *key)
+{
+    static const char prefix[] = "ctrl_"; /* the images link no strncmp */
+    for (size_t i = 0; i + 1u < sizeof prefix; i++) {
+        if (key[i] != prefix[i]) {
+            return false;
+        }
+    }
+    return true;
+}
+
 static bool ctrl_unchanged(const hd_fw_settings_t *a, const hd_fw_settings_t *b)
 {
     if (a->ctrl.gear_ratio != b->ctrl.gear_ratio ||
@@ -40,7 +51,7 @@ static bool ctrl_unchanged(const hd_fw_settings_t *a, const hd_fw_settings_t *b)
     }
     for (size_t i = 0; i < hd_param_count(); i++) {
         const hd_param_info_t *p = hd_param_at(i);
-        if (strncmp(p->key, "ctrl_", 5) == 0 && hd_param_get(p, &a->cfg) != hd_param_get(p, &b->cfg)) {
+        if (is_ctrl_key(p->key) && hd_param_get(p, &a->cfg) != hd_param_get(p, &b->cfg)) {
             return false;
         }
     }
