@@ -61,21 +61,32 @@ void hd_kf_learn_load(hd_kf_t *kf, float torque_expected_nm)
     kf->learn_load_nm += a * (t - kf->learn_load_nm);
 }
 
-/* The growth's regression at |T_ref| = t: its mean, plus the slope once
+/* The growth's regression, fitted once per step: its mean, its slope once
  * HD_KF_FOLLOW_MIN_WEIGHT of its weight is filled (about that times
- * HD_KF_FOLLOW_MEMORY_S of measured steps)
- * and |T_ref| has spread, t taken within two of its standard deviations
- * of its mean: no extrapolation from a short, narrow fit. */
-static float follow_predict(const hd_kf_t *kf, float t)
+ * HD_KF_FOLLOW_MEMORY_S of measured steps) and |T_ref| has spread (0
+ * before), and the span of |T_ref| it may be read at: two standard
+ * deviations either side of the mean, no extrapolation from a short,
+ * narrow fit. */
+typedef struct {
+    float mean_t, mean_g, slope, span;
+} follow_fit_t;
+
+static follow_fit_t follow_fit(const hd_kf_t *kf)
 {
-    float g_off = 0.0f;
+    follow_fit_t f = {kf->follow_mean_t, kf->follow_mean_g, 0.0f, 0.0f};
     if (kf->follow_weight >= HD_KF_FOLLOW_MIN_WEIGHT && kf->follow_var_t > HD_KF_FOLLOW_MIN_VAR_NM2) {
-        const float span = 2.0f * sqrtf(kf->follow_var_t);
-        float dt = t - kf->follow_mean_t;
-        dt = dt > span ? span : (dt < -span ? -span : dt);
-        g_off = kf->follow_cov_tg / kf->follow_var_t * dt;
+        f.span = 2.0f * sqrtf(kf->follow_var_t);
+        f.slope = kf->follow_cov_tg / kf->follow_var_t;
     }
-    return kf->follow_mean_g + g_off;
+    return f;
+}
+
+/* The regression at |T_ref| = t. */
+static float follow_predict(const follow_fit_t *f, float t)
+{
+    float dt = t - f->mean_t;
+    dt = dt > f->span ? f->span : (dt < -f->span ? -f->span : dt);
+    return f->mean_g + f->slope * dt;
 }
 
 /* The held output blocks' row (output_follow).  The growth g of the motor
@@ -129,8 +140,9 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
     }
     float g = 1.0f;
     if (kf->follow_primed) {
-        const float g_c = follow_predict(kf, kf->follow_load_nm);
-        g = g_c > 0.0f ? follow_predict(kf, t_abs) / g_c : 1.0f;
+        const follow_fit_t fit = follow_fit(kf); /* one fit, read at both loads */
+        const float g_c = follow_predict(&fit, kf->follow_load_nm);
+        g = g_c > 0.0f ? follow_predict(&fit, t_abs) / g_c : 1.0f;
     }
     const float c = kf->cfg.ripple_load_coeff_per_nm;
     if (c > 0.0f) {

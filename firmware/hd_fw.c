@@ -28,10 +28,7 @@ void hd_fw_derive(hd_fw_settings_t *s)
                            : (HD_FW_TICK_HZ + c->telemetry_rate_hz / 2u) / c->telemetry_rate_hz;
 }
 
-/* The control law's inputs are the same in both settings: every ctrl_*
- * parameter (hd_params.def: the law's configuration) and what
- * hd_fw_ctrl_config derives from the rest (the gear ratio, the filter's
- * motor orders).  Member by member, not the bytes of hd_ctrl_config_t. */
+/* key starts with "ctrl_": a row of the law's configuration. */
 static bool is_ctrl_key(const char *key)
 {
     static const char prefix[] = "ctrl_"; /* the images link no strncmp */
@@ -43,6 +40,10 @@ static bool is_ctrl_key(const char *key)
     return true;
 }
 
+/* The control law's inputs are the same in both settings: every ctrl_*
+ * parameter (hd_params.def: the law's configuration) and what
+ * hd_fw_ctrl_config derives from the rest (the gear ratio, the filter's
+ * motor orders).  Member by member, not the bytes of hd_ctrl_config_t. */
 static bool ctrl_unchanged(const hd_fw_settings_t *a, const hd_fw_settings_t *b)
 {
     if (a->ctrl.gear_ratio != b->ctrl.gear_ratio ||
