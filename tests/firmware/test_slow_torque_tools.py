@@ -138,10 +138,13 @@ def test_record_load_and_version_1(tmp_path):
     h = subprocess.run([str(need(HOST)), "--sensors", "mock", "--duration", "0.1",
                         "--profile", str(v1)], capture_output=True, text=True)
     assert h.returncode == 0, h.stderr
-    doc["load_nm"] = -1.0
-    src.write_text(json.dumps(doc))
-    p = hdsense("profile", "record", src, "-o", tmp_path / "neg.hdprofile", *JOINT, check=False)
-    assert p.returncode == 2 and "load_nm" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    for bad in (-1.0, 1e40, "2"):     # negative, beyond a float32, not a number
+        doc["load_nm"] = bad
+        src.write_text(json.dumps(doc))
+        out = tmp_path / "bad.hdprofile"
+        p = hdsense("profile", "record", src, "-o", out, *JOINT, check=False)
+        assert p.returncode == 2 and "load_nm" in p.stderr, (bad, p.stderr)
+        assert len(p.stderr.strip().splitlines()) == 1 and not out.exists(), (bad, p.stderr)
 
 
 def test_bad_record_files_are_refused(tmp_path):

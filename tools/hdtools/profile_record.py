@@ -39,7 +39,16 @@ def _define(path: str, name: str) -> int:
     return int(m.group(1))
 
 
+def _define_float(path: str, name: str) -> float:
+    """A float #define of a C header (one fact, one place)."""
+    m = re.search(rf"#define {name} ([0-9.eE+-]+)f?\b", paths.source_file(path).read_text())
+    if m is None:
+        raise RuntimeError(f"{path}: no #define {name}")
+    return float(m.group(1))
+
+
 VERSION = _define("firmware/hd_fw_records.h", "HD_PROFILE_RECORD_VERSION")
+MAX_LOAD_NM = _define_float("filter/hd_kf.h", "HD_KF_MAX_ABS_Y_NM")   # the firmware refuses more
 VERSION_V1 = _define("firmware/hd_fw_records.h", "HD_PROFILE_RECORD_VERSION_V1")
 MAX_LINES = _define("filter/hd_kf.h", "HD_KF_MAX_BLOCKS")
 _HEAD = struct.Struct("<fIIfB")
@@ -175,6 +184,8 @@ def load_from_json(doc: dict, name: str) -> float:
     load = _number(doc, "load_nm", name)
     if load < 0.0:
         raise UsageError(f"{name}: load_nm {load:g} is negative (leave it out when unknown)")
+    if load > MAX_LOAD_NM:
+        raise UsageError(f"{name}: load_nm {load:g} is above {MAX_LOAD_NM:g} N m, no joint's load")
     return load
 
 
