@@ -18,17 +18,26 @@ void hd_artifact_reset(hd_artifact_t *t)
     }
 }
 
-void hd_artifact_init(hd_artifact_t *t, uint8_t mask, float corner_hz, float ts_s)
+void hd_artifact_remask(hd_artifact_t *t, uint8_t mask)
 {
-    t->mask = mask;
     t->top = 0u;
     for (unsigned k = 1; k <= HD_ARTIFACT_ORDER_MAX; k++) {
-        if ((mask & (1u << (k - 1u))) != 0u) {
+        const unsigned bit = 1u << (k - 1u);
+        if ((mask & bit) == 0u) {
+            t->re[k] = 0.0f;
+            t->im[k] = 0.0f;
+        } else {
             t->top = (uint8_t)k;
         }
     }
+    t->mask = mask;
+}
+
+void hd_artifact_init(hd_artifact_t *t, uint8_t mask, float corner_hz, float ts_s)
+{
     t->gain = TWO_PI_F * corner_hz * ts_s;
     hd_artifact_reset(t);
+    hd_artifact_remask(t, mask);
 }
 
 /* x in [-pi, pi] for |x| <= ANGLE_MAX_RAD (the caller checks). */

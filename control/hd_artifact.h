@@ -47,6 +47,10 @@ typedef struct {
 /* corner_hz > 0, ts_s > 0 (the caller checks); the phasors start at 0. */
 void hd_artifact_init(hd_artifact_t *t, uint8_t mask, float corner_hz, float ts_s);
 
+/* A new mask, keeping the phasors of orders in both masks: those of orders
+ * that leave are cleared (an order that enters again starts at 0). */
+void hd_artifact_remask(hd_artifact_t *t, uint8_t mask);
+
 /* The phasors back to 0. */
 void hd_artifact_reset(hd_artifact_t *t);
 

@@ -104,23 +104,17 @@ void hd_ctrl_reset(hd_ctrl_t *c)
     c->fb_prev_nm = 0.0f;
     c->fb_primed = false;
     c->lowpass_nm = 0.0f;
-    c->lowpass_primed = false;
+    c->lowpass_primed = false; /* the low-pass and notch states are primed on first use */
     c->raw_notched_nm = 0.0f;
     c->sp_torque_prev_nm = 0.0f;
     c->sp_torque_primed = false;
     c->narrow_nm = 0.0f;
     c->narrow_ok = false;
     hd_artifact_reset(&c->artifact);
-    for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
-        c->butter[i].s0 = c->butter[i].s1 = 0.0f;
-    }
-    for (unsigned i = 0; i < HD_CTRL_NOTCH_MAX; i++) {
-        c->notch[i].s0 = c->notch[i].s1 = 0.0f;
-    }
 }
 
 /* A Butterworth low-pass section (bilinear; k = tan(pi fc ts), quality q). */
-static void butter_section(hd_ctrl_biquad_t *b, float k, float q)
+static void butter_section(hd_ctrl_sos_t *b, float k, float q)
 {
     const float norm = 1.0f / (1.0f + k / q + k * k);
     b->b0 = k * k * norm;
@@ -130,60 +124,90 @@ static void butter_section(hd_ctrl_biquad_t *b, float k, float q)
     b->a2 = (1.0f - k / q + k * k) * norm;
 }
 
-static float biquad_step(hd_ctrl_biquad_t *b, float x)
+static float biquad_step(const hd_ctrl_sos_t *b, hd_ctrl_sos_state_t *st, float x)
 {
-    const float y = b->b0 * x + b->s0;
-    b->s0 = b->b1 * x - b->a1 * y + b->s1;
-    b->s1 = b->b2 * x - b->a2 * y;
+    const float y = b->b0 * x + st->s0;
+    st->s0 = b->b1 * x - b->a1 * y + st->s1;
+    st->s1 = b->b2 * x - b->a2 * y;
     return y;
 }
 
 /* The state a unity-DC-gain section holds in steady state at input x. */
-static void biquad_prime(hd_ctrl_biquad_t *b, float x)
+static void biquad_prime(const hd_ctrl_sos_t *b, hd_ctrl_sos_state_t *st, float x)
 {
-    b->s1 = (b->b2 - b->a2) * x;
-    b->s0 = (1.0f - b->b0) * x;
+    st->s1 = (b->b2 - b->a2) * x;
+    st->s0 = (1.0f - b->b0) * x;
 }
 
-int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
+static void sos_pass(hd_ctrl_sos_t *b)
 {
-    if (c == NULL || cfg == NULL) {
+    b->b0 = 1.0f, b->b1 = b->b2 = b->a1 = b->a2 = 0.0f;
+}
+
+int hd_ctrl_plan(hd_ctrl_plan_t *p, const hd_ctrl_config_t *cfg)
+{
+    if (p == NULL || cfg == NULL) {
         return HD_CTRL_ERR_NULL;
     }
     const int rc = hd_ctrl_config_check(cfg);
     if (rc != HD_CTRL_OK) {
         return rc;
     }
-    hd_ctrl_init_prechecked(c, cfg);
-    return HD_CTRL_OK;
-}
-
-void hd_ctrl_init_prechecked(hd_ctrl_t *c, const hd_ctrl_config_t *cfg)
-{
-    c->cfg = *cfg;
+    p->cfg = *cfg;
     const float wts = TWO_PI_F * cfg->lowpass_hz * cfg->ts_s;
-    c->lowpass_alpha = wts / (1.0f + wts);
+    p->lowpass_alpha = wts / (1.0f + wts);
     /* Butterworth sections: the pole pairs' quality factors, 1 / (2 cos)
      * of their angles: order 2 one pair at 45 deg, order 4 at 22.5 and
      * 67.5 deg. */
-    for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) { /* pass-through unless set below */
-        hd_ctrl_biquad_t *b = &c->butter[i];
-        b->b0 = 1.0f, b->b1 = b->b2 = b->a1 = b->a2 = 0.0f;
+    for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
+        sos_pass(&p->butter[i]);
     }
     if (cfg->lowpass_order != 1u) {
         const float x = PI_F * cfg->lowpass_hz * cfg->ts_s;
         const float k = sin_poly(x) / cos_poly(x);
         if (cfg->lowpass_order == 2u) {
-            butter_section(&c->butter[0], k, 0.70710678f);
+            butter_section(&p->butter[0], k, 0.70710678f);
         } else {
-            butter_section(&c->butter[0], k, 0.54119610f);
-            butter_section(&c->butter[1], k, 1.30656296f);
+            butter_section(&p->butter[0], k, 0.54119610f);
+            butter_section(&p->butter[1], k, 1.30656296f);
         }
     }
-    c->notch_r = 1.0f - PI_F * cfg->notch_width_hz * cfg->ts_s;
-    hd_artifact_init(&c->artifact, cfg->artifact_mask, cfg->artifact_hz, cfg->ts_s);
-    c->narrow_inv_rad_s = 1.0f / (4.0f * TWO_PI_F * cfg->artifact_hz);
+    p->notch_r = 1.0f - PI_F * cfg->notch_width_hz * cfg->ts_s;
+    p->narrow_inv_rad_s = 1.0f / (4.0f * TWO_PI_F * cfg->artifact_hz);
+    p->artifact_k_min = 1u;
+    while (p->artifact_k_min < HD_ARTIFACT_ORDER_MAX &&
+           (cfg->artifact_mask & (1u << (p->artifact_k_min - 1u))) == 0u) {
+        p->artifact_k_min++;
+    }
+    if (cfg->artifact_mask == 0u) {
+        p->artifact_k_min = 1u;
+    }
+    return HD_CTRL_OK;
+}
+
+void hd_ctrl_start(hd_ctrl_t *c, const hd_ctrl_plan_t *p)
+{
+    c->plan = p;
+    hd_artifact_init(&c->artifact, p->cfg.artifact_mask, p->cfg.artifact_hz, p->cfg.ts_s);
     hd_ctrl_reset(c);
+}
+
+void hd_ctrl_replan(hd_ctrl_t *c, const hd_ctrl_plan_t *p)
+{
+    c->plan = p;
+    hd_artifact_remask(&c->artifact, p->cfg.artifact_mask);
+}
+
+int hd_ctrl_init(hd_ctrl_t *c, hd_ctrl_plan_t *p, const hd_ctrl_config_t *cfg)
+{
+    if (c == NULL) {
+        return HD_CTRL_ERR_NULL;
+    }
+    const int rc = hd_ctrl_plan(p, cfg);
+    if (rc == HD_CTRL_OK) {
+        hd_ctrl_start(c, p);
+    }
+    return rc;
 }
 
 bool hd_ctrl_setpoint_valid(const hd_ctrl_setpoint_t *sp)
@@ -202,7 +226,7 @@ static bool uses_torque_loop(hd_ctrl_mode_t m)
 /* The notches' coefficients for this tick's speed: zeros on the unit
  * circle at w0, poles at radius r, the numerator scaled to unity DC gain.
  * false: the notch passes this tick (w0 below its width or near Nyquist). */
-static bool notch_tune(hd_ctrl_biquad_t *b, float w0, float r, float w_min)
+static bool notch_tune(hd_ctrl_sos_t *b, float w0, float r, float w_min)
 {
     if (!(w0 >= w_min && w0 <= NOTCH_NYQUIST_SHARE * TWO_PI_F)) {
         return false;
@@ -222,7 +246,7 @@ static bool notch_tune(hd_ctrl_biquad_t *b, float w0, float r, float w_min)
  * torque, so it engages without a transient. */
 static float notches(hd_ctrl_t *c, float raw, float v, bool prime)
 {
-    const hd_ctrl_config_t *k = &c->cfg;
+    const hd_ctrl_config_t *k = &c->plan->cfg;
     const float w_motor = k->gear_ratio * (v < 0.0f ? -v : v) * k->ts_s; /* rad per tick */
     const float w_min = TWO_PI_F * k->notch_width_hz * k->ts_s;
     float x = raw;
@@ -230,26 +254,28 @@ static float notches(hd_ctrl_t *c, float raw, float v, bool prime)
         if ((k->notch_mask & (1u << i)) == 0u) {
             continue;
         }
-        hd_ctrl_biquad_t *b = &c->notch[i];
-        if (!notch_tune(b, (float)(i + 1u) * w_motor, c->notch_r, w_min)) {
-            b->b0 = 1.0f, b->b1 = b->b2 = b->a1 = b->a2 = 0.0f;
-            biquad_prime(b, x);
+        hd_ctrl_sos_t *b = &c->notch[i];
+        hd_ctrl_sos_state_t *st = &c->notch_state[i];
+        if (!notch_tune(b, (float)(i + 1u) * w_motor, c->plan->notch_r, w_min)) {
+            sos_pass(b);
+            biquad_prime(b, st, x);
             continue;
         }
         if (prime) {
-            biquad_prime(b, x);
+            biquad_prime(b, st, x);
         }
-        x = biquad_step(b, x);
+        x = biquad_step(b, st, x);
     }
     return x;
 }
 
 /* The notches and the low-pass run every tick the raw torque is usable
  * while the feedback uses them (the feedback source changes only with a new
- * configuration, which restarts them: hd_ctrl_init). */
+ * configuration, which restarts them: hd_ctrl_start). */
 static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
 {
-    const hd_ctrl_config_t *k = &c->cfg;
+    const hd_ctrl_plan_t *p = c->plan;
+    const hd_ctrl_config_t *k = &p->cfg;
     const bool used = k->feedback == HD_CTRL_FB_LOWPASS ||
                       (k->feedback == HD_CTRL_FB_RAW && k->notch_mask != 0u);
     if (!used || !in->torque_valid || !finite_f(in->torque_raw_nm) ||
@@ -262,17 +288,17 @@ static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
     if (prime) {
         c->lowpass_nm = x;
         for (unsigned i = 0; i < HD_CTRL_BIQUAD_MAX; i++) {
-            biquad_prime(&c->butter[i], x);
+            biquad_prime(&p->butter[i], &c->butter[i], x);
         }
         c->lowpass_primed = true;
         return;
     }
-    if (c->cfg.lowpass_order == 1u) {
-        c->lowpass_nm += c->lowpass_alpha * (x - c->lowpass_nm);
+    if (k->lowpass_order == 1u) {
+        c->lowpass_nm += p->lowpass_alpha * (x - c->lowpass_nm);
     } else {
-        float y = biquad_step(&c->butter[0], x);
-        if (c->cfg.lowpass_order == 4u) {
-            y = biquad_step(&c->butter[1], y);
+        float y = biquad_step(&p->butter[0], &c->butter[0], x);
+        if (k->lowpass_order == 4u) {
+            y = biquad_step(&p->butter[1], &c->butter[1], y);
         }
         c->lowpass_nm = y;
     }
@@ -282,23 +308,17 @@ static void lowpass_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
  * while the feedback uses it. */
 static void narrow_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
 {
-    const hd_ctrl_config_t *k = &c->cfg;
+    const hd_ctrl_plan_t *p = c->plan;
+    const hd_ctrl_config_t *k = &p->cfg;
     c->narrow_ok = false;
     if (k->feedback != HD_CTRL_FB_NARROW || !in->torque_valid ||
         !finite_f(in->torque_raw_nm) || !finite_f(in->torque_filtered_nm) ||
         !finite_f(in->velocity_rad_s)) {
         return;
     }
-    unsigned k_min = 1u;
-    while (k_min < HD_ARTIFACT_ORDER_MAX && (k->artifact_mask & (1u << (k_min - 1u))) == 0u) {
-        k_min++;
-    }
-    if (k->artifact_mask == 0u) {
-        k_min = 1u;
-    }
     const float v = in->velocity_rad_s < 0.0f ? -in->velocity_rad_s : in->velocity_rad_s;
     const bool angle = in->motor_angle_valid && finite_f(in->motor_angle_rad);
-    const float m = angle ? clampf((float)k_min * k->gear_ratio * v * c->narrow_inv_rad_s - 1.0f,
+    const float m = angle ? clampf((float)p->artifact_k_min * k->gear_ratio * v * p->narrow_inv_rad_s - 1.0f,
                                    0.0f, 1.0f)
                           : 0.0f;
     const float a = in->torque_raw_nm - in->torque_filtered_nm;
@@ -310,13 +330,13 @@ static void narrow_update(hd_ctrl_t *c, const hd_ctrl_input_t *in)
 /* The feedback torque, or false when the selected source is unusable. */
 static bool feedback_nm(const hd_ctrl_t *c, const hd_ctrl_input_t *in, float *fb)
 {
-    switch ((hd_ctrl_feedback_t)c->cfg.feedback) {
+    switch ((hd_ctrl_feedback_t)c->plan->cfg.feedback) {
     case HD_CTRL_FB_FILTERED:
         *fb = in->torque_filtered_nm;
         break;
     case HD_CTRL_FB_RAW:
-        *fb = c->cfg.notch_mask != 0u ? c->raw_notched_nm : in->torque_raw_nm;
-        if (c->cfg.notch_mask != 0u && !c->lowpass_primed) {
+        *fb = c->plan->cfg.notch_mask != 0u ? c->raw_notched_nm : in->torque_raw_nm;
+        if (c->plan->cfg.notch_mask != 0u && !c->lowpass_primed) {
             return false;
         }
         break;
@@ -463,7 +483,7 @@ static float friction_feedforward(const hd_ctrl_config_t *k, float v, float rate
 static float torque_loop(hd_ctrl_t *c, float tau_ref, float fb, float v, float sp_rate,
                          float ki_per_s)
 {
-    const hd_ctrl_config_t *k = &c->cfg;
+    const hd_ctrl_config_t *k = &c->plan->cfg;
     const float e = tau_ref - fb;
     /* the feedback's rate, on the measurement only (a setpoint step kicks nothing) */
     const float rate = c->fb_primed ? (fb - c->fb_prev_nm) / k->ts_s : 0.0f;
@@ -519,7 +539,7 @@ void hd_ctrl_step(hd_ctrl_t *c, const hd_ctrl_setpoint_t *sp, const hd_ctrl_inpu
         stop(c, out);
         return;
     }
-    const hd_ctrl_config_t *k = &c->cfg;
+    const hd_ctrl_config_t *k = &c->plan->cfg;
     const float tau_ref = torque_reference(k, m, sp, in, &out->limits);
     /* the setpoint torque's rate: TORQUE's torque, IMPEDANCE's feed-forward;
      * none in the other modes, and none across a refused (non-finite) one */

@@ -206,19 +206,32 @@ typedef struct {
     hd_ctrl_mode_t mode;      /* the mode that ran */
 } hd_ctrl_output_t;
 
-/* Direct form II transposed: y = b0 x + s0; s0 = b1 x - a1 y + s1;
- * s1 = b2 x - a2 y. */
+/* A biquad's coefficients and its state, direct form II transposed:
+ * y = b0 x + s0; s0 = b1 x - a1 y + s1; s1 = b2 x - a2 y. */
 typedef struct {
     float b0, b1, b2, a1, a2;
-    float s0, s1;
-} hd_ctrl_biquad_t;
+} hd_ctrl_sos_t;
 
+typedef struct {
+    float s0, s1;
+} hd_ctrl_sos_state_t;
+
+/* A configuration and what the law derives from it once (divisions, the
+ * Butterworth sections' tangent): built by hd_ctrl_plan, outside the tick. */
 typedef struct {
     hd_ctrl_config_t cfg;
     float lowpass_alpha;      /* w ts / (1 + w ts) */
-    hd_ctrl_biquad_t butter[HD_CTRL_BIQUAD_MAX];
-    hd_ctrl_biquad_t notch[HD_CTRL_NOTCH_MAX];
+    hd_ctrl_sos_t butter[HD_CTRL_BIQUAD_MAX]; /* pass-through beyond the order's sections */
     float notch_r;            /* pole radius: 1 - pi width ts */
+    float narrow_inv_rad_s;   /* 1 / (4 (2 pi artifact_hz)): the motion fraction's scale */
+    uint8_t artifact_k_min;   /* the lowest order of artifact_mask (1 without orders) */
+} hd_ctrl_plan_t;
+
+typedef struct {
+    const hd_ctrl_plan_t *plan; /* by reference: hd_ctrl_start's contract */
+    hd_ctrl_sos_state_t butter[HD_CTRL_BIQUAD_MAX];
+    hd_ctrl_sos_t notch[HD_CTRL_NOTCH_MAX]; /* retuned to the speed each tick */
+    hd_ctrl_sos_state_t notch_state[HD_CTRL_NOTCH_MAX];
     float integral_nm;        /* I */
     float fb_prev_nm;         /* the feedback of the loop's last tick (kd_t) */
     bool fb_primed;           /* fb_prev_nm is from the previous tick */
@@ -226,7 +239,6 @@ typedef struct {
     bool lowpass_primed;
     float raw_notched_nm;     /* the raw torque after the notches, this tick */
     hd_artifact_t artifact;   /* HD_CTRL_FB_NARROW's phasors */
-    float narrow_inv_rad_s;   /* 1 / (4 (2 pi artifact_hz)): the motion fraction's scale */
     float narrow_nm;          /* HD_CTRL_FB_NARROW's feedback, this tick */
     bool narrow_ok;           /* narrow_nm is from this tick's inputs */
     float sp_torque_prev_nm;  /* the setpoint torque of the last tick (its rate) */
@@ -239,13 +251,25 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg);
 /* HD_CTRL_OK or HD_CTRL_ERR_CONFIG (every value finite, in range). */
 int hd_ctrl_config_check(const hd_ctrl_config_t *cfg);
 
-/* Checks cfg, then starts with a cleared loop.  On error *c is unchanged. */
-int hd_ctrl_init(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
+/* Checks cfg and derives the plan from it: HD_CTRL_OK, or an error with *p
+ * unchanged.  Slow (divisions, a tangent): outside the tick. */
+int hd_ctrl_plan(hd_ctrl_plan_t *p, const hd_ctrl_config_t *cfg);
 
-/* hd_ctrl_init without the check, for a cfg that has passed
- * hd_ctrl_config_check (the firmware checks its settings once, when it
- * builds them; its tick restarts the loop on new settings). */
-void hd_ctrl_init_prechecked(hd_ctrl_t *c, const hd_ctrl_config_t *cfg);
+/* Starts the law on plan p with a cleared loop.  p is kept by reference:
+ * it must stay valid and unchanged while c uses it (hd_ctrl_step), as
+ * littlefs keeps its lfs_config.  Cheap: the tick may call it. */
+void hd_ctrl_start(hd_ctrl_t *c, const hd_ctrl_plan_t *p);
+
+/* Moves the running law to plan p, which must differ from its plan at most
+ * in artifact_mask (the filter's motor orders): the loop keeps its state
+ * (no torque bump when a filter block is switched), the phasors of orders
+ * that leave the mask are cleared, those that enter start at 0.  p is kept
+ * by reference as in hd_ctrl_start. */
+void hd_ctrl_replan(hd_ctrl_t *c, const hd_ctrl_plan_t *p);
+
+/* hd_ctrl_plan into *p, then hd_ctrl_start(c, p).  On error *c and *p are
+ * unchanged. */
+int hd_ctrl_init(hd_ctrl_t *c, hd_ctrl_plan_t *p, const hd_ctrl_config_t *cfg);
 
 /* Clears the loop's state (integral, low-pass). */
 void hd_ctrl_reset(hd_ctrl_t *c);

@@ -12,7 +12,10 @@
 void hd_fw_derive(hd_fw_settings_t *s)
 {
     const hd_fw_config_t *c = &s->cfg;
-    hd_fw_ctrl_config(c, &s->ctrl);
+    hd_ctrl_config_t ctrl;
+    hd_fw_ctrl_config(c, &ctrl);
+    /* hd_fw_config_check passed these settings: the plan is built */
+    (void)hd_ctrl_plan(&s->ctrl, &ctrl);
     s->motor_rad_per_count = HD_TWO_PI_F / (float)c->motor_cpr;
     s->output_rad_per_count = HD_TWO_PI_F / (float)c->output_cpr;
     /* The most counts a healthy encoder can move in one tick, plus 2 counts
@@ -40,14 +43,14 @@ static bool is_ctrl_key(const char *key)
     return true;
 }
 
-/* The control law's inputs are the same in both settings: every ctrl_*
- * parameter (hd_params.def: the law's configuration) and what
- * hd_fw_ctrl_config derives from the rest (the gear ratio, the filter's
- * motor orders).  Member by member, not the bytes of hd_ctrl_config_t. */
+/* The control law is the same in both settings but perhaps for its motor
+ * orders (which hd_ctrl_replan moves without a restart): every ctrl_*
+ * parameter (hd_params.def: the law's configuration) and the gear ratio
+ * hd_fw_ctrl_config takes from the rest.  Member by member, not the bytes
+ * of hd_ctrl_config_t. */
 static bool ctrl_unchanged(const hd_fw_settings_t *a, const hd_fw_settings_t *b)
 {
-    if (a->ctrl.gear_ratio != b->ctrl.gear_ratio ||
-        a->ctrl.artifact_mask != b->ctrl.artifact_mask) {
+    if (a->ctrl.cfg.gear_ratio != b->ctrl.cfg.gear_ratio) {
         return false;
     }
     for (size_t i = 0; i < hd_param_count(); i++) {

@@ -104,8 +104,9 @@ typedef struct {
 /* Everything the tick reads from the configuration, swapped as a whole. */
 typedef struct {
     hd_fw_config_t cfg;
-    hd_ctrl_config_t ctrl;          /* hd_fw_ctrl_config(cfg) */
-    uint32_t ctrl_gen;              /* changes when ctrl does (hd_fw_derive_next) */
+    hd_ctrl_plan_t ctrl;            /* hd_ctrl_plan of hd_fw_ctrl_config(cfg) */
+    uint32_t ctrl_gen;              /* changes when ctrl does, but for its motor orders
+                                       (hd_fw_derive_next) */
     float motor_rad_per_count;
     float output_rad_per_count;
     int32_t max_motor_delta_counts;
@@ -163,8 +164,8 @@ typedef struct {
 
 /* The control stage's state (hd_fw_control.c): only the tick writes it. */
 typedef struct {
-    hd_ctrl_t ctrl;                 /* the law's state (built from the live settings) */
-    const hd_fw_settings_t *built_from; /* the settings ctrl was built from */
+    hd_ctrl_t ctrl;                 /* the law's state, on the live settings' plan */
+    const hd_fw_settings_t *built_from; /* the settings whose plan ctrl uses */
     uint32_t built_gen;             /* their ctrl_gen: the law restarts only when it moves */
     hd_ctrl_setpoint_t sp;          /* the last accepted setpoint (STOP at boot) */
     float kp_nm_rad;                /* the last accepted GAINS */

@@ -47,7 +47,7 @@ static bool within(float x, float lo, float hi)
 
 static int check_setpoint(const hd_fw_t *fw, const hd_can_setpoint_t *in, hd_ctrl_setpoint_t *out)
 {
-    const hd_ctrl_config_t *k = &hd_fw_live(fw)->ctrl;
+    const hd_ctrl_config_t *k = &hd_fw_live(fw)->ctrl.cfg;
     if (in->mode >= (uint8_t)HD_CTRL_MODE_COUNT) {
         return HD_CAN_RES_OUT_OF_RANGE;
     }
@@ -227,7 +227,7 @@ static uint32_t command_drive(hd_fw_t *fw, const hd_ctrl_output_t *o)
 void hd_fw_control_boot(hd_fw_t *fw)
 {
     const hd_fw_settings_t *set = hd_fw_live(fw);
-    hd_ctrl_init_prechecked(&fw->control.ctrl, &set->ctrl);
+    hd_ctrl_start(&fw->control.ctrl, &set->ctrl);
     fw->control.built_from = set;
     fw->control.built_gen = set->ctrl_gen;
 }
@@ -240,12 +240,14 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
     hd_fw_ctrl_state_t *c = &fw->control;
     const hd_fw_settings_t *set = hd_fw_live(fw);
     if (c->built_from != set) {
-        /* new settings: the loop restarts from them when its own part
-         * changed (hd_fw_config_check passed them before they were built: no
-         * second check in the tick) */
+        /* new settings: the law moves to their plan (the old buffer becomes
+         * the background's spare), restarting only when more than its motor
+         * orders changed; a filter block switched keeps the loop's state */
         if (set->ctrl_gen != c->built_gen) {
-            hd_ctrl_init_prechecked(&c->ctrl, &set->ctrl);
+            hd_ctrl_start(&c->ctrl, &set->ctrl);
             c->built_gen = set->ctrl_gen;
+        } else {
+            hd_ctrl_replan(&c->ctrl, &set->ctrl);
         }
         c->built_from = set;
     }

@@ -26,8 +26,8 @@ static inline hd_pipeline_t *hd_fw_live_pipe(hd_fw_t *fw)
 void hd_fw_derive(hd_fw_settings_t *s);
 /* hd_fw_derive of the spare settings about to replace the live ones
  * (background), and their ctrl_gen: the live one's, plus 1 when the control
- * law's configuration differs, so the tick restarts the law (its
- * coefficients: a few hundred instructions) only then. */
+ * law's configuration differs in more than its motor orders, so the tick
+ * restarts the law (a cleared loop) only then. */
 void hd_fw_derive_next(const hd_fw_t *fw, hd_fw_settings_t *spare);
 
 /* Asks the CAN driver for this node's command and feed-forward frames. */

@@ -43,8 +43,6 @@ static double amplitude(const double *x, long i0, long n, double f_hz)
 
 static double resid[20000];
 
-/* A steady line is removed fully; after an amplitude step at t0 the
- * residual's amplitude is the step times exp(-(t - t0) / tau). */
 /* The tick's sine and cosine against libm in double over [-pi, pi] (every
  * quadrant and both ends; 200001 points). */
 static void test_sincos_quadrant_against_libm(void)
@@ -62,6 +60,8 @@ static void test_sincos_quadrant_against_libm(void)
     TEST_ASSERT_TRUE(worst < 3e-7);
 }
 
+/* A steady line is removed fully; after an amplitude step at t0 the
+ * residual's amplitude is the step times exp(-(t - t0) / tau). */
 static void test_steady_line_removed_and_step_after_tau(void)
 {
     hd_artifact_t t;
@@ -93,6 +93,44 @@ static void test_steady_line_removed_and_step_after_tau(void)
         TEST_ASSERT_DOUBLE_WITHIN_MESSAGE(0.1 * want + 0.01, want, got,
                                           "the step decays as exp(-t / tau)");
     }
+}
+
+/* A new mask keeps what both masks share: with order 4 dropped the learned
+ * 2x line is still removed at once; order 4 taken back starts at 0, so the
+ * residual right after is the whole 4x line (0.3 N m). */
+static void test_remask_keeps_the_common_orders(void)
+{
+    hd_artifact_t t;
+    hd_artifact_init(&t, MASK, (float)FC, (float)TS);
+    long i = 0;
+    for (; i < 8000; i++) {
+        const double theta = W_MOTOR * (double)i * TS;
+        (void)hd_artifact_step(&t, (float)artifact(theta, 1.5), (float)fmod(theta, 2.0 * PI_D), 1.0f);
+    }
+    hd_artifact_remask(&t, 0x02u);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, t.re[4]);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, t.im[4]);
+    double worst = 0.0;
+    const long per4 = (long)lround(2.0 * PI_D / (4.0 * W_MOTOR * TS)); /* 31 ticks */
+    for (long j = 0; j < 4 * per4; j++, i++) {
+        const double theta = W_MOTOR * (double)i * TS;
+        const double a = 1.5 * sin(2.0 * theta + 1.1); /* the 2x line alone */
+        worst = fmax(worst, fabs(a - (double)hd_artifact_step(&t, (float)a,
+                                                              (float)fmod(theta, 2.0 * PI_D), 1.0f)));
+    }
+    printf("remask: 2x kept, worst residual %.2e N m\n", worst);
+    TEST_ASSERT_TRUE_MESSAGE(worst < 2e-3, "the kept order's phasor holds");
+    hd_artifact_remask(&t, MASK);
+    for (long j = 0; j < per4; j++, i++) {
+        const double theta = W_MOTOR * (double)i * TS;
+        const double a = artifact(theta, 1.5);
+        resid[j] = a - (double)hd_artifact_step(&t, (float)a, (float)fmod(theta, 2.0 * PI_D), 0.0f);
+    }
+    double peak = 0.0;
+    for (long j = 0; j < per4; j++) {
+        peak = fmax(peak, fabs(resid[j]));
+    }
+    TEST_ASSERT_DOUBLE_WITHIN_MESSAGE(0.02, 0.3, peak, "the order that enters starts at 0");
 }
 
 /* A tone at the 2x line's frequency plus d Hz, not locked to the angle,
@@ -151,6 +189,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_sincos_quadrant_against_libm);
     RUN_TEST(test_steady_line_removed_and_step_after_tau);
+    RUN_TEST(test_remask_keeps_the_common_orders);
     RUN_TEST(test_unlocked_tone_passes_with_the_notch_gain);
     RUN_TEST(test_reversal_and_hold);
     return UNITY_END();

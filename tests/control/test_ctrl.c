@@ -63,8 +63,9 @@ static void test_config_check(void)
 {
     hd_ctrl_config_t k;
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     hd_ctrl_config_default(&k);
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     const hd_ctrl_config_t good = k;
     float *fields[] = {&k.ts_s, &k.gear_ratio, &k.kt_nm_per_a, &k.torque_kp, &k.torque_ki_per_s,
                        &k.torque_ff, &k.torque_kd_s, &k.integral_limit_nm, &k.integral_stiffness_nm_rad, &k.lowpass_hz, &k.friction_nm, &k.friction_velocity_rad_s,
@@ -84,11 +85,11 @@ static void test_config_check(void)
     TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_config_check(&k));
     k = good;
     k.feedback = HD_CTRL_FB_COUNT;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_init(&c, &plan, &k));
     k = good;
     k.lowpass_hz = 500.0f; /* Nyquist at 1 kHz */
     TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_CONFIG, hd_ctrl_config_check(&k));
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_NULL, hd_ctrl_init(NULL, &good));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_ERR_NULL, hd_ctrl_init(NULL, &plan, &good));
 }
 
 /* Step of the filtered-feedback loop against the first-order closed form. */
@@ -97,8 +98,9 @@ static void test_torque_step_first_order_closed_loop(void)
     const double kp = 2.0, lag = 0.02, step = 10.0, tau_cl = lag / kp;
     hd_ctrl_config_t k;
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     loop_config(&k, kp, lag);
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 1.0};
     const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = (float)step};
     double worst = 0.0;
@@ -125,8 +127,9 @@ static void test_antiwindup_recovers_like_a_fresh_step(void)
     const double kp = 2.0, lag = 0.02, tau_cl = lag / kp;
     hd_ctrl_config_t k;
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     loop_config(&k, kp, lag);
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     /* a weak drive (gain 0.5): u_max = 8 A * 0.06 * 100 = 48 gives 24 N m */
     lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 0.5};
     hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 40.0f};
@@ -166,10 +169,11 @@ static void test_integral_bounded_by_its_limit(void)
     for (int i = 0; i < 2; i++) {
         hd_ctrl_config_t k;
         hd_ctrl_t c;
+        hd_ctrl_plan_t plan;
         loop_config(&k, kp, lag);
         k.torque_ff = 1.0f;
         k.integral_limit_nm = (float)limit;
-        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
         lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 1.0};
         const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = (float)step};
         for (int n = 0; n < 3000; n++) {
@@ -194,9 +198,10 @@ static void test_rate_term_on_the_feedback(void)
 {
     hd_ctrl_config_t k;
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     hd_ctrl_config_default(&k);
     k.torque_kp = 0.5f, k.torque_ki_per_s = 0.0f, k.torque_ff = 0.0f, k.torque_kd_s = 2e-3f;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     const double nkt = (double)k.gear_ratio * (double)k.kt_nm_per_a, slope = 300.0; /* N m/s */
     hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 0.0f};
     hd_ctrl_output_t o;
@@ -239,10 +244,11 @@ static void test_friction_at_rest_follows_the_setpoint_rate(void)
 {
     hd_ctrl_config_t k;
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     hd_ctrl_config_default(&k);
     k.feedback = HD_CTRL_FB_NONE;
     k.friction_rest_nm = 2.0f, k.friction_rate_nm_s = 1000.0f, k.friction_velocity_rad_s = 0.05f;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     const double nkt = (double)k.gear_ratio * (double)k.kt_nm_per_a;
     const struct {
         float torque, v;
@@ -280,7 +286,7 @@ static void test_friction_at_rest_follows_the_setpoint_rate(void)
     /* in the loop too, beside the PI (kp 0.5, no integral, no feed-forward) */
     k.feedback = HD_CTRL_FB_FILTERED;
     k.torque_kp = 0.5f, k.torque_ki_per_s = 0.0f, k.torque_ff = 0.0f, k.torque_kd_s = 0.0f;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     (void)rest_current(&c, 10.0f, 0.0f);
     TEST_ASSERT_DOUBLE_WITHIN(2e-5, (0.5 * 8.0 - 2.0) / nkt, (double)rest_current(&c, 8.0f, 0.0f));
 }
@@ -294,11 +300,12 @@ static void test_impedance_renders_kp(void)
     const double kp = 150.0, kd = 2.0, qd = 0.3, vd = 0.5, ff = 1.5;
     hd_ctrl_config_t k;
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     loop_config(&k, kp_t, lag);
     const double qs[2] = {0.25, 0.4};
     double tau[2];
     for (int j = 0; j < 2; j++) {
-        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
         lag_plant_t p = {.tau_nm = 0.0, .lag_s = lag, .gain = 1.0};
         const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_IMPEDANCE, .torque_nm = (float)ff,
                                        .position_rad = (float)qd, .velocity_rad_s = (float)vd,
@@ -321,8 +328,9 @@ static hd_ctrl_output_t one_step(const hd_ctrl_config_t *k, hd_ctrl_setpoint_t s
                                  hd_ctrl_input_t in)
 {
     hd_ctrl_t c;
+    hd_ctrl_plan_t plan;
     hd_ctrl_output_t o;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, k));
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, k));
     hd_ctrl_step(&c, &sp, &in, &o);
     return o;
 }
@@ -461,7 +469,8 @@ static void test_property_limits_hold_for_any_input(void)
         k.torque_limit_nm = 0.01f + unit() * 100.0f;
         k.velocity_gain_nm_s_rad = unit() * 1e4f;
         hd_ctrl_t c;
-        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        hd_ctrl_plan_t plan;
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
         for (int n = 0; n < 1000; n++, steps++) {
             const hd_ctrl_setpoint_t sp = {
                 .mode = (hd_ctrl_mode_t)(rng_next() % 7u), .torque_nm = any_float(),
@@ -496,7 +505,8 @@ static void test_property_limits_hold_for_any_input(void)
 static double feedback_gain(const hd_ctrl_config_t *k, double w_rad_per_tick, double v_rad_s)
 {
     hd_ctrl_t c;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, k));
+    hd_ctrl_plan_t plan;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, k));
     const hd_ctrl_setpoint_t sp = {.mode = HD_CTRL_TORQUE, .torque_nm = 10.0f};
     double ss = 0.0, cc = 0.0, ys = 0.0, yc = 0.0;
     for (int n = 0; n < 4000; n++) {
@@ -576,7 +586,8 @@ static void test_narrow_feedback_fades_with_motion(void)
     k.artifact_mask = 1u << 1;
     k.artifact_hz = 0.5f;
     hd_ctrl_t c;
-    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+    hd_ctrl_plan_t plan;
+    TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
     const hd_ctrl_setpoint_t sp = {HD_CTRL_TORQUE, 10.0f, 0.0f, 0.0f, 0.0f, 0.0f};
     hd_ctrl_output_t o;
     const double v = 1.5, wm = (double)k.gear_ratio * v, f2 = 2.0 * wm / (2.0 * PI_D);
@@ -641,7 +652,8 @@ static void test_integral_scheduled_on_stiffness(void)
                               ? 40.0 * sqrt(kp / 1500.0)
                               : 40.0;
         hd_ctrl_t c;
-        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &k));
+        hd_ctrl_plan_t plan;
+        TEST_ASSERT_EQUAL_INT(HD_CTRL_OK, hd_ctrl_init(&c, &plan, &k));
         const hd_ctrl_setpoint_t sp = {.mode = torque_mode ? HD_CTRL_TORQUE : HD_CTRL_IMPEDANCE,
                                        .torque_nm = torque_mode ? (float)ref : 0.0f,
                                        .kp_nm_rad = (float)kp, .kd_nm_s_rad = 1.0f};

@@ -693,8 +693,42 @@ static void test_settings_swap_restarts_the_law_only_when_its_own_change(void)
                                       0.5f * live_cfg()->ctrl.torque_ki_per_s).result);
     setpoint_tick(HD_CTRL_TORQUE, 2.0f);
     TEST_ASSERT_EQUAL_FLOAT(0.5f * fw.bg.defaults.ctrl.torque_ki_per_s,
-                            fw.control.ctrl.cfg.torque_ki_per_s);
+                            fw.control.ctrl.plan->cfg.torque_ki_per_s);
     TEST_ASSERT_TRUE(fabsf(fw.control.ctrl.integral_nm) < 0.2f * fabsf(integral));
+}
+
+/* A filter block switched off and on moves the law to the new settings'
+ * motor orders (the narrowed feedback's artifact mask) without a restart:
+ * the integral runs on, the law's plan is the live settings'. */
+static void test_block_switch_moves_the_orders_without_a_restart(void)
+{
+    start(true);
+    for (int k = 0; k < 50; k++) {
+        setpoint_tick(HD_CTRL_TORQUE, 2.0f);
+    }
+    const float integral = fw.control.ctrl.integral_nm;
+    const uint8_t mask = fw.control.ctrl.artifact.mask;
+    TEST_ASSERT_TRUE(fabsf(integral) > 1e-3f);
+    TEST_ASSERT_TRUE(mask != 0u); /* the default model has motor-locked blocks */
+    hd_can_cmd_t e = {0};
+    e.opcode = HD_CMD_BLOCK_ENABLE;
+    for (uint8_t b = 0; b < live_cfg()->kf.block_count; b++) {
+        e.arg.block_enable.index = b;
+        TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, send_cmd(&e).result);
+    }
+    setpoint_tick(HD_CTRL_TORQUE, 2.0f);
+    TEST_ASSERT_EQUAL_UINT8(0u, fw.control.ctrl.artifact.mask);
+    TEST_ASSERT_TRUE(fw.control.ctrl.plan == &fw.settings[fw.live_settings & 1u].ctrl);
+    TEST_ASSERT_TRUE(fabsf(fw.control.ctrl.integral_nm) >= 0.5f * fabsf(integral));
+    e.arg.block_enable.enable = 1u;
+    for (uint8_t b = 0; b < live_cfg()->kf.block_count; b++) {
+        e.arg.block_enable.index = b;
+        TEST_ASSERT_EQUAL_UINT8(HD_CAN_RES_OK, send_cmd(&e).result);
+    }
+    setpoint_tick(HD_CTRL_TORQUE, 2.0f);
+    TEST_ASSERT_EQUAL_UINT8(mask, fw.control.ctrl.artifact.mask);
+    TEST_ASSERT_TRUE(fw.control.ctrl.plan == &fw.settings[fw.live_settings & 1u].ctrl);
+    TEST_ASSERT_TRUE(fabsf(fw.control.ctrl.integral_nm) >= 0.5f * fabsf(integral));
 }
 
 static void test_ctrl_state_telemetry(void)
@@ -733,6 +767,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_reaction_deadline_misses);
     RUN_TEST(test_no_command_beyond_the_limit_whatever_the_input);
     RUN_TEST(test_no_drive_sends_nothing_new);
+    RUN_TEST(test_block_switch_moves_the_orders_without_a_restart);
     RUN_TEST(test_ctrl_state_telemetry);
     RUN_TEST(test_settings_swap_restarts_the_law_only_when_its_own_change);
     return UNITY_END();

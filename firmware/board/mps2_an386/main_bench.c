@@ -289,6 +289,11 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick, boo
                 cmd.opcode = HD_CMD_BLOCK_ENABLE; /* applied by the tick itself */
                 cmd.arg.block_enable.index = 0u;
                 cmd.arg.block_enable.enable = (uint8_t)(k & 1u);
+            } else if (control && (k & 2u) != 0u) {
+                /* a new law every other tick: the control stage restarts it */
+                cmd.opcode = HD_CMD_SET_PARAM;
+                cmd.arg.set_param.id = HD_PARAM_CTRL_DAMP_NM_S_RAD;
+                cmd.arg.set_param.value = cfg->ctrl.damp_nm_s_rad + (float)(k & 4u);
             } else {
                 cmd.opcode = HD_CMD_SET_PARAM;
                 cmd.arg.set_param.id = HD_PARAM_R_NM2;
@@ -320,11 +325,12 @@ static void bench_ctrl(const hd_fw_config_t *fw_cfg)
     static const hd_ctrl_mode_t MODES_RUN[] = {HD_CTRL_TORQUE, HD_CTRL_IMPEDANCE,
                                                HD_CTRL_ZERO_TORQUE, HD_CTRL_DAMP};
     static hd_ctrl_t ctrl;
+    static hd_ctrl_plan_t plan;
     hd_ctrl_config_t cfg;
     hd_fw_ctrl_config(fw_cfg, &cfg);
     cfg.position_min_rad = -0.5f;
     cfg.position_max_rad = 0.5f;
-    if (hd_ctrl_init(&ctrl, &cfg) != HD_CTRL_OK) {
+    if (hd_ctrl_init(&ctrl, &plan, &cfg) != HD_CTRL_OK) {
         sh_exit(BOARD_EXIT_INIT);
     }
     for (uint32_t k = 0; k < CALLS; k++) {
