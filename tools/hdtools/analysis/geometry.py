@@ -53,8 +53,6 @@ MIN_GAIN = 0.002            # and at least 0.2 % of the held-out error
 COVERAGE_BINS = 36
 MIN_COVERAGE = 0.9
 MIN_REVS = 1.5
-STEP_HALF = 5        # decimated samples (0.1 s) either side of a candidate step
-STEP_K = 10.0
 
 
 @dataclass
@@ -104,48 +102,8 @@ def series(inp: Inputs, orders):
                      np.gradient(vb, w * inp.ts_s) if n > 1 else np.zeros(n)]
         else:
             cols += [np.zeros(n)] * N_MOTION
-        zb, tb, A = _blockmean(z, w), _blockmean(t, w), np.column_stack(cols)
-        for a, b in _between_steps(zb):
-            if b - a >= 8:
-                out.append((zb[a:b], tb[a:b], A[a:b]))
+        out.append((_blockmean(z, w), _blockmean(t, w), np.column_stack(cols)))
     return out, w * inp.ts_s
-
-
-def _between_steps(z):
-    """[(start, end)) runs of z between steps of the load: a step (a payload
-    put down, a contact) is where the mean of STEP_HALF samples after a
-    point differs from the mean of STEP_HALF before by more than STEP_K
-    robust standard deviations of that difference over the whole stretch
-    (a slow line or a slow load moves it a little everywhere, a step a lot
-    at one place).  The smoother cannot follow a step and would carry it
-    into the held-out blocks and the profile; each run gets its own
-    smoother instead, and STEP_HALF samples either side of a step are
-    dropped (the transition itself)."""
-    h, n = STEP_HALF, len(z)
-    if n < 4 * h:
-        return [(0, n)]
-    c = np.concatenate([[0.0], np.cumsum(z)])
-    i = np.arange(h, n - h + 1)
-    d = np.abs((c[i + h] - c[i]) - (c[i] - c[i - h])) / h
-    dev = np.median(np.abs(d - np.median(d))) / 0.6745 + 1e-12
-    over = d > STEP_K * dev + np.median(d)
-    cuts = []
-    k = 0
-    while k < len(i):
-        if not over[k]:
-            k += 1
-            continue
-        e = k
-        while e + 1 < len(i) and over[e + 1]:
-            e += 1
-        cuts.append((int(i[k]) - h, int(i[e]) + h))   # the transition, with margins
-        k = e + 1
-    runs, a = [], 0
-    for lo, hi in cuts:
-        runs.append((a, max(a, lo)))
-        a = min(n, hi)
-    runs.append((a, n))
-    return [(a, b) for a, b in runs if b > a]
 
 
 def coverage(angles):
