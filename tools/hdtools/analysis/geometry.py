@@ -53,6 +53,9 @@ MIN_GAIN = 0.002            # and at least 0.2 % of the held-out error
 COVERAGE_BINS = 36
 MIN_COVERAGE = 0.9
 MIN_REVS = 1.5
+STEP_HALF = 5        # decimated samples (0.1 s) either side of a candidate step
+STEP_K = 10.0
+STEP_GAP = 2         # decimated samples either side of a step left out
 
 
 @dataclass
@@ -103,7 +106,59 @@ def series(inp: Inputs, orders):
         else:
             cols += [np.zeros(n)] * N_MOTION
         out.append((_blockmean(z, w), _blockmean(t, w), np.column_stack(cols)))
-    return out, w * inp.ts_s
+    return _with_steps(out), w * inp.ts_s
+
+
+def _with_steps(parts):
+    """parts with one more nuisance column per step of the load (a payload
+    put down, a contact, a reversal's friction step) found in any stretch:
+    0 before the step, 1 after, in its own stretch; 0 in the others.  The
+    smoother cannot follow a step; fitted as a column, the step is
+    predicted in a held-out block from the samples either side, and the
+    stretch stays whole (a cut at each step left an operating log's holds
+    too short for a profile: docs/decisions/geometry-step-split.md)."""
+    steps = [_steps_of(z) for z, _, _ in parts]
+    total = sum(len(s) for s in steps)
+    if total == 0:
+        return parts
+    out, j = [], 0
+    for (z, t, A), st in zip(parts, steps):
+        S = np.zeros((len(z), total))
+        z = z.copy()
+        for i in st:
+            S[i:, j] = 1.0
+            z[max(0, i - STEP_GAP):i + STEP_GAP] = np.nan   # the transition: not fitted, not scored
+            j += 1
+        out.append((z, t, np.column_stack([A, S])))
+    return out
+
+
+def _steps_of(z):
+    """Indices where the load steps: where the mean of STEP_HALF samples
+    after a point differs from the mean of STEP_HALF before by more than
+    STEP_K robust standard deviations of that difference over the stretch
+    (a slow line or a slow load moves it a little everywhere, a step a lot
+    at one place); one index per run of such points, at its largest
+    difference."""
+    h, n = STEP_HALF, len(z)
+    if n < 4 * h:
+        return []
+    c = np.concatenate([[0.0], np.cumsum(z)])
+    i = np.arange(h, n - h + 1)
+    d = np.abs((c[i + h] - c[i]) - (c[i] - c[i - h])) / h
+    med = np.median(d)
+    over = d > med + STEP_K * np.median(np.abs(d - med)) / 0.6745 + 1e-12
+    out, k = [], 0
+    while k < len(i):
+        if not over[k]:
+            k += 1
+            continue
+        e = k
+        while e + 1 < len(i) and over[e + 1]:
+            e += 1
+        out.append(int(i[k + int(np.argmax(d[k:e + 1]))]))
+        k = e + 1
+    return out
 
 
 def coverage(angles):
@@ -165,6 +220,9 @@ class _Fit:
         self.h = np.zeros(k)
         for (z, t, A), w in zip(parts, weights):
             n = len(z)
+            seen = np.isfinite(z)               # a step's transition is NaN (_with_steps)
+            w = w * seen
+            z = np.where(seen, z, 0.0)
             if n <= 3 or np.count_nonzero(w) < 3:
                 self.rows.append((np.zeros(n), None))
                 continue
@@ -259,7 +317,7 @@ def _forward(parts, lam, ids, nblocks, no, chosen, base, orders, pool=None, min_
         rest = [i for i in pool if i not in chosen]
         if not rest:
             break
-        sse = _cv_block_sse(parts, lam, ids, nblocks, [_cols_of(chosen + [i], no) for i in rest])
+        sse = _cv_block_sse(parts, lam, ids, nblocks, [_cols_of(chosen + [i], no, _ncols(parts)) for i in rest])
         used = base > 0
         nb = max(int(used.sum()), 2)
         ratio = np.log((base[None, used] + 1e-30) / (sse[:, used] + 1e-30))
@@ -285,10 +343,14 @@ def _block_log_score(sse):
     return float(np.mean(np.log(sse[used]))) if used.any() else 0.0
 
 
-def _cols_of(order_idx, n_orders):
-    """Columns of these orders plus the motion nuisance (always in)."""
-    return [c for i in order_idx for c in (2 * i, 2 * i + 1)] + list(
-        range(2 * n_orders, 2 * n_orders + N_MOTION))
+def _cols_of(order_idx, n_orders, n_cols):
+    """Columns of these orders plus the nuisance (motion, steps: always in)
+    up to n_cols."""
+    return [c for i in order_idx for c in (2 * i, 2 * i + 1)] + list(range(2 * n_orders, n_cols))
+
+
+def _ncols(parts):
+    return parts[0][2].shape[1]
 
 
 def fit(inp: Inputs, orders=None):
@@ -317,7 +379,7 @@ def fit(inp: Inputs, orders=None):
     per_tau = []
     for tau in TAU_GRID_S:
         lam = _lam(tau, dt)
-        base = _cv_block_sse(parts, lam, ids, nblocks, [_cols_of([], no)])[0]
+        base = _cv_block_sse(parts, lam, ids, nblocks, [_cols_of([], no, _ncols(parts))])[0]
         chosen, steps, sse_end = _forward(parts, lam, ids, nblocks, no, [], base, orders)
         per_tau.append({"tau": tau, "chosen": chosen, "steps": steps, "total": float(sse_end.sum()),
                         "base": float(base.sum()), "sse": sse_end})
@@ -343,7 +405,7 @@ def fit(inp: Inputs, orders=None):
         best["total"] = float(sse_end.sum())
     total, base0 = best["total"], best["base"]
     beta = _Fit(parts, _lam(tau, dt), [np.ones(len(p[0])) for p in parts]).coef(
-        _cols_of(chosen, no))
+        _cols_of(chosen, no, _ncols(parts)))
     n_dec = sum(len(p[0]) for p in parts)
     res.update({"verifiable": True, "tau_s": tau, "decimation_s": dt,
                 "held_out_rms_without_nm": math.sqrt(base0 / n_dec),
@@ -366,7 +428,7 @@ def refit(inp: Inputs, orders, tau_s, nuisance_orders=()):
     if not parts or not orders:
         return []
     beta = _Fit(parts, _lam(tau_s, dt), [np.ones(len(p[0])) for p in parts]).coef(
-        _cols_of(range(len(allo)), len(allo)))
+        _cols_of(range(len(allo)), len(allo), _ncols(parts)))
     return [{"order": float(o), "a_nm": float(beta[2 * i]), "b_nm": float(beta[2 * i + 1]),
              "amplitude_nm": float(math.hypot(beta[2 * i], beta[2 * i + 1]))}
             for i, o in enumerate(orders)]
@@ -383,19 +445,29 @@ def profile_at(lines, th):
 def check(inp: Inputs, lines, tau_s, nuisance_orders=()):
     """Out-of-sample check of a fitted profile on data it was not fitted on,
     with the fit's own cross-validation: the held-out error of a smoother of
-    time constant tau_s (the load), the motion nuisance and any
-    nuisance_orders (other lines, refitted freely), interpolated across
-    INNER_BLOCK_S blocks, with and without the profile (fixed, not refitted)
-    subtracted first.  Returns (rms_without, rms_with)."""
+    time constant tau_s (the load), the nuisance (motion, the load's steps)
+    and any nuisance_orders (other lines, refitted freely), interpolated
+    across INNER_BLOCK_S blocks, with and without the profile (fixed, not
+    refitted) subtracted first.  Returns (rms_without, rms_with): the
+    held-out RMS without the profile, and that times the square root of the
+    geometric mean over the blocks of their error ratio with / without (the
+    selection's per-block statistic: the few blocks a load step's transient
+    or a reversal leaves unpredictable count as one block each, not by their
+    size)."""
     nuis = [o for o in nuisance_orders if o not in [ln["order"] for ln in lines]]
-    out = []
+    sses, n = [], 0
     for x in (inp, inp.minus(lines)):
         parts, dt = series(x, nuis)
         if not parts:
             return float("nan"), float("nan")
         ids, nblocks = _inner_blocks(parts, dt)
-        sse = _cv_block_sse(parts, _lam(tau_s, dt), ids, nblocks,
-                            [_cols_of(range(len(nuis)), len(nuis))])[0]
-        n = sum(len(p[0]) for p in parts)
-        out.append(math.sqrt(float(sse.sum()) / n))
-    return out[0], out[1]
+        sses.append(_cv_block_sse(parts, _lam(tau_s, dt), ids, nblocks,
+                                  [_cols_of(range(len(nuis)), len(nuis), _ncols(parts))])[0])
+        n = sum(int(np.isfinite(p[0]).sum()) for p in parts)
+    without, with_ = sses
+    used = (without > 0) & (with_ > 0)
+    rms_without = math.sqrt(float(without.sum()) / max(n, 1))
+    if not used.any():
+        return rms_without, rms_without
+    ratio = math.exp(float(np.mean(np.log(with_[used] / without[used]))))
+    return rms_without, rms_without * math.sqrt(ratio)
