@@ -13,8 +13,9 @@ docs/results/bench.json (the README headline reads it) and the plot to
 docs/img/bench_accuracy.png; the control part's (issue 23) go into
 docs/results/control.md and docs/results/control.json, the random-joint control
 part's into docs/results/control-random.md and docs/results/control-random.json,
-and bench.md is left alone when only the random and control parts ran.  Every file is written under a
-temporary name and all are renamed together once all are complete.
+and bench.md is left alone when only the random and control parts ran.  Every
+file is written under a temporary name and all are renamed together once all
+are complete.
 """
 from __future__ import annotations
 

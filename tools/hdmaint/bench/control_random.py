@@ -124,18 +124,19 @@ def defaults() -> dict[str, str]:
 
 @dataclass
 class Joint:
-    seed: int | None            # None: the default joint
+    seed: int | None            # None: not drawn (the default joint, an end of a range)
     values: dict                # {key: value} of every SPACE parameter
     factors: dict               # {key: factor (log) or value (add, phase)}
+    label: str = "default"      # of a joint not drawn
 
     @property
     def name(self) -> str:
-        return "default" if self.seed is None else f"c{self.seed}"
+        return self.label if self.seed is None else f"c{self.seed}"
 
     def plant(self) -> tuple:
         """hdctrl-bench's plant options (none for the default joint: the
         runner's own defaults, byte for byte)."""
-        if self.seed is None:
+        if self.seed is None and self.label == "default":
             return ()
         return tuple((p.option, f"{self.values[p.key]:.9g}") for p in SPACE)
 
@@ -145,6 +146,24 @@ def nominal() -> Joint:
     return Joint(None, {p.key: float(d[p.option]) for p in SPACE},
                  {p.key: (1.0 if p.draw == "log" else 0.0 if p.draw == "add"
                           else float(d[p.option])) for p in SPACE})
+
+
+def range_ends() -> list[Joint]:
+    """The default joint with one parameter at an end of its range, for every
+    parameter but the phases (lo, then hi): what each alone does."""
+    base, out = nominal(), []
+    for p in SPACE:
+        if p.draw == "phase":
+            continue
+        for end in (p.lo, p.hi):
+            f = dict(base.factors, **{p.key: end})
+            v = dict(base.values, **{p.key: value_of(p, base.values[p.key], end)})
+            out.append(Joint(None, v, f, f"{p.key} {_factor_text(p, end)}"))
+    return out
+
+
+def _factor_text(p: Param, x: float) -> str:
+    return f"x{x:g}" if p.draw == "log" else f"{x:+g}"
 
 
 def draw_factors(seed: int) -> dict:
@@ -243,16 +262,15 @@ def _meets(m: dict) -> bool:
 
 def run_joint(joint: Joint, variants: list[cl.Variant]) -> dict:
     out = {"seed": joint.seed, "name": joint.name,
-           "factors": {k: _r(x, 6) for k, x in joint.factors.items()},
-           "values": {k: _r(x, 9) for k, x in joint.values.items()}, "rows": {}}
+           "factors": {k: _r(x, 6) for k, x in joint.factors.items()}, "rows": {}}
     for v in variants:
         out["rows"][v.key] = measure(dataclasses.replace(v, plant=joint.plant()))
     return out
 
 
-def _seed_job(args) -> dict:
-    seed, variants = args
-    return run_joint(draw(seed) if seed is not None else nominal(), variants)
+def _job(args) -> dict:
+    joint, variants = args
+    return run_joint(draw(joint) if isinstance(joint, int) else joint, variants)
 
 
 # ------------------------------------------------------------- distributions
@@ -338,6 +356,31 @@ def sensitivity(joints: list[dict], key: str) -> list[dict]:
     return out
 
 
+BINS = 3        # by_range: the drawn range cut into this many equal (log) parts
+BY_RANGE_TOP = 3   # for this many parameters, the strongest of `sensitivity`
+
+
+def by_range(joints: list[dict], key: str, params: list[str]) -> list[dict]:
+    """For each of params, the joints within and in all per part of its drawn
+    range (BINS equal parts, in log for a log-uniform draw): where in the
+    space the joints outside are."""
+    out = []
+    space = {p.key: p for p in SPACE}
+    for k in params:
+        p = space[k]
+        log = p.draw == "log"
+        edges = np.linspace(*(np.log([p.lo, p.hi]) if log else (p.lo, p.hi)), BINS + 1)
+        x = [math.log(j["factors"][k]) if log else j["factors"][k] for j in joints]
+        part = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, BINS - 1)
+        within = [j["rows"][key]["within"] for j in joints]
+        out.append({"key": k, "draw": p.draw,
+                    "edges": [float(math.exp(e)) if log else float(e) for e in edges],
+                    "within": [int(sum(w for w, b in zip(within, part) if b == i))
+                               for i in range(BINS)],
+                    "joints": [int(sum(part == i)) for i in range(BINS)]})
+    return out
+
+
 def failures(joints: list[dict], key: str) -> list[dict]:
     """Every joint not within, with what it misses."""
     out = []
@@ -349,8 +392,7 @@ def failures(joints: list[dict], key: str) -> list[dict]:
                 for c, m in r["margins"].items() if not _meets(m)]
         miss += [f"wall kd {w['kd_nm_s_rad']:g}: cycle ({w['contact_losses']} contact losses, "
                  f"{w['p2p_nm']:.2f} N m p-p)" for w in r["wall"] if w["limit_cycle"]]
-        out.append({"name": j["name"], "seed": j["seed"], "misses": miss,
-                    "factors": j["factors"]})
+        out.append({"name": j["name"], "misses": miss})
     return out
 
 
@@ -359,43 +401,63 @@ def _fmt(x) -> str:
 
 
 def run(n_joints: int = N_REPORT, jobs: int = JOBS, log=lambda s: None,
-        seeds=None) -> dict:
-    """The bench over REPORT_SEEDS[:n_joints] (or `seeds`) and the default
-    joint: {"joints": [...], "summary": {row: ...}, ...}."""
+        seeds=None, with_ends: bool = True) -> dict:
+    """The bench over REPORT_SEEDS[:n_joints] (or `seeds`), the default joint
+    and (with_ends) the ends of every range one at a time (the product row
+    only): {"joints": [...], "summary": {row: ...}, ...}."""
     t0 = time.monotonic()
     seeds = list(REPORT_SEEDS[:n_joints]) if seeds is None else [int(s) for s in seeds]
     variants = [product_variant()]
     cmp_ = compare_variant()
     if cmp_ is not None:
         variants.append(cmp_)
-    jobs_ = [(None, variants)] + [(s, variants) for s in seeds]
+    ends = range_ends() if with_ends else []
+    jobs_ = ([(nominal(), variants)] + [(e, variants[:1]) for e in ends]
+             + [(s, variants) for s in seeds])
     done = []
     with ProcessPoolExecutor(max_workers=max(1, min(jobs, JOBS))) as pool:
-        for j in pool.map(_seed_job, jobs_):
+        for j in pool.map(_job, jobs_):
             done.append(j)
             log(f"{j['name']}: " + ", ".join(
                 f"{k} {'within' if r['within'] else 'OUT'}" for k, r in j["rows"].items()))
-    ref, joints = done[0], done[1:]
+    ref, ends_done, joints = done[0], done[1:1 + len(ends)], done[1 + len(ends):]
+    base = nominal().values
     keys = [v.key for v in variants]
     named = seeds == list(REPORT_SEEDS[:len(seeds)])
     return {"seeds": (f"REPORT_SEEDS[:{len(seeds)}] = {seeds[0]}..{seeds[-1]}" if named
                       else "given: " + ", ".join(map(str, seeds))),
-            "seed_list": seeds,
             "tune_seeds": f"TUNE_SEEDS = {TUNE_SEEDS.start}..{TUNE_SEEDS.stop - 1}",
             "stream": STREAM,
             "criteria": {"pm_deg": ct.PM_DEG, "gm_db": ct.GM_DB,
                          "wall_kds": list(control.WALL["kds"])},
             "space": [{"key": p.key, "option": p.option, "draw": p.draw, "lo": p.lo,
-                       "hi": p.hi, "default": ref["values"][p.key], "why": p.why}
+                       "hi": p.hi, "default": base[p.key], "why": p.why}
                       for p in SPACE],
             "rows": {v.key: config(v) for v in variants},
-            "default_joint": ref, "joints": joints,
+            "default_joint": ref, "range_ends": ends_done, "joints": joints,
             "summary": {k: summary(joints, k) for k in keys},
             "sensitivity": sensitivity(joints, PRODUCT),
+            "by_range": {k: by_range(joints, k, [r["key"] for r in
+                                                 sensitivity(joints, PRODUCT)[:BY_RANGE_TOP]])
+                         for k in keys},
             "failures": {k: failures(joints, k) for k in keys},
             "elapsed_s": round(time.monotonic() - t0, 1), "workers": min(jobs, JOBS)}
 
 
+JOINT_LISTS = ("joints", "range_ends")   # to_json: one joint a line
+
+
 def to_json(res: dict) -> str:
+    """The results as JSON (inf as null), a joint of JOINT_LISTS a line."""
     from .control_report import clean
-    return json.dumps(clean(res), indent=1) + "\n"
+    c = clean(res)
+    lines = {}
+    for key in JOINT_LISTS:
+        for i, j in enumerate(c.get(key, [])):
+            mark = f"@joint {key} {i}@"
+            lines[json.dumps(mark)] = json.dumps(j)
+            c[key][i] = mark
+    text = json.dumps(c, indent=1)
+    for mark, line in lines.items():
+        text = text.replace(mark, line, 1)
+    return text + "\n"

@@ -78,6 +78,33 @@ def _inf(x):
     return float("inf") if x is None else x
 
 
+def _least(row: dict) -> str:
+    ms = row["margins"].values()
+    return (f"{_pm(min(_inf(m['pm_deg']) for m in ms))} / "
+            f"{_gm(min(_inf(m['gm_db']) for m in ms))}")
+
+
+def ends_table(res: dict) -> list[str]:
+    """The default joint with one parameter at each end of its range."""
+    ends = res.get("range_ends") or []
+    if not ends:
+        return []
+    slow = "0.5"
+    out = ["", f"### One parameter at a time ({cr.PRODUCT} row)", "",
+           "The default joint with one parameter at an end of its drawn range, the rest at "
+           "the default: the least phase margin / gain margin over the conditions, the "
+           f"bandwidth at {slow} rad/s (Hz), the wall, and whether the joint is within.", "",
+           "| joint | least margins | bandwidth | wall cycles (kd) | within |",
+           "|---|---|---|---|---|"]
+    ref = res["default_joint"]
+    for j in [ref] + ends:
+        r = j["rows"][cr.PRODUCT]
+        cyc = ", ".join(f"{w['kd_nm_s_rad']:g}" for w in r["wall"] if w["limit_cycle"])
+        out.append(f"| {j['name']} | {_least(r)} | {_bw(r['speeds'][slow]['bandwidth_hz'])} | "
+                   f"{cyc or 'none'} | {'yes' if r['within'] else '**no**'} |")
+    return out
+
+
 def space_table(res: dict) -> list[str]:
     rows = ["| parameter | hdctrl-bench option | default | drawn | why |", "|---|---|---|---|---|"]
     for p in res["space"]:
@@ -166,6 +193,7 @@ def markdown(res: dict) -> str:
                        f"{p['worst']:.2f} ({p['worst_joint']}) | "
                        f"{_pct(w['cycles'], d['joints'])} | {r['p2p_nm']:.2f}"
                        f"{' (cycle)' if r['limit_cycle'] else ''} |")
+    out += ends_table(res)
     sens = res["sensitivity"]
     out += ["", f"### What moves the margins ({cr.PRODUCT} row)", "",
             "Spearman's rank correlation over the joints of each drawn parameter (its log "
@@ -176,8 +204,20 @@ def markdown(res: dict) -> str:
             "|---|---|---|---|"]
     out += [f"| `{r['key']}` | {r['rho_pm']:+.2f} | {r['rho_gm']:+.2f} | "
             f"{r['rho_bandwidth']:+.2f} |" for r in sens]
+    out += ["", "### Where in the space the joints outside are", "",
+            "Joints within / joints drawn in each third of the drawn range (of the log "
+            "factor) of the parameters that move the margins most.", "",
+            "| row | parameter | " + " | ".join(["third"] * cr.BINS) + " |",
+            "|---|---|" + "---|" * cr.BINS]
+    for k, parts in res["by_range"].items():
+        for b in parts:
+            e = b["edges"]
+            out.append(f"| {k} | `{b['key']}` | " + " | ".join(
+                f"{e[i]:.2f}x-{e[i + 1]:.2f}x: {b['within'][i]} / {b['joints'][i]}"
+                for i in range(cr.BINS)) + " |")
     top = [r["key"] for r in sens[:TOP]]
     space = {p["key"]: p for p in res["space"]}
+    factors = {j["name"]: j["factors"] for j in res["joints"]}
     for k, fails in res["failures"].items():
         out += ["", f"### Joints outside ({k} row): {len(fails)}", ""]
         if not fails:
@@ -186,7 +226,7 @@ def markdown(res: dict) -> str:
         out += ["| joint | what it misses | " + " | ".join(f"`{t}`" for t in top) + " |",
                 "|---|---|" + "---|" * len(top)]
         out += [f"| {f['name']} | {'; '.join(f['misses'])} | "
-                + " | ".join(_factor(space[t], f["factors"][t]) for t in top) + " |"
+                + " | ".join(_factor(space[t], factors[f["name"]][t]) for t in top) + " |"
                 for f in fails]
     return "\n".join(out) + "\n"
 
