@@ -5,6 +5,8 @@
  * it, for the control benchmark (tools/hdtools/bench/control*.py).
  *
  *   hdctrl-bench --input IN --out OUT.csv [options]
+ *   hdctrl-bench --defaults     (the options below that a joint flashed with
+ *                                the defaults runs, with their values)
  *
  * IN has one line per tick: "setpoint_nm inject_a speed_rad_s".  setpoint_nm
  * is the SETPOINT frame's torque (TORQUE: the torque; IMPEDANCE: tau_ff);
@@ -33,8 +35,21 @@
  * the ADC's resolution, a tick late as the gauge does.  A bench-only
  * diagnostic (the control benchmark's ideal-sensor bound), not a product
  * sensor: the firmware is the same, only the simulated sensor changes.
- * Every other parameter is the firmware's default and the simulated joint's
- * default: the firmware is told nothing about the plant.
+ * The simulated joint's physics (hd_sim_joint_params_t, the drive's and
+ * the gauge's; each default is the 40 N m class joint's, hd_sim_joint_default,
+ * hal_simdrive_default, hal_simdyn_sensor_default), each range-checked:
+ *   --motor-inertia-kgm2 --motor-viscous-nm-s-rad --motor-coulomb-nm
+ *   --motor-stribeck-nm --motor-stribeck-velocity-rad-s --stiffness-nm-rad
+ *   --damping-nm-s-rad --output-inertia-kgm2 --output-viscous-nm-s-rad
+ *   --mesh-ripple-nm --mesh-ripple-phase-rad --gauge-ripple-nm
+ *   --gauge-ripple-phase-rad   (the joint, sim/hd_sim_joint.h)
+ *   --kt-error --current-bandwidth-hz   (the drive, hal/simdrive)
+ *   --noise-nm   (the gauge's white noise, N m rms)
+ * The gear ratio, the tick and the encoders are not options: the firmware
+ * is configured for them (its defaults), and a joint that differs there is
+ * a different configuration, not a different joint of the class.
+ * Every other parameter is the firmware's default: the firmware is told
+ * nothing about the plant (a plant option changes the simulation only).
  * Exit 0 with OUT whole, or one line on stderr and 1 (2: usage).
  */
 #include <errno.h>
@@ -66,7 +81,15 @@ typedef struct {
     unsigned seed;
     size_t preroll;
     int sensor;         /* 0 gauge, 1 ideal (bench-only: no artifact, no noise) */
+    hd_sim_joint_params_t joint;   /* the simulated joint (the plant options) */
+    hal_simdrive_config_t drive;
+    double noise_nm;
 } opts_t;
+
+#define TWO_PI_RAD 6.283185307179586
+
+/* ctrl_feedback's values, by name */
+static const char *const FEEDBACKS[] = {"filtered", "raw", "lowpass", "none", "narrow"};
 
 static hal_mock_t mock; /* the CAN part only */
 static hal_simdyn_t dyn;
@@ -90,6 +113,81 @@ static int fail(const char *msg, const char *what)
     return 1;
 }
 
+/* The plant options: where each goes and the range it is checked against
+ * (what the simulation models as a joint's physics, not the random space:
+ * tools/hdmaint/bench/control_random.py draws within them). */
+typedef struct {
+    const char *name;
+    double *dst;
+    double lo, hi;
+} plant_opt_t;
+
+#define PLANT_OPTS 16
+
+static void plant_table(opts_t *o, plant_opt_t t[PLANT_OPTS])
+{
+    hd_sim_joint_params_t *j = &o->joint;
+    const plant_opt_t all[PLANT_OPTS] = {
+        {"--motor-inertia-kgm2", &j->motor_inertia_kgm2, 1e-7, 1e-2},
+        {"--motor-viscous-nm-s-rad", &j->motor_viscous_nm_s_rad, 0.0, 0.1},
+        {"--motor-coulomb-nm", &j->motor_coulomb_nm, 0.0, 1.0},
+        {"--motor-stribeck-nm", &j->motor_stribeck_nm, 0.0, 1.0},
+        {"--motor-stribeck-velocity-rad-s", &j->motor_stribeck_velocity_rad_s, 1e-3, 1e3},
+        {"--stiffness-nm-rad", &j->stiffness_nm_rad, 1e2, 1e7},
+        {"--damping-nm-s-rad", &j->damping_nm_s_rad, 0.0, 1e4},
+        {"--output-inertia-kgm2", &j->output_inertia_kgm2, 1e-4, 1e3},
+        {"--output-viscous-nm-s-rad", &j->output_viscous_nm_s_rad, 0.0, 1e3},
+        {"--mesh-ripple-nm", &j->mesh_ripple_nm, 0.0, 50.0},
+        {"--mesh-ripple-phase-rad", &j->mesh_ripple_phase_rad, -TWO_PI_RAD, TWO_PI_RAD},
+        {"--gauge-ripple-nm", &j->gauge_ripple_nm, 0.0, 50.0},
+        {"--gauge-ripple-phase-rad", &j->gauge_ripple_phase_rad, -TWO_PI_RAD, TWO_PI_RAD},
+        {"--kt-error", &o->drive.kt_error, -0.5, 0.5},
+        {"--current-bandwidth-hz", &o->drive.bandwidth_hz, 10.0, 1e5},
+        {"--noise-nm", &o->noise_nm, 0.0, 10.0},
+    };
+    memcpy(t, all, sizeof all);
+}
+
+/* k v as a plant option of o: 1 (set), 0 (not a plant option) or -1 (its
+ * one-line message printed). */
+static int plant_option(opts_t *o, const char *k, const char *v, bool num, double x)
+{
+    plant_opt_t t[PLANT_OPTS];
+    plant_table(o, t);
+    for (size_t i = 0; i < PLANT_OPTS; i++) {
+        if (strcmp(k, t[i].name) != 0) {
+            continue;
+        }
+        if (!num) {
+            fprintf(stderr, "hdctrl-bench: %s: not a number: %s\n", k, v);
+            return -1;
+        }
+        if (!(x >= t[i].lo && x <= t[i].hi)) {
+            fprintf(stderr, "hdctrl-bench: %s: %s is outside [%g, %g]\n", k, v, t[i].lo,
+                    t[i].hi);
+            return -1;
+        }
+        *t[i].dst = x;
+        return 1;
+    }
+    return 0;
+}
+
+/* "name value" with the fewest digits that read back to the same value
+ * (float: the law's parameters; else double). */
+static void print_value(const char *name, double v, bool is_float)
+{
+    char buf[40];
+    for (int digits = 1; digits <= 17; digits++) {
+        snprintf(buf, sizeof buf, "%.*g", digits, v);
+        const double back = strtod(buf, NULL);
+        if (is_float ? (float)back == (float)v : back == v) {
+            break;
+        }
+    }
+    printf("%s %s\n", name, buf);
+}
+
 static int pick(const char *v, const char *const *names, int n)
 {
     for (int i = 0; i < n; i++) {
@@ -108,16 +206,13 @@ static int number(const char *v, double *out)
     return (errno != 0 || end == v || *end != '\0' || !isfinite(*out)) ? -1 : 0;
 }
 
-static int parse(int argc, char **argv, opts_t *o)
+/* The runner's defaults: the firmware's (hd_ctrl_config_default) and the
+ * simulated joint's, drive's and gauge's. */
+static void defaults(opts_t *o)
 {
-    static const char *const modes[] = {"stop", "damp", "torque", "impedance", "zero_torque"};
-    static const char *const fbs[] = {"filtered", "raw", "lowpass", "none", "narrow"};
-    static const char *const loads[] = {"dyno", "free", "wall"};
-    static const char *const sensors[] = {"gauge", "ideal"};
-    const hd_ctrl_config_t *d = NULL;
-    static hd_ctrl_config_t def;
+    hd_ctrl_config_t def;
     hd_ctrl_config_default(&def);
-    d = &def;
+    const hd_ctrl_config_t *d = &def;
     *o = (opts_t){.mode = HD_CTRL_TORQUE, .feedback = d->feedback, .kp = d->torque_kp,
                   .ki = d->torque_ki_per_s, .ff = d->torque_ff,
                   .ilim = d->integral_limit_nm, .kd = d->torque_kd_s, .lowpass_hz = d->lowpass_hz,
@@ -125,6 +220,43 @@ static int parse(int argc, char **argv, opts_t *o)
                   .notch_mask = d->notch_mask, .friction_rest_nm = d->friction_rest_nm,
                   .friction_rate = d->friction_rate_nm_s, .dyno_kv = 50.0, .dyno_ki = 5000.0,
                   .wall_k = 2e4, .wall_d = 5.0, .imp_kd = 0.0, .seed = 0x5EEDu};
+    hd_sim_joint_default(&o->joint);
+    hal_simdrive_default(&o->drive);
+    hal_simdyn_sensor_t sens;
+    hal_simdyn_sensor_default(&sens);
+    o->noise_nm = sens.noise_nm;
+}
+
+/* --defaults: the firmware's torque loop and the plant as options with
+ * their default values, one "option value" a line (what a joint flashed
+ * with the defaults runs; tools/hdmaint/bench/control_random.py). */
+static void print_defaults(void)
+{
+    opts_t o;
+    defaults(&o);
+    printf("--feedback %s\n", FEEDBACKS[o.feedback]);
+    const struct { const char *name; double v; } law[] = {
+        {"--kp", o.kp}, {"--ki", o.ki}, {"--kd", o.kd}, {"--ff", o.ff}, {"--ilim", o.ilim},
+        {"--lowpass-hz", o.lowpass_hz}, {"--notch-width-hz", o.notch_width_hz},
+        {"--artifact-hz", o.artifact_hz}, {"--friction-rest-nm", o.friction_rest_nm},
+        {"--friction-rate", o.friction_rate}};
+    for (size_t i = 0; i < sizeof law / sizeof law[0]; i++) {
+        print_value(law[i].name, law[i].v, true);
+    }
+    printf("--lowpass-order %d\n--notch-mask %d\n", o.lowpass_order, o.notch_mask);
+    plant_opt_t t[PLANT_OPTS];
+    plant_table(&o, t);
+    for (size_t i = 0; i < PLANT_OPTS; i++) {
+        print_value(t[i].name, *t[i].dst, false);
+    }
+}
+
+static int parse(int argc, char **argv, opts_t *o)
+{
+    static const char *const modes[] = {"stop", "damp", "torque", "impedance", "zero_torque"};
+    static const char *const loads[] = {"dyno", "free", "wall"};
+    static const char *const sensors[] = {"gauge", "ideal"};
+    defaults(o);
     for (int i = 1; i < argc; i++) {
         const char *k = argv[i];
         if (i + 1 >= argc) {
@@ -154,6 +286,11 @@ static int parse(int argc, char **argv, opts_t *o)
                 done = true;
             }
         }
+        const int plant = plant_option(o, k, v, num, x);
+        if (plant < 0) {
+            return -1;
+        }
+        done = done || plant > 0;
         if (done) {
             continue;
         }
@@ -162,7 +299,7 @@ static int parse(int argc, char **argv, opts_t *o)
         } else if (strcmp(k, "--out") == 0) {
             o->out = v;
         } else if (strcmp(k, "--mode") == 0 && (o->mode = pick(v, modes, 5)) >= 0) {
-        } else if (strcmp(k, "--feedback") == 0 && (o->feedback = pick(v, fbs, 5)) >= 0) {
+        } else if (strcmp(k, "--feedback") == 0 && (o->feedback = pick(v, FEEDBACKS, 5)) >= 0) {
         } else if (strcmp(k, "--load") == 0 && (o->load = pick(v, loads, 3)) >= 0) {
         } else if (strcmp(k, "--sensor") == 0 && (o->sensor = pick(v, sensors, 2)) >= 0) {
         } else if (strcmp(k, "--lowpass-order") == 0 && num) {
@@ -183,7 +320,12 @@ static int parse(int argc, char **argv, opts_t *o)
                         "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
                         "--notch-width-hz --artifact-hz --friction-rest-nm --friction-rate] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
                         "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
-                        "--imp-q] [--preroll N] [--seed] [--sensor gauge|ideal]\n");
+                        "--imp-q] [--preroll N] [--seed] [--sensor gauge|ideal] [plant options: "
+                        "--motor-inertia-kgm2 --motor-viscous-nm-s-rad --motor-coulomb-nm "
+                        "--motor-stribeck-nm --motor-stribeck-velocity-rad-s --stiffness-nm-rad "
+                        "--damping-nm-s-rad --output-inertia-kgm2 --output-viscous-nm-s-rad "
+                        "--mesh-ripple-nm --mesh-ripple-phase-rad --gauge-ripple-nm "
+                        "--gauge-ripple-phase-rad --kt-error --current-bandwidth-hz --noise-nm]\n");
         return -1;
     }
     return 0;
@@ -237,8 +379,7 @@ static double *read_input(const char *path, size_t *n)
 
 static int setup(const opts_t *o, hd_fw_config_t *cfg)
 {
-    hd_sim_joint_params_t jp;
-    hd_sim_joint_default(&jp);
+    hd_sim_joint_params_t jp = o->joint;
     jp.payload_kg = 0.0;
     jp.link_gravity_nm = 0.0;
     if (o->load == 2) {
@@ -247,10 +388,10 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
         jp.env_stiffness_nm_rad = o->wall_k;
         jp.env_damping_nm_s_rad = o->wall_d;
     }
-    hal_simdrive_config_t dc;
-    hal_simdrive_default(&dc);
+    const hal_simdrive_config_t dc = o->drive;
     hal_simdyn_sensor_t sc;
     hal_simdyn_sensor_default(&sc);
+    sc.noise_nm = o->noise_nm;
     sc.offset_v = 0.0; /* the firmware's default calibration: no record stored */
     sc.gain_nm_per_v = HD_CALIB_NOMINAL_GAIN_NM_PER_V;
     sc.seed = o->seed;
@@ -345,6 +486,10 @@ static int run(const opts_t *o, const double *in, size_t n, hd_out_t *out)
 
 int main(int argc, char **argv)
 {
+    if (argc == 2 && strcmp(argv[1], "--defaults") == 0) {
+        print_defaults();
+        return fflush(stdout) == 0 && !ferror(stdout) ? 0 : 1;
+    }
     opts_t o;
     if (parse(argc, argv, &o) != 0) {
         return 2;

@@ -94,7 +94,8 @@ def test_goals_met_when_every_case_is_inside():
 
 def _args(tmp_path, update_docs=True, quick=False):
     return argparse.Namespace(out=tmp_path / "out", skip=["accuracy", "slow", "random", "real",
-                                                            "host", "target", "control"],
+                                                            "host", "target", "control",
+                                                            "control_random"],
                               quick=quick, update_docs=update_docs, only=[], random_joints=32)
 
 

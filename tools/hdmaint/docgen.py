@@ -116,14 +116,19 @@ GENERATORS = (
               "[bench.md](../results/bench.md), `docs/results/bench.json`; "
               "[control.md](../results/control.md) (Results), "
               "`docs/results/control.json`; [random-joints.md](../results/random-joints.md), "
-              "`docs/results/random.json`",
-              "`tools/bench --update-docs` (one part: `--only control`, `--only random`)",
+              "`docs/results/random.json`; [control-random.md](../results/control-random.md), "
+              "`docs/results/control-random.json`",
+              "`tools/bench --update-docs` (one part: `--only control`, `--only random`, "
+              "`--only control_random`)",
               "benchmarks: numbers of one run, not checked, but `bench_control_docs` checks the "
-              "control section and the default gains against the JSON, and the random joints' "
-              "CI sample is what `analyze_random_joints` holds the firmware to",
+              "control section and the default gains against the JSON, the random joints' "
+              "CI sample is what `analyze_random_joints` holds the firmware to, and "
+              "`bench_control_random_docs` checks the random-joint control section against "
+              "its JSON and the seeds' joints",
               {"docs/results/bench.md": ("bench-results",),
                "docs/results/control.md": ("control-results",),
-               "docs/results/random-joints.md": ("bench-results",)}),
+               "docs/results/random-joints.md": ("bench-results",),
+               "docs/results/control-random.md": ("control-random-results",)}),
     Generator("fleet", (PY, "-m", "hdmaint.fleet_bench", "--write"),
               "[fleet.md](../results/fleet.md) (measured section), `docs/results/fleet.json`",
               "`cd tools && ../.venv/bin/python -m hdmaint.fleet_bench --write [--ray-python PY]` "

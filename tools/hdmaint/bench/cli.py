@@ -5,19 +5,23 @@ scenarios) and the real iiwa logs, the host compute benchmark
 (tests/bench/bench_compute) and the Cortex-M4 counts if tools/target exists;
 checks issue 12's goals against the numbers (bench/goals.py); prints the
 tables, writes OUT/results.json, OUT/results.md and OUT/bench_accuracy.png
-(OUT = out/bench; the control part, --only control: OUT/control.json).
+(OUT = out/bench; the control part, --only control: OUT/control.json; the
+random-joint control part, --only control_random: OUT/control-random.json).
 --update-docs also writes the tables into docs/results/bench.md
 (between the generated-results markers), results.json to
 docs/results/bench.json (the README headline reads it) and the plot to
 docs/img/bench_accuracy.png; the control part's (issue 23) go into
-docs/results/control.md and docs/results/control.json, and bench.md is left alone
-when only the random and control parts ran.  Every file is written under a
-temporary name and all are renamed together once all are complete.
+docs/results/control.md and docs/results/control.json, the random-joint control
+part's into docs/results/control-random.md and docs/results/control-random.json,
+and bench.md is left alone when only the random and control parts ran.  Every
+file is written under a temporary name and all are renamed together once all
+are complete.
 """
 from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import sys
 import tempfile
 from pathlib import Path
@@ -33,11 +37,15 @@ RANDOM_DOC = ROOT / "docs" / "results" / "random-joints.md"
 RANDOM_JSON = ROOT / "docs" / "results" / "random.json"
 CONTROL_DOC = ROOT / "docs" / "results" / "control.md"
 CONTROL_JSON = ROOT / "docs" / "results" / "control.json"
+CONTROL_RANDOM_DOC = ROOT / "docs" / "results" / "control-random.md"
+CONTROL_RANDOM_JSON = ROOT / "docs" / "results" / "control-random.json"
 BLOCK = "bench-results"           # in bench.md and random-joints.md
 BEGIN, END = docblock.markers(BLOCK)
 
 
-PARTS = ["accuracy", "slow", "random", "real", "host", "target", "control"]
+PARTS = ["accuracy", "slow", "random", "real", "host", "target", "control", "control_random"]
+OWN_DOCS = {"random", "control", "control_random"}   # parts with docs of their own
+QUICK_CONTROL_JOINTS = 2
 
 
 def parser() -> argparse.ArgumentParser:
@@ -51,9 +59,12 @@ def parser() -> argparse.ArgumentParser:
                    help="run only this part (repeatable)")
     p.add_argument("--random-joints", type=int, default=32, metavar="N",
                    help="joints of the random-joint part (default 32; --quick: 4)")
+    p.add_argument("--control-joints", type=int, default=None, metavar="N",
+                   help="joints of the random-joint control part (default "
+                        "control_random.N_REPORT; --quick: 2)")
     p.add_argument("--quick", action="store_true",
                    help="tiny sizes (smoke test): short runs, 2 real segments, few reps; the "
-                        "control part only with --only control")
+                        "control parts only with --only control / --only control_random")
     p.add_argument("--update-docs", action="store_true",
                    help="write the tables into docs/results/bench.md and the plot into docs/img/")
     p.set_defaults(func=run)
@@ -61,22 +72,32 @@ def parser() -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from . import accuracy, compute, control_report, goals, real, report
+    from . import accuracy, compute, control_random, control_random_report, control_report
+    from . import goals, real, report
     if args.update_docs and args.quick:
         raise UsageError("--update-docs writes the documented numbers: run without --quick")
     only, n_random = args.only, args.random_joints
     if only:
         args.skip = [x for x in PARTS if x not in only]
-    elif args.quick and "control" not in args.skip:
-        args.skip = args.skip + ["control"]   # --quick: the control part only with --only control
+    elif args.quick:   # --quick: the control parts only with --only
+        args.skip = args.skip + [x for x in ("control", "control_random") if x not in args.skip]
     if not 1 <= n_random <= 1000:
         raise UsageError(f"--random-joints must be 1..1000 (got {n_random})")
+    n_control = getattr(args, "control_joints", None)
+    n_control = (QUICK_CONTROL_JOINTS if args.quick else control_random.N_REPORT) \
+        if n_control is None else n_control
+    if not 1 <= n_control <= len(control_random.REPORT_SEEDS):
+        raise UsageError(f"--control-joints must be 1..{len(control_random.REPORT_SEEDS)} "
+                         f"(got {n_control})")
     # bench.md holds every part but the random joints' (docs/results/random-joints.md)
-    own_docs = bool(only) and set(only) <= {"random", "control"}  # parts with docs of their own
+    own_docs = bool(only) and set(only) <= OWN_DOCS
     doc_text = read_doc() if args.update_docs and not own_docs else None
     random_text = read_doc(RANDOM_DOC) if args.update_docs and "random" not in args.skip else None
     control_text = (read_doc(CONTROL_DOC, control_report.BEGIN, control_report.END)
                     if args.update_docs and "control" not in args.skip else None)
+    control_random_text = (read_doc(CONTROL_RANDOM_DOC, control_random_report.BEGIN,
+                                    control_random_report.END)
+                           if args.update_docs and "control_random" not in args.skip else None)
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -118,6 +139,12 @@ def run(args) -> int:
         print("control benchmark (the torque loop on the dynamic joint)...", file=sys.stderr)
         results["control"] = control.run(quick=bool(args.quick),
                                          log=lambda s: print("  " + s, file=sys.stderr))
+    crandom = None   # its own result file, not in results.json
+    if "control_random" not in args.skip:
+        print(f"random-joint control benchmark (the default torque loop on {n_control} drawn "
+              "joints)...", file=sys.stderr)
+        crandom = json.loads(control_random.to_json(control_random.run(
+            n_control, log=lambda s: print("  " + s, file=sys.stderr))))
     results["compute"] = {}
     if "host" not in args.skip:
         print("host compute benchmark...", file=sys.stderr)
@@ -142,7 +169,10 @@ def run(args) -> int:
             print(f"{n:>6}  {kf or '-':>10}  {dense or '-':>10}  {ratio}  {r.get('isr', '-'):>9}")
     elif tgt:
         print(f"\nCortex-M4 target: {tgt.get('status')}: {tgt.get('note', '')}")
-    control_md = None
+    control_md = crandom_md = None
+    if crandom is not None:
+        crandom_md = control_random_report.markdown(crandom)
+        print("\n" + crandom_md)
     if "control" in results:
         ctabs = control_report.tables(results["control"])
         print("\n" + control_report.text(ctabs))
@@ -159,6 +189,14 @@ def run(args) -> int:
         if control_md is not None:
             written.append(args.out / "control.json")
             out.write_text(written[-1], control_report.to_json(results["control"]))
+        if crandom is not None:
+            written.append(args.out / "control-random.json")
+            out.write_text(written[-1], control_random.to_json(crandom))
+        if control_random_text is not None:
+            out.write_text(CONTROL_RANDOM_DOC, control_random_report.splice(
+                control_random_text, f"_{header}_\n\n" + crandom_md))
+            out.write_text(CONTROL_RANDOM_JSON, control_random.to_json(crandom))
+            written += [CONTROL_RANDOM_DOC, CONTROL_RANDOM_JSON]
         if control_text is not None:
             out.write_text(CONTROL_DOC, control_report.splice(control_text, control_md))
             out.write_text(CONTROL_JSON, control_report.to_json(results["control"]))
@@ -171,7 +209,6 @@ def run(args) -> int:
             written.append(plot)
         if random_text is not None:
             from . import random_report
-            import json
             out.write_text(RANDOM_DOC, splice(random_text, f"_{header}_\n\n"
                                               + random_report.markdown(results["random"])))
             out.write_text(RANDOM_JSON, json.dumps(results["random"], indent=1) + "\n")

@@ -69,9 +69,12 @@ class Variant:
     artifact_hz: float | None = None   # narrow: the phasors' corner (None: the law's default)
     friction_rest_nm: float = 0.0      # the law's friction compensation at rest
     sensor: str = "gauge"              # gauge | ideal (hdctrl-bench --sensor: bench-only)
+    plant: tuple = ()                  # hdctrl-bench's plant options (("--stiffness-nm-rad",
+                                       # "9000"), ...): another simulated joint (control_random);
+                                       # () the default one.  Not the firmware's: it is told nothing
 
     def options(self) -> list[str]:
-        return ["--sensor", self.sensor, "--feedback", self.feedback, "--kp", f"{self.kp:.6g}", "--ki", f"{self.ki:.6g}",
+        return [x for kv in self.plant for x in kv] + ["--sensor", self.sensor, "--feedback", self.feedback, "--kp", f"{self.kp:.6g}", "--ki", f"{self.ki:.6g}",
                 "--ff", f"{self.ff:.6g}", "--kd", f"{self.kd:.6g}", "--ilim", f"{self.ilim:.6g}", "--lowpass-hz", f"{self.lowpass_hz:.6g}",
                 "--lowpass-order", str(self.lowpass_order), "--notch-mask",
                 str(self.notch_mask), "--notch-width-hz", f"{self.notch_width_hz:.6g}",

@@ -1,0 +1,235 @@
+"""docs/results/control-random.md's generated part: the space of joints and the
+default torque loop's margins, tracking and wall contact over the drawn
+joints (hdmaint.bench.control_random), as Markdown, from the results as
+stored in docs/results/control-random.json (no crossover: null)."""
+from __future__ import annotations
+
+from hdtools import docblock
+
+from . import control_random as cr
+
+BLOCK = "control-random-results"
+BEGIN, END = docblock.markers(BLOCK)
+LABELS = {cr.PRODUCT: "product: the firmware as flashed (`hdctrl-bench --defaults`)",
+          cr.COMPARE: "comparison: filtered feedback, the fixed bench's tuned gains, "
+                      "the rest as flashed"}
+COND = {"wall": "wall contact", "free": "free output"}
+TOP = 4   # the failing joints' table shows the factors of this many parameters
+
+
+def _n(x, fmt="{:.1f}", none="-"):
+    return none if x is None else fmt.format(x)
+
+
+def _pm(x) -> str:
+    return _n(None if x == float("inf") else x, "{:.0f}", "no crossover")
+
+
+def _gm(x) -> str:
+    return _n(None if x == float("inf") else x, "{:.1f}", "no phase crossover")
+
+
+def _bw(x) -> str:
+    return "< 1" if x is None or x == 0.0 else f"{x:.1f}"
+
+
+def _cond(c: str) -> str:
+    return COND.get(c, f"{c} rad/s")
+
+
+def _pct(k: int, n: int) -> str:
+    return f"{k} of {n} ({100 * k / n:.0f} %)"
+
+
+def _factor(p: dict, x: float) -> str:
+    return f"{x:.2f}x" if p["draw"] == "log" else f"{x:+.3f}" if p["draw"] == "add" \
+        else f"{x:.2f}"
+
+
+def reading(res: dict) -> list[str]:
+    """One generated paragraph per row: the share within, what is missed
+    most, and the parameter most tied to the least phase margin."""
+    out = []
+    for k, d in res["summary"].items():
+        n, conds = d["joints"], d["conditions"]
+        missed = sorted(((n - m["met"], c) for c, m in conds.items() if m["met"] < n),
+                        reverse=True)
+        cycles = {kd: w["cycles"] for kd, w in d["wall"].items() if w["cycles"]}
+        parts = [f"**{k}**: {_pct(d['within'], n)} of the joints within"]
+        parts += [f"margins missed in the {_cond(c)} condition on {m} of {n}" for m, c in missed]
+        parts += [f"the wall cycles at kd {float(kd):g} on {c} of {n}" for kd, c in cycles.items()]
+        w = d["worst_condition"]
+        ref = res["default_joint"]["rows"][k]["margins"].values()
+        parts.append(f"the least margins over the joints {_pm(w['pm']['worst'])} deg "
+                     f"({w['pm']['worst_joint']}) and {_gm(w['gm']['worst'])} dB "
+                     f"({w['gm']['worst_joint']}), the default joint's "
+                     f"{_pm(min(_inf(m['pm_deg']) for m in ref))} deg and "
+                     f"{_gm(min(_inf(m['gm_db']) for m in ref))} dB")
+        if k == cr.PRODUCT and res["sensitivity"]:
+            top = max(res["sensitivity"], key=lambda r: abs(r["rho_pm"]))
+            parts.append(f"the least phase margin follows `{top['key']}` most "
+                         f"(rank correlation {top['rho_pm']:+.2f})")
+        out.append("; ".join(parts) + ".")
+        out.append("")
+    return out
+
+
+def _inf(x):
+    return float("inf") if x is None else x
+
+
+def _least(row: dict) -> str:
+    ms = row["margins"].values()
+    return (f"{_pm(min(_inf(m['pm_deg']) for m in ms))} / "
+            f"{_gm(min(_inf(m['gm_db']) for m in ms))}")
+
+
+def ends_table(res: dict) -> list[str]:
+    """The default joint with one parameter at each end of its range."""
+    ends = res.get("range_ends") or []
+    if not ends:
+        return []
+    slow = "0.5"
+    out = ["", f"### One parameter at a time ({cr.PRODUCT} row)", "",
+           "The default joint with one parameter at an end of its drawn range, the rest at "
+           "the default: the least phase margin / gain margin over the conditions, the "
+           f"bandwidth at {slow} rad/s (Hz), the wall, and whether the joint is within.", "",
+           "| joint | least margins | bandwidth | wall cycles (kd) | within |",
+           "|---|---|---|---|---|"]
+    ref = res["default_joint"]
+    for j in [ref] + ends:
+        r = j["rows"][cr.PRODUCT]
+        cyc = ", ".join(f"{w['kd_nm_s_rad']:g}" for w in r["wall"] if w["limit_cycle"])
+        out.append(f"| {j['name']} | {_least(r)} | {_bw(r['speeds'][slow]['bandwidth_hz'])} | "
+                   f"{cyc or 'none'} | {'yes' if r['within'] else '**no**'} |")
+    return out
+
+
+def space_table(res: dict) -> list[str]:
+    rows = ["| parameter | hdctrl-bench option | default | drawn | why |", "|---|---|---|---|---|"]
+    for p in res["space"]:
+        drawn = {"log": f"default x log-uniform {p['lo']:g} .. {p['hi']:g}",
+                 "add": f"default + uniform {p['lo']:+g} .. {p['hi']:+g}",
+                 "phase": "uniform on the circle"}[p["draw"]]
+        rows.append(f"| `{p['key']}` | `{p['option']}` | {p['default']:g} | {drawn} | "
+                    f"{p['why']} |")
+    return rows
+
+
+def markdown(res: dict) -> str:
+    rows, s, ref = res["rows"], res["summary"], res["default_joint"]["rows"]
+    crit = res["criteria"]
+    kds = " and ".join(f"{k:g}" for k in crit["wall_kds"])
+    n = len(res["joints"])
+    out = [f"Joints {res['seeds']} (numpy PCG64, stream [seed, {res['stream']}]); a change "
+           f"this bench motivates is developed on {res['tune_seeds']}, disjoint. {n} joints and "
+           f"the default one, {len(rows)} rows each, in {res['elapsed_s']:.0f} s on "
+           f"{res['workers']} worker processes.", ""]
+    out += reading(res)
+    out += ["### The space of joints (`tools/hdmaint/bench/control_random.py`, `SPACE`)", ""]
+    out += space_table(res)
+    out += ["", "### What runs on every joint", "",
+            "| row | what | feedback | kp | ki 1/s | kd ms | integral limit N m | "
+            "friction compensation at rest N m |", "|---|---|---|---|---|---|---|---|"]
+    for k, c in rows.items():
+        out.append(f"| {k} | {LABELS.get(k, k)} | {c['feedback']} | {c['kp']:.3g} | "
+                   f"{c['ki']:.3g} | {1e3 * c['kd']:.3g} | {c['ilim']:.3g} | "
+                   f"{c['friction_rest_nm']:.3g} |")
+    out += ["", "### Within the margins and without a wall limit cycle", "",
+            f"Within: phase margin >= {crit['pm_deg']:g} deg and gain margin >= "
+            f"{crit['gm_db']:g} dB in every condition, and no limit cycle on the wall at "
+            f"IMPEDANCE kd {kds}.", "",
+            "| row | within | margins met | no wall cycle | the default joint |",
+            "|---|---|---|---|---|"]
+    for k, d in s.items():
+        out.append(f"| {k} | **{_pct(d['within'], d['joints'])}** | "
+                   f"{_pct(d['margins_met'], d['joints'])} | "
+                   f"{_pct(d['no_wall_cycle'], d['joints'])} | "
+                   f"{'within' if ref[k]['within'] else 'NOT within'} |")
+    out += ["", "### Margins by condition (phase margin deg / gain margin dB)", "",
+            "Median, 10th percentile and worst over the joints (order statistics); the worst "
+            "joint in brackets; the least over the conditions per joint is the last row of "
+            "each feedback.", "",
+            "| row | condition | median | 10th percentile | worst | joints meeting both | "
+            "the default joint |", "|---|---|---|---|---|---|---|"]
+    for k, d in s.items():
+        for c, m in d["conditions"].items():
+            pm, gm, r = m["pm"], m["gm"], ref[k]["margins"][c]
+            out.append(f"| {k} | {_cond(c)} | {_pm(pm['median'])} / {_gm(gm['median'])} | "
+                       f"{_pm(pm['tail'])} / {_gm(gm['tail'])} | "
+                       f"{_pm(pm['worst'])} ({pm['worst_joint']}) / {_gm(gm['worst'])} "
+                       f"({gm['worst_joint']}) | {_pct(m['met'], d['joints'])} | "
+                       f"{_pm(r['pm_deg'])} / {_gm(r['gm_db'])} |")
+        w = d["worst_condition"]
+        out.append(f"| {k} | the least of every condition | {_pm(w['pm']['median'])} / "
+                   f"{_gm(w['gm']['median'])} | {_pm(w['pm']['tail'])} / {_gm(w['gm']['tail'])} | "
+                   f"{_pm(w['pm']['worst'])} ({w['pm']['worst_joint']}) / "
+                   f"{_gm(w['gm']['worst'])} ({w['gm']['worst_joint']}) | "
+                   f"{_pct(d['margins_met'], d['joints'])} | - |")
+    out += ["", "### Torque tracking", "",
+            "The true output torque's -3 dB bandwidth (Hz; chirp 0.5-200 Hz, +-2 N m about "
+            "10 N m) and the 5 -> 10 N m step's overshoot (%): median, the 10th percentile on "
+            "the bad side (bandwidth low, overshoot high), worst.", "",
+            "| row | speed rad/s | bandwidth median | 10th percentile | worst | the default "
+            "joint | overshoot median | 90th percentile | worst | the default joint |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
+    for k, d in s.items():
+        for sp, m in d["speeds"].items():
+            b, o, r = m["bandwidth"], m["overshoot"], ref[k]["speeds"][sp]
+            out.append(f"| {k} | {sp} | {_bw(b['median'])} | {_bw(b['tail'])} | "
+                       f"{_bw(b['worst'])} ({b['worst_joint']}) | {_bw(r['bandwidth_hz'])} | "
+                       f"{o['median']:.0f} | {o['tail']:.0f} | {o['worst']:.0f} "
+                       f"({o['worst_joint']}) | {r['overshoot_pct']:.0f} |")
+    out += ["", "### Stiff-wall contact", "",
+            "IMPEDANCE kp 500 N m/rad toward 0.05 rad, a 2e4 N m/rad wall at 0.02 rad "
+            "(`control.wall_contact`): the true torque's peak to peak over the last second "
+            "(N m) and the joints whose contact cycles.", "",
+            "| row | kd N m s/rad | peak to peak median | 90th percentile | worst | limit "
+            "cycles | the default joint |", "|---|---|---|---|---|---|---|"]
+    for k, d in s.items():
+        for i, (kd, w) in enumerate(d["wall"].items()):
+            p, r = w["p2p"], ref[k]["wall"][i]
+            out.append(f"| {k} | {float(kd):g} | {p['median']:.2f} | {p['tail']:.2f} | "
+                       f"{p['worst']:.2f} ({p['worst_joint']}) | "
+                       f"{_pct(w['cycles'], d['joints'])} | {r['p2p_nm']:.2f}"
+                       f"{' (cycle)' if r['limit_cycle'] else ''} |")
+    out += ends_table(res)
+    sens = res["sensitivity"]
+    out += ["", f"### What moves the margins ({cr.PRODUCT} row)", "",
+            "Spearman's rank correlation over the joints of each drawn parameter (its log "
+            "factor; the kt error itself) with the joint's least phase margin, least gain "
+            "margin and bandwidth at 0.5 rad/s; strongest first. With these many joints a "
+            "|rho| below about 2 / sqrt(joints) is not told from none.", "",
+            "| parameter | least phase margin | least gain margin | bandwidth 0.5 rad/s |",
+            "|---|---|---|---|"]
+    out += [f"| `{r['key']}` | {r['rho_pm']:+.2f} | {r['rho_gm']:+.2f} | "
+            f"{r['rho_bandwidth']:+.2f} |" for r in sens]
+    out += ["", "### Where in the space the joints outside are", "",
+            "Joints within / joints drawn in each third of the drawn range (of the log "
+            "factor) of the parameters that move the margins most.", "",
+            "| row | parameter | " + " | ".join(["third"] * cr.BINS) + " |",
+            "|---|---|" + "---|" * cr.BINS]
+    for k, parts in res["by_range"].items():
+        for b in parts:
+            e = b["edges"]
+            out.append(f"| {k} | `{b['key']}` | " + " | ".join(
+                f"{e[i]:.2f}x-{e[i + 1]:.2f}x: {b['within'][i]} / {b['joints'][i]}"
+                for i in range(cr.BINS)) + " |")
+    top = [r["key"] for r in sens[:TOP]]
+    space = {p["key"]: p for p in res["space"]}
+    factors = {j["name"]: j["factors"] for j in res["joints"]}
+    for k, fails in res["failures"].items():
+        out += ["", f"### Joints outside ({k} row): {len(fails)}", ""]
+        if not fails:
+            out.append("None.")
+            continue
+        out += ["| joint | what it misses | " + " | ".join(f"`{t}`" for t in top) + " |",
+                "|---|---|" + "---|" * len(top)]
+        out += [f"| {f['name']} | {'; '.join(f['misses'])} | "
+                + " | ".join(_factor(space[t], factors[f["name"]][t]) for t in top) + " |"
+                for f in fails]
+    return "\n".join(out) + "\n"
+
+
+def splice(text: str, md: str) -> str:
+    return docblock.splice(text, BLOCK, md, "docs/results/control-random.md")
