@@ -208,3 +208,24 @@ def test_a_slow_load_has_no_steps():
     inp, _ = _record(lambda t, rng: 1.75 + 1.25 * np.sin(2 * math.pi * t / 7.0))
     parts, _ = geometry.series(inp, [1])
     assert _step_columns(parts, 1) == 0
+
+
+def test_no_step_where_the_motion_explains_it_or_a_line_moves_fast():
+    # The torque a speed change takes (inertia, friction's sign) is the
+    # motion columns'; a line of 1 Hz moves the 0.1 s means as a step would
+    # at one point, but as much a window pair earlier and later.  As steps,
+    # they made the fit choose another smoother and a wrong profile: an
+    # undeclared output-order-2 line went from 1.2x to 13x the floor on a
+    # drawn joint (j100018+output2, analyze_op).
+    from hdtools.analysis import geometry
+    inp, _ = _record(lambda t, rng: 0.0 * t)
+    t, th = inp.times[0], inp.angles[0]
+    speed = np.clip((30.0 - t) / 0.02, -1.0, 1.0) * 1.5            # a reversal in 40 ms at 30 s
+    friction = 1.0 * np.clip(speed / 0.05, -1.0, 1.0)              # Coulomb 1 N m: a step
+    # 1 Hz for 6 s only: a line fast only while the joint is; the rest of
+    # the record sets the robust scale the first test compares with
+    fast = 0.6 * np.sin(2 * math.pi * 1.0 * t) * ((t > 20) & (t < 26))
+    for what, extra, v in (("reversal", friction, speed), ("1 Hz line", fast, inp.velocities[0])):
+        x = geometry.Inputs([inp.signals[0] + extra], [th], [t], [v], 1e-3)
+        parts, _ = geometry.series(x, [1])
+        assert _step_columns(parts, 1) == 0, what

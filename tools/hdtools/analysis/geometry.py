@@ -55,6 +55,8 @@ MIN_COVERAGE = 0.9
 MIN_REVS = 1.5
 STEP_HALF = 5        # decimated samples (0.1 s) either side of a candidate step
 STEP_K = 10.0
+STEP_ISOLATION = 3.0 # and this many times the difference 2-4 STEP_HALF before and after
+STEP_SPEED_CHANGE = 0.1   # a step only where the speed changes less than this share
 STEP_GAP = 2         # decimated samples either side of a step left out
 
 
@@ -106,18 +108,21 @@ def series(inp: Inputs, orders):
         else:
             cols += [np.zeros(n)] * N_MOTION
         out.append((_blockmean(z, w), _blockmean(t, w), np.column_stack(cols)))
-    return _with_steps(out), w * inp.ts_s
+    return _with_steps(out, 2 * len(orders)), w * inp.ts_s
 
 
-def _with_steps(parts):
+def _with_steps(parts, vel_col):
     """parts with one more nuisance column per step of the load (a payload
     put down, a contact, a reversal's friction step) found in any stretch:
     0 before the step, 1 after, in its own stretch; 0 in the others.  The
     smoother cannot follow a step; fitted as a column, the step is
     predicted in a held-out block from the samples either side, and the
     stretch stays whole (a cut at each step left an operating log's holds
-    too short for a profile: docs/decisions/geometry-step-split.md)."""
-    steps = [_steps_of(z) for z, _, _ in parts]
+    too short for a profile: docs/decisions/geometry-step-split.md).  Only
+    steps at a steady speed (column vel_col of A): where the speed changes,
+    the torque that steps is the motion's (inertia, friction's sign), which
+    the motion columns carry."""
+    steps = [_steps_of(z, A[:, vel_col]) for z, _, A in parts]
     total = sum(len(s) for s in steps)
     if total == 0:
         return parts
@@ -133,13 +138,17 @@ def _with_steps(parts):
     return out
 
 
-def _steps_of(z):
+def _steps_of(z, v):
     """Indices where the load steps: where the mean of STEP_HALF samples
     after a point differs from the mean of STEP_HALF before by more than
     STEP_K robust standard deviations of that difference over the stretch
     (a slow line or a slow load moves it a little everywhere, a step a lot
-    at one place); one index per run of such points, at its largest
-    difference."""
+    at one place), and by STEP_ISOLATION times that difference 2, 3 and 4
+    STEP_HALF samples either side (a ramp, or a line fast enough to pass the
+    first test, moves it there as well: at one of the three offsets by at
+    least 0.6 of its largest for any line of 0.5-3 Hz), where the speed v changes by less than
+    STEP_SPEED_CHANGE of itself over 2 STEP_HALF samples either side; one
+    index per run of such points, at its largest difference."""
     h, n = STEP_HALF, len(z)
     if n < 4 * h:
         return []
@@ -156,7 +165,16 @@ def _steps_of(z):
         e = k
         while e + 1 < len(i) and over[e + 1]:
             e += 1
-        out.append(int(i[k + int(np.argmax(d[k:e + 1]))]))
+        m = k + int(np.argmax(d[k:e + 1]))
+        # a step is flat either side: the same difference one window pair
+        # earlier and later is small (a ramp or a line moves it there too)
+        beside = max([d[m + o] for k in (2, 3, 4) for o in (-k * h, k * h)
+                      if 0 <= m + o < len(d)] or [0.0])
+        c0 = int(i[m])
+        dv = abs(float(np.mean(v[c0:c0 + 2 * h])) - float(np.mean(v[max(0, c0 - 2 * h):c0])))
+        steady = dv <= STEP_SPEED_CHANGE * (abs(float(v[c0])) + VEL_EPS_RAD_S)
+        if d[m] > STEP_ISOLATION * beside and steady:
+            out.append(c0)
         k = e + 1
     return out
 
