@@ -84,11 +84,17 @@ def measure_all(seeds: list[int], jobs: int = cr.JOBS) -> dict:
         return dict(zip(keys, pool.map(plants_of, keys)))
 
 
+def predicted(plants: list[ct.PlantAt], kp: float, ki: float, kd: float,
+              ff: float) -> dict:
+    """{condition: the predicted loop's margins} (control_tune.predict)."""
+    return {p.condition: ct.predict(p, kp, ki, ff, kd)[0] for p in plants}
+
+
 def joint_meets(plants: list[ct.PlantAt], kp: float, ki: float, kd: float, ff: float) -> bool:
     """The predicted loop meets the margins in every condition (the random
     bench's criterion on margins: no tracking peak bound)."""
-    return all(cl.meets(ct.predict(p, kp, ki, ff, kd)[0], ct.PM_DEG, ct.GM_DB)
-               for p in plants)
+    return all(cl.meets(m, ct.PM_DEG, ct.GM_DB)
+               for m in predicted(plants, kp, ki, kd, ff).values())
 
 
 def nominal_prediction(plants: list[ct.PlantAt], kp: float, ki: float, kd: float,
