@@ -33,6 +33,12 @@ def _bw(x) -> str:
     return "< 1" if x is None or x == 0.0 else f"{x:.1f}"
 
 
+def _margin_spread(pm: dict, gm: dict) -> str:
+    """The median, tail and worst cells of a phase and a gain margin."""
+    return (f"{_pm(pm['median'])} / {_gm(gm['median'])} | {_pm(pm['tail'])} / {_gm(gm['tail'])} | "
+            f"{_pm(pm['worst'])} ({pm['worst_joint']}) / {_gm(gm['worst'])} ({gm['worst_joint']})")
+
+
 def _cond(c: str) -> str:
     return COND.get(c, f"{c} rad/s")
 
@@ -155,16 +161,10 @@ def markdown(res: dict) -> str:
     for k, d in s.items():
         for c, m in d["conditions"].items():
             pm, gm, r = m["pm"], m["gm"], ref[k]["margins"][c]
-            out.append(f"| {k} | {_cond(c)} | {_pm(pm['median'])} / {_gm(gm['median'])} | "
-                       f"{_pm(pm['tail'])} / {_gm(gm['tail'])} | "
-                       f"{_pm(pm['worst'])} ({pm['worst_joint']}) / {_gm(gm['worst'])} "
-                       f"({gm['worst_joint']}) | {_pct(m['met'], d['joints'])} | "
-                       f"{_pm(r['pm_deg'])} / {_gm(r['gm_db'])} |")
+            out.append(f"| {k} | {_cond(c)} | {_margin_spread(pm, gm)} | "
+                       f"{_pct(m['met'], d['joints'])} | {_pm(r['pm_deg'])} / {_gm(r['gm_db'])} |")
         w = d["worst_condition"]
-        out.append(f"| {k} | the least of every condition | {_pm(w['pm']['median'])} / "
-                   f"{_gm(w['gm']['median'])} | {_pm(w['pm']['tail'])} / {_gm(w['gm']['tail'])} | "
-                   f"{_pm(w['pm']['worst'])} ({w['pm']['worst_joint']}) / "
-                   f"{_gm(w['gm']['worst'])} ({w['gm']['worst_joint']}) | "
+        out.append(f"| {k} | the least of every condition | {_margin_spread(w['pm'], w['gm'])} | "
                    f"{_pct(d['margins_met'], d['joints'])} | - |")
     out += ["", "### Torque tracking", "",
             "The true output torque's -3 dB bandwidth (Hz; chirp 0.5-200 Hz, +-2 N m about "
