@@ -8,6 +8,7 @@ tools write (nothing typed):
   docs/results/corpus.json    tests/corpus/run_corpus.py --doc docs/results/reliability.md
   docs/results/fleet.json     cd tools && python -m hdmaint.fleet_bench --write
   docs/results/control.json   tools/bench --only control --update-docs
+  docs/results/control-random.json   tools/bench --only control_random --update-docs
 
   python -m hdmaint.headline --write    rewrite the README block
   python -m hdmaint.headline --check    exit 1 if the README block is stale
@@ -29,7 +30,8 @@ ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"
 README = ROOT / "README.md"
 BEGIN, END = docblock.markers("headline")
-SOURCES = ("demo", "bench", "random", "budget", "analyze", "corpus", "fleet", "control")
+SOURCES = ("demo", "bench", "random", "budget", "analyze", "corpus", "fleet", "control",
+           "control-random")
 
 
 class HeadlineError(Exception):
@@ -244,11 +246,17 @@ def control_rows(c: dict) -> list[tuple[str, str, str]]:
     return headline_rows(c)
 
 
+def control_random_rows(d: dict) -> list[tuple[str, str, str]]:
+    from .bench.control_random_report import headline_rows
+    return headline_rows(d)
+
+
 def render(results: dict) -> str:
     rows = (demo_rows(results["demo"]) + bench_rows(results["bench"])
             + random_rows(results["random"]) + budget_rows(results["budget"])
             + analyze_rows(results["analyze"]) + corpus_rows(results["corpus"])
-            + fleet_rows(results["fleet"]) + control_rows(results["control"]))
+            + fleet_rows(results["fleet"]) + control_rows(results["control"])
+            + control_random_rows(results["control-random"]))
     lines = ["| what | measured | source |", "|---|---|---|"]
     lines += [f"| {w} | {m} | {s} |" for w, m, s in rows]
     return "\n".join(lines)

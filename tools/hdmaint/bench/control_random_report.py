@@ -233,3 +233,20 @@ def markdown(res: dict) -> str:
 
 def splice(text: str, md: str) -> str:
     return docblock.splice(text, BLOCK, md, "docs/results/control-random.md")
+
+
+def headline_rows(d: dict) -> list[tuple[str, str, str]]:
+    """The README's row (tools/hdmaint/headline.py): the default loop on the
+    report joints."""
+    p, c = d["summary"]["product"], d["criteria"]
+    bw = p["speeds"]["0.5"]["bandwidth"]
+    src = ("[control-random.json](docs/results/control-random.json), "
+           "[control-random.md](docs/results/control-random.md)")
+    return [(
+        f"The torque loop's defaults as flashed, no retuning, on {p['joints']} randomly drawn "
+        f"joints of the 40 N m class ({d['seeds']}; inertias, friction, stiffness, damping, "
+        "kt error, current loop, ripple and noise drawn)",
+        f"PM >= {c['pm_deg']:g} deg and GM >= {c['gm_db']:g} dB in every condition with no "
+        f"stiff-wall limit cycle on **{p['within']} of {p['joints']}** (margins alone "
+        f"{p['margins_met']}, no wall cycle {p['no_wall_cycle']}); bandwidth at 0.5 rad/s median "
+        f"{bw['median']:.0f} Hz, 10th percentile {bw['tail']:.0f} Hz", src)]
