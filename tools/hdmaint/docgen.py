@@ -129,6 +129,14 @@ GENERATORS = (
                "docs/results/control.md": ("control-results",),
                "docs/results/random-joints.md": ("bench-results",),
                "docs/results/control-random.md": ("control-random-results",)}),
+    Generator("control-robust", (PY, "-m", "hdmaint.bench.control_robust", "--write"),
+              "[control-robust-gains.md](../decisions/control-robust-gains.md) (the table of "
+              "gains tuned over the tune joints)",
+              "`cd tools && HD_BUILD_DIR=../build/host-release ../.venv/bin/python -m "
+              "hdmaint.bench.control_robust --write` (~8 min; not in `tools/update-docs`)",
+              "a decision record: numbers of one run, not checked",
+              {"docs/decisions/control-robust-gains.md": ("control-robust-table",)},
+              in_all=False),
     Generator("fleet", (PY, "-m", "hdmaint.fleet_bench", "--write"),
               "[fleet.md](../results/fleet.md) (measured section), `docs/results/fleet.json`",
               "`cd tools && ../.venv/bin/python -m hdmaint.fleet_bench --write [--ray-python PY]` "
