@@ -174,14 +174,10 @@ int hd_ctrl_plan(hd_ctrl_plan_t *p, const hd_ctrl_config_t *cfg)
     }
     p->notch_r = 1.0f - PI_F * cfg->notch_width_hz * cfg->ts_s;
     p->narrow_inv_rad_s = 1.0f / (4.0f * TWO_PI_F * cfg->artifact_hz);
-    p->artifact_k_min = 1u;
-    while (p->artifact_k_min < HD_ARTIFACT_ORDER_MAX &&
-           (cfg->artifact_mask & (1u << (p->artifact_k_min - 1u))) == 0u) {
-        p->artifact_k_min++;
-    }
-    if (cfg->artifact_mask == 0u) {
-        p->artifact_k_min = 1u;
-    }
+    /* bit k-1 is order k: the lowest set bit's order, 1 without orders */
+    p->artifact_k_min = cfg->artifact_mask != 0u
+                            ? (uint8_t)(__builtin_ctz(cfg->artifact_mask) + 1)
+                            : 1u;
     return HD_CTRL_OK;
 }
 

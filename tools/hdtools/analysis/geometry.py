@@ -146,9 +146,10 @@ def _steps_of(z, v):
     at one place), and by STEP_ISOLATION times that difference 2, 3 and 4
     STEP_HALF samples either side (a ramp, or a line fast enough to pass the
     first test, moves it there as well: at one of the three offsets by at
-    least 0.6 of its largest for any line of 0.5-3 Hz), where the speed v changes by less than
-    STEP_SPEED_CHANGE of itself over 2 STEP_HALF samples either side; one
-    index per run of such points, at its largest difference."""
+    least 0.6 of its largest for any line of 0.5-3 Hz), where the speed v
+    changes by less than STEP_SPEED_CHANGE of itself over 2 STEP_HALF
+    samples either side; one index per run of such points, at its largest
+    difference."""
     h, n = STEP_HALF, len(z)
     if n < 4 * h:
         return []
@@ -168,7 +169,7 @@ def _steps_of(z, v):
         m = k + int(np.argmax(d[k:e + 1]))
         # a step is flat either side: the same difference one window pair
         # earlier and later is small (a ramp or a line moves it there too)
-        beside = max([d[m + o] for k in (2, 3, 4) for o in (-k * h, k * h)
+        beside = max([d[m + o] for pairs in (2, 3, 4) for o in (-pairs * h, pairs * h)
                       if 0 <= m + o < len(d)] or [0.0])
         c0 = int(i[m])
         dv = abs(float(np.mean(v[c0:c0 + 2 * h])) - float(np.mean(v[max(0, c0 - 2 * h):c0])))
@@ -473,7 +474,7 @@ def check(inp: Inputs, lines, tau_s, nuisance_orders=()):
     or a reversal leaves unpredictable count as one block each, not by their
     size)."""
     nuis = [o for o in nuisance_orders if o not in [ln["order"] for ln in lines]]
-    sses, n = [], 0
+    sses, scored = [], []
     for x in (inp, inp.minus(lines)):
         parts, dt = series(x, nuis)
         if not parts:
@@ -481,10 +482,10 @@ def check(inp: Inputs, lines, tau_s, nuisance_orders=()):
         ids, nblocks = _inner_blocks(parts, dt)
         sses.append(_cv_block_sse(parts, _lam(tau_s, dt), ids, nblocks,
                                   [_cols_of(range(len(nuis)), len(nuis), _ncols(parts))])[0])
-        n = sum(int(np.isfinite(p[0]).sum()) for p in parts)
+        scored.append(sum(int(np.isfinite(p[0]).sum()) for p in parts))
     without, with_ = sses
     used = (without > 0) & (with_ > 0)
-    rms_without = math.sqrt(float(without.sum()) / max(n, 1))
+    rms_without = math.sqrt(float(without.sum()) / max(scored[0], 1))
     if not used.any():
         return rms_without, rms_without
     ratio = math.exp(float(np.mean(np.log(with_[used] / without[used]))))
