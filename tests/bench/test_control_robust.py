@@ -60,3 +60,19 @@ def test_moving_margins_predicted_from_the_defaults_plants_are_the_simulated_one
             d = as_flashed[c]
             assert not (_close(p["pm_deg"], d["pm_deg"], 5 * PM_TOL_DEG)
                         and _close(p["gm_db"], d["gm_db"], 5 * GM_TOL_DB)), (seed, g, c, p, d)
+
+
+@pytest.mark.parametrize("argv,says", [
+    (["--tune-joints", "0"], "--tune-joints must be 1..1000 (got 0)"),
+    (["--verified", "0"], "--verified must be 1..1000 (got 0)"),
+    (["--tune-joints", "abc"], "invalid int value"),
+    (["--json", "/nonexistent-dir/x.json"], "no such directory"),
+])
+def test_bad_arguments_are_one_line_and_exit_2_before_any_measuring(argv, says, capsys):
+    try:
+        rc = rb.main(argv)
+    except SystemExit as exc:     # the parser's own errors exit as the tools' do
+        rc = exc.code
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0], err

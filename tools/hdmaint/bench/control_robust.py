@@ -43,6 +43,8 @@ from pathlib import Path
 import numpy as np
 
 from hdtools import docblock
+from hdtools.cli import OneLineParser
+from hdtools.safeio import UsageError
 
 from . import control
 from . import control_loop as cl
@@ -310,29 +312,46 @@ def markdown(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write(res: dict, doc: Path = DOC) -> None:
-    """The table into the decision record's generated block."""
-    text = docblock.splice(doc.read_text(), BLOCK, markdown(res), str(doc.relative_to(ROOT)))
-    docblock.write([(doc, text)])
+def document(res: dict, doc: Path = DOC) -> str:
+    """The decision record's text with the table in its generated block."""
+    return docblock.splice(doc.read_text(), BLOCK, markdown(res), str(doc.relative_to(ROOT)))
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m hdmaint.bench.control_robust",
-                                description="the torque loop's gains tuned over tune joints")
+def parser() -> argparse.ArgumentParser:
+    p = OneLineParser(prog="python -m hdmaint.bench.control_robust",
+                      description="the torque loop's gains tuned over tune joints")
     p.add_argument("--tune-joints", type=int, default=N_TUNE, metavar="N")
     p.add_argument("--verified", type=int, default=VERIFIED, metavar="K")
     p.add_argument("--jobs", type=int, default=cr.JOBS)
     p.add_argument("--json", type=Path, help="also write the results as JSON here")
     p.add_argument("--write", action="store_true", help=f"write the table into {DOC.name}")
-    a = p.parse_args(argv)
+    p.set_defaults(func=_cli)
+    return p
+
+
+def _cli(a) -> int:
+    # refused before the minutes of measuring: the sizes, and where the JSON goes
+    for name, v, hi in (("--tune-joints", a.tune_joints, len(cr.TUNE_SEEDS)),
+                        ("--verified", a.verified, 1000), ("--jobs", a.jobs, 64)):
+        if not 1 <= v <= hi:
+            raise UsageError(f"{name} must be 1..{hi} (got {v})")
+    if a.json is not None and not a.json.parent.is_dir():
+        raise UsageError(f"{a.json}: no such directory: {a.json.parent}")
     res = run(a.tune_joints, a.verified, a.jobs, log=lambda s: print(s, file=sys.stderr))
-    print(markdown(res))
+    outputs = []
     if a.json:
         from .control_report import clean
-        a.json.write_text(json.dumps(clean(res), indent=1) + "\n")
+        outputs.append((a.json, json.dumps(clean(res), indent=1) + "\n"))
     if a.write:
-        write(res)
+        outputs.append((DOC, document(res)))
+    docblock.write(outputs)     # all or none (OutputError)
+    print(markdown(res))
     return 0
+
+
+def main(argv=None) -> int:
+    from hdtools.cli import run as run_cli
+    return run_cli(parser, argv, "python -m hdmaint.bench.control_robust")
 
 
 if __name__ == "__main__":
