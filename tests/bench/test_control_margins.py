@@ -149,3 +149,50 @@ def test_tune_reports_not_met_when_every_candidate_limit_cycles():
     assert not t["met"] and len(t["wall_rejected"]) == min(
         ct.CHECKED_MAX, len(ct.candidates(ct.measure_plants(
             cl.Variant("x", "raw"), ("0.5",), measure), 1.0)))
+
+
+def test_fallback_order_halves_from_the_conservative_end():
+    """The last candidate first, then halving toward the first unchecked one."""
+    assert ct._fallback_order(100, 60) == [99, 79, 69, 64, 62, 61]
+    assert ct._fallback_order(61, 60) == [60]
+    assert ct._fallback_order(60, 60) == [] and ct._fallback_order(3, 60) == []
+
+
+def _cycling_above(found, holds_from: int):
+    """A wall contact that cycles for every candidate of `found` before
+    index holds_from and rests for the others; the calls it saw."""
+    index = {_rounded(c): i for i, c in enumerate(found)}
+    calls = []
+
+    def contact(v):
+        i = index[(v.kp, v.ki, v.kd)]
+        calls.append(i)
+        return [{"limit_cycle": i < holds_from, "p2p_nm": 1.0 if i < holds_from else 0.01}]
+    return contact, calls
+
+
+def test_tune_falls_back_to_the_conservative_end_when_the_best_all_fail():
+    """Every one of the best CHECKED_MAX limit-cycles: the method checks the
+    rest of the list from its conservative end, halving, and keeps the best
+    that held (the last holding index of the halving before the first that
+    fails)."""
+    measure, conds = _closed_form_measure(), ("0.5",)
+    found = ct.candidates(ct.measure_plants(cl.Variant("x", "raw"), conds, measure), 1.0)
+    assert len(found) > ct.CHECKED_MAX + 8
+    holds_from = ct.CHECKED_MAX + (len(found) - ct.CHECKED_MAX) // 3
+    contact, calls = _cycling_above(found, holds_from)
+    v = cl.Variant("x", "raw")
+    t = ct.tune(v, conds, measure, contact=contact)
+    order = ct._fallback_order(len(found), ct.CHECKED_MAX)
+    tried = order[:next(k for k, i in enumerate(order) if i < holds_from) + 1]
+    assert calls == list(range(ct.CHECKED_MAX)) + tried
+    best = tried[-2]
+    assert t["met"] and t["fallback"] and best >= holds_from
+    assert (v.kp, v.ki, v.kd) == _rounded(found[best])
+
+
+def test_tune_keeps_the_gains_it_came_with_when_nothing_holds():
+    measure, conds = _closed_form_measure(), ("0.5",)
+    v = cl.Variant("x", "raw", kp=0.3, ki=4.0, kd=0.0)
+    t = ct.tune(v, conds, measure, contact=lambda v: [{"limit_cycle": True, "p2p_nm": 1.0}])
+    assert not t["met"] and (v.kp, v.ki, v.kd) == (0.3, 4.0, 0.0)

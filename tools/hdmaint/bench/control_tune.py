@@ -135,15 +135,49 @@ def search(plants: list[PlantAt], ff: float) -> tuple[float, float, float, dict]
     return found[0] if found else None
 
 
+def _check(v: cl.Variant, cand, conditions, measure, contact) -> tuple[bool, dict, list]:
+    """Sets v to the candidate's gains (as the law's defaults hold them) and
+    measures its loop in every condition and, if it meets the margins
+    there, its wall contact: (accepted, {condition: Response}, walls)."""
+    kp, ki, kd, _ = cand
+    v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in (kp, ki, kd))
+    checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
+    if not all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB)
+               for r in checked.values()):
+        return False, checked, []
+    walls = contact(v) if contact is not None else []
+    return not any(w["limit_cycle"] for w in walls), checked, walls
+
+
+def _fallback_order(n: int, first: int) -> list[int]:
+    """The candidates after the first `first` (all failed) to try, most
+    conservative (the last) first, then halving toward the best: the
+    crossover falls along the list, so a plant whose nonlinearity (friction,
+    stick-slip) defeats the prediction near the top is met lower down in
+    log2 checks, not in hundreds."""
+    if n <= first:
+        return []
+    order, lo, hi = [n - 1], first, n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        order.append(mid)
+        hi = mid          # optimistic: the caller stops at the first that fails
+    return order
+
+
 def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
          contact=None) -> dict:
     """Tunes v in place; returns what the method found (for the results).
     contact(v) -> a list of wall-contact results (control.wall_contact's
     dicts, each with "limit_cycle"): a candidate that meets the margins but
     limit-cycles on any of them is rejected like one that misses a margin
-    (None: no contact check)."""
+    (None: no contact check).  The best CHECKED_MAX candidates are checked
+    in order; if none holds, the rest of the list from its conservative end
+    (_fallback_order: the best that holds of the halving); if none of those
+    holds either, v keeps the gains it came with and "met" is False."""
     if v.feedback == "none":
         return {"method": "none (open loop)"}
+    start = (v.kp, v.ki, v.kd)
     plants = measure_plants(v, conditions, measure)
     found = candidates(plants, v.ff)
     if not found:
@@ -151,30 +185,37 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
         v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
         log(f"{v.key}: no gains on the grid meet the margins in every condition")
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
-    checked, predicted, walls, rejected = {}, found[0][3], [], []
-    for kp, ki, kd, pred in found[:CHECKED_MAX]:
-        walls = []
-        # as the law's defaults hold them
-        v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in (kp, ki, kd))
-        checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
-        if not all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB)
-                   for r in checked.values()):
-            continue
-        walls = contact(v) if contact is not None else []
-        if any(w["limit_cycle"] for w in walls):
+    checked, predicted, walls, rejected, held = {}, found[0][3], [], [], None
+    for cand in found[:CHECKED_MAX]:
+        ok, checked, walls = _check(v, cand, conditions, measure, contact)
+        if ok:
+            held = (cand, checked, walls)
+            break
+        if walls:
             rejected.append({"kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd,
                              "wall_p2p_nm": max(w["p2p_nm"] for w in walls)})
             log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s meets the margins "
                 "but limit-cycles on the wall; next")
-            continue
-        predicted = pred
-        break
+    fallback = held is None and len(found) > CHECKED_MAX
+    if fallback:
+        for i in _fallback_order(len(found), CHECKED_MAX):
+            ok, checked, walls = _check(v, found[i], conditions, measure, contact)
+            if not ok:
+                break
+            held = (found[i], checked, walls)
+    if held is None:
+        v.kp, v.ki, v.kd = start
+        log(f"{v.key}: no candidate checked holds; the gains it came with are kept")
+        ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
+        return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd,
+                "measured": ms, "wall_rejected": rejected, "fallback": fallback}
+    cand, checked, walls = held
+    v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in cand[:3])
+    predicted = cand[3]
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
-    no_cycle = not any(w["limit_cycle"] for w in walls)
     log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
-    return {"method": "grid",
-            "met": all(cl.meets(m, PM_DEG, GM_DB) for m in ms.values()) and no_cycle,
+    return {"method": "grid", "met": True,
             "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": predicted, "measured": ms,
-            "wall": walls, "wall_rejected": rejected,
+            "wall": walls, "wall_rejected": rejected, "fallback": fallback,
             "loops": {s: r.to_json() for s, r in checked.items()}}
