@@ -63,8 +63,10 @@
 #include "hd_calib_record.h"
 #include "hd_fw.h"
 #include "hd_hostio.h"
+#include "hd_params.h"
 
 #define MAX_TICKS 400000u
+#define MAX_SETS 8u /* --set KEY=VALUE options */
 #define MAX_INPUT_BYTES (64u * 1024u * 1024u)
 
 typedef struct {
@@ -84,6 +86,8 @@ typedef struct {
     hd_sim_joint_params_t joint;   /* the simulated joint (the plant options) */
     hal_simdrive_config_t drive;
     double noise_nm;
+    const char *sets[MAX_SETS]; /* --set: firmware parameters, applied over the defaults */
+    unsigned n_sets;
 } opts_t;
 
 #define TWO_PI_RAD 6.283185307179586
@@ -294,7 +298,22 @@ static int parse(int argc, char **argv, opts_t *o)
         if (done) {
             continue;
         }
-        if (strcmp(k, "--input") == 0) {
+        if (strcmp(k, "--set") == 0) {
+            const char *eq = strchr(v, '=');
+            double sv = 0.0;
+            if (o->n_sets >= MAX_SETS || eq == NULL || number(eq + 1, &sv) != 0) {
+                fprintf(stderr, "hdctrl-bench: --set KEY=VALUE (a number, at most %u): %s\n",
+                        MAX_SETS, v);
+                return -1;
+            }
+            const hd_fw_err_t bad =
+                hd_param_check(hd_param_by_key(v, (size_t)(eq - v)), (float)sv);
+            if (bad != HD_FW_OK) {
+                fprintf(stderr, "hdctrl-bench: --set %s: %s\n", v, hd_fw_err_str(bad));
+                return -1;
+            }
+            o->sets[o->n_sets++] = v;
+        } else if (strcmp(k, "--input") == 0) {
             o->input = v;
         } else if (strcmp(k, "--out") == 0) {
             o->out = v;
@@ -320,7 +339,7 @@ static int parse(int argc, char **argv, opts_t *o)
                         "[--kp --ki --ff --lowpass-hz --lowpass-order --notch-mask "
                         "--notch-width-hz --artifact-hz --friction-rest-nm --friction-rate] [--load dyno|free|wall --dyno-kv --dyno-ki --person-nm "
                         "--wall-rad --wall-stiffness --wall-damping] [--imp-kp --imp-kd "
-                        "--imp-q] [--preroll N] [--seed] [--sensor gauge|ideal] [plant options: "
+                        "--imp-q] [--preroll N] [--seed] [--set KEY=VALUE ...] [--sensor gauge|ideal] [plant options: "
                         "--motor-inertia-kgm2 --motor-viscous-nm-s-rad --motor-coulomb-nm "
                         "--motor-stribeck-nm --motor-stribeck-velocity-rad-s --stiffness-nm-rad "
                         "--damping-nm-s-rad --output-inertia-kgm2 --output-viscous-nm-s-rad "
@@ -425,6 +444,16 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
     k->artifact_hz = (float)o->artifact_hz;
     k->friction_rest_nm = (float)o->friction_rest_nm;
     k->friction_rate_nm_s = (float)o->friction_rate;
+    for (unsigned i = 0; i < o->n_sets; i++) {
+        const char *eq = strchr(o->sets[i], '=');
+        const hd_param_info_t *p = hd_param_by_key(o->sets[i], (size_t)(eq - o->sets[i]));
+        double x = 0.0;
+        const int bad = number(eq + 1, &x) != 0 ? HD_FW_ERR_NOT_FINITE
+                                                  : hd_param_set(p, cfg, (float)x);
+        if (bad != HD_FW_OK) { /* checked by parse: a read-only row */
+            return fail(o->sets[i], hd_fw_err_str(bad));
+        }
+    }
     const int rc = hd_fw_init(&fw, &hal, cfg);
     if (rc != HD_FW_OK) {
         return fail("firmware configuration rejected", hd_fw_err_str(rc));

@@ -17,6 +17,7 @@ error +10 %, twice the motor inertia) and the first report joint:
   * a plant option out of its range, or not a number, is one line and exit 2;
   * the first report joint measures as docs/results/control-random.json
     says (the stored results are of today's firmware and runner)."""
+import dataclasses
 import json
 import math
 import subprocess
@@ -103,10 +104,28 @@ def test_product_row_is_the_firmware_as_flashed():
     assert {p["key"]: p["default"] for p in RESULTS["space"]} == cr.nominal().values
 
 
+def test_set_writes_the_parameter_tables_field():
+    """--set KEY=VALUE goes through the firmware's parameter table: the
+    proportional gain set by its key runs byte for byte what --kp runs,
+    and differs from the default's run."""
+    sp = np.where(np.arange(800) < 400, 5.0, 10.0)
+    by_option = cl.simulate(cr.product_variant(), cl.torque_scene(0.5), sp)
+    v = dataclasses.replace(cr.product_variant(), kp=0.5)
+    by_kp = cl.simulate(v, cl.torque_scene(0.5), sp)
+    scene = cl.torque_scene(0.5)
+    scene.extra = ["--set", "ctrl_torque_kp=0.5"]
+    by_set = cl.simulate(cr.product_variant(), scene, sp)
+    assert all(np.array_equal(by_set[k], by_kp[k], equal_nan=True) for k in by_kp)
+    assert not np.array_equal(by_set["cmd_a"], by_option["cmd_a"])
+
+
 @pytest.mark.parametrize("option,value,message", [
     ("--motor-inertia-kgm2", "0", "is outside"), ("--stiffness-nm-rad", "1e9", "is outside"),
     ("--kt-error", "-0.6", "is outside"), ("--noise-nm", "abc", "not a number"),
-    ("--current-bandwidth-hz", "nan", "not a number")])
+    ("--current-bandwidth-hz", "nan", "not a number"),
+    ("--set", "no_such_parameter=1", "unknown parameter"),
+    ("--set", "q_motion_ref_rad=-1", "outside its range"),
+    ("--set", "q_motion_ref_rad", "KEY=VALUE")])
 def test_runner_rejects_a_bad_plant_option(tmp_path, option, value, message):
     (tmp_path / "in.txt").write_text("10 0 0\n" * 10)
     r = subprocess.run([str(cl.runner()), "--input", str(tmp_path / "in.txt"), "--out",
@@ -135,3 +154,30 @@ def test_first_report_joint_measures_as_stored():
         assert _close(g["speeds"][sp]["overshoot_pct"], m["overshoot_pct"], 0.0, 2.0), sp
     assert [w["limit_cycle"] for w in g["wall"]] == [w["limit_cycle"] for w in s["wall"]]
     assert (g["margins_met"], g["within"]) == (s["margins_met"], s["within"])
+
+
+def test_autotune_uses_only_what_the_joint_shows(monkeypatch):
+    """The per-joint tuning (the autotuned row) sees what a test on the
+    joint measures: the true torque's response (NaN here: any use of it
+    leaves no candidate) never reaches it, and the wall contact is judged
+    on the filtered torque."""
+    from hdmaint.bench import control, control_autotune
+    f = cl.multisine()[1] / (cl.MS_PERIOD * cl.TS_S)
+    z = np.exp(1j * 2 * math.pi * f * cl.TS_S)
+    a = math.exp(-cl.TS_S / 0.004)
+    p = (1 - a) * z ** -2 / (1 - a / z)
+
+    def measure(v, scene):
+        return cl.Response(f, cl.pi_response(f, v.kp, v.ki, v.kd) * p, p,
+                           np.full_like(p, np.nan))
+    seen = []
+
+    def wall(v, kd, measured=False):
+        seen.append(measured)
+        return {"limit_cycle": False, "p2p_nm": 0.0}
+    monkeypatch.setattr(cl, "measure_loop", measure)
+    monkeypatch.setattr(control, "wall_contact", wall)
+    v, summary = control_autotune.autotune(cr.product_variant())
+    assert summary["met"] and v.key == cr.AUTOTUNED
+    assert (v.kp, v.ki, v.kd) == (summary["kp"], summary["ki_per_s"], summary["kd_s"])
+    assert seen and all(seen)

@@ -7,7 +7,9 @@
     the seeds unchanged since), on REPORT_SEEDS, disjoint from TUNE_SEEDS;
   * its product row is the law's defaults (control/hd_ctrl.c), its filtered
     row the control benchmark's tuned gains (docs/results/control.json), and
-    on the default joint it measures the control benchmark's margins."""
+    on the default joint it measures the control benchmark's margins;
+  * the per-joint tuning's summary is that of its joints, and a joint where
+    it kept the defaults ran the defaults."""
 import json
 import re
 from pathlib import Path
@@ -37,6 +39,18 @@ def test_distributions_are_those_of_the_joints():
     assert control_report.clean(cr.sensitivity(joints, cr.PRODUCT)) == RESULTS["sensitivity"]
     for key, stored in RESULTS["failures"].items():
         assert control_report.clean(cr.failures(joints, key)) == stored, key
+    assert control_report.clean(cr.autotune_summary(joints)) == RESULTS["autotune"]
+
+
+def test_autotune_keeps_the_defaults_where_nothing_held():
+    """Where the per-joint tuning found nothing that holds, its gains are
+    the product row's (the firmware keeps what it has)."""
+    p = RESULTS["rows"][cr.PRODUCT]
+    for j in RESULTS["joints"]:
+        a = j["autotune"]
+        assert a["kp"] > 0 and a["ki_per_s"] >= 0 and a["kd_s"] >= 0, j["name"]
+        if not a["met"]:
+            assert (a["kp"], a["ki_per_s"], a["kd_s"]) == (p["kp"], p["ki"], p["kd"]), j["name"]
 
 
 def test_joints_are_the_seeds_draws_on_the_report_seeds():

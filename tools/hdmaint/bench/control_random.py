@@ -42,6 +42,7 @@ import numpy as np
 from scipy import stats
 
 from . import control
+from . import control_autotune
 from . import control_loop as cl
 from . import control_tune as ct
 
@@ -55,6 +56,8 @@ N_REPORT = 100          # tools/bench --only control_random (--control-joints)
 JOBS = 2                # worker processes (the runner is one process per run)
 PRODUCT = "product"
 COMPARE = "filtered"
+AUTOTUNED = control_autotune.AUTOTUNED
+AUTOTUNE_CONDITIONS = control_autotune.CONDITIONS
 
 
 @dataclass(frozen=True)
@@ -218,6 +221,23 @@ def compare_variant(control_json: Path = CONTROL_JSON) -> cl.Variant | None:
     return v
 
 
+def autotune_summary(joints: list[dict]) -> dict:
+    """What the method left on the joints: how often it found gains that
+    hold in its own conditions (met), how often only from the conservative
+    end of its list (fallback), how often it kept the defaults; the spread
+    of the gains chosen."""
+    a = [j["autotune"] for j in joints]
+    names = [j["name"] for j in joints]
+    out = {"joints": len(a), "met": sum(x["met"] for x in a),
+           "fallback": sum(x["met"] and x["fallback"] for x in a),
+           "kept_defaults": sum(not x["met"] for x in a)}
+    for k in ("kp", "ki_per_s", "kd_s"):
+        v = [x[k] for x in a]
+        out[k] = {"min": min(v), "median": _q(v, 0.5), "max": max(v),
+                  "at_max": names[int(np.argmax(v))]}
+    return out
+
+
 def config(v: cl.Variant) -> dict:
     return {k: getattr(v, k) for k in ("feedback", "kp", "ki", "kd", "ff", "ilim",
                                          "artifact_hz", "friction_rest_nm")}
@@ -248,6 +268,7 @@ def measure(v: cl.Variant) -> dict:
     for kd in control.WALL["kds"]:
         w = control.wall_contact(v, kd)
         wall.append({"kd_nm_s_rad": kd, "p2p_nm": _r(w["p2p_nm"]), "mean_nm": _r(w["mean_nm"]),
+                     "filtered_error_nm": _r(w["filtered_error_nm"]),
                      "contact_losses": w["contact_losses"], "limit_cycle": w["limit_cycle"]})
     met = all(_meets(m) for m in margins.values())
     cycle = any(w["limit_cycle"] for w in wall)
@@ -264,7 +285,10 @@ def run_joint(joint: Joint, variants: list[cl.Variant]) -> dict:
     out = {"seed": joint.seed, "name": joint.name,
            "factors": {k: _r(x, 6) for k, x in joint.factors.items()}, "rows": {}}
     for v in variants:
-        out["rows"][v.key] = measure(dataclasses.replace(v, plant=joint.plant()))
+        v = dataclasses.replace(v, plant=joint.plant())
+        if v.key == AUTOTUNED:
+            v, out["autotune"] = control_autotune.autotune(v)
+        out["rows"][v.key] = measure(v)
     return out
 
 
@@ -327,6 +351,8 @@ def summary(joints: list[dict], key: str) -> dict:
     for i, kd in enumerate(control.WALL["kds"]):
         w = [r["wall"][i] for r in rows]
         out["wall"][str(kd)] = {"p2p": _dist([x["p2p_nm"] for x in w], names, low_is_bad=False),
+                                "filtered_error": _dist([abs(x["filtered_error_nm"]) for x in w],
+                                                        names, low_is_bad=False),
                                 "cycles": sum(x["limit_cycle"] for x in w)}
     return out
 
@@ -401,7 +427,7 @@ def _fmt(x) -> str:
 
 
 def run(n_joints: int = N_REPORT, jobs: int = JOBS, log=lambda s: None,
-        seeds=None, with_ends: bool = True) -> dict:
+        seeds=None, with_ends: bool = True, autotuned: bool = True) -> dict:
     """The bench over REPORT_SEEDS[:n_joints] (or `seeds`), the default joint
     and (with_ends) the ends of every range one at a time (the product row
     only): {"joints": [...], "summary": {row: ...}, ...}."""
@@ -411,6 +437,8 @@ def run(n_joints: int = N_REPORT, jobs: int = JOBS, log=lambda s: None,
     cmp_ = compare_variant()
     if cmp_ is not None:
         variants.append(cmp_)
+    if autotuned:
+        variants.append(dataclasses.replace(product_variant(), key=AUTOTUNED))
     ends = range_ends() if with_ends else []
     jobs_ = ([(nominal(), variants)] + [(e, variants[:1]) for e in ends]
              + [(s, variants) for s in seeds])
@@ -441,6 +469,7 @@ def run(n_joints: int = N_REPORT, jobs: int = JOBS, log=lambda s: None,
                                                  sensitivity(joints, PRODUCT)[:BY_RANGE_TOP]])
                          for k in keys},
             "failures": {k: failures(joints, k) for k in keys},
+            "autotune": autotune_summary(joints) if autotuned else None,
             "elapsed_s": round(time.monotonic() - t0, 1), "workers": min(jobs, JOBS)}
 
 

@@ -12,7 +12,10 @@ BLOCK = "control-random-results"
 BEGIN, END = docblock.markers(BLOCK)
 LABELS = {cr.PRODUCT: "product: the firmware as flashed (`hdctrl-bench --defaults`)",
           cr.COMPARE: "comparison: filtered feedback, the fixed bench's tuned gains, "
-                      "the rest as flashed"}
+                      "the rest as flashed",
+          cr.AUTOTUNED: "per joint: the tuning method on the joint's own measurements at a "
+                        "standstill (`control_autotune.autotune`), from the product row; the "
+                        "gains below are where it starts"}
 COND = {"wall": "wall contact", "free": "free output"}
 TOP = 4   # the failing joints' table shows the factors of this many parameters
 
@@ -141,6 +144,7 @@ def markdown(res: dict) -> str:
         out.append(f"| {k} | {LABELS.get(k, k)} | {c['feedback']} | {c['kp']:.3g} | "
                    f"{c['ki']:.3g} | {1e3 * c['kd']:.3g} | {c['ilim']:.3g} | "
                    f"{c['friction_rest_nm']:.3g} |")
+    out += autotune_lines(res)
     out += ["", "### Within the margins and without a wall limit cycle", "",
             f"Within: phase margin >= {crit['pm_deg']:g} deg and gain margin >= "
             f"{crit['gm_db']:g} dB in every condition, and no limit cycle on the wall at "
@@ -183,16 +187,22 @@ def markdown(res: dict) -> str:
     out += ["", "### Stiff-wall contact", "",
             "IMPEDANCE kp 500 N m/rad toward 0.05 rad, a 2e4 N m/rad wall at 0.02 rad "
             "(`control.wall_contact`): the true torque's peak to peak over the last second "
-            "(N m) and the joints whose contact cycles.", "",
+            "(N m), the joints whose contact cycles, and how far the firmware's filtered "
+            "torque is from the true one over that second (|mean error|, N m: what the "
+            "contact force is off by, the loop tracking the filtered torque).", "",
             "| row | kd N m s/rad | peak to peak median | 90th percentile | worst | limit "
-            "cycles | the default joint |", "|---|---|---|---|---|---|---|"]
+            "cycles | the default joint | filtered error median | 90th percentile | worst |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
     for k, d in s.items():
         for i, (kd, w) in enumerate(d["wall"].items()):
             p, r = w["p2p"], ref[k]["wall"][i]
+            e = w.get("filtered_error")
+            err = (f"{e['median']:.2f} | {e['tail']:.2f} | {e['worst']:.2f} ({e['worst_joint']})"
+                   if e else "- | - | -")
             out.append(f"| {k} | {float(kd):g} | {p['median']:.2f} | {p['tail']:.2f} | "
                        f"{p['worst']:.2f} ({p['worst_joint']}) | "
                        f"{_pct(w['cycles'], d['joints'])} | {r['p2p_nm']:.2f}"
-                       f"{' (cycle)' if r['limit_cycle'] else ''} |")
+                       f"{' (cycle)' if r['limit_cycle'] else ''} | {err} |")
     out += ends_table(res)
     sens = res["sensitivity"]
     out += ["", f"### What moves the margins ({cr.PRODUCT} row)", "",
@@ -231,6 +241,31 @@ def markdown(res: dict) -> str:
     return "\n".join(out) + "\n"
 
 
+def autotune_lines(res: dict) -> list[str]:
+    """What the per-joint tuning left on the joints (none without its row)."""
+    a = res.get("autotune")
+    if not a:
+        return []
+    n = a["joints"]
+    g = {k: a[k] for k in ("kp", "ki_per_s", "kd_s")}
+    return ["", f"### What the tuning on each joint chose ({cr.AUTOTUNED} row)", "",
+            "Conditions measured on the joint: "
+            + ", ".join("the output held at rest (the dynamometer at 0 rad/s: a fixture)"
+                        if c not in COND else _cond(c) for c in cr.AUTOTUNE_CONDITIONS)
+            + " (no moving dynamometer: the moving speeds are judged, not tuned on); the plant is the "
+            "feedback's torque per drive current, the wall judged on the filtered torque. "
+            f"Gains that hold in those conditions found on {_pct(a['met'], n)} "
+            f"({a['fallback']} of them from the conservative end of the list), the defaults "
+            f"kept on {_pct(a['kept_defaults'], n)}.", "",
+            "| gain | least | median | most (joint) |", "|---|---|---|---|",
+            f"| kp | {g['kp']['min']:.3g} | {g['kp']['median']:.3g} | "
+            f"{g['kp']['max']:.3g} ({g['kp']['at_max']}) |",
+            f"| ki 1/s | {g['ki_per_s']['min']:.3g} | {g['ki_per_s']['median']:.3g} | "
+            f"{g['ki_per_s']['max']:.3g} ({g['ki_per_s']['at_max']}) |",
+            f"| kd ms | {1e3 * g['kd_s']['min']:.3g} | {1e3 * g['kd_s']['median']:.3g} | "
+            f"{1e3 * g['kd_s']['max']:.3g} ({g['kd_s']['at_max']}) |"]
+
+
 def splice(text: str, md: str) -> str:
     return docblock.splice(text, BLOCK, md, "docs/results/control-random.md")
 
@@ -249,4 +284,18 @@ def headline_rows(d: dict) -> list[tuple[str, str, str]]:
         f"PM >= {c['pm_deg']:g} deg and GM >= {c['gm_db']:g} dB in every condition with no "
         f"stiff-wall limit cycle on **{p['within']} of {p['joints']}** (margins alone "
         f"{p['margins_met']}, no wall cycle {p['no_wall_cycle']}); bandwidth at 0.5 rad/s median "
-        f"{bw['median']:.0f} Hz, 10th percentile {bw['tail']:.0f} Hz", src)]
+        f"{bw['median']:.0f} Hz, 10th percentile {bw['tail']:.0f} Hz", src)] + _autotune_row(d, src)
+
+
+def _autotune_row(d: dict, src: str) -> list[tuple[str, str, str]]:
+    a = d["summary"].get(cr.AUTOTUNED)
+    if not a:
+        return []
+    bw = a["speeds"]["0.5"]["bandwidth"]
+    return [(
+        "The same joints, the tuning method run on each in the simulation from what a test "
+        "on the joint measures at a standstill (no moving dynamometer, no true torque; not yet "
+        "a command of `hdsense control`)",
+        f"within on **{a['within']} of {a['joints']}** (margins alone {a['margins_met']}, no "
+        f"wall cycle {a['no_wall_cycle']}); bandwidth at 0.5 rad/s median {bw['median']:.0f} Hz, "
+        f"10th percentile {bw['tail']:.0f} Hz", src)]
