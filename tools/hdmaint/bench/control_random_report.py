@@ -275,6 +275,7 @@ def headline_rows(d: dict) -> list[tuple[str, str, str]]:
     report joints."""
     p, c = d["summary"]["product"], d["criteria"]
     bw = p["speeds"]["0.5"]["bandwidth"]
+    still = d["default_joint"]["rows"]["product"]["speeds"]["0.0"]["bandwidth_hz"]
     src = ("[control-random.json](docs/results/control-random.json), "
            "[control-random.md](docs/results/control-random.md)")
     return [(
@@ -284,7 +285,9 @@ def headline_rows(d: dict) -> list[tuple[str, str, str]]:
         f"PM >= {c['pm_deg']:g} deg and GM >= {c['gm_db']:g} dB in every condition with no "
         f"stiff-wall limit cycle on **{p['within']} of {p['joints']}** (margins alone "
         f"{p['margins_met']}, no wall cycle {p['no_wall_cycle']}); bandwidth at 0.5 rad/s median "
-        f"{bw['median']:.0f} Hz, 10th percentile {bw['tail']:.0f} Hz", src)] + _autotune_row(d, src)
+        f"{bw['median']:.0f} Hz, 10th percentile {bw['tail']:.0f} Hz; on the default joint as "
+        f"flashed (no friction compensation) {_bw(still)} Hz at a standstill", src)] \
+        + _autotune_row(d, src)
 
 
 def _autotune_row(d: dict, src: str) -> list[tuple[str, str, str]]:

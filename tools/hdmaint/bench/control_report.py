@@ -185,7 +185,10 @@ def headline_rows(c: dict) -> list[tuple[str, str, str]]:
     return [(
         "Torque loop on the simulated joint, gains from the project's own tuning "
         f"(PM >= {c['margins']['pm_deg']:g} deg, GM >= {c['margins']['gm_db']:g} dB, measured "
-        "by breaking the loop)",
+        "by breaking the loop)"
+        + (f"; friction compensated at rest by the joint's measured back-drive torque "
+           f"(`ctrl_friction_rest_nm` {c['friction_rest_nm']:.3g} N m; 0 as flashed)"
+           if c.get("friction_rest_nm") else ""),
         f"{prod} feedback (the product's) -3 dB bandwidth " + " / ".join(_bw(f[s]["chirp"]) for s in speeds)
         + f" Hz at {' / '.join(speeds)} rad/s = {ratios} the best low-pass-fed loop "
         f"(goal 2x: {status(bw)}); true-torque ripple {g['true-torque']['worst']:.2f}x raw "
