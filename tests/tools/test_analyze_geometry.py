@@ -229,3 +229,27 @@ def test_no_step_where_the_motion_explains_it_or_a_line_moves_fast():
         x = geometry.Inputs([inp.signals[0] + extra], [th], [t], [v], 1e-3)
         parts, _ = geometry.series(x, [1])
         assert _step_columns(parts, 1) == 0, what
+
+
+def test_check_scores_both_signals_with_the_same_steps(monkeypatch):
+    # The held-out check compares the error without and with the profile on
+    # the same samples and nuisance: the load's steps are found once (without
+    # the profile), not again on the profile-subtracted signal, where a wrong
+    # profile's large line moves the robust scale the step test uses (here
+    # 1 N m steps: all 17 found without it, none with it subtracted).
+    from hdtools.analysis import geometry
+    inp, load = _record(lambda t, rng: _payload_steps(t, rng) / 6.0, seed=5)
+    wrong = [{"order": 1.0, "a_nm": 3.0, "b_nm": 0.0}]
+    seen = []
+    series = geometry.series
+
+    def spy(x, orders, steps=None):
+        parts, dt = series(x, orders, steps)
+        seen.append([(np.isnan(z), A.shape[1]) for z, _, A in parts])
+        return parts, dt
+    monkeypatch.setattr(geometry, "series", spy)
+    geometry.check(inp, wrong, 2.0)
+    without, with_ = seen[-2], seen[-1]
+    assert [c for _, c in without] == [c for _, c in with_]
+    assert all(np.array_equal(a, b) for (a, _), (b, _) in zip(without, with_))
+    assert without[0][1] - 3 == np.count_nonzero(np.diff(load))   # every step, found once

@@ -86,11 +86,13 @@ def _blockmean(x, w):
     return np.asarray(x[:m], float).reshape(-1, w).mean(axis=1)
 
 
-def series(inp: Inputs, orders):
+def series(inp: Inputs, orders, steps=None):
     """Decimated stretches [(z, t, A)]: A's columns are cos, sin of each
     order (block-averaged like z), then N_MOTION motion columns (velocity,
-    its smoothed sign, acceleration; zero without velocities).  Returns
-    (parts, decimated step)."""
+    its smoothed sign, acceleration; zero without velocities), then the
+    load's steps (_with_steps: found in z, or `steps` as step_indices gave
+    them for another signal of the same record).  Returns (parts, decimated
+    step)."""
     w = max(1, int(round(DEC_S / inp.ts_s)))
     out = []
     vels = inp.velocities or [None] * len(inp.signals)
@@ -108,10 +110,19 @@ def series(inp: Inputs, orders):
         else:
             cols += [np.zeros(n)] * N_MOTION
         out.append((_blockmean(z, w), _blockmean(t, w), np.column_stack(cols)))
-    return _with_steps(out, 2 * len(orders)), w * inp.ts_s
+    return _with_steps(out, 2 * len(orders), steps), w * inp.ts_s
 
 
-def _with_steps(parts, vel_col):
+def step_indices(inp: Inputs, orders) -> list:
+    """The load's steps series(inp, orders) finds: per stretch it keeps, the
+    decimated indices (to give another signal of the same record the same
+    step columns and left-out transitions)."""
+    parts, _ = series(inp, orders, steps=[[]] * len(inp.signals))
+    vel_col = 2 * len(orders)
+    return [_steps_of(z, A[:, vel_col]) for z, _, A in parts]
+
+
+def _with_steps(parts, vel_col, steps=None):
     """parts with one more nuisance column per step of the load (a payload
     put down, a contact, a reversal's friction step) found in any stretch:
     0 before the step, 1 after, in its own stretch; 0 in the others.  The
@@ -121,8 +132,10 @@ def _with_steps(parts, vel_col):
     too short for a profile: docs/decisions/geometry-step-split.md).  Only
     steps at a steady speed (column vel_col of A): where the speed changes,
     the torque that steps is the motion's (inertia, friction's sign), which
-    the motion columns carry."""
-    steps = [_steps_of(z, A[:, vel_col]) for z, _, A in parts]
+    the motion columns carry.  steps: per part, the indices to use instead
+    of finding them."""
+    if steps is None:
+        steps = [_steps_of(z, A[:, vel_col]) for z, _, A in parts]
     total = sum(len(s) for s in steps)
     if total == 0:
         return parts
@@ -472,11 +485,13 @@ def check(inp: Inputs, lines, tau_s, nuisance_orders=()):
     geometric mean over the blocks of their error ratio with / without (the
     selection's per-block statistic: the few blocks a load step's transient
     or a reversal leaves unpredictable count as one block each, not by their
-    size)."""
+    size).  The load's steps are found once, without the profile: both
+    errors are of the same samples and the same nuisance."""
     nuis = [o for o in nuisance_orders if o not in [ln["order"] for ln in lines]]
     sses, scored = [], []
+    steps = step_indices(inp, nuis)     # one set of steps: the same samples scored both ways
     for x in (inp, inp.minus(lines)):
-        parts, dt = series(x, nuis)
+        parts, dt = series(x, nuis, steps)
         if not parts:
             return float("nan"), float("nan")
         ids, nblocks = _inner_blocks(parts, dt)
