@@ -9,7 +9,9 @@ firmware's torque loop runs as flashed, with no retuning: the product row is
 `hdctrl-bench --defaults` (hd_ctrl_config_default: the feedback, gains,
 integral bound and friction compensation at rest the law ships with); the
 comparison row is the filtered feedback with the fixed bench's tuned gains
-(docs/results/control.json), everything else the same defaults.  Per
+(docs/results/control.json), everything else the same defaults; the
+autotuned row is the tuning method run on the joint itself from what a test
+on it measures (control_autotune).  Per
 joint and row, with the control benchmark's own measurements (nothing
 copied): the phase and gain margins by breaking the loop in every condition
 of the tuning (control.CONDITIONS: 0, 0.5 and 3 rad/s on the dynamometer,
@@ -23,8 +25,9 @@ control_tune's (45 deg, 6 dB) and no wall contact cycles.
 Seeds: a joint is drawn from its seed with numpy's PCG64 on the stream
 [seed, STREAM].  TUNE_SEEDS are for developing any change this bench
 motivates (a retuning of the defaults, a new feedback); the report is on
-REPORT_SEEDS, disjoint.  Nothing has been tuned on either yet: the defaults
-come from the one default joint (control.py), and this bench only measures.
+REPORT_SEEDS, disjoint.  The defaults come from the one default joint
+(control.py); the autotuned row's method (its fallback) was developed on
+TUNE_SEEDS[:24], and its gains come from each joint's own measurements.
 """
 from __future__ import annotations
 
