@@ -86,7 +86,8 @@ typedef struct {
     hd_sim_joint_params_t joint;   /* the simulated joint (the plant options) */
     hal_simdrive_config_t drive;
     double noise_nm;
-    const char *sets[MAX_SETS]; /* --set: firmware parameters, applied over the defaults */
+    const hd_param_info_t *set_param[MAX_SETS]; /* --set: firmware parameters (checked */
+    float set_value[MAX_SETS];                  /* when parsed), over the defaults */
     unsigned n_sets;
 } opts_t;
 
@@ -312,7 +313,8 @@ static int parse(int argc, char **argv, opts_t *o)
                 fprintf(stderr, "hdctrl-bench: --set %s: %s\n", v, hd_fw_err_str(bad));
                 return -1;
             }
-            o->sets[o->n_sets++] = v;
+            o->set_param[o->n_sets] = hd_param_by_key(v, (size_t)(eq - v));
+            o->set_value[o->n_sets++] = (float)sv;
         } else if (strcmp(k, "--input") == 0) {
             o->input = v;
         } else if (strcmp(k, "--out") == 0) {
@@ -445,13 +447,9 @@ static int setup(const opts_t *o, hd_fw_config_t *cfg)
     k->friction_rest_nm = (float)o->friction_rest_nm;
     k->friction_rate_nm_s = (float)o->friction_rate;
     for (unsigned i = 0; i < o->n_sets; i++) {
-        const char *eq = strchr(o->sets[i], '=');
-        const hd_param_info_t *p = hd_param_by_key(o->sets[i], (size_t)(eq - o->sets[i]));
-        double x = 0.0;
-        const int bad = number(eq + 1, &x) != 0 ? HD_FW_ERR_NOT_FINITE
-                                                  : hd_param_set(p, cfg, (float)x);
-        if (bad != HD_FW_OK) { /* checked by parse: a read-only row */
-            return fail(o->sets[i], hd_fw_err_str(bad));
+        const hd_fw_err_t bad = hd_param_set(o->set_param[i], cfg, o->set_value[i]);
+        if (bad != HD_FW_OK) { /* range checked by parse: a read-only row */
+            return fail(o->set_param[i]->key, hd_fw_err_str(bad));
         }
     }
     const int rc = hd_fw_init(&fw, &hal, cfg);

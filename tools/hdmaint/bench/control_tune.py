@@ -185,7 +185,7 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
         v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
         log(f"{v.key}: no gains on the grid meet the margins in every condition")
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
-    checked, predicted, walls, rejected, held = {}, found[0][3], [], [], None
+    checked, rejected, held = {}, [], None
     for cand in found[:CHECKED_MAX]:
         ok, checked, walls = _check(v, cand, conditions, measure, contact)
         if ok:
@@ -211,11 +211,10 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
                 "measured": ms, "wall_rejected": rejected, "fallback": fallback}
     cand, checked, walls = held
     v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in cand[:3])
-    predicted = cand[3]
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
     log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
     return {"method": "grid", "met": True,
-            "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": predicted, "measured": ms,
+            "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": cand[3], "measured": ms,
             "wall": walls, "wall_rejected": rejected, "fallback": fallback,
             "loops": {s: r.to_json() for s, r in checked.items()}}
