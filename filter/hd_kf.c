@@ -434,6 +434,7 @@ void hd_kf_clear_block(hd_kf_t *kf, unsigned s, float v)
     p += 3u + 4u * (nb - 1u - s);
     p[0] = p[1] = 0.0f;
     kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
+    keep_block_state(kf, s);
 }
 
 void hd_kf_reset(hd_kf_t *kf)
@@ -448,6 +449,8 @@ void hd_kf_reset(hd_kf_t *kf)
     kf->offset_primed = 0u;
     kf->jump_hold_steps = 0u;
     kf->jump_credit = HD_KF_JUMP_BURST;
+    kf->event_angle_rad = kf->event_min_rad = kf->event_max_rad = 0.0f;
+    kf->event_peak_nm2 = 0.0f;
     kf->limit_steps = 0u;
     kf->load_ref_primed = 0u;
     kf->load_ref_nm = 0.0f;
@@ -492,6 +495,7 @@ hd_kf_err_t hd_kf_init(hd_kf_t *kf, const hd_kf_config_t *cfg)
     kf->p_negative_count = 0u;
     kf->jump_held_count = 0u;
     kf->limit_count = 0u;
+    kf->rollback_count = 0u;
     kf->drift_count = 0u;
     kf->load_bound_count = 0u;
     return HD_KF_OK;

@@ -193,6 +193,12 @@ extern "C" {
 #define HD_KF_JUMP_BURST 2u
 #define HD_KF_JUMP_REARM_S 0.2f
 
+/* An event beyond the jump gate whose innovation went beyond
+ * correction_max_nm while the motor angle spanned less than this [rad] (one
+ * turn) is a transient, not a line: when it ends, the blocks go back to
+ * their states before it. */
+#define HD_KF_EVENT_TURN_RAD 6.2831853f
+
 /* Offset drift gate (offset_drift_q_nm2 > offset_q_nm2): a step beyond the
  * jump gate holds it for this long [s]. */
 #define HD_KF_DRIFT_HOLD_S 1.0f
@@ -378,6 +384,12 @@ typedef struct {
     uint32_t jump_hold_steps;                 /* quiet steps left until the jumps come back */
     uint32_t jump_credit;                     /* jumps the gate may still take */
     uint32_t jump_held_count;                 /* steps beyond the gate while it was held */
+    float event_angle_rad;                    /* motor angle since the event began */
+    float event_min_rad;                      /* its least and greatest values: the */
+    float event_max_rad;                      /* span of angles the event covered */
+    float event_peak_nm2;                     /* its greatest squared innovation */
+    uint32_t rollback_count;                  /* short events whose learning was undone */
+    float event_x[2u * HD_KF_MAX_BLOCKS];     /* the blocks' states before the event */
     uint32_t limit_restart_steps;             /* HD_KF_LIMIT_RESTART_S in steps (at least 1) */
     uint32_t limit_steps;                     /* steps at the limit less those below it */
     uint32_t limit_count;                     /* steps with the correction held */

@@ -17,6 +17,7 @@ void hd_kf_restart_lost_blocks(hd_kf_t *kf, uint32_t lost)
             p[0] = p[2] = kf->slot[s].p0_nm2;
             p[1] = 0.0f;
             kf->x[2u * s] = kf->x[2u * s + 1u] = 0.0f;
+            keep_block_state(kf, s);
         }
         p += 3;
         for (unsigned t = s + 1u; t < nb; t++, p += 4) {

@@ -12,22 +12,62 @@
 
 #define JUMP_MIN_SIGMA 4.0f
 
+/* A short event (hd_kf.h, HD_KF_EVENT_TURN_RAD): the blocks' states are
+ * kept at its first step; it covers the motor angles since then and its
+ * largest innovation. */
+KF_INLINE void event_begin(hd_kf_t *kf, float e2)
+{
+    kf->event_angle_rad = kf->event_min_rad = kf->event_max_rad = 0.0f;
+    kf->event_peak_nm2 = e2;
+    for (unsigned i = 0; i < 2u * kf->n_blocks; i++) {
+        kf->event_x[i] = kf->x[i];
+    }
+}
+
+KF_INLINE void event_cover(hd_kf_t *kf, float e2, float d_motor_rad)
+{
+    const float a = kf->event_angle_rad + d_motor_rad;
+    kf->event_angle_rad = a;
+    kf->event_min_rad = a < kf->event_min_rad ? a : kf->event_min_rad;
+    kf->event_max_rad = a > kf->event_max_rad ? a : kf->event_max_rad;
+    kf->event_peak_nm2 = e2 > kf->event_peak_nm2 ? e2 : kf->event_peak_nm2;
+}
+
+/* At the event's end: an innovation beyond any modelled line
+ * (correction_max_nm) over less than a motor turn cannot have taught the
+ * blocks a line, only the transient's torque as it fell on their phases. */
+KF_INLINE bool event_was_transient(const hd_kf_t *kf)
+{
+    const float lim = kf->cfg.correction_max_nm;
+    return lim > 0.0f && kf->event_peak_nm2 > lim * lim &&
+           kf->event_max_rad - kf->event_min_rad < HD_KF_EVENT_TURN_RAD;
+}
+
 /* Offset-jump gate: e beyond offset_jump_nm and 4 sigma, at most
  * HD_KF_JUMP_BURST jumps per event: each step beyond the gate restarts
  * the quiet count, and the jumps come back once jump_rearm_steps steps in
  * a row stayed within it; a step beyond it with none left is counted.
+ * *rollback is set at the end of a transient event.
  * Returns HD_KF_STATUS_OFFSET_JUMP, HD_KF_STATUS_UNMODELLED or 0. */
-KF_INLINE uint32_t offset_jump(hd_kf_t *kf, float e, float s_var)
+KF_INLINE uint32_t offset_jump(hd_kf_t *kf, float e, float s_var, float d_motor_rad,
+                               bool *rollback)
 {
     const float jump_nm = kf->cfg.offset_jump_nm;
     const float e2 = e * e;
     const bool beyond = kf->cfg.offset_enabled && jump_nm > 0.0f && e2 > jump_nm * jump_nm &&
                         e2 > JUMP_MIN_SIGMA * JUMP_MIN_SIGMA * s_var;
+    if (kf->jump_hold_steps > 0u) {
+        event_cover(kf, e2, d_motor_rad);
+    }
     if (!beyond) {
         if (kf->jump_hold_steps > 0u && --kf->jump_hold_steps == 0u) {
             kf->jump_credit = HD_KF_JUMP_BURST;
+            *rollback = event_was_transient(kf);
         }
         return 0u;
+    }
+    if (kf->jump_hold_steps == 0u) {
+        event_begin(kf, e2);
     }
     kf->jump_hold_steps = kf->jump_rearm_steps;
     if (kf->jump_credit == 0u) {

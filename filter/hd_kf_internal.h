@@ -99,6 +99,14 @@ KF_INLINE void zero_tiles(float *p, unsigned n)
     }
 }
 
+/* Block s's states were written outside learning (cleared, restarted,
+ * imported): a short event's rollback (hd_kf_gates.h) keeps them. */
+KF_INLINE void keep_block_state(hd_kf_t *kf, unsigned s)
+{
+    kf->event_x[2u * s] = kf->x[2u * s];
+    kf->event_x[2u * s + 1u] = kf->x[2u * s + 1u];
+}
+
 /* Block s starts again: state zero, its tile v I, zero covariance with
  * every other state (hd_kf.c). */
 void hd_kf_clear_block(hd_kf_t *kf, unsigned s, float v);

@@ -240,6 +240,7 @@ static void set_block(hd_kf_t *kf, unsigned s, float x1, float x2, float var_nm2
     /* the frame's R' takes the model's coordinates into the frame */
     kf->x[2u * s] = c * x1 - sn * x2;
     kf->x[2u * s + 1u] = sn * x1 + c * x2;
+    keep_block_state(kf, s);
 }
 
 int hd_kf_profile_import(hd_kf_t *kf, const hd_kf_profile_t *profile, float motor_angle_rad,

@@ -432,7 +432,9 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
                                               : kf->offset_q_nm2;
     float s_var = measurement_var(kf, in->torque_expected_var_nm2) +
                   cross_covariance(kf->p, h, q, q_off, g, nb);
-    const uint32_t gate = valid ? offset_jump(kf, innovation, s_var) : 0u;
+    bool rollback = false;
+    const uint32_t gate =
+        valid ? offset_jump(kf, innovation, s_var, io.inc[HD_KF_LOCK_MOTOR], &rollback) : 0u;
     status |= gate;
     if (UNLIKELY(gate == HD_KF_STATUS_OFFSET_JUMP)) {
         /* an offset jump widens the offset's variance first; the jump takes
@@ -472,6 +474,13 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     correct(kf->p, kf->x, g, f, q, inv_s, k_e, q_off, nb, sum.partial, sum.frozen, &probe);
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
+    if (UNLIKELY(rollback)) {
+        /* a transient's torque, not a line: the blocks as before it */
+        for (unsigned i = 0; i < o; i++) {
+            kf->x[i] = kf->event_x[i];
+        }
+        kf->rollback_count++;
+    }
     normalize_phasor(&kf->phasor_cos[1], &kf->phasor_sin[1]); /* (1, 0) if unused: kept */
     if (UNLIKELY(!(probe.traces <= kf->cfg.p_max_nm2) || (probe.signs & FLOAT_SIGN_BIT) != 0u ||
                  !is_finite(finite_probe))) {
