@@ -43,6 +43,13 @@ KF_INLINE bool event_was_transient(const hd_kf_t *kf)
            kf->event_max_rad - kf->event_min_rad < HD_KF_EVENT_TURN_RAD;
 }
 
+/* The correction limit's restart within an event over less than a motor
+ * turn: the states at its start are the restart. */
+KF_INLINE bool event_restores(const hd_kf_t *kf)
+{
+    return kf->jump_hold_steps > 0u && kf->event_max_rad - kf->event_min_rad < HD_KF_EVENT_TURN_RAD;
+}
+
 /* Offset-jump gate: e beyond offset_jump_nm and 4 sigma, at most
  * HD_KF_JUMP_BURST jumps per event: each step beyond the gate restarts
  * the quiet count, and the jumps come back once jump_rearm_steps steps in

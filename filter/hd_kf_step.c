@@ -474,6 +474,13 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     correct(kf->p, kf->x, g, f, q, inv_s, k_e, q_off, nb, sum.partial, sum.frozen, &probe);
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
+    if (UNLIKELY(restart) && event_restores(kf)) {
+        /* at the limit within a transient: its start is the restart */
+        kf->jump_hold_steps = 0u;
+        kf->jump_credit = HD_KF_JUMP_BURST;
+        restart = false;
+        rollback = true;
+    }
     if (UNLIKELY(rollback)) {
         /* a transient's torque, not a line: the blocks as before it */
         for (unsigned i = 0; i < o; i++) {

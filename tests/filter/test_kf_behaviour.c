@@ -1190,6 +1190,119 @@ static void test_undeclared_line_twice_the_envelope_never_worse_than_raw(void)
     TEST_ASSERT_GREATER_THAN_UINT32(0u, kf.jump_held_count + kf.limit_count);
 }
 
+/* ---- a transient beyond any line, at rest ----------------------------------
+ * Lines 0.4 N m (motor order 2) and 0.3 N m (order 4) learnt over 3 s at
+ * 156 rad/s under 10 N m, then the motor stops.  At rest a contact
+ * transient: the true torque swings +-transient_nm at 5 Hz for 0.4 s while
+ * the motor swings +-swing_rad with it (a bounce on a stiff wall).  The
+ * correction limit is 2 N m (beyond both lines).
+ * Spec (hd_kf.h, HD_KF_EVENT_TURN_RAD): a transient beyond the limit over
+ * less than a motor turn is rolled back (at the limit's restarts and when
+ * it ends), and the filtered torque at rest afterwards is as good as
+ * before it (what the blocks took during it is the transient's torque on
+ * their phases, not a line); one over more than a turn, or one within the
+ * limit, is not rolled back; a block disabled during the event stays
+ * cleared; with a wrong line imported as it begins (beyond the limit),
+ * the limit still restarts the filter from zero. */
+#define TRANSIENT_LIMIT_NM 2.0f
+typedef struct {
+    double err_before_nm, err_after_nm; /* |filtered - true| at rest, before / after */
+    uint32_t rollbacks;
+    float disabled_state_nm;            /* |x| of block 1 (disabled mid-event when asked) */
+    bool event;                         /* the transient went beyond the jump gate */
+    uint32_t resets;
+    uint32_t limited;                   /* steps at the correction limit */
+} transient_t;
+
+/* What happens as the transient begins: nothing, block 1 disabled halfway
+ * through, or a wrong 3 N m order-2 line imported (beyond the limit). */
+typedef enum { AT_EVENT_NOTHING, AT_EVENT_TOGGLE, AT_EVENT_WRONG_IMPORT } at_event_t;
+
+static transient_t transient_at_rest(double swing_rad, double transient_nm, at_event_t at)
+{
+    static hd_kf_t kf;
+    hd_kf_config_t cfg;
+    hd_kf_config_recommended(&cfg, (float)TS_S, 0.02f, 0.05f, 0.02f);
+    cfg.correction_max_nm = TRANSIENT_LIMIT_NM;
+    TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
+    const long run_to = 3000, stop_to = 3200, rest_to = 4000, event_to = 4400, end = 6000;
+    double theta = 0.0, prev = 0.0, sum_before = 0.0, sum_after = 0.0;
+    transient_t r = {0.0, 0.0, 0u, 0.0f, false, 0u, 0u};
+    for (long k = 0; k < end; k++) {
+        const double t = (double)k * TS_S;
+        double t_true = 10.0;
+        if (k < run_to) {
+            theta = 156.0 * t;
+        } else if (k < stop_to) {
+            const double u = (double)(k - run_to) * TS_S; /* 0.2 s to a stop */
+            theta = 156.0 * (run_to * TS_S) + 156.0 * (u - u * u / 0.4);
+        } else if (k >= rest_to && k < event_to) {
+            const double w = sin(2.0 * TU_PI * 5.0 * (double)(k - rest_to) * TS_S);
+            theta = 156.0 * (run_to * TS_S + 0.1) + swing_rad * w;
+            t_true += transient_nm * w;
+        }
+        if (at == AT_EVENT_TOGGLE && k == (rest_to + event_to) / 2) {
+            TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_set_block_enabled(&kf, 1u, false));
+        }
+        if (at == AT_EVENT_WRONG_IMPORT && k == rest_to) {
+            const double alpha = fmod(prev, 2.0 * TU_PI); /* the last sample's angle */
+            hd_kf_profile_t wrong = {1u, {{HD_KF_LOCK_MOTOR, 2u, (float)(3.0 * cos(2.0 * alpha)),
+                                           (float)(3.0 * sin(2.0 * alpha))}}, -1.0f};
+            TEST_ASSERT_EQUAL_INT(1, hd_kf_profile_import(&kf, &wrong, (float)alpha,
+                                                          (float)(alpha / GEAR_RATIO), 0.01f));
+        }
+        hd_kf_input_t in = {0};
+        in.torque_meas_nm =
+            (float)(t_true + 0.4 * cos(2.0 * theta + 0.3) + 0.3 * cos(4.0 * theta + 1.1));
+        in.d_motor_angle_rad = (float)(theta - prev);
+        in.d_output_angle_rad = in.d_motor_angle_rad / (float)GEAR_RATIO;
+        prev = theta;
+        hd_kf_output_t o;
+        hd_kf_step(&kf, &in, &o);
+        r.event = r.event || (k >= rest_to && (o.status & HD_KF_STATUS_OFFSET_JUMP) != 0u);
+        const double err = fabs((double)o.torque_filtered_nm - t_true);
+        sum_before += k >= rest_to - 500 && k < rest_to ? err : 0.0;
+        sum_after += k >= end - 500 ? err : 0.0;
+    }
+    r.err_before_nm = sum_before / 500.0;
+    r.err_after_nm = sum_after / 500.0;
+    r.rollbacks = kf.rollback_count;
+    r.resets = kf.reset_count;
+    r.limited = kf.limit_count;
+    r.disabled_state_nm = fabsf(kf.x[2]) + fabsf(kf.x[3]); /* block 1's slot */
+    return r;
+}
+
+static void test_transient_beyond_the_limit_at_rest_is_rolled_back(void)
+{
+    const transient_t wall = transient_at_rest(0.8, 30.0, AT_EVENT_NOTHING);
+    const transient_t turns = transient_at_rest(4.0, 4.0, AT_EVENT_NOTHING);
+    const transient_t turns_limit = transient_at_rest(4.0, 10.0, AT_EVENT_NOTHING);
+    const transient_t small = transient_at_rest(0.8, 1.5, AT_EVENT_NOTHING);
+    const transient_t toggled = transient_at_rest(0.8, 30.0, AT_EVENT_TOGGLE);
+    const transient_t wrong = transient_at_rest(0.8, 30.0, AT_EVENT_WRONG_IMPORT);
+    msg("30 N m transient at rest, motor +-0.8 rad: |filtered - true| %.4f N m before, %.4f "
+        "after (%u rollbacks); motor +-4 rad: 4 N m %.4f after (%u), 10 N m %.4f (%u); 1.5 N m: "
+        "%.4f after (%u)", wall.err_before_nm, wall.err_after_nm, (unsigned)wall.rollbacks,
+        turns.err_after_nm, (unsigned)turns.rollbacks, turns_limit.err_after_nm,
+        (unsigned)turns_limit.rollbacks, small.err_after_nm, (unsigned)small.rollbacks);
+    msg("block disabled mid-event: states %.4f N m after (%u rollbacks); a wrong line imported "
+        "at its start: %u rollbacks, %u restarts from zero, %u steps at the limit",
+        (double)toggled.disabled_state_nm, (unsigned)toggled.rollbacks,
+        (unsigned)wrong.rollbacks, (unsigned)wrong.resets, (unsigned)wrong.limited);
+    TEST_ASSERT_TRUE(wall.event && turns.event && turns_limit.event && small.event &&
+                     toggled.event && wrong.event);
+    TEST_ASSERT_GREATER_THAN_UINT32(0u, wall.rollbacks);
+    TEST_ASSERT_TRUE(wall.err_after_nm <= wall.err_before_nm + 0.01);
+    TEST_ASSERT_EQUAL_UINT32(0u, turns.rollbacks);
+    TEST_ASSERT_EQUAL_UINT32(0u, turns_limit.rollbacks);
+    TEST_ASSERT_EQUAL_UINT32(0u, small.rollbacks);
+    /* the limit still restarts it from zero: no endless going back */
+    TEST_ASSERT_GREATER_THAN_UINT32(0u, wrong.resets);
+    TEST_ASSERT_GREATER_THAN_UINT32(0u, toggled.rollbacks);
+    TEST_ASSERT_EQUAL_FLOAT(0.0f, toggled.disabled_state_nm);
+}
+
 /* The gate re-arms: two 10 N m load steps 1 s apart are two jumps, each
  * taken by the offset (the hold is for an effect that keeps the innovation
  * beyond the gate, not for the next event). */
@@ -1799,6 +1912,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_unmodelled_line_above_gate_takes_one_burst);
     RUN_TEST(test_load_beyond_gate_goes_to_offset_in_commissioning);
     RUN_TEST(test_jump_gate_rearms_for_the_next_step);
+    RUN_TEST(test_transient_beyond_the_limit_at_rest_is_rolled_back);
     RUN_TEST(test_correction_limit_holds_and_restarts);
     RUN_TEST(test_undeclared_line_twice_the_envelope_never_worse_than_raw);
     RUN_TEST(test_load_coeff_step_predicts_ripple);
