@@ -89,6 +89,14 @@
  *     each step beyond it restarts that count, and one beyond it with no
  *     jump left is HD_KF_STATUS_UNMODELLED, counted in jump_held_count (an
  *     effect the model lacks, not a load step);
+ *   - transients: the blocks' states are kept at an event's first step
+ *     beyond the jump gate.  An event whose innovation went beyond
+ *     correction_max_nm (> 0) while the motor angle spanned less than
+ *     HD_KF_EVENT_TURN_RAD is a transient: when it ends, and when the
+ *     correction limit would restart the filter within it (instead of
+ *     the restart), the blocks go back to those states (not their
+ *     covariance; rollback_count).  A block cleared, restarted or
+ *     imported during an event keeps what was written;
  *   - offset drift: with offset_drift_q_nm2 > offset_q_nm2 (an offset told
  *     to be slow because the load is known), a step beyond the jump gate
  *     (OFFSET_JUMP or UNMODELLED) says the load is not the known one: for
@@ -123,9 +131,10 @@
  *     the published correction), HD_KF_STATUS_LIMITED, counted in
  *     limit_count; once the steps at the limit outnumber those below it
  *     by HD_KF_LIMIT_RESTART_S, the filter restarts (hd_kf_reset after
- *     the step, HD_KF_STATUS_RESET, reset_count): an estimate beyond any
- *     physical ripple is wrong, and keeping it would only hold the output
- *     at the limit.
+ *     the step, HD_KF_STATUS_RESET, reset_count; within a transient, see
+ *     above, the blocks go back to its start instead): an estimate beyond
+ *     any physical ripple is wrong, and keeping it would only hold the
+ *     output at the limit.
  *
  *   - run-time toggles (hd_kf_set_block_enabled) change no other state.
  *
@@ -195,8 +204,7 @@ extern "C" {
 
 /* An event beyond the jump gate whose innovation went beyond
  * correction_max_nm while the motor angle spanned less than this [rad] (one
- * turn) is a transient, not a line: when it ends, the blocks go back to
- * their states before it. */
+ * turn) is a transient, not a line (the rule above). */
 #define HD_KF_EVENT_TURN_RAD 6.2831853f
 
 /* Offset drift gate (offset_drift_q_nm2 > offset_q_nm2): a step beyond the

@@ -26,7 +26,7 @@ from hdmaint.board import TargetError
 
 MHZ = 100
 BEGIN, END = "<!-- BEGIN generated:target-budget -->", "<!-- END generated:target-budget -->"
-PATHS = ("kfpartial", "kffrozen", "kflost", "kfclamp", "kfreset", "kfworst")
+PATHS = ("kfpartial", "kffrozen", "kflost", "kfclamp", "kfreset", "kfrollback", "kfworst")
 SIZES = {"4": 4, "6": 6, "8": 8, "default": 7, "max": 17}
 
 
@@ -49,7 +49,7 @@ def fake_counts() -> dict:
     c["isr:default"] = entry(7, 2000, 2600, 2500, 3000)        # 1.5
     c["isrcmd:default"] = entry(7, 2400, 3120, 3000, 3600)     # 1.5
     c["dense:default"] = entry(7, 6000, 6004, 9000, 12000)     # 2
-    for kind, mx in zip(PATHS, (700, 650, 900, 1000, 800, 1104)):
+    for kind, mx in zip(PATHS, (700, 650, 900, 1000, 800, 750, 1104)):
         c[f"{kind}:default"] = entry(7, mx - 4, mx, 1500, 2.5 * (mx - 4))  # 2.5
     # At 4 states the clamp path is the worst one.
     c["kfclamp:4"] = entry(4, 5000, 5000, 6000, 7000)
@@ -95,7 +95,7 @@ def test_slow_paths_pick_the_worst():
     assert (d["typical"], d["worst"], d["worst_path"]) == (520, 1104, "all at once")
     assert d["dense_ratio"] == 12.0                                 # 6000 / 500
     assert (paths["4"]["worst"], paths["4"]["worst_path"]) == (5000, "clamp")
-    assert paths["max"]["worst"] == 150 * 17 + 50                   # kfworst, i = 5
+    assert paths["max"]["worst"] == 150 * 17 + 60                   # kfworst, i = 6
 
 
 def test_mps2_tables():
@@ -115,11 +115,11 @@ def test_mps2_tables():
     assert "| 4 | 400 / 420 | 1400 / 2000 | 1800 / 2400 | 640 / 640 | 1.20 |" in lines
     assert ("| 7 (firmware default) | 900-1000 (10.4 us) | 2500-3000 (39.0 us) | "
             "3000-3600 (46.8 us) | 9000-12000 (120.1 us) |") in lines       # 6004*2/100
-    assert "| 7 (firmware default) | 520 | 700 | 650 | 900 | 1000 | 800 | 1104 | " \
+    assert "| 7 (firmware default) | 520 | 700 | 650 | 900 | 1000 | 800 | 750 | 1104 | " \
            "1104 (all at once) | 12.0 |" in lines
-    assert "| 4 | 420 | 600 | 610 | 620 | 5000 | 640 | 650 | 5000 (clamp) | 1.6 |" in lines
-    assert "| 17 (max) | 1720 | 2550 | 2560 | 2570 | 2580 | 2590 | 2600 | 2600 (all at once) " \
-           "| 6.8 |" in lines                                             # 40*289 / 1700
+    assert "| 4 | 420 | 600 | 610 | 620 | 5000 | 640 | 650 | 660 | 5000 (clamp) | 1.6 |" in lines
+    assert "| 17 (max) | 1720 | 2550 | 2560 | 2570 | 2580 | 2590 | 2600 | 2610 | " \
+           "2610 (all at once) | 6.8 |" in lines                                             # 40*289 / 1700
     # Memory, stack, heap and the command limits come through unchanged.
     assert "| flash | 40000 B | 512 KB | .text (code, constants, vector table) + .data image |" \
         in lines

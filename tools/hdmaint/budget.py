@@ -103,7 +103,7 @@ MODELS = [("4", ""), ("6", ""), ("8", ""), ("default", " (firmware default)"),
 # hd_kf_step's slow paths in the bench image (main_bench.c), worst last.
 KF_PATHS = [("kfpartial", "partial gains"), ("kffrozen", "over Nyquist"),
             ("kflost", "phase lost"), ("kfclamp", "clamp"), ("kfreset", "reset"),
-            ("kfworst", "all at once")]
+            ("kfrollback", "transient rolled back"), ("kfworst", "all at once")]
 TICK_PERIOD_US = 1000
 ALLOCATORS = ("malloc", "_malloc_r", "calloc", "realloc", "free", "_free_r", "_sbrk",
               "_sbrk_r", "sbrk")

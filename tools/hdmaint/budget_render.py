@@ -164,7 +164,8 @@ def render_budget(n: dict) -> str:
                 "path on every call: every gain fraction below 1, no block frozen (motor blocks "
                 "below q_motion_ref_rad, output_learn_scale 0.5); motor blocks over Nyquist; a "
                 "phase advance beyond four turns; every covariance block above p_max; a "
-                "non-finite state; all of them (but partial gains) with an offset jump):\n",
+                "non-finite state; a transient's event ending (its blocks going back); all of "
+                "them (but partial gains and the rollback) with an offset jump):\n",
                 md_table(["states", "typical"] + [name for _, name in KF_PATHS] +
                          ["worst case", "dense / typical (mean)"], rows)]
     return "\n".join(out)

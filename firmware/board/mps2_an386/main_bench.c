@@ -38,6 +38,9 @@
  *               the call (the reset); and all at once with a +-1000 N m
  *               innovation (phase lost, output block frozen, offset jump,
  *               clamp)
+ *   kfrollback:NAME  hd_kf_step ending a transient's event on every call
+ *               (written into the filter before it: the blocks go back to
+ *               their states at its start)
  *   kfpartial:NAME hd_kf_step with every gain fraction below 1 and no block
  *               frozen (Joseph weights on every tile): motor blocks below
  *               q_motion_ref_rad, output_learn_scale 0.5
@@ -200,7 +203,15 @@ static void bench_dense(const hd_fw_config_t *cfg)
     }
 }
 
-typedef enum { PATH_FROZEN, PATH_LOST, PATH_CLAMP, PATH_RESET, PATH_WORST, PATH_PARTIAL } kf_path_t;
+typedef enum {
+    PATH_FROZEN,
+    PATH_LOST,
+    PATH_CLAMP,
+    PATH_RESET,
+    PATH_WORST,
+    PATH_PARTIAL,
+    PATH_ROLLBACK
+} kf_path_t;
 
 /* hd_kf_step forced onto one of its slow paths on every call (see above). */
 static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
@@ -211,6 +222,9 @@ static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
     }
     if (path == PATH_PARTIAL) {
         kcfg.output_learn_scale = 0.5f; /* the operating mode's kind of value */
+    }
+    if (path == PATH_ROLLBACK) {
+        kcfg.offset_jump_nm = 1.0e5f; /* every step quiet: the written event ends */
     }
     if (hd_kf_init(&g_kf, &kcfg) != HD_KF_OK) {
         sh_exit(BOARD_EXIT_INIT);
@@ -231,10 +245,19 @@ static void bench_kf_path(const hd_fw_config_t *cfg_in, kf_path_t path)
         if (path == PATH_RESET) {
             g_kf.x[0] = (float)__builtin_nanf(""); /* a corrupted state */
         }
+        if (path == PATH_ROLLBACK) {
+            /* the last quiet step of a transient's event: the blocks go back */
+            g_kf.jump_hold_steps = 1u;
+            g_kf.event_peak_nm2 = 1.0e6f;
+            g_kf.event_angle_rad = g_kf.event_min_rad = g_kf.event_max_rad = 0.0f;
+        }
         hd_kf_output_t out;
         hd_mark_begin();
         hd_kf_step(&g_kf, &in, &out);
         hd_mark_end();
+    }
+    if (path == PATH_ROLLBACK && g_kf.rollback_count != CALLS) {
+        sh_exit(BOARD_EXIT_INIT); /* the path was not the one measured */
     }
 }
 
@@ -380,8 +403,8 @@ int main(void)
         bench_dense(&cfg);
         hd_mark_section();
 
-        static const char *const PATHS[] = {"kffrozen", "kflost", "kfclamp", "kfreset",
-                                            "kfworst", "kfpartial"};
+        static const char *const PATHS[] = {"kffrozen", "kflost",   "kfclamp",   "kfreset",
+                                            "kfworst",  "kfpartial", "kfrollback"};
         for (unsigned p = 0; p < sizeof PATHS / sizeof PATHS[0]; p++) {
             section(PATHS[p], MODELS[m].name, states);
             bench_kf_path(&cfg, (kf_path_t)p);
