@@ -196,3 +196,27 @@ def test_tune_keeps_the_gains_it_came_with_when_nothing_holds():
     v = cl.Variant("x", "raw", kp=0.3, ki=4.0, kd=0.0)
     t = ct.tune(v, conds, measure, contact=lambda v: [{"limit_cycle": True, "p2p_nm": 1.0}])
     assert not t["met"] and (v.kp, v.ki, v.kd) == (0.3, 4.0, 0.0)
+
+
+def test_tune_takes_the_best_rated_of_the_first_that_hold():
+    """Step 5: with a measure of the tracking, the first RATED_MAX
+    candidates that hold (every one here) are rated and the best taken; a
+    candidate after them is not rated, and one that cycles is not rated."""
+    measure, conds = _closed_form_measure(), ("0.5",)
+    found = ct.candidates(ct.measure_plants(cl.Variant("x", "raw"), conds, measure), 1.0)
+    assert len(found) > ct.RATED_MAX + 2
+    index = {_rounded(c): i for i, c in enumerate(found)}
+    contact, _ = _cycling_above(found, 1)          # the best cycles, the rest rest
+    rated = []
+
+    def rate(v):   # the third that holds tracks best
+        i = index[(v.kp, v.ki, v.kd)]
+        rated.append(i)
+        return 1.0 if i == 3 else 0.0
+    v = cl.Variant("x", "raw")
+    t = ct.tune(v, conds, measure, contact=contact, rate=rate)
+    assert rated == list(range(1, 1 + ct.RATED_MAX))
+    assert t["met"] and (v.kp, v.ki, v.kd) == _rounded(found[3])
+    v = cl.Variant("x", "raw")   # equals: the first of them, as without a rate
+    ct.tune(v, conds, measure, contact=contact, rate=lambda v: 0.0)
+    assert (v.kp, v.ki, v.kd) == _rounded(found[1])

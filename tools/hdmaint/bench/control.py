@@ -222,6 +222,17 @@ def wall_check(kds=WALL["kds"], measured: bool = False):
     return lambda v: [wall_contact(v, kd, measured) for kd in kds]
 
 
+def tracking_rate(seconds: float = CHIRP_S):
+    """The tuning's measure of the tracking (control_tune.tune's `rate`):
+    the mean log -3 dB bandwidth of the true torque's chirp response over
+    the benchmark's speeds, what the goal compares (a response below -3 dB
+    from the start counts as 0.5 Hz, as in the ranking)."""
+    def rate(v: cl.Variant) -> float:
+        bws = [chirp_response(v, s, seconds)["bandwidth_hz"] for s in SPEEDS_RAD_S]
+        return float(np.mean(np.log([0.5 if b is None else b for b in bws])))
+    return rate
+
+
 def integral_limit_nm(drive_friction_nm: float) -> float:
     """The torque loop's integral bound: what the integral is for (the drive
     train's friction between the current and the flexspline, measured open
@@ -261,7 +272,8 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
     for v in vs:
         log(f"tuning {v.key}...")
         tuning[v.key] = ct.tune(v, CONDITIONS, log=log,
-                                contact=wall_check(WALL["kds"][:1 if quick else None]))
+                                contact=wall_check(WALL["kds"][:1 if quick else None]),
+                                rate=tracking_rate(4.0 if quick else CHIRP_S))
     butters = [v for v in vs if v.key.startswith("butter")]
     rows = {}
     for v in vs:

@@ -22,6 +22,12 @@
    margin (the plant's nonlinearity: friction at standstill, the stick-slip
    of a stiff contact) or the contact limit-cycles, take the next best
    candidate of the grid, up to CHECKED_MAX of them.
+5. With a measure of the tracking itself (`rate`: the benchmark's chirps),
+   the first RATED_MAX candidates that hold are measured and the best
+   tracking of them is taken: the ranking's crossover rewards a rate term
+   that raises the loop gain but not the tracking (the rate acts on the
+   feedback only), whose response can graze -3 dB at half the bandwidth
+   of the next candidate (docs/decisions/control-bandwidth.md).
 The open-loop current (feedback none) has no loop and no tuning.
 """
 from __future__ import annotations
@@ -38,6 +44,8 @@ PM_DEG, GM_DB = 45.0, 6.0
 PEAK_DB = 10.0
 KP_GRID = np.geomspace(0.05, 40.0, 48)
 WI_GRID_RAD_S = 2 * math.pi * np.array([1.0, 2.0, 5.0, 10.0, 20.0, 40.0])  # ki / kp
+RATED_MAX = 4             # candidates that hold, compared by `rate` (the cost: three
+                          # chirps each)
 CHECKED_MAX = 60          # candidates measured again, best predicted first (the first
                           # that meets the margins is taken: a variant that met within
                           # 30 is unchanged; the ideal sensor's first is its 42nd)
@@ -166,7 +174,7 @@ def _fallback_order(n: int, first: int) -> list[int]:
 
 
 def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
-         contact=None) -> dict:
+         contact=None, rate=None) -> dict:
     """Tunes v in place; returns what the method found (for the results).
     contact(v) -> a list of wall-contact results (control.wall_contact's
     dicts, each with "limit_cycle"): a candidate that meets the margins but
@@ -174,7 +182,9 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
     (None: no contact check).  The best CHECKED_MAX candidates are checked
     in order; if none holds, the rest of the list from its conservative end
     (_fallback_order: the best that holds of the halving); if none of those
-    holds either, v keeps the gains it came with and "met" is False."""
+    holds either, v keeps the gains it came with and "met" is False.
+    rate(v) -> a number, larger better (None: the first that holds is
+    taken): of the first RATED_MAX candidates that hold, the best rated."""
     if v.feedback == "none":
         return {"method": "none (open loop)"}
     start = (v.kp, v.ki, v.kd)
@@ -185,17 +195,26 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
         v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
         log(f"{v.key}: no gains on the grid meet the margins in every condition")
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
-    checked, rejected, held = {}, [], None
+    checked, rejected, held, rated = {}, [], None, []
     for cand in found[:CHECKED_MAX]:
         ok, checked, walls = _check(v, cand, conditions, measure, contact)
-        if ok:
+        if ok and rate is None:
             held = (cand, checked, walls)
             break
+        if ok:
+            rated.append((rate(v), (cand, checked, walls)))
+            log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s holds, rated "
+                f"{rated[-1][0]:.3g}")
+            if len(rated) == RATED_MAX:
+                break
+            continue
         if walls:
             rejected.append({"kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd,
                              "wall_p2p_nm": max(w["p2p_nm"] for w in walls)})
             log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s meets the margins "
                 "but limit-cycles on the wall; next")
+    if rated:
+        held = max(rated, key=lambda r: r[0])[1]   # the first of equals
     fallback = held is None and len(found) > CHECKED_MAX
     if fallback:
         for i in _fallback_order(len(found), CHECKED_MAX):
