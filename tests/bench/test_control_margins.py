@@ -220,3 +220,18 @@ def test_tune_takes_the_best_rated_of_the_first_that_hold():
     v = cl.Variant("x", "raw")   # equals: the first of them, as without a rate
     ct.tune(v, conds, measure, contact=contact, rate=lambda v: 0.0)
     assert (v.kp, v.ki, v.kd) == _rounded(found[1])
+
+
+def test_tune_keeps_the_gains_it_came_with_when_the_grid_has_none():
+    """No gains on the grid meet the margins (a plant no PI holds): the
+    gains it came with stay, as when nothing checked holds."""
+    f = cl.multisine()[1] / (cl.MS_PERIOD * cl.TS_S)
+    z = np.exp(1j * 2 * math.pi * f * cl.TS_S)
+
+    def measure(v, scene):   # gain 1e4 and four ticks of delay: no PI on the grid holds
+        p = 1e4 * z ** -4
+        return cl.Response(f, cl.pi_response(f, v.kp, v.ki, v.kd) * p, p, p)
+    assert ct.candidates(ct.measure_plants(cl.Variant("x", "raw"), ("0.5",), measure), 1.0) == []
+    v = cl.Variant("x", "raw", kp=0.3, ki=4.0, kd=0.001)
+    t = ct.tune(v, ("0.5",), measure)
+    assert not t["met"] and (v.kp, v.ki, v.kd) == (0.3, 4.0, 0.001)

@@ -191,10 +191,11 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
     plants = measure_plants(v, conditions, measure)
     found = candidates(plants, v.ff)
     if not found:
-        # reported with the grid's weakest loop, marked as not meeting the margins
-        v.kp, v.ki = float(KP_GRID[0]), float(KP_GRID[0] * WI_GRID_RAD_S[0])
-        log(f"{v.key}: no gains on the grid meet the margins in every condition")
-        return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki}
+        # as when nothing checked holds: the gains it came with (a firmware
+        # keeps what it has), marked as not meeting the margins
+        log(f"{v.key}: no gains on the grid meet the margins in every condition; the gains "
+            "it came with are kept")
+        return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd}
     checked, rejected, held, rated = {}, [], None, []
     for cand in found[:CHECKED_MAX]:
         ok, checked, walls = _check(v, cand, conditions, measure, contact)
