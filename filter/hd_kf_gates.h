@@ -44,10 +44,17 @@ KF_INLINE bool event_was_transient(const hd_kf_t *kf)
 }
 
 /* The correction limit's restart within an event over less than a motor
- * turn: the states at its start are the restart. */
-KF_INLINE bool event_restores(const hd_kf_t *kf)
+ * turn: the states at its start are the restart, and the event ends here
+ * (the gate re-armed).  Returns whether it did. */
+KF_INLINE bool event_restores(hd_kf_t *kf)
 {
-    return kf->jump_hold_steps > 0u && kf->event_max_rad - kf->event_min_rad < HD_KF_EVENT_TURN_RAD;
+    if (kf->jump_hold_steps == 0u ||
+        !(kf->event_max_rad - kf->event_min_rad < HD_KF_EVENT_TURN_RAD)) {
+        return false;
+    }
+    kf->jump_hold_steps = 0u;
+    kf->jump_credit = HD_KF_JUMP_BURST;
+    return true;
 }
 
 /* Offset-jump gate: e beyond offset_jump_nm and 4 sigma, at most

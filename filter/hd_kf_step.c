@@ -475,10 +475,7 @@ KF_INLINE void step_layout(hd_kf_t *kf, const hd_kf_input_t *in, hd_kf_output_t 
     kf->frozen_mask = sum.frozen;
     kf->load_scale = c_load;
     if (UNLIKELY(restart) && event_restores(kf)) {
-        /* at the limit within a transient: its start is the restart */
-        kf->jump_hold_steps = 0u;
-        kf->jump_credit = HD_KF_JUMP_BURST;
-        restart = false;
+        restart = false; /* at the limit within a transient: back to its start */
         rollback = true;
     }
     if (UNLIKELY(rollback)) {

@@ -307,13 +307,13 @@ static int parse(int argc, char **argv, opts_t *o)
                         MAX_SETS, v);
                 return -1;
             }
-            const hd_fw_err_t bad =
-                hd_param_check(hd_param_by_key(v, (size_t)(eq - v)), (float)sv);
+            const hd_param_info_t *param = hd_param_by_key(v, (size_t)(eq - v));
+            const hd_fw_err_t bad = hd_param_check(param, (float)sv);
             if (bad != HD_FW_OK) {
                 fprintf(stderr, "hdctrl-bench: --set %s: %s\n", v, hd_fw_err_str(bad));
                 return -1;
             }
-            o->set_param[o->n_sets] = hd_param_by_key(v, (size_t)(eq - v));
+            o->set_param[o->n_sets] = param;
             o->set_value[o->n_sets++] = (float)sv;
         } else if (strcmp(k, "--input") == 0) {
             o->input = v;

@@ -143,12 +143,16 @@ def search(plants: list[PlantAt], ff: float) -> tuple[float, float, float, dict]
     return found[0] if found else None
 
 
+def _set_gains(v: cl.Variant, cand) -> None:
+    """v takes the candidate's gains as the law's defaults hold them (3 digits)."""
+    v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in cand[:3])
+
+
 def _check(v: cl.Variant, cand, conditions, measure, contact) -> tuple[bool, dict, list]:
     """Sets v to the candidate's gains (as the law's defaults hold them) and
     measures its loop in every condition and, if it meets the margins
     there, its wall contact: (accepted, {condition: Response}, walls)."""
-    kp, ki, kd, _ = cand
-    v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in (kp, ki, kd))
+    _set_gains(v, cand)
     checked = {c: measure(v, cl.scene_of(c)) for c in conditions}
     if not all(cl.meets(cl.margins(r.freq_hz, r.loop), PM_DEG, GM_DB)
                for r in checked.values()):
@@ -230,7 +234,7 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd,
                 "measured": ms, "wall_rejected": rejected, "fallback": fallback}
     cand, checked, walls = held
-    v.kp, v.ki, v.kd = (float(f"{x:.3g}") for x in cand[:3])
+    _set_gains(v, cand)
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
     log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
