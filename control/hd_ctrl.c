@@ -40,7 +40,7 @@ void hd_ctrl_config_default(hd_ctrl_config_t *cfg)
         .torque_kp = 0.86f,          /* tools/bench --only control: docs/results/control.md, "Tuning" */
         .torque_ki_per_s = 27.0f,    /*   (the product feedback's tuned row) */
         .torque_ff = 1.0f,
-        .torque_kd_s = 0.0005f,
+        .torque_kd_s = 0.0015f,
         .integral_limit_nm = 7.69f,  /* tools/bench --only control, as the gains */
         /* a sweep on the simulated joint: docs/decisions/control-integral-schedule.md */
         .integral_stiffness_nm_rad = 6000.0f,

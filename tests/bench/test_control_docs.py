@@ -43,6 +43,20 @@ def test_default_gains_are_the_tuned_ones():
     assert _default("integral_limit_nm") == RESULTS["integral_limit_nm"]
 
 
+def test_best_low_pass_is_one_that_met_the_margins():
+    """The goal compares at equal margins: the best low-pass is an order
+    whose tuning met them, and it has the most bandwidth at its worst speed
+    of those that did."""
+    best = RESULTS["best_butterworth"]
+    met = [k for k, t in RESULTS["tuning"].items() if k.startswith("butter") and t.get("met")]
+    assert best in met
+
+    def worst(k):
+        return min(RESULTS["rows"][k]["speeds"][s]["chirp"]["bandwidth_hz"] or 0.0
+                   for s in RESULTS["rows"][k]["speeds"])
+    assert worst(best) == max(worst(k) for k in met)
+
+
 def test_doc_section_is_the_results_tables():
     text = (ROOT / "docs" / "results" / "control.md").read_text()
     section = text.split(control_report.BEGIN, 1)[1].split(control_report.END, 1)[0]

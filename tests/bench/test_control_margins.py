@@ -200,26 +200,30 @@ def test_tune_keeps_the_gains_it_came_with_when_nothing_holds():
 
 def test_tune_takes_the_best_rated_of_the_first_that_hold():
     """Step 5: with a measure of the tracking, the first RATED_MAX
-    candidates that hold (every one here) are rated and the best taken; a
-    candidate after them is not rated, and one that cycles is not rated."""
+    candidates that hold (every one here) are rated; a later one replaces
+    the kept one only by more than the resolution.  A candidate after them
+    is not rated, and one that cycles is not rated."""
     measure, conds = _closed_form_measure(), ("0.5",)
     found = ct.candidates(ct.measure_plants(cl.Variant("x", "raw"), conds, measure), 1.0)
     assert len(found) > ct.RATED_MAX + 2
     index = {_rounded(c): i for i, c in enumerate(found)}
     contact, _ = _cycling_above(found, 1)          # the best cycles, the rest rest
-    rated = []
 
-    def rate(v):   # the third that holds tracks best
-        i = index[(v.kp, v.ki, v.kd)]
-        rated.append(i)
-        return 1.0 if i == 3 else 0.0
-    v = cl.Variant("x", "raw")
-    t = ct.tune(v, conds, measure, contact=contact, rate=rate)
-    assert rated == list(range(1, 1 + ct.RATED_MAX))
-    assert t["met"] and (v.kp, v.ki, v.kd) == _rounded(found[3])
-    v = cl.Variant("x", "raw")   # equals: the first of them, as without a rate
-    ct.tune(v, conds, measure, contact=contact, rate=lambda v: 0.0)
-    assert (v.kp, v.ki, v.kd) == _rounded(found[1])
+    def tuned(scores, resolution=0.1):
+        rated = []
+
+        def rate(v):
+            i = index[(v.kp, v.ki, v.kd)]
+            rated.append(i)
+            return scores.get(i, 0.0), resolution
+        v = cl.Variant("x", "raw")
+        t = ct.tune(v, conds, measure, contact=contact, rate=rate)
+        assert rated == list(range(1, 1 + ct.RATED_MAX)) and t["met"]
+        return index[(v.kp, v.ki, v.kd)]
+    assert tuned({3: 1.0}) == 3                     # better by more than the resolution
+    assert tuned({3: 0.05}) == 1                    # within it: the ranking's first
+    assert tuned({2: 0.15, 3: 0.2}) == 2            # 3 is within the resolution of 2
+    assert tuned({}) == 1                           # equals: the first
 
 
 def test_tune_keeps_the_gains_it_came_with_when_the_grid_has_none():

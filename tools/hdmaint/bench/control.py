@@ -34,6 +34,7 @@ CONDITIONS = tuple(str(s) for s in SPEEDS_RAD_S) + ("wall", "free")   # of the t
 TRANSPARENCY_SPEEDS_RAD_S = (0.2, 0.5, 1.0, 3.0)
 SETPOINT_NM = 10.0
 CHIRP_AMP_NM, CHIRP_F0_HZ, CHIRP_F1_HZ, CHIRP_S = 2.0, 0.5, 200.0, 10.0
+CHIRP_SEGMENT = 1000     # Welch segment [ticks]: the response's bins are 1 / (this TS) apart
 STEP_FROM_NM = 5.0
 BUTTER_ATTEN_DB = 20.0
 BUTTER_ORDERS = (1, 2, 4)
@@ -99,8 +100,8 @@ def chirp_response(v: cl.Variant, speed: float, seconds: float = CHIRP_S) -> dic
     sp = np.concatenate([np.full(settle, SETPOINT_NM), SETPOINT_NM + sweep])
     d = cl.simulate(v, cl.torque_scene(speed), sp)
     x, y = sp[settle:] - SETPOINT_NM, d["true_torque_nm"][settle:]
-    f, pxy = signal.csd(x, y - y.mean(), fs=1 / TS, nperseg=1000)
-    _, pxx = signal.welch(x, fs=1 / TS, nperseg=1000)
+    f, pxy = signal.csd(x, y - y.mean(), fs=1 / TS, nperseg=CHIRP_SEGMENT)
+    _, pxx = signal.welch(x, fs=1 / TS, nperseg=CHIRP_SEGMENT)
     band = (f >= 1.0) & (f <= CHIRP_F1_HZ)
     h = pxy[band] / pxx[band]
     bw = ct.bandwidth_hz(f[band], h)
@@ -226,10 +227,14 @@ def tracking_rate(seconds: float = CHIRP_S):
     """The tuning's measure of the tracking (control_tune.tune's `rate`):
     the mean log -3 dB bandwidth of the true torque's chirp response over
     the benchmark's speeds, what the goal compares (a response below -3 dB
-    from the start counts as 0.5 Hz, as in the ranking)."""
-    def rate(v: cl.Variant) -> float:
-        bws = [chirp_response(v, s, seconds)["bandwidth_hz"] for s in SPEEDS_RAD_S]
-        return float(np.mean(np.log([0.5 if b is None else b for b in bws])))
+    from the start counts as 0.5 Hz, as in the ranking), and its resolution:
+    one bin of the response at each speed, as the same mean (bin / bw)."""
+    bin_hz = 1.0 / (CHIRP_SEGMENT * TS)
+
+    def rate(v: cl.Variant) -> tuple[float, float]:
+        bws = np.array([chirp_response(v, s, seconds)["bandwidth_hz"] or 0.5
+                        for s in SPEEDS_RAD_S])
+        return float(np.mean(np.log(bws))), float(np.mean(bin_hz / bws))
     return rate
 
 
@@ -274,7 +279,9 @@ def run(quick: bool = False, log=lambda s: None) -> dict:
         tuning[v.key] = ct.tune(v, CONDITIONS, log=log,
                                 contact=wall_check(WALL["kds"][:1 if quick else None]),
                                 rate=tracking_rate(4.0 if quick else CHIRP_S))
+    # the best low-pass is compared at equal margins: among the orders whose tuning met them
     butters = [v for v in vs if v.key.startswith("butter")]
+    butters = [v for v in butters if tuning[v.key].get("met")] or butters
     rows = {}
     for v in vs:
         log(f"measuring {v.key}...")

@@ -23,8 +23,10 @@
    of a stiff contact) or the contact limit-cycles, take the next best
    candidate of the grid, up to CHECKED_MAX of them.
 5. With a measure of the tracking itself (`rate`: the benchmark's chirps),
-   the first RATED_MAX candidates that hold are measured and the best
-   tracking of them is taken: the ranking's crossover rewards a rate term
+   the first RATED_MAX candidates that hold are measured, and a later one
+   replaces the one kept only where it tracks better by more than the
+   measure's resolution (one bin of the response): the ranking's order
+   (crossover, then damping) decides between equals.  The crossover rewards a rate term
    that raises the loop gain but not the tracking (the rate acts on the
    feedback only), whose response can graze -3 dB at half the bandwidth
    of the next candidate (docs/decisions/control-bandwidth.md).
@@ -161,6 +163,16 @@ def _check(v: cl.Variant, cand, conditions, measure, contact) -> tuple[bool, dic
     return not any(w["limit_cycle"] for w in walls), checked, walls
 
 
+def _best_rated(rated: list) -> tuple:
+    """Of (score, resolution, held) in the ranking's order, the kept one:
+    a later one replaces it only by more than the larger resolution."""
+    keep = rated[0]
+    for r in rated[1:]:
+        if r[0] > keep[0] + max(r[1], keep[1]):
+            keep = r
+    return keep[2]
+
+
 def _fallback_order(n: int, first: int) -> list[int]:
     """The candidates after the first `first` (all failed) to try, most
     conservative (the last) first, then halving toward the best: the
@@ -187,8 +199,10 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
     in order; if none holds, the rest of the list from its conservative end
     (_fallback_order: the best that holds of the halving); if none of those
     holds either, v keeps the gains it came with and "met" is False.
-    rate(v) -> a number, larger better (None: the first that holds is
-    taken): of the first RATED_MAX candidates that hold, the best rated."""
+    rate(v) -> (score, resolution), larger better (None: the first that
+    holds is taken): of the first RATED_MAX candidates that hold, a later
+    one replaces the kept one where its score is higher by more than the
+    larger of the two resolutions."""
     if v.feedback == "none":
         return {"method": "none (open loop)"}
     start = (v.kp, v.ki, v.kd)
@@ -207,9 +221,9 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
             held = (cand, checked, walls)
             break
         if ok:
-            rated.append((rate(v), (cand, checked, walls)))
+            rated.append((*rate(v), (cand, checked, walls)))
             log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s holds, rated "
-                f"{rated[-1][0]:.3g}")
+                f"{rated[-1][0]:.3g} +- {rated[-1][1]:.2g}")
             if len(rated) == RATED_MAX:
                 break
             continue
@@ -219,7 +233,7 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
             log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s meets the margins "
                 "but limit-cycles on the wall; next")
     if rated:
-        held = max(rated, key=lambda r: r[0])[1]   # the first of equals
+        held = _best_rated(rated)
     fallback = held is None and len(found) > CHECKED_MAX
     if fallback:
         for i in _fallback_order(len(found), CHECKED_MAX):
