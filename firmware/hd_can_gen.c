@@ -280,6 +280,50 @@ int hd_can_decode_ctrl_state(const hal_can_frame_t *f, hd_can_ctrl_state_t *v)
     return 0;
 }
 
+void hd_can_pack_ident(const hd_can_ident_t *v, uint8_t data[HD_CAN_DLC])
+{
+    uint64_t w = 0u;
+    w |= (uint64_t)((uint32_t)hd_can_scale_int(v->cmd_a, HD_CAN_IDENT_CMD_A_LSB, 32767) & 0xFFFFu) << 0;
+    w |= (uint64_t)((uint32_t)hd_can_scale_int(v->drive_a, HD_CAN_IDENT_DRIVE_A_LSB, 32767) & 0xFFFFu) << 16;
+    w |= (uint64_t)((uint32_t)hd_can_scale_int(v->feedback_nm, HD_CAN_IDENT_FEEDBACK_NM_LSB, 32767) & 0xFFFFu) << 32;
+    w |= (uint64_t)(v->tick & 0xFFu) << 48;
+    w |= (uint64_t)(v->status & 0xFFu) << 56;
+    store_word(data, w);
+}
+
+uint32_t hd_can_unpack_ident(const uint8_t data[HD_CAN_DLC], hd_can_ident_t *v)
+{
+    const uint64_t w = load_word(data);
+    uint32_t na = 0u;
+    { const int32_t r = sext((uint32_t)(w >> 0) & 0xFFFFu, 16);
+      v->cmd_a = (float)r * HD_CAN_IDENT_CMD_A_LSB;
+      na |= (r == -32768) ? (1u << 0) : 0u; }
+    { const int32_t r = sext((uint32_t)(w >> 16) & 0xFFFFu, 16);
+      v->drive_a = (float)r * HD_CAN_IDENT_DRIVE_A_LSB;
+      na |= (r == -32768) ? (1u << 1) : 0u; }
+    { const int32_t r = sext((uint32_t)(w >> 32) & 0xFFFFu, 16);
+      v->feedback_nm = (float)r * HD_CAN_IDENT_FEEDBACK_NM_LSB;
+      na |= (r == -32768) ? (1u << 2) : 0u; }
+    v->tick = (uint8_t)((uint32_t)(w >> 48) & 0xFFu);
+    v->status = (uint8_t)((uint32_t)(w >> 56) & 0xFFu);
+    return na;
+}
+
+void hd_can_encode_ident(uint8_t node_id, const hd_can_ident_t *v, hal_can_frame_t *f)
+{
+    hd_can_frame_init(f, HD_CAN_FRAME_IDENT, node_id);
+    hd_can_pack_ident(v, f->data);
+}
+
+int hd_can_decode_ident(const hal_can_frame_t *f, hd_can_ident_t *v)
+{
+    if (!hd_can_frame_is(f, HD_CAN_FRAME_IDENT, NULL)) {
+        return -1;
+    }
+    (void)hd_can_unpack_ident(f->data, v);
+    return 0;
+}
+
 void hd_can_pack_heartbeat(const hd_can_heartbeat_t *v, uint8_t data[HD_CAN_DLC])
 {
     uint64_t w = 0u;

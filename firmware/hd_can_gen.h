@@ -86,6 +86,12 @@ typedef struct {
     float value_nm; /* ProfilePutValue [Nm]: a or b; line 0's a starts a new upload */
 } hd_can_cmd_profile_put_t;
 
+/* IDENT_START (0x74): an identification run: a multisine current added to the torque loop's command (TORQUE or ZERO_TORQUE), IDENT frames every tick */
+typedef struct {
+    uint8_t periods; /* IdentPeriods: periods of 2 s measured, after one to settle */
+    float rms_a; /* IdentRms [A]: the excitation's rms; its peak must stay within half ctrl_current_limit_a */
+} hd_can_cmd_ident_start_t;
+
 /* Is opcode one a host may send (an HD_OPCODE row below 0x80)? */
 bool hd_can_is_command(uint8_t opcode);
 /* Opcodes whose ACK carries a u32 (value_u32) instead of a float. */
@@ -227,6 +233,29 @@ void hd_can_encode_ctrl_state(uint8_t node_id, const hd_can_ctrl_state_t *v, hal
 /* 0, or -1 if f is not this frame type of a node of ours (8 bytes, classic). */
 int hd_can_decode_ctrl_state(const hal_can_frame_t *f, hd_can_ctrl_state_t *v);
 
+#define HD_CAN_IDENT_CMD_A_LSB 0.001f /* A */
+#define HD_CAN_IDENT_DRIVE_A_LSB 0.001f /* A */
+#define HD_CAN_IDENT_FEEDBACK_NM_LSB 0.01f /* Nm */
+#define HD_CAN_NA_IDENT_CMD_A (1u << 0u)
+#define HD_CAN_NA_IDENT_DRIVE_A (1u << 1u)
+#define HD_CAN_NA_IDENT_FEEDBACK_NM (1u << 2u)
+/* IDENT (type 0x07, joint -> host): every tick of an identification run (IDENT_START): the law's current, the drive's, the feedback torque */
+typedef struct {
+    float cmd_a; /* IdentCmd [A]: the law's q-axis current command (before the excitation) */
+    float drive_a; /* IdentDrive [A]: what the drive was told: the law's current plus the excitation, within ctrl_current_limit_a */
+    float feedback_nm; /* IdentFeedback [Nm]: the torque the law fed back */
+    uint8_t tick; /* IdentTick: the run's tick, low 8 bits (0 at the first) */
+    uint8_t status; /* IdentStatus: 0 running, 1 done (the run's last tick), 2 stopped: the mode changed or a fallback ran, 3 stopped: the excitation would have crossed ctrl_current_limit_a */
+} hd_can_ident_t;
+
+void hd_can_pack_ident(const hd_can_ident_t *v, uint8_t data[HD_CAN_DLC]);
+/* Returns the HD_CAN_NA_* bits of values not available (an int at its
+ * minimum, a checked float not finite); 0 if all are. */
+uint32_t hd_can_unpack_ident(const uint8_t data[HD_CAN_DLC], hd_can_ident_t *v);
+void hd_can_encode_ident(uint8_t node_id, const hd_can_ident_t *v, hal_can_frame_t *f);
+/* 0, or -1 if f is not this frame type of a node of ours (8 bytes, classic). */
+int hd_can_decode_ident(const hal_can_frame_t *f, hd_can_ident_t *v);
+
 /* CMD (type 0x10, host -> joint): command */
 typedef struct {
     uint8_t opcode; /* Opcode: the command (its arguments: HD_ARG rows) */
@@ -246,6 +275,7 @@ typedef struct {
         hd_can_cmd_profile_save_t profile_save;
         hd_can_cmd_profile_load_t profile_load;
         hd_can_cmd_profile_put_t profile_put;
+        hd_can_cmd_ident_start_t ident_start;
     } arg; /* by opcode; commands without arguments have no member */
 } hd_can_cmd_t;
 

@@ -33,6 +33,7 @@ bool hd_can_is_command(uint8_t opcode)
     case 0x71u: /* PROFILE_LOAD */
     case 0x72u: /* PROFILE_CLEAR */
     case 0x73u: /* PROFILE_PUT */
+    case 0x74u: /* IDENT_START */
         return true;
     default:
         return false;
@@ -106,6 +107,10 @@ void hd_can_pack_cmd(const hd_can_cmd_t *v, uint8_t data[HD_CAN_DLC])
         w |= (uint64_t)(v->arg.profile_put.order & 0xFFu) << 24;
         w |= (uint64_t)f32_bits(v->arg.profile_put.value_nm) << 32;
         break;
+    case HD_CMD_IDENT_START:
+        w |= (uint64_t)(v->arg.ident_start.periods & 0xFFu) << 16;
+        w |= (uint64_t)f32_bits(v->arg.ident_start.rms_a) << 32;
+        break;
     default:
         break;
     }
@@ -173,6 +178,11 @@ uint32_t hd_can_unpack_cmd(const uint8_t data[HD_CAN_DLC], hd_can_cmd_t *v)
         v->arg.profile_put.line = (uint8_t)((uint32_t)(w >> 16) & 0xFFu);
         v->arg.profile_put.order = (uint8_t)((uint32_t)(w >> 24) & 0xFFu);
         v->arg.profile_put.value_nm = bits_f32((uint32_t)(w >> 32) & 0xFFFFFFFFu);
+        break;
+    case HD_CMD_IDENT_START:
+        v->arg.ident_start.periods = (uint8_t)((uint32_t)(w >> 16) & 0xFFu);
+        v->arg.ident_start.rms_a = bits_f32((uint32_t)(w >> 32) & 0xFFFFFFFFu);
+        na |= isfinite(v->arg.ident_start.rms_a) ? 0u : (1u << 1);
         break;
     default:
         break;

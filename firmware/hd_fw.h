@@ -34,6 +34,7 @@
 #include "hal.h"
 #include "hd_calib_record.h"
 #include "hd_ctrl.h"
+#include "hd_excite.h"
 #include "hd_can_proto.h"
 #include "hd_fw_config.h"
 #include "hd_fw_stages.h"
@@ -141,6 +142,7 @@ typedef struct {
 #define HD_FW_REQ_BLOCK    0x08u /* enable/disable one block of the live filter */
 #define HD_FW_REQ_PROFILE  0x10u /* the live filter takes hd_fw_bg_state_t.profile */
 #define HD_FW_REQ_SNAPSHOT 0x20u /* export the live filter into hd_fw_filter_t.snapshot */
+#define HD_FW_REQ_IDENT    0x40u /* start the identification run hd_fw_ident_t holds */
 
 /* The background fills it and sets pending; the tick applies it at the
  * start of the next tick and clears pending. */
@@ -192,6 +194,25 @@ typedef struct {
     hd_ctrl_output_t out;           /* the last step's */
 } hd_fw_ctrl_state_t;
 
+/* The IDENT frame's status (hd_protocol.def, IdentStatus). */
+#define HD_FW_IDENT_PERIODS_MAX 60u /* IdentPeriods' range (hd_protocol.def) */
+#define HD_FW_IDENT_RUNNING 0u
+#define HD_FW_IDENT_DONE    1u
+#define HD_FW_IDENT_MODE    2u /* stopped: the mode changed, a fallback ran, the drive is off */
+#define HD_FW_IDENT_LIMIT   3u /* stopped: the excitation would have crossed the current limit */
+
+/* An identification run (hd_fw_ident.c): the background builds the
+ * waveform and the length while no run is on, then posts HD_FW_REQ_IDENT;
+ * the tick runs it and writes the rest. */
+typedef struct {
+    hd_excite_t excite;             /* background, only while !running */
+    uint32_t ticks_total;           /* background: (periods + 1) x HD_EXCITE_PERIOD_TICKS */
+    volatile bool running;          /* tick */
+    uint32_t tick;                  /* ticks run */
+    bool frame_pending;             /* an IDENT frame for publish */
+    hd_can_ident_t frame;
+} hd_fw_ident_t;
+
 /* Repeated deadline misses (the DAMP reaction): each missed tick adds this,
  * each tick takes 1 away; at HD_FW_MISS_DAMP_SCORE or more the controller
  * runs DAMP.  One late tick now and then never trips it; 3 within ~20 ticks do. */
@@ -235,6 +256,7 @@ typedef struct {
     hd_fw_ff_t ff;
     hd_fw_filter_t filter;
     hd_fw_ctrl_state_t control;     /* written by the tick only */
+    hd_fw_ident_t ident;
     hd_fw_telem_t telem;
     hd_fw_bg_state_t bg;
     hd_fw_sample_t last;

@@ -469,6 +469,15 @@ static bool finish_profile_save(hd_fw_t *fw)
 
 /* ------------------------------------------------------------- dispatch */
 
+static void ident_start(hd_fw_t *fw, const hd_can_cmd_ident_start_t *a, reply_t *r)
+{
+    r->aux = a->periods;
+    r->result = hd_fw_ident_prepare(fw, a, &r->value);
+    if (r->result == HD_CAN_RES_OK) {
+        post(fw, HD_FW_REQ_IDENT, 0u, 0u);
+    }
+}
+
 static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t *r)
 {
     switch (cmd->opcode) {
@@ -497,6 +506,7 @@ static void execute(hd_fw_t *fw, const hd_can_cmd_t *cmd, uint8_t node, reply_t 
     case HD_CMD_PROFILE_LOAD:
     case HD_CMD_PROFILE_CLEAR:
     case HD_CMD_PROFILE_PUT: profile_job(fw, cmd, node, r); break;
+    case HD_CMD_IDENT_START: ident_start(fw, &cmd->arg.ident_start, r); break;
     default: r->result = HD_CAN_RES_UNKNOWN_OPCODE; break; /* the decoder checks first */
     }
 }

@@ -271,7 +271,9 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults)
     if ((c->out.limits & HD_CTRL_LIM_FALLBACK) != 0u) {
         raised |= HD_FAULT_CTRL_FALLBACK;
     }
-    raised |= command_drive(fw, &c->out);
+    hd_ctrl_output_t to_drive = c->out;
+    to_drive.current_a = hd_fw_ident_drive(&fw->ident, &c->out, set->ctrl.cfg.current_limit_a);
+    raised |= command_drive(fw, &to_drive);
     if (c->sp_age_ticks < UINT32_MAX) {
         c->sp_age_ticks++;
     }

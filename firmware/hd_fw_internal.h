@@ -73,6 +73,14 @@ uint32_t hd_fw_control(hd_fw_t *fw, const hd_fw_sample_t *s, uint32_t faults);
 /* The law built from the boot settings by hd_fw_init: the first tick does
  * not pay for it (the tick rebuilds it only when the settings change). */
 void hd_fw_control_boot(hd_fw_t *fw);
+
+/* hd_fw_ident.c.  Background: prepares a run (an HD_CAN_RES_*; *peak_a the
+ * excitation's peak); the caller posts HD_FW_REQ_IDENT on HD_CAN_RES_OK. */
+int hd_fw_ident_prepare(hd_fw_t *fw, const hd_can_cmd_ident_start_t *a, float *peak_a);
+/* Tick: the request's start, and the current the drive is told this tick
+ * (the law's, plus the excitation while a run is on). */
+void hd_fw_ident_begin(hd_fw_ident_t *id);
+float hd_fw_ident_drive(hd_fw_ident_t *id, const hd_ctrl_output_t *law, float current_limit_a);
 /* A drive is present: the actuator part has enable and command_current
  * (inline: the tick asks up to three times). */
 static inline bool hd_fw_has_drive(const hd_fw_t *fw)

@@ -93,6 +93,11 @@ static void send_control(hd_fw_t *fw, bool telemetry_tick)
         hd_can_encode_ack(c->refuse_node, &a, &f);
         send_frame(fw, &f);
     }
+    if (fw->ident.frame_pending) {
+        fw->ident.frame_pending = false;
+        hd_can_encode_ident(node, &fw->ident.frame, &f);
+        send_frame(fw, &f);
+    }
     if (!telemetry_tick || !hd_fw_has_drive(fw)) {
         return;
     }

@@ -67,6 +67,9 @@ static void apply_request(hd_fw_t *fw)
     if (r->flags & HD_FW_REQ_SNAPSHOT) {
         k->snapshot_pending = true;
     }
+    if (r->flags & HD_FW_REQ_IDENT) {
+        hd_fw_ident_begin(&fw->ident);
+    }
     r->pending = 0u;
 }
 
