@@ -94,6 +94,9 @@ def render_budget(n: dict) -> str:
     control = f"isrctrl:{MODELS[0][0]}" in ins
     if control:
         kinds[3:3] = [("isrctrl", "ISR + control"), ("isrctrlcmd", "ISR + control + commands")]
+    ident = f"isrident:{MODELS[0][0]}" in ins
+    if ident:
+        kinds.insert(5, ("isrident", "ISR + control + identification run"))
     insn_rows, cycle_rows = [], []
     for key, note in MODELS:
         states = f"{ins[f'kf:{key}']['states']}{note}"
@@ -154,6 +157,16 @@ def render_budget(n: dict) -> str:
                 f"({ins['kf:max']['states']} states); the goal is at most 5 % "
                 f"({'met' if worst['default'] <= 0.05 * TICK_PERIOD_US else 'not met'} at the "
                 "default)."]
+    if control and ident:
+        w = {key: worst_us(ins[f"isrident:{key}"], mhz) for key in ("default", "max")}
+        out += [f"\nIdentification: 'ISR + control + identification run' is 'ISR + control' "
+                "with an IDENT_START in place of the first GAINS frame: from the next tick "
+                "the multisine's sample is added to the drive command and an IDENT frame goes "
+                "out every tick (the waveform is built by the background, outside the count).  "
+                "It runs while a joint is tuned (docs/how-to/tune-torque-loop.md), not in "
+                f"operation: {w['default']:.1f} us = {100 * w['default'] / TICK_PERIOD_US:.1f} % "
+                f"of the tick at the default, {w['max']:.1f} us = "
+                f"{100 * w['max'] / TICK_PERIOD_US:.1f} % with the largest filter."]
     if n["kf_paths"]:
         rows = []
         for key, note in MODELS:
@@ -204,7 +217,10 @@ def budget_summary(n: dict) -> dict:
                                        acks_out=n["tick_limits"]["acks"])}
         if f"isrctrl:{key}" in ins:
             for name, kind in (("tick_with_control", "isrctrl"),
-                               ("tick_with_control_and_commands", "isrctrlcmd")):
+                               ("tick_with_control_and_commands", "isrctrlcmd"),
+                               ("tick_with_identification", "isrident")):
+                if f"{kind}:{key}" not in ins:
+                    continue
                 c = ins[f"{kind}:{key}"]
                 per_states[str(kf["states"])][name] = dict(
                     timing(c, mhz), ratio_to_tick_max=round(c["max"] / isr["max"], 2),

@@ -22,7 +22,7 @@ from pathlib import Path
 from hdtools.safeio import HdError
 
 SUBCOMMANDS = ["analyze", "calib", "sim", "canlog", "monitor", "device", "profile",
-               "current", "fleet", "control"]
+               "current", "fleet", "control", "tune"]
 EXIT_INTERNAL = 4
 
 

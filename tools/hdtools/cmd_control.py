@@ -5,6 +5,7 @@ drive (issue 23; the frames: docs/reference/protocol.md, "Control frames").
   hdsense control can0 set impedance --position 0.2 --kp 50 --kd 1
   hdsense control can0 set stop
   hdsense control can0 step --to 10 [--from 0] [--mode torque] [--csv step.csv]
+  hdsense control can0 identify --condition clamped --out clamped.json  (hdtools.cmd_tune)
 
 set: GAINS first when --kp or --kd is given, then the setpoint, streamed at
 --rate for --hold seconds (0: sent once); prints the joint's CTRL_STATE
@@ -43,7 +44,7 @@ from . import protocol, safeio
 from .cmd_calib import _finite    # a finite float, or argparse's one-line error
 from .canshared import add_bus_arguments, node_id as _node
 from .monitor_state import CTRL_FLAGS, CTRL_LIMITS, CTRL_MODES, bit_names
-from .joint import BusError, NoAnswer, open_bus
+from .joint import BusError, Joint, NoAnswer, open_bus
 from .safeio import HdError, UsageError
 
 # The names where the firmware defines them (monitor_state reads control/hd_ctrl.h
@@ -83,6 +84,7 @@ class Controller:
         self.refused_op = protocol.by_name(protocol.opcodes(), "SETPOINT_REFUSED").code
         self.seq = 0
         self.records: list[Record] = []
+        self.on_frame = None        # sees every frame received (hdsense control identify)
 
     def _send(self, name: str, signals: dict) -> None:
         m = self.msg[name]
@@ -112,6 +114,8 @@ class Controller:
                 raise BusError(f"receive failed: {' '.join(str(exc).split())}") from None
             if msg is None:
                 return
+            if self.on_frame is not None:
+                self.on_frame(msg)
             if (msg.is_extended_id and not msg.is_error_frame and not msg.is_remote_frame
                     and not msg.is_fd and len(msg.data) == 8):
                 self._take(msg)
@@ -340,8 +344,43 @@ def cmd_step(args) -> list[str]:
             [f"csv = {args.csv}"] if args.csv else [])
 
 
+def cmd_identify(args) -> list[str]:
+    """An identification run in one condition (hdtools.cmd_tune, which
+    says what it measures); the measurement to --out."""
+    import json
+    from . import canproto, cmd_tune
+    db = canproto.load_db(args.node)
+    sig = {s.name: s for s in db.get_message_by_name("CMD").signals}
+    for name, v, flag in (("IdentRms", args.rms, "--rms"),
+                          ("IdentPeriods", args.periods, "--periods")):
+        if not sig[name].minimum <= v <= sig[name].maximum:
+            raise UsageError(f"{flag} {v:g} outside {sig[name].minimum:g}..{sig[name].maximum:g}")
+    check_ranges(args, db)
+    bus, c = _open(args)
+    try:
+        result, rows = cmd_tune.measure(c, Joint(bus, args.node, args.timeout), args.condition,
+                                        args.torque, args.rms, args.periods, args.settle,
+                                        args.rate)
+        c.stream((MODES.index("STOP"), 0.0, 0.0, 0.0), 0.0, args.rate)   # the run is over
+    finally:
+        bus.shutdown()
+    with safeio.Outputs() as out:
+        out.write_text(args.out, json.dumps(result, indent=1) + "\n")
+        out.commit()
+    m = {k: math.inf if v is None and k != "crossover_hz" else v
+         for k, v in result["margins"].items()}
+    return [f"condition = {args.condition} ({result['mode']}, {result['torque_nm']:g} N m)",
+            f"ticks = {len(rows)}",
+            f"excitation = {args.rms:g} A rms, {result['peak_a']:.3f} A peak",
+            "gains = kp {kp:.3g}, ki {ki_per_s:.3g}/s, kd {kd_s:.3g} s, ff {ff:.3g}".format(
+                **result["joint"]),
+            f"margins = {cmd_tune.margin_text(m)}",
+            f"out = {args.out}"]
+
+
 def run(args) -> int:
-    lines = cmd_set(args) if args.action == "set" else cmd_step(args)
+    act = {"set": cmd_set, "step": cmd_step, "identify": cmd_identify}[args.action]
+    lines = act(args)
     print("\n".join(lines))
     return 0
 
@@ -385,4 +424,18 @@ def register(subparsers) -> None:
     st.add_argument("--band", type=_ranged(1e-6, 1e3, "--band"), metavar="NM",
                     help="settling band (default 2 %% of the step)")
     st.add_argument("--csv", metavar="FILE", help="write the record")
+    from .cmd_tune import CONDITIONS
+    from .torque_loop import MS_RMS_A
+    i = acts.add_parser("identify", help="measure the torque loop in one condition (an "
+                        "identification run; `hdsense tune --help`)")
+    i.add_argument("--condition", required=True, choices=sorted(CONDITIONS),
+                   help="how the output is held: clamped, against a stiff wall, free")
+    i.add_argument("--torque", type=_finite, default=10.0, metavar="NM",
+                   help="TORQUE setpoint while clamped or on the wall (default 10)")
+    i.add_argument("--rms", type=_finite, default=MS_RMS_A, metavar="A",
+                   help=f"the excitation's rms current (default {MS_RMS_A:g})")
+    i.add_argument("--periods", type=int, default=3, help="periods of 2 s measured (default 3)")
+    i.add_argument("--settle", type=_ranged(0.0, 60.0, "--settle"), default=1.0, metavar="S",
+                   help="seconds held before the run (default 1)")
+    i.add_argument("--out", required=True, metavar="FILE", help="the measurement (JSON)")
     p.set_defaults(func=run)

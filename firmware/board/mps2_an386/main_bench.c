@@ -24,6 +24,10 @@
  *               GAINS frame, both decoded and checked by the tick itself)
  *   isrctrlcmd:NAME  the same board running TORQUE (one SETPOINT at tick 0)
  *               with the isrcmd command frames on every other tick
+ *   isrident:NAME  isrctrl with an identification run on (IDENT_START with
+ *               the first SETPOINT instead of GAINS; the waveform is built
+ *               by the background, outside the count): the excitation
+ *               added to the drive command and an IDENT frame every tick
  *   ctrl:default hd_ctrl_step alone, cycling TORQUE, IMPEDANCE, ZERO_TORQUE
  *               and DAMP over inputs that reach the velocity, position and
  *               current limits
@@ -267,13 +271,25 @@ static void push_frame(const hal_can_frame_t *f)
 }
 
 /* The control frames of tick k: a TORQUE SETPOINT and a GAINS frame. */
-static void push_control(const hd_fw_config_t *cfg, uint32_t k)
+/* ident: at tick 0 an IDENT_START (a long run at 0.05 A rms: its peak far
+ * from the current limit, so the run lasts the section) instead of GAINS. */
+static void push_control(const hd_fw_config_t *cfg, uint32_t k, bool ident)
 {
     const hd_can_setpoint_t sp = {HD_CTRL_TORQUE, (uint8_t)k, 2.0f + 0.01f * (float)(k % 50u),
                                   0.0f, 0.0f};
     hal_can_frame_t f;
     hd_can_encode_setpoint(cfg->node_id, &sp, &f);
     push_frame(&f);
+    if (ident && k == 0u) {
+        hd_can_cmd_t cmd;
+        memset(&cmd, 0, sizeof cmd);
+        cmd.opcode = HD_CMD_IDENT_START;
+        cmd.arg.ident_start.periods = 60u;
+        cmd.arg.ident_start.rms_a = 0.05f;
+        hd_can_encode_cmd(cfg->node_id, &cmd, &f);
+        push_frame(&f);
+        return;
+    }
     const hd_can_gains_t g = {50.0f + (float)(k % 7u), 1.0f};
     hd_can_encode_gains(cfg->node_id, &g, &f);
     push_frame(&f);
@@ -281,7 +297,8 @@ static void push_control(const hd_fw_config_t *cfg, uint32_t k)
 
 /* control: a drive in the HAL (the control stage runs); with commands,
  * one SETPOINT at tick 0 and the command frames on the other ticks. */
-static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick, bool control)
+static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick, bool control,
+                      bool ident)
 {
     hal_mock_init(&g_mock);
     hal_mock_bind(&g_mock, &g_hal);
@@ -302,7 +319,7 @@ static void bench_isr(const hd_fw_config_t *cfg, unsigned commands_per_tick, boo
         int32_t counts = (int32_t)(torque * volts_per_nm / cfg->adc_volts_per_count);
         (void)hal_mock_push(&g_mock, counts, (uint32_t)(int32_t)counts_f);
         if (control && (commands_per_tick == 0u || k == 0u)) {
-            push_control(cfg, k);
+            push_control(cfg, k, ident);
         }
         for (unsigned c = 0; c < ((control && k == 0u) ? 0u : commands_per_tick); c++) {
             hd_can_cmd_t cmd;
@@ -384,19 +401,27 @@ int main(void)
         hd_mark_section();
 
         section("isr", MODELS[m].name, states);
-        bench_isr(&cfg, 0u, false);
+        bench_isr(&cfg, 0u, false, false);
         hd_mark_section();
 
         section("isrcmd", MODELS[m].name, states);
-        bench_isr(&cfg, HD_FW_RX_PER_TICK, false);
+        bench_isr(&cfg, HD_FW_RX_PER_TICK, false, false);
         hd_mark_section();
 
         section("isrctrl", MODELS[m].name, states);
-        bench_isr(&cfg, 0u, true);
+        bench_isr(&cfg, 0u, true, false);
+        hd_mark_section();
+
+        section("isrident", MODELS[m].name, states);
+        bench_isr(&cfg, 0u, true, true);
+        if (!g_fw.ident.running) { /* the section measured a run, or it says so */
+            sh_puts("bench: the identification run did not run\n");
+            sh_exit(BOARD_EXIT_INIT);
+        }
         hd_mark_section();
 
         section("isrctrlcmd", MODELS[m].name, states);
-        bench_isr(&cfg, HD_FW_RX_PER_TICK, true);
+        bench_isr(&cfg, HD_FW_RX_PER_TICK, true, false);
         hd_mark_section();
 
         section("dense", MODELS[m].name, states);

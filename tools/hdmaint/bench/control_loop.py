@@ -31,14 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from hdtools.safeio import HdError
+from hdtools.torque_loop import (  # noqa: F401 - the benchmark's names for them
+    MS_PERIOD, MS_RMS_A, TS_S, Response, line_spectrum, loop_response, margins, meets,
+    multisine, pi_response)
 
-TS_S = 1e-3
 GEAR_RATIO = 100.0      # the law's defaults (control/hd_ctrl.c): what the firmware is told
 KT_NM_PER_A = 0.06
-MS_PERIOD = 2000        # multisine period [ticks]: 0.5 Hz lines
-MS_F_LO_HZ, MS_F_HI_HZ = 1.0, 450.0
-MS_LINES = 48
-MS_RMS_A = 0.4          # injection rms (2.4 N m at the output)
 RIPPLE_GUARD_HZ = 1.5
 PREROLL_SPEED_RAD_S, PREROLL_RAMP_S, PREROLL_RUN_S, PREROLL_HOLD_S = 3.0, 0.5, 1.5, 0.5
 
@@ -167,41 +165,6 @@ def simulate(variant: Variant, scene: Scene, setpoint_nm, inject_a=None,
     return {name: np.asarray(data[name][cut:]) for name in data.dtype.names}
 
 
-def multisine(period: int = MS_PERIOD, f_lo: float = MS_F_LO_HZ, f_hi: float = MS_F_HI_HZ,
-              lines: int = MS_LINES, rms: float = MS_RMS_A) -> tuple[np.ndarray, np.ndarray]:
-    """One period of a Schroeder-phased multisine on log-spaced FFT bins:
-    (signal, the excited bins)."""
-    df = 1.0 / (period * TS_S)
-    bins = np.unique(np.round(np.geomspace(f_lo, f_hi, lines) / df).astype(int))
-    k = np.arange(len(bins))
-    phase = -math.pi * k * (k + 1) / len(bins)
-    t = np.arange(period)
-    x = np.sum(np.cos(2 * math.pi * np.outer(bins, t) / period + phase[:, None]), axis=0)
-    return x * rms / np.sqrt(np.mean(x ** 2)), bins
-
-
-def line_spectrum(x: np.ndarray, period: int, bins: np.ndarray, skip: int = 1) -> np.ndarray:
-    """Complex amplitude at `bins`, averaged over the whole periods after
-    the first `skip` ones."""
-    n = (len(x) // period - skip) * period
-    seg = np.asarray(x[skip * period: skip * period + n], dtype=float)
-    seg = seg.reshape(-1, period) - seg.mean()
-    return np.fft.rfft(seg, axis=1)[:, bins].mean(axis=0)
-
-
-@dataclass
-class Response:
-    freq_hz: np.ndarray
-    loop: np.ndarray          # L(jw)
-    plant: np.ndarray         # P(jw): feedback torque per drive current / (N kt)
-    true_plant: np.ndarray    # the same for the true output torque
-
-    def to_json(self) -> dict:
-        return {"freq_hz": self.freq_hz.round(3).tolist(),
-                "loop_db": (20 * np.log10(np.abs(self.loop))).round(2).tolist(),
-                "loop_phase_deg": np.degrees(np.angle(self.loop)).round(1).tolist()}
-
-
 def measure_loop(variant: Variant, scene: Scene, setpoint_nm: float = 10.0, periods: int = 3,
                  seed: int = 0x5EED) -> Response:
     """L and P of `variant` at `scene`, by injection at the plant input.
@@ -211,12 +174,10 @@ def measure_loop(variant: Variant, scene: Scene, setpoint_nm: float = 10.0, peri
     inj = np.tile(one, periods + 1)
     d = simulate(variant, scene, np.full(len(inj), setpoint_nm), inj, seed=seed)
     x = d["cmd_a"] + d["inject_a"]
-    spec_x = line_spectrum(x, MS_PERIOD, bins)
-    loop = -line_spectrum(d["cmd_a"], MS_PERIOD, bins) / spec_x
     nkt = GEAR_RATIO * KT_NM_PER_A
-    plant = line_spectrum(d["fb_nm"], MS_PERIOD, bins) / spec_x / nkt
-    true_plant = line_spectrum(d["true_torque_nm"], MS_PERIOD, bins) / spec_x / nkt
-    f = bins / (MS_PERIOD * TS_S)
+    f, loop, plant = loop_response(d["cmd_a"], x, d["fb_nm"], nkt, bins)
+    true_plant = line_spectrum(d["true_torque_nm"], MS_PERIOD, bins) / \
+        line_spectrum(x, MS_PERIOD, bins) / nkt
     keep = np.ones(len(f), dtype=bool)
     for order in (2, 4):
         line_hz = order * GEAR_RATIO * abs(scene.speed_rad_s) / (2 * math.pi)
@@ -224,55 +185,3 @@ def measure_loop(variant: Variant, scene: Scene, setpoint_nm: float = 10.0, peri
     return Response(f[keep], loop[keep], plant[keep], true_plant[keep])
 
 
-def pi_response(freq_hz, kp: float, ki: float, kd: float = 0.0, ts: float = TS_S) -> np.ndarray:
-    """The law's PI (hd_ctrl.c: u = kp e + I, I += ki ts e after u) and its
-    rate term on the feedback (u -= kd (fb - fb_prev) / ts):
-    C(z) = kp + ki ts / (z - 1) + kd (1 - 1/z) / ts, at z = exp(j w ts).
-    With kd the feedback's path; the setpoint's is the same with kd = 0."""
-    z = np.exp(1j * 2 * math.pi * np.asarray(freq_hz) * ts)
-    return kp + ki * ts / (z - 1.0) + kd * (1.0 - 1.0 / z) / ts
-
-
-def _crossings(f: np.ndarray, y: np.ndarray) -> list[tuple[int, float]]:
-    """(i, t): y changes sign between f[i] and f[i+1], at fraction t (linear
-    in log f)."""
-    out = []
-    for i in range(len(y) - 1):
-        if y[i] == 0.0 or (y[i] > 0) != (y[i + 1] > 0):
-            t = 0.0 if y[i] == y[i + 1] else y[i] / (y[i] - y[i + 1])
-            out.append((i, t))
-    return out
-
-
-def _at(f: np.ndarray, i: int, t: float) -> float:
-    return float(np.exp(np.log(f[i]) + t * (np.log(f[i + 1]) - np.log(f[i]))))
-
-
-def margins(freq_hz, loop) -> dict:
-    """Phase margin [deg], gain margin [dB], crossover [Hz] of L sampled at
-    freq_hz (ascending).  No gain crossover: pm = inf; no phase crossover:
-    gm = inf (within the band measured)."""
-    f = np.asarray(freq_hz, dtype=float)
-    if not np.all(np.abs(loop) > 0):
-        return {"pm_deg": math.inf, "gm_db": math.inf, "crossover_hz": None,
-                "phase_crossover_hz": None}
-    mag_db = 20 * np.log10(np.abs(loop))
-    phase = np.unwrap(np.angle(loop))  # rad, continuous from the lowest line's (-pi, pi]
-    pm, wc = math.inf, None
-    for i, t in _crossings(f, mag_db):
-        ph = phase[i] + t * (phase[i + 1] - phase[i])
-        deg = math.degrees(ph)
-        pm = min(pm, 180.0 + deg - 360.0 * math.ceil(deg / 360.0))  # the angle in (-360, 0]
-        wc = _at(f, i, t)
-    gm, w180 = math.inf, None
-    for m in range(-4, 3):                      # phase crossings of -180 + 360 m
-        target = -math.pi + 2 * math.pi * m
-        for i, t in _crossings(f, phase - target):
-            g = -(mag_db[i] + t * (mag_db[i + 1] - mag_db[i]))
-            if g < gm:
-                gm, w180 = g, _at(f, i, t)
-    return {"pm_deg": pm, "gm_db": gm, "crossover_hz": wc, "phase_crossover_hz": w180}
-
-
-def meets(m: dict, pm_deg: float = 45.0, gm_db: float = 6.0) -> bool:
-    return m["pm_deg"] >= pm_deg and m["gm_db"] >= gm_db

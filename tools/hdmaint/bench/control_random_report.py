@@ -297,8 +297,8 @@ def _autotune_row(d: dict, src: str) -> list[tuple[str, str, str]]:
     bw = a["speeds"]["0.5"]["bandwidth"]
     return [(
         "The same joints, the tuning method run on each in the simulation from what a test "
-        "on the joint measures at a standstill (no moving dynamometer, no true torque; not yet "
-        "a command of `hdsense control`)",
+        "on the joint measures at a standstill (no moving dynamometer, no true torque; on a "
+        "joint: `hdsense control identify` and `hdsense tune`, step 4 by hand)",
         f"within on **{a['within']} of {a['joints']}** (margins alone {a['margins_met']}, no "
         f"wall cycle {a['no_wall_cycle']}); bandwidth at 0.5 rad/s median {bw['median']:.0f} Hz, "
         f"10th percentile {bw['tail']:.0f} Hz", src)]

@@ -34,50 +34,17 @@ The open-loop current (feedback none) has no loop and no tuning.
 """
 from __future__ import annotations
 
-import dataclasses
-import itertools
-import math
-
-import numpy as np
+from hdtools.torque_loop import (  # noqa: F401 - the method's names for them
+    GM_DB, KD_GRID_S, KP_GRID, MARGINS_ONLY, PEAK_DB, PM_DEG, WI_GRID_RAD_S, PlantAt,
+    acceptable, bandwidth_hz, candidates, predict)
 
 from . import control_loop as cl
 
-PM_DEG, GM_DB = 45.0, 6.0
-PEAK_DB = 10.0
-KP_GRID = np.geomspace(0.05, 40.0, 48)
-WI_GRID_RAD_S = 2 * math.pi * np.array([1.0, 2.0, 5.0, 10.0, 20.0, 40.0])  # ki / kp
 RATED_MAX = 4             # candidates that hold, compared by `rate` (the cost: three
                           # chirps each)
 CHECKED_MAX = 60          # candidates measured again, best predicted first (the first
                           # that meets the margins is taken: a variant that met within
                           # 30 is unchanged; the ideal sensor's first is its 42nd)
-MARGINS_ONLY = ("free",)   # conditions judged on the margins alone
-KD_GRID_S = (0.0, 5e-4, 1e-3, 1.5e-3, 2e-3, 3e-3, 4e-3)   # the feedback's rate term
-
-
-def bandwidth_hz(freq_hz, h) -> float | None:
-    """The lowest frequency where |h| falls below 1/sqrt(2) (log-linear
-    interpolation); None if |h| is below it at the lowest line, inf if
-    never within the band."""
-    f = np.asarray(freq_hz, dtype=float)
-    below = np.abs(h) < 1.0 / math.sqrt(2.0)
-    if below[0]:
-        return None
-    idx = np.flatnonzero(below)
-    if len(idx) == 0:
-        return math.inf
-    i = idx[0]
-    a0, a1 = 20 * np.log10(np.abs(h[i - 1])), 20 * np.log10(np.abs(h[i]))
-    t = (a0 + 3.0103) / (a0 - a1) if a0 != a1 else 0.0
-    return float(np.exp(np.log(f[i - 1]) + t * (np.log(f[i]) - np.log(f[i - 1]))))
-
-
-@dataclasses.dataclass
-class PlantAt:
-    condition: str
-    freq_hz: np.ndarray
-    p_fb: np.ndarray
-    p_true: np.ndarray
 
 
 def measure_plants(v: cl.Variant, conditions, measure=cl.measure_loop) -> list[PlantAt]:
@@ -86,57 +53,6 @@ def measure_plants(v: cl.Variant, conditions, measure=cl.measure_loop) -> list[P
         r = measure(v, cl.scene_of(c))
         out.append(PlantAt(c, r.freq_hz, r.plant, r.true_plant))
     return out
-
-
-def predict(p: PlantAt, kp: float, ki: float, ff: float,
-            kd: float = 0.0) -> tuple[dict, float | None]:
-    """Margins of C P_fb and the predicted tracking bandwidth; margins gets
-    the tracking peak (peak_db) too.  The rate term acts on the feedback
-    only: L = C_fb P_fb, H = P_true (ff + C_ref) / (1 + L)."""
-    loop = cl.pi_response(p.freq_hz, kp, ki, kd) * p.p_fb
-    h = p.p_true * (ff + cl.pi_response(p.freq_hz, kp, ki)) / (1.0 + loop)
-    m = cl.margins(p.freq_hz, loop)
-    m["peak_db"] = float(20 * np.log10(np.abs(h).max()))
-    return m, bandwidth_hz(p.freq_hz, h)
-
-
-def acceptable(m: dict, tracking: bool = True) -> bool:
-    """The margins, and no tracking peak above PEAK_DB (a loop whose
-    feedback lags can meet the margins with a proportional kick that
-    overshoots many-fold: the peak rules it out).  A margins-only
-    condition (the free output: nothing holds the torque, it tracks no
-    setpoint; its "response" is the free flexspline mode) has no peak bound."""
-    return cl.meets(m, PM_DEG, GM_DB) and (not tracking or m.get("peak_db", 0.0) <= PEAK_DB)
-
-
-def _score(bws, crossovers) -> tuple[float, float]:
-    """(mean log crossover, mean log predicted bandwidth) over the conditions:
-    a crossover or bandwidth below the lowest line counts as 0.5 Hz, a
-    bandwidth beyond the band as 500 Hz."""
-    w = [0.5 if x is None else x for x in crossovers]
-    b = [0.5 if x is None else min(x, 500.0) for x in bws]
-    return float(np.mean(np.log(w))), float(np.mean(np.log(b)))
-
-
-def candidates(plants: list[PlantAt], ff: float) -> list[tuple[float, float, float, dict]]:
-    """The grid's gains meeting the margins in every condition, best first:
-    (kp, ki, kd, {condition: predicted margins and bandwidth})."""
-    scored = []
-    tracking = [p.condition not in MARGINS_ONLY for p in plants]
-    for kp, wi, kd in itertools.product(KP_GRID, WI_GRID_RAD_S, KD_GRID_S):
-        ki = float(kp * wi)
-        if ki > 5000.0:
-            continue
-        preds = [predict(p, float(kp), ki, ff, float(kd)) for p in plants]
-        if not all(acceptable(m, t) for (m, _), t in zip(preds, tracking)):
-            continue
-        score = _score([b for (_, b), t in zip(preds, tracking) if t],
-                       [m["crossover_hz"] for m, _ in preds])
-        scored.append((score, (float(kp), ki, float(kd),
-                               {p.condition: {"margins": m, "bandwidth_hz": b}
-                                for p, (m, b) in zip(plants, preds)})))
-    scored.sort(key=lambda x: x[0], reverse=True)
-    return [c for _, c in scored]
 
 
 def search(plants: list[PlantAt], ff: float) -> tuple[float, float, float, dict] | None:
