@@ -343,6 +343,27 @@ def ideal_bound(rows: dict, best: str, margins_met: bool = True) -> list[dict]:
     return out
 
 
+def ripple_bound(rows: dict, speed: str) -> dict:
+    """The open-loop drive's true 2x ripple over raw feedback's at `speed`:
+    what a feedback that leaves the 2x line alone reaches.  The gauge sees
+    the real meshing ripple and its own artifact at the same order; a loop
+    that acted on the line would turn the artifact into torque (raw), and
+    even the ideal sensor's loop, fed the real ripple alone, amplifies it at
+    these frequencies (its row); only a cancellation that knew the meshing
+    ripple apart (a feed-forward) could go below."""
+    line = {k: rows[k]["speeds"][speed]["ripple"]["line2_nm"]
+            for k in ("open_loop", PRODUCT_KEY, "raw", IDEAL_KEY) if k in rows}
+    x = line["open_loop"] / line["raw"]
+    return {"goal": "open-loop ripple (a bound, not a product variant): the open-loop drive's "
+                    "true-torque 2x ripple / raw's, where the ripple goal is worst (what a "
+                    "feedback that leaves the 2x line alone reaches)",
+            "kind": "bound", "worst": x, "met": None, "speed_rad_s": float(speed),
+            "where": f"{speed} rad/s: " + ", ".join(f"{k} {v:.3f}" for k, v in line.items())
+                     + " N m",
+            "status": ("0.5x reachable" if x <= 0.5 else
+                       "0.5x UNREACHABLE without cancelling the meshing ripple")}
+
+
 def _hz(row: dict, s: float) -> str:
     c = row["speeds"][str(s)]["chirp"]
     b = c["bandwidth_hz"]
@@ -381,6 +402,8 @@ def goals(rows: dict, best: str, transp: dict, imp: dict, wall: list,
         out.append({"goal": f"true-torque 2x ripple {PRODUCT_KEY} (the product feedback) "
                             "<= 0.5x raw", "worst": rr[worst],
                     "where": f"{worst} rad/s", "met": rr[worst] <= 0.5, "ratios": rr})
+        if "open_loop" in rows:
+            out.append(ripple_bound(rows, worst))
     tr = {s: t["ratio"] for s, t in transp.items()}
     worst = max(tr, key=tr.get)
     out.append({"goal": "back-drive in ZERO_TORQUE <= 0.1x the open-loop drive's",
