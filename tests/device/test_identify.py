@@ -147,6 +147,8 @@ def test_tune_finds_gains_meeting_the_margins(capsys, tmp_path):
         m = tl.margins(f, tl.pi_response(f, kp, ki, kd) * _lag_plant(f, tau))
         assert m["pm_deg"] >= tl.PM_DEG - 1.0 and m["gm_db"] >= tl.GM_DB - 0.2
     assert "phase margin" in s["predicted_clamped"] and "phase margin" in s["predicted_wall"]
+    nxt = [s[f"next_{i}"] for i in (1, 2, 3)]       # the ranking's next, for step 4 by hand
+    assert len(set(nxt)) == 3 and "next_4" not in s
 
 
 def test_tune_bad_input_is_one_line(capsys, tmp_path):

@@ -23,7 +23,7 @@ tune: the method's search (predicted margins >= 45 deg and 6 dB and a
 tracking peak <= 10 dB in every condition given; the free output on the
 margins alone) over the plants of the files, ranked by crossover; prints
 the best gains, as the parameter table holds them, with their predicted
-margins.  What it cannot do from files: measure the chosen loop again and
+margins, and the next --next candidates of the ranking.  What it cannot do from files: measure the chosen loop again and
 run the wall contact (the method's step 4); run identify again with the new
 gains for the measured margins.
 
@@ -182,6 +182,9 @@ def cmd_tune(args) -> list[str]:
         m, bw = pred[c]["margins"], pred[c]["bandwidth_hz"]
         lines.append(f"predicted_{c} = {margin_text(m)}, tracking peak "
                      f"{m['peak_db']:.1f} dB, bandwidth {_fmt(bw, '.1f', ' Hz')}")
+    # the next ones down the ranking: step 4 by hand, where the first fails
+    lines += [f"next_{i} = kp {c[0]:.3g}, ki {c[1]:.3g}/s, kd {c[2]:.3g} s"
+              for i, c in enumerate(found[1:1 + args.next], start=1)]
     return lines
 
 
@@ -199,4 +202,7 @@ def register(subparsers) -> None:
     p.add_argument("--version", action="version", version=f"hdsense tune {version()}")
     p.add_argument("files", nargs="+", metavar="FILE", help="identify --out files, one per "
                    "condition")
+    p.add_argument("--next", type=int, default=3, choices=range(0, 21), metavar="N",
+                   help="also print the next N candidates of the ranking (0..20, default 3): "
+                   "the ones to try where the first misses a margin when measured")
     p.set_defaults(func=run)

@@ -35,4 +35,4 @@ def autotune(v: cl.Variant) -> tuple[cl.Variant, dict]:
     res = ct.tune(t, CONDITIONS, measure=measured_loop,
                   contact=control.wall_check(measured=True))
     return t, {"met": bool(res.get("met")), "fallback": bool(res.get("fallback")),
-               "kp": t.kp, "ki_per_s": t.ki, "kd_s": t.kd}
+               "rank": res.get("rank"), "kp": t.kp, "ki_per_s": t.ki, "kd_s": t.kd}

@@ -233,7 +233,9 @@ def autotune_summary(joints: list[dict]) -> dict:
     names = [j["name"] for j in joints]
     out = {"joints": len(a), "met": sum(x["met"] for x in a),
            "fallback": sum(x["met"] and x["fallback"] for x in a),
-           "kept_defaults": sum(not x["met"] for x in a)}
+           "kept_defaults": sum(not x["met"] for x in a),
+           # the prediction's best (steps 1-3: what `hdsense tune` prints) held
+           "first_held": sum(x["met"] and x.get("rank") == 1 for x in a)}
     for k in ("kp", "ki_per_s", "kd_s"):
         v = [x[k] for x in a]
         out[k] = {"min": min(v), "median": _q(v, 0.5), "max": max(v),

@@ -256,7 +256,10 @@ def autotune_lines(res: dict) -> list[str]:
             "feedback's torque per drive current, the wall judged on the filtered torque. "
             f"Gains that hold in those conditions found on {_pct(a['met'], n)} "
             f"({a['fallback']} of them from the conservative end of the list), the defaults "
-            f"kept on {_pct(a['kept_defaults'], n)}.", "",
+            f"kept on {_pct(a['kept_defaults'], n)}"
+            + (f"; the prediction's best (steps 1-3, what `hdsense tune` prints before the "
+               f"re-measurement) held on {_pct(a['first_held'], n)}" if "first_held" in a
+               else "") + ".", "",
             "| gain | least | median | most (joint) |", "|---|---|---|---|",
             f"| kp | {g['kp']['min']:.3g} | {g['kp']['median']:.3g} | "
             f"{g['kp']['max']:.3g} ({g['kp']['at_max']}) |",

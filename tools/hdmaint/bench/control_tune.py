@@ -164,11 +164,12 @@ def tune(v: cl.Variant, conditions, measure=cl.measure_loop, log=lambda s: None,
         return {"method": "grid", "met": False, "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd,
                 "measured": ms, "wall_rejected": rejected, "fallback": fallback}
     cand, checked, walls = held
+    rank = next(i for i, c in enumerate(found) if c is cand) + 1
     _set_gains(v, cand)
     ms = {s: cl.margins(r.freq_hz, r.loop) for s, r in checked.items()}
     log(f"{v.key}: kp {v.kp:.3g}, ki {v.ki:.3g}/s, kd {v.kd:.3g} s; measured "
         + ", ".join(f"{s}: PM {m['pm_deg']:.0f} deg GM {m['gm_db']:.1f} dB" for s, m in ms.items()))
-    return {"method": "grid", "met": True,
+    return {"method": "grid", "met": True, "rank": rank,
             "kp": v.kp, "ki_per_s": v.ki, "kd_s": v.kd, "predicted": cand[3], "measured": ms,
             "wall": walls, "wall_rejected": rejected, "fallback": fallback,
             "loops": {s: r.to_json() for s, r in checked.items()}}
