@@ -84,7 +84,7 @@ CLASS_TEXT = {
     "canlog": "hdsense canlog decode / commands",
     "calib": "hdsense calib: data it cannot judge, dates, serials, outputs",
     "hdsense": "hdsense command line in general",
-    "joint-tools": "hdsense profile, current, device, send, monitor, control; hdjoint-host --profile, --cmd-at",
+    "joint-tools": "hdsense profile, current, device, send, monitor, control, tune; hdjoint-host --profile, --cmd-at",
     "ros2": "MCAP / rosbag2 in and out: hdsense analyze on bags, canlog convert, monitor --mcap",
     "fleet": "hdsense fleet: corrupt logs, other gear ratios, no identity, empty inputs, scheduler, store, full disk",
 }

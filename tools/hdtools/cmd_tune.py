@@ -147,7 +147,7 @@ def margin_text(m: dict) -> str:
 def load(path: str) -> dict:
     """A measurement written by identify (UsageError if it is not one)."""
     try:
-        d = json.loads(safeio.read_text(path))
+        d = json.loads(safeio.read_text(path).removeprefix("\ufeff"))     # a BOM is not content
         if d.get("format") != FORMAT or d.get("condition") not in CONDITIONS:
             raise ValueError("not an identify measurement")
         f = np.array(d["freq_hz"], dtype=float)
@@ -188,21 +188,14 @@ def cmd_tune(args) -> list[str]:
     return lines
 
 
-def run(args) -> int:
-    print("\n".join(cmd_tune(args)))
-    return 0
-
-
-def register(subparsers) -> None:
+def register(sub) -> None:
     import argparse
-    from .cli import version
-    p = subparsers.add_parser("tune", help="the torque loop's gains from `hdsense control "
-                              "identify` measurements", description=__doc__,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--version", action="version", version=f"hdsense tune {version()}")
+    p = sub.add_parser("tune", help="the torque loop's gains from `hdsense control identify` "
+                       "measurements", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("files", nargs="+", metavar="FILE", help="identify --out files, one per "
                    "condition")
     p.add_argument("--next", type=int, default=3, choices=range(0, 21), metavar="N",
                    help="also print the next N candidates of the ranking (0..20, default 3): "
                    "the ones to try where the first misses a margin when measured")
-    p.set_defaults(func=run)
+    p.set_defaults(func=lambda args: print("\n".join(cmd_tune(args))) or 0)
