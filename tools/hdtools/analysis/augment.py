@@ -36,11 +36,12 @@ import math
 
 import numpy as np
 
-from .. import canproto
+from .. import canproto, protocol
 from . import detect, detect_slow, geometry, replay as rp
 from .cfilter import MAX_BLOCKS   # the filter's capacity, read from filter/hd_kf.h
 from .lineamp import (LINE_FIT_MAX_SAMPLES, line_amplitude, lines_left,  # noqa: F401
                       spectral_line_amplitude)
+from .loadlevel import load_of
 from .model import NOISE_FLOOR_NM, Block, Model, ProfileLine
 
 LINE_DROP = 0.5
@@ -124,19 +125,40 @@ def with_profile(model: Model, lines) -> Model | None:
 GEOMETRY_MAX_SAMPLES = 300_000
 
 
+def profile_gains(runs, view, model):
+    """Per stretch of the view, the factor the firmware's held output rows
+    carry with a model load coefficient c (hd_kf_rows.c): (1 + c |T_ref|) /
+    (1 + c T_c), T_ref the filter's slow torque (expected + offset), T_c the
+    record's load (what the replay imports the profile at), within the row's
+    envelope; None without c (rows at 1)."""
+    c = model.ripple_load_coeff_per_nm
+    if not c > 0 or not view:
+        return None
+    ts = float(np.median(np.diff(view[0].t_s[:100])))
+    load_c = load_of(((r.torque_nm, r.feedforward_nm, r.motor_angle_rad) for r in runs), ts)
+    hi = protocol.param_by_key("output_row_max").default
+    return [np.clip((1.0 + c * np.abs(r.out["torque_expected_nm"] + r.out["offset_nm"]))
+                    / (1.0 + c * (load_c or 0.0)), 1.0 / hi, hi) for r in view]
+
+
 def profile_inputs(runs, model, which) -> geometry.Inputs:
     """Signals for the geometry fit from a replay whose output-locked lines
     are a fixed profile (or absent): the model residual plus that profile,
     i.e. measured - motor-locked ripple - expected torque - feed-forward
-    (at most GEOMETRY_MAX_SAMPLES samples of the fold, evenly spread)."""
+    (at most GEOMETRY_MAX_SAMPLES samples of the fold, evenly spread); with
+    a model load coefficient the profile's lines carry the held rows'
+    growth (profile_gains), in what is added back and in the fit."""
     view = rp.analysis_view(runs, which, max_total=GEOMETRY_MAX_SAMPLES)
+    gains = profile_gains(runs, view, model)
     has_out = any(p.lock == "output" for p in model.profile)
     sig = [r.residual + (rp.profile_torque(model, r.motor_angle_rad, r.output_angle_rad)
-                         if has_out else 0.0) for r in view]
+                         * (1.0 if gains is None else gains[i]) if has_out else 0.0)
+           for i, r in enumerate(view)]
     ts = float(np.median(np.diff(view[0].t_s[:100]))) if view else 1e-3
     return geometry.Inputs(sig, [r.output_angle_rad for r in view],
                            [np.asarray(r.t_s, float) for r in view],
-                           [r.out["output_velocity_rad_s"].astype(float) for r in view], ts)
+                           [r.out["output_velocity_rad_s"].astype(float) for r in view], ts,
+                           gains)
 
 
 def profile_candidate(runs, model, generation):
@@ -345,7 +367,7 @@ class Session:
             self.model, self.runs, self.met = trial, runs1, met1
             self.history.append({"step": len(self.history), "change": _describe(c),
                                  "judged_by": judged_by(c), **met1})
-            if c.action == "expected_torque":
+            if c.action in ("expected_torque", "load_scale"):
                 self.generation += 1
         return keep
 

@@ -61,17 +61,24 @@ MIN_REVS = 1.5
 class Inputs:
     """Per stretch: the slow residual z (measured - motor-locked ripple -
     expected torque - feed-forward), the output angle, time and the output
-    velocity (for the motion nuisance; None: no motion columns)."""
+    velocity (for the motion nuisance; None: no motion columns); gains, if
+    given, the factor the profile's lines carry at each sample (a profile
+    at a reference load whose lines grow with the load: the firmware's
+    held output rows, augment.profile_inputs), else 1."""
     signals: list
     angles: list
     times: list
     velocities: list | None
     ts_s: float
+    gains: list | None = None
+
+    def gain(self, i: int):
+        return 1.0 if self.gains is None else np.asarray(self.gains[i], float)
 
     def minus(self, lines):
-        return Inputs([np.asarray(z, float) - profile_at(lines, th)
-                       for z, th in zip(self.signals, self.angles)],
-                      self.angles, self.times, self.velocities, self.ts_s)
+        return Inputs([np.asarray(z, float) - self.gain(i) * profile_at(lines, th)
+                       for i, (z, th) in enumerate(zip(self.signals, self.angles))],
+                      self.angles, self.times, self.velocities, self.ts_s, self.gains)
 
 
 N_MOTION = 3
@@ -93,12 +100,13 @@ def series(inp: Inputs, orders, steps=None):
     w = max(1, int(round(DEC_S / inp.ts_s)))
     out = []
     vels = inp.velocities or [None] * len(inp.signals)
-    for z, th, t, v in zip(inp.signals, inp.angles, inp.times, vels):
+    for i, (z, th, t, v) in enumerate(zip(inp.signals, inp.angles, inp.times, vels)):
         if len(z) < 8 * w:
             continue
         cols = []
+        g = inp.gain(i)
         for k in orders:
-            cols += [_blockmean(np.cos(k * th), w), _blockmean(np.sin(k * th), w)]
+            cols += [_blockmean(g * np.cos(k * th), w), _blockmean(g * np.sin(k * th), w)]
         n = len(z) // w
         if v is not None:
             vb = _blockmean(v, w)
