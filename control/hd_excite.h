@@ -6,7 +6,7 @@
  * law sees P(jw) = FB(jw) / X(jw), at the excited lines
  * (docs/how-to/tune-torque-loop.md; the host's side: tools/hdtools/torque_loop.py).
  *
- * The waveform is the control benchmark's (tools/hdmaint/bench/control_loop.py,
+ * The waveform is the control benchmark's (tools/hdtools/torque_loop.py,
  * multisine()): one period of HD_EXCITE_PERIOD_TICKS ticks, cosines on the
  * HD_EXCITE_LINES FFT bins of hd_excite_bins (1 to 450 Hz, log-spaced, at
  * 1 kHz), Schroeder phases -pi k (k + 1) / HD_EXCITE_LINES, scaled to the
@@ -14,8 +14,8 @@
  * firmware streams against that function.
  *
  * Pure: no I/O, no heap, no libm; float32.  hd_excite_build is slow work
- * (HD_EXCITE_PERIOD_TICKS x HD_EXCITE_LINES sines: about 3.5 M cycles,
- * 20 ms on a 168 MHz M4F): the background, never the tick.
+ * (2 x HD_EXCITE_PERIOD_TICKS x HD_EXCITE_LINES sines and cosines): the
+ * background, never the tick.
  * hd_excite_at is one table read and one multiply: the tick.
  */
 #ifndef HD_EXCITE_H

@@ -5,7 +5,7 @@ tuning method's search over gains (docs/results/control.md, "Tuning").
 One implementation for both places the loop is measured: the control
 benchmark in the simulation (hdmaint.bench.control_loop, control_tune) and
 a joint on its bus (`hdsense control identify` / `tune`,
-hdtools.cmd_identify), where the firmware plays the same multisine
+hdtools.cmd_tune), where the firmware plays the same multisine
 (control/hd_excite.h; tests/device/test_identify.py holds the two equal).
 
 With x = cmd + excitation the current the drive receives,
