@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli, summary
-from hdtools import cmd_control, cmd_tune, emu, torque_loop as tl
+from hdtools import cfgtext, cmd_control, cmd_tune, emu, torque_loop as tl
 from hdtools.joint import Joint, open_bus
 
 CLAMP_NM_RAD = 2e4      # the output held by a stiff spring: "clamped"
@@ -138,9 +138,16 @@ def test_tune_finds_gains_meeting_the_margins(capsys, tmp_path):
     f = tl.multisine()[1] / (tl.MS_PERIOD * tl.TS_S)
     files = [_write(tmp_path / "c.json", "clamped", _lag_plant(f, 0.004), f),
              _write(tmp_path / "w.json", "wall", _lag_plant(f, 0.006), f)]
-    rc, out, err = run_cli(capsys, "tune", *files)
+    cfg = tmp_path / "gains.cfg"
+    rc, out, err = run_cli(capsys, "tune", *files, "--config", cfg)
     assert rc == 0, err
     s = summary(out)
+    # the configuration text is the gains printed, as the firmware's own parser reads it
+    parsed = cfgtext.parse(cfg.read_text())
+    assert parsed.blocks is None
+    got = {p.key: v for _, p, v in parsed.values}
+    assert got == {k: pytest.approx(float(s[k]), rel=1e-6)
+                   for k in ("ctrl_torque_kp", "ctrl_torque_ki_per_s", "ctrl_torque_kd_s")}
     kp, ki = float(s["ctrl_torque_kp"]), float(s["ctrl_torque_ki_per_s"])
     kd = float(s["ctrl_torque_kd_s"])
     for tau in (0.004, 0.006):  # the margins of the gains printed, in closed form

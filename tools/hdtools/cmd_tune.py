@@ -23,7 +23,8 @@ tune: the method's search (predicted margins >= 45 deg and 6 dB and a
 tracking peak <= 10 dB in every condition given; the free output on the
 margins alone) over the plants of the files, ranked by crossover; prints
 the best gains, as the parameter table holds them, with their predicted
-margins, and the next --next candidates of the ranking.  What it cannot do from files: measure the chosen loop again and
+margins, and the next --next candidates of the ranking; --config FILE
+writes the gains as configuration text for `hdsense send`.  What it cannot do from files: measure the chosen loop again and
 run the wall contact (the method's step 4); run identify again with the new
 gains for the measured margins.
 
@@ -185,6 +186,12 @@ def cmd_tune(args) -> list[str]:
     # the next ones down the ranking: step 4 by hand, where the first fails
     lines += [f"next_{i} = kp {c[0]:.3g}, ki {c[1]:.3g}/s, kd {c[2]:.3g} s"
               for i, c in enumerate(found[1:1 + args.next], start=1)]
+    if args.config:
+        with safeio.Outputs() as out:
+            out.write_text(args.config, f"# hdsense tune {' '.join(args.files)}\n"
+                           + "".join(f"{ln}\n" for ln in lines[2:5]))
+            out.commit()
+        lines.append(f"config = {args.config}")
     return lines
 
 
@@ -198,4 +205,6 @@ def register(sub) -> None:
     p.add_argument("--next", type=int, default=3, choices=range(0, 21), metavar="N",
                    help="also print the next N candidates of the ranking (0..20, default 3): "
                    "the ones to try where the first misses a margin when measured")
+    p.add_argument("--config", metavar="FILE", help="also write the gains as configuration "
+                   "text (`hdsense send IFACE FILE` applies, saves and reads them back)")
     p.set_defaults(func=lambda args: print("\n".join(cmd_tune(args))) or 0)
