@@ -62,7 +62,9 @@ def test_the_firmware_plays_the_benchmarks_multisine(channel, clamped):
     print(f"identify: |drive - cmd - multisine| worst {err.max() * 1e3:.2f} mA")
     assert err.max() <= 1e-3 + result["peak_a"] / 32767 + 1e-9
     assert result["peak_a"] == pytest.approx(np.abs(one).max(), rel=1e-5)
-    assert result["freq_hz"] == pytest.approx(list(bins / (tl.MS_PERIOD * tl.TS_S)))
+    f = bins / (tl.MS_PERIOD * tl.TS_S)       # at rest: the lines the benchmark keeps at 0 rad/s
+    assert abs(result["motor_speed_rad_s"]) < 0.5
+    assert result["freq_hz"] == pytest.approx(list(f[tl.off_the_ripple(f, 0.0)]))
 
 
 def test_a_measured_plant_predicts_the_loop_under_other_gains(capsys, channel, clamped,
@@ -97,6 +99,37 @@ def test_a_measured_plant_predicts_the_loop_under_other_gains(capsys, channel, c
     other_db = np.median(np.abs(20 * np.log10(np.abs(measured[band] / other[band]))))
     print(f"identify: under the first gains instead: median {other_db:.2f} dB")
     assert other_db > 5.0
+
+
+def test_a_turning_joint_drops_the_lines_near_its_ripple(capsys, channel, tmp_path):
+    """A person turns the free output against a damper (5 N m on 5 N m s/rad:
+    about 1 rad/s, 100 rad/s at the motor): the excited lines within
+    RIPPLE_GUARD_HZ of the 2x and 4x motor lines at the run's speed are
+    dropped, the speed is the truth's."""
+    out_file = tmp_path / "free.json"
+    speeds = []
+    with emu.Emulator(dynamic=True, config="ctrl_feedback = 1\n") as j:
+        j.set_environment(damping_nm_s_rad=5.0, person_torque_nm=5.0)
+        with j.attach("virtual", channel,
+                      on_chunk=lambda e: speeds.append(e.truth().output_velocity_rad_s)):
+            rc, out, err = run_cli(capsys, "control", "-i", "virtual", channel, "identify",
+                                   "--condition", "free", "--periods", "1", "--settle", "1",
+                                   "--out", out_file)
+    assert rc == 0, err
+    m = json.loads(out_file.read_text())
+    true_motor = 100.0 * float(np.mean(speeds[len(speeds) // 3:]))   # gear ratio 100
+    assert true_motor > 50.0
+    assert m["motor_speed_rad_s"] == pytest.approx(true_motor, rel=0.05)
+    f = np.array(m["freq_hz"])
+    every = tl.multisine()[1] / (tl.MS_PERIOD * tl.TS_S)
+    near = np.zeros(len(every), dtype=bool)
+    for order in (2, 4):
+        line = order * m["motor_speed_rad_s"] / (2 * np.pi)
+        assert np.all(np.abs(f - line) > tl.RIPPLE_GUARD_HZ)
+        near |= np.abs(every - line) <= tl.RIPPLE_GUARD_HZ
+    # exactly those were dropped, and there were some (64 Hz near the 4x line)
+    assert m["lines_dropped"] == int(near.sum()) >= 1
+    assert f == pytest.approx(list(every[~near]))
 
 
 def test_identify_refusals_and_bad_input(capsys, channel, clamped, tmp_path):

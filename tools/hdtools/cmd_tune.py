@@ -16,7 +16,9 @@ to settle) and records every tick's IDENT frame.  From them
 its phase and gain margins, and the plant the law sees, P = FB / X / (N kt),
 with the gains, gear ratio and torque constant the joint reports.  The
 condition is the user's to make: the output clamped to the frame, pressed
-against a stiff stop, or free to turn; the tool cannot see which.  --out
+against a stiff stop, or free to turn; the tool cannot see which.  A joint that turns during the run (its mean
+motor speed from the telemetry) has the excited lines near its ripple
+orders dropped, as the benchmark does.  --out
 writes the measurement (JSON), whole or not at all.
 
 tune: the method's search (predicted margins >= 45 deg and 6 dB and a
@@ -68,11 +70,19 @@ class _Record:
 
     def __init__(self, db):
         self.msg = db.get_message_by_name("IDENT")
+        self.telem_b = db.get_message_by_name("TELEM_B")
         self.rows: list[tuple[float, float, float, int]] = []
+        self.motor_speeds: list[float] = []     # TELEM_B's, during the run
         self.status = 0
 
     def take(self, msg) -> None:
-        if msg.arbitration_id != self.msg.frame_id or len(msg.data) != 8 or self.status:
+        if len(msg.data) != 8 or self.status:
+            return
+        if msg.arbitration_id == self.telem_b.frame_id and self.rows:
+            self.motor_speeds.append(float(self.telem_b.decode(
+                bytes(msg.data), decode_choices=False)["MotorVelocity"]))
+            return
+        if msg.arbitration_id != self.msg.frame_id:
             return
         d = self.msg.decode(bytes(msg.data), decode_choices=False)
         self.rows.append((d["IdentCmd"], d["IdentDrive"], d["IdentFeedback"],
@@ -125,9 +135,14 @@ def measure(ctl, joint: Joint, condition: str, torque_nm: float, rms_a: float, p
     cmd, drive, fb, _ = (np.array(c) for c in zip(*rec.rows))
     nkt = values["gear_ratio"] * values["kt_nm_per_a"]
     f, loop, plant = tl.loop_response(cmd, drive, fb, nkt)
+    # a joint that turns puts its ripple lines on some of the excited ones
+    speed = float(np.mean(rec.motor_speeds)) if rec.motor_speeds else 0.0
+    keep = tl.off_the_ripple(f, speed)
+    f, loop, plant = f[keep], loop[keep], plant[keep]
     m = tl.margins(f, loop)
     return ({"format": FORMAT, "condition": condition, "mode": CONDITIONS[condition],
             "torque_nm": sp[1], "rms_a": rms_a, "peak_a": float(ack.value), "periods": periods,
+            "motor_speed_rad_s": speed, "lines_dropped": int(np.count_nonzero(~keep)),
             "joint": values, "freq_hz": f.tolist(),
             "loop": [loop.real.tolist(), loop.imag.tolist()],
             "plant": [plant.real.tolist(), plant.imag.tolist()],

@@ -35,6 +35,8 @@ MS_PERIOD = 2000        # multisine period [ticks]: 0.5 Hz lines (HD_EXCITE_PERI
 MS_F_LO_HZ, MS_F_HI_HZ = 1.0, 450.0
 MS_LINES = 48
 MS_RMS_A = 0.4          # injection rms (2.4 N m at the output)
+RIPPLE_ORDERS = (2, 4)  # the wave generator's motor orders: the gear's ripple lines
+RIPPLE_GUARD_HZ = 1.5
 
 # The tuning method's goals and grid (docs/results/control.md, "Tuning").
 PM_DEG, GM_DB = 45.0, 6.0
@@ -65,6 +67,17 @@ def line_spectrum(x: np.ndarray, period: int, bins: np.ndarray, skip: int = 1) -
     seg = np.asarray(x[skip * period: skip * period + n], dtype=float)
     seg = seg.reshape(-1, period) - seg.mean()
     return np.fft.rfft(seg, axis=1)[:, bins].mean(axis=0)
+
+
+def off_the_ripple(freq_hz, motor_speed_rad_s: float) -> np.ndarray:
+    """The excited lines to keep on a turning joint: those farther than
+    RIPPLE_GUARD_HZ from the RIPPLE_ORDERS motor lines at this speed (the
+    ripple, not the excitation, moves the lines near them)."""
+    f = np.asarray(freq_hz, dtype=float)
+    keep = np.ones(len(f), dtype=bool)
+    for order in RIPPLE_ORDERS:
+        keep &= np.abs(f - order * abs(motor_speed_rad_s) / (2 * math.pi)) > RIPPLE_GUARD_HZ
+    return keep
 
 
 def loop_response(cmd_a, drive_a, fb_nm, nkt: float, bins=None, period: int = MS_PERIOD,

@@ -32,12 +32,11 @@ import numpy as np
 
 from hdtools.safeio import HdError
 from hdtools.torque_loop import (  # noqa: F401 - the benchmark's names for them
-    MS_PERIOD, MS_RMS_A, TS_S, Response, line_spectrum, loop_response, margins, meets,
-    multisine, pi_response)
+    MS_PERIOD, MS_RMS_A, RIPPLE_GUARD_HZ, TS_S, Response, line_spectrum, loop_response, margins,
+    meets, multisine, off_the_ripple, pi_response)
 
 GEAR_RATIO = 100.0      # the law's defaults (control/hd_ctrl.c): what the firmware is told
 KT_NM_PER_A = 0.06
-RIPPLE_GUARD_HZ = 1.5
 PREROLL_SPEED_RAD_S, PREROLL_RAMP_S, PREROLL_RUN_S, PREROLL_HOLD_S = 3.0, 0.5, 1.5, 0.5
 
 
@@ -178,10 +177,7 @@ def measure_loop(variant: Variant, scene: Scene, setpoint_nm: float = 10.0, peri
     f, loop, plant = loop_response(d["cmd_a"], x, d["fb_nm"], nkt, bins)
     true_plant = line_spectrum(d["true_torque_nm"], MS_PERIOD, bins) / \
         line_spectrum(x, MS_PERIOD, bins) / nkt
-    keep = np.ones(len(f), dtype=bool)
-    for order in (2, 4):
-        line_hz = order * GEAR_RATIO * abs(scene.speed_rad_s) / (2 * math.pi)
-        keep &= np.abs(f - line_hz) > RIPPLE_GUARD_HZ
+    keep = off_the_ripple(f, GEAR_RATIO * scene.speed_rad_s)
     return Response(f[keep], loop[keep], plant[keep], true_plant[keep])
 
 
