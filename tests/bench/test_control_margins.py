@@ -239,3 +239,19 @@ def test_tune_keeps_the_gains_it_came_with_when_the_grid_has_none():
     v = cl.Variant("x", "raw", kp=0.3, ki=4.0, kd=0.001)
     t = ct.tune(v, ("0.5",), measure)
     assert not t["met"] and (v.kp, v.ki, v.kd) == (0.3, 4.0, 0.001)
+
+
+def test_ripple_bound_is_the_open_loop_over_raw():
+    """control.ripple_bound: the open-loop drive's true 2x ripple over raw
+    feedback's at the speed given (hand-made rows), reachable only at or
+    below 0.5; a bound, never a met goal."""
+    from hdmaint.bench import control
+
+    def rows(open_loop, raw):
+        lines = {"open_loop": open_loop, control.PRODUCT_KEY: 0.42, "raw": raw}
+        return {k: {"speeds": {"3.0": {"ripple": {"line2_nm": v}}}} for k, v in lines.items()}
+    b = control.ripple_bound(rows(0.4, 0.8), "3.0")
+    assert b["worst"] == 0.5 and b["met"] is None and b["status"] == "0.5x reachable"
+    b = control.ripple_bound(rows(0.4, 0.7), "3.0")
+    assert b["worst"] == 0.4 / 0.7 and "UNREACHABLE" in b["status"]
+    assert b["where"] == "3.0 rad/s: open_loop 0.400, narrow 0.420, raw 0.700 N m"

@@ -43,13 +43,12 @@ import can
 from . import protocol, safeio
 from .cmd_calib import _finite    # a finite float, or argparse's one-line error
 from .canshared import add_bus_arguments, node_id as _node
-from .monitor_state import CTRL_FLAGS, CTRL_LIMITS, CTRL_MODES, bit_names
+# The names where the firmware defines them (monitor_state reads control/hd_ctrl.h
+# and hd_can_proto.h; the protocol schema does not carry them yet).
+from .monitor_state import CTRL_FLAGS, CTRL_LIMITS, CTRL_MODE_NAMES as MODES, bit_names
 from .joint import BusError, Joint, NoAnswer, open_bus
 from .safeio import HdError, UsageError
 
-# The names where the firmware defines them (monitor_state reads control/hd_ctrl.h
-# and hd_can_proto.h; the protocol schema does not carry them yet).
-MODES = tuple(CTRL_MODES[i] for i in sorted(CTRL_MODES))
 SIGNAL_OF = {"torque": "SpTorque", "position": "SpPosition", "velocity": "SpVelocity",
              "kp": "GainKp", "kd": "GainKd"}
 CSV_COLUMNS = ("t_s", "setpoint_nm", "torque_ref_nm", "current_a", "mode_run", "limits",
@@ -367,14 +366,12 @@ def cmd_identify(args) -> list[str]:
     with safeio.Outputs() as out:
         out.write_text(args.out, json.dumps(result, indent=1) + "\n")
         out.commit()
-    m = {k: math.inf if v is None and k != "crossover_hz" else v
-         for k, v in result["margins"].items()}
     return [f"condition = {args.condition} ({result['mode']}, {result['torque_nm']:g} N m)",
             f"ticks = {len(rows)}",
             f"excitation = {args.rms:g} A rms, {result['peak_a']:.3f} A peak",
             "gains = kp {kp:.3g}, ki {ki_per_s:.3g}/s, kd {kd_s:.3g} s, ff {ff:.3g}".format(
                 **result["joint"]),
-            f"margins = {cmd_tune.margin_text(m)}",
+            f"margins = {cmd_tune.margin_text(result['margins'])}",
             f"out = {args.out}"]
 
 

@@ -46,11 +46,10 @@ import numpy as np
 
 from . import protocol, safeio, torque_loop as tl
 from .joint import Joint
-from .monitor_state import CTRL_MODES
+from .monitor_state import CTRL_MODE_NAMES as MODES
 from .safeio import HdError, UsageError
 
 CONDITIONS = {"clamped": "TORQUE", "wall": "TORQUE", "free": "ZERO_TORQUE"}
-MODES = tuple(CTRL_MODES[i] for i in sorted(CTRL_MODES))
 STATUS = {1: "done", 2: "stopped: the mode changed (a fault reaction, the watchdog) or the "
           "drive is off", 3: "stopped: the excitation would have crossed ctrl_current_limit_a "
           "(lower --rms or --torque)"}

@@ -34,6 +34,7 @@ def _c_names(rel: str, pattern: str, block_end: str | None = None) -> dict[int, 
 
 CTRL_MODES = {v: n for v, n in _c_names("control/hd_ctrl.h", r"HD_CTRL_([A-Z_]+)\s*=\s*(\d+),",
                                           "} hd_ctrl_mode_t;").items() if n != "MODE_COUNT"}
+CTRL_MODE_NAMES = tuple(CTRL_MODES[i] for i in sorted(CTRL_MODES))   # by code
 CTRL_LIMITS = _c_names("control/hd_ctrl.h", r"#define HD_CTRL_LIM_([A-Z_]+)\s+(0x[0-9a-fA-F]+)u")
 CTRL_FLAGS = _c_names("firmware/hd_can_proto.h",
                       r"#define HD_CAN_CTRL_FLAG_([A-Z_]+)\s+(0x[0-9a-fA-F]+)u")

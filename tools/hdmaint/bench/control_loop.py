@@ -1,28 +1,15 @@
-"""The torque loop broken in the simulation: loop transfer and margins.
+"""The torque loop broken in the simulation.
 
 hdctrl-bench (firmware/host/hd_ctrl_bench.c) runs the firmware's torque loop
-on the dynamic joint; a current `inject_a` is added to what the firmware
-commands (`cmd_a`) before the drive sees it.  With x = cmd + inject the
-current the drive receives, the loop seen from that break point is
-
-    L(jw) = -CMD(jw) / X(jw)
-
-measured at the frequencies of a periodic multisine injection (Schroeder
-phases, an integer number of periods after a settling period: no leakage
-of the excited lines).  The same run gives the plant seen by the controller,
-P(jw) = FB(jw) / X(jw) / (N kt) (the feedback torque per drive current), so
-that the loop of any other PI is C(jw) P(jw) with the law's C in closed
-form (`pi_response`): the tuning (control_tune.py) searches gains on P and
-then measures the chosen loop again.
-
-Margins (`margins`): phase margin = the least 180 deg + angle L over every
-gain crossover |L| = 1; gain margin = the least -20 log10 |L| over every
-phase crossover angle L = -180 deg (both interpolated in log frequency);
-the crossover frequency is the highest gain crossover.
+on the dynamic joint; a current `inject_a` (the multisine) is added to what
+the firmware commands (`cmd_a`) before the drive sees it, so the loop is
+broken at the drive's input as on a joint (hdtools.torque_loop: L, P, the
+margins, the law's PI in closed form; its docstring has the definitions).
+The tuning (control_tune.py) searches gains on P and then measures the
+chosen loop again.
 """
 from __future__ import annotations
 
-import math
 import subprocess
 import tempfile
 from dataclasses import dataclass, field
