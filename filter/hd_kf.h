@@ -55,13 +55,15 @@
  *     deviations of its mean).  The growth the load explains, the
  *     regression at |T_ref| over the regression at T_c, is the target's g
  *     (lines changed at a constant load, by wear or temperature, do not
- *     move the row); T_c unknown (negative): the row stays 1.  The
+ *     move the row), times (1 + c |T_ref|) / (1 + c T_c) with a model load
+ *     coefficient c (the only factor when no motor line was imported);
+ *     T_c unknown (negative): the row stays 1.  The
  *     target 1 + output_row_follow (g - 1) beyond
  *     [1 / output_row_max, output_row_max] (or not a number) is refused:
  *     the bound is taken, HD_KF_STATUS_LOAD_BOUND, load_bound_count.
  *     output_row follows the target through a low-pass of
- *     HD_KF_OUTPUT_ROW_TAU_S; it is 1 with no imported motor line, and
- *     restarts at 1 at each import and reset.  The assumption: the output
+ *     HD_KF_OUTPUT_ROW_TAU_S; it is 1 with neither an imported motor line
+ *     nor a model coefficient, and restarts at 1 at each import and reset.  The assumption: the output
  *     lines grow by the same factor as the motor lines (one strain path;
  *     docs/design/filter.md, "Load-modulated output lines");
  *   - motion fraction m = min(1, |theta| / q_motion_ref_rad) for motor- and

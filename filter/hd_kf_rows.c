@@ -103,13 +103,19 @@ static float follow_predict(const follow_fit_t *f, float t)
  * with a model load coefficient c (ripple_load_coeff_per_nm: the motor rows
  * carry that factor, their states stay at zero load), refused beyond
  * [1 / max, max] (held at the bound: HD_KF_STATUS_LOAD_BOUND) and
- * low-passed into output_row.  No reference or T_c unknown (a version-1
- * record, a CAN upload: drift and load cannot be told apart): 1. */
+ * low-passed into output_row.  Without imported motor lines only the
+ * modelled factor moves the row (g measured stays 1).  T_c unknown (a
+ * version-1 record, a CAN upload: drift and load cannot be told apart), or
+ * neither a reference nor a coefficient: 1. */
 uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
 {
-    if (kf->motor_ref_inv <= 0.0f || kf->follow_load_nm < 0.0f) {
+    const float c = kf->cfg.ripple_load_coeff_per_nm;
+    if (kf->follow_load_nm < 0.0f || (kf->motor_ref_inv <= 0.0f && !(c > 0.0f))) {
         kf->output_row = 1.0f;
         return 0u;
+    }
+    if (kf->motor_ref_inv <= 0.0f) {
+        observed = false; /* no imported motor line to measure a growth against */
     }
     if (kf->follow_settle_steps != 0u) {
         kf->follow_settle_steps--; /* the motor blocks still settle on the joint as it is now */
@@ -144,7 +150,6 @@ uint32_t hd_kf_follow_motor_lines(hd_kf_t *kf, float t_abs, bool observed)
         const float g_c = follow_predict(&fit, kf->follow_load_nm);
         g = g_c > 0.0f ? follow_predict(&fit, t_abs) / g_c : 1.0f;
     }
-    const float c = kf->cfg.ripple_load_coeff_per_nm;
     if (c > 0.0f) {
         /* the motor rows already carry the modelled factor (their states are
          * zero-load lines): the output lines take it too, from T_c */

@@ -775,15 +775,24 @@ static hd_kf_input_t joint_next_grown(joint_t *j, double dao, double load_nm, do
 
 /* The zero-load profile (the truth's lines), imported before the first step,
  * with its load: 0 (known, the truth's) or -1 (unknown). */
-static void import_profile_at_load(hd_kf_t *kf, const joint_t *j, float load_nm)
+static void import_lines_at_load(hd_kf_t *kf, const joint_t *j, float load_nm, bool motor_line)
 {
     hd_kf_profile_t p = {0};
     p.load_nm = load_nm;
-    p.line_count = 2u;
-    p.lines[0] = (hd_kf_profile_line_t){HD_KF_LOCK_MOTOR, 2u, (float)A2_NM, (float)B2_NM};
-    p.lines[1] = (hd_kf_profile_line_t){HD_KF_LOCK_OUTPUT, 1u, (float)A1_NM, (float)B1_NM};
-    TEST_ASSERT_EQUAL_INT(2, hd_kf_profile_import(kf, &p, (float)wrap(j->am), (float)wrap(j->ao),
-                                                  (float)(NOISE_NM * NOISE_NM)));
+    if (motor_line) {
+        p.lines[p.line_count++] = (hd_kf_profile_line_t){HD_KF_LOCK_MOTOR, 2u, (float)A2_NM,
+                                                         (float)B2_NM};
+    }
+    p.lines[p.line_count++] = (hd_kf_profile_line_t){HD_KF_LOCK_OUTPUT, 1u, (float)A1_NM,
+                                                     (float)B1_NM};
+    TEST_ASSERT_EQUAL_INT((int)p.line_count,
+                          hd_kf_profile_import(kf, &p, (float)wrap(j->am), (float)wrap(j->ao),
+                                               (float)(NOISE_NM * NOISE_NM)));
+}
+
+static void import_profile_at_load(hd_kf_t *kf, const joint_t *j, float load_nm)
+{
+    import_lines_at_load(kf, j, load_nm, true);
 }
 
 #define GROW_C_PER_NM 0.1 /* every line 1 + c |T| times its zero-load amplitude */
@@ -935,7 +944,7 @@ static void test_follow_refuses_rows_beyond_the_envelope(void)
  * zero-load profile imported with profile_load_nm: the filtered torque's
  * RMS error after 3 s. */
 static double follow_run(double c_model, double c_truth, double drift, float profile_load_nm,
-                         unsigned seed)
+                         unsigned seed, bool motor_line)
 {
     static hd_kf_t kf;
     hd_kf_config_t cfg;
@@ -946,7 +955,7 @@ static double follow_run(double c_model, double c_truth, double drift, float pro
     TEST_ASSERT_EQUAL_INT(HD_KF_OK, hd_kf_init(&kf, &cfg));
     joint_t j;
     joint_init(&j, seed);
-    import_profile_at_load(&kf, &j, profile_load_nm);
+    import_lines_at_load(&kf, &j, profile_load_nm, motor_line);
     double sum = 0.0;
     long n = 0;
     for (int k = 1; k <= 20000; k++) {
@@ -975,7 +984,7 @@ static double follow_run(double c_model, double c_truth, double drift, float pro
  * 2x). */
 static double drift_run(double drift, float profile_load_nm)
 {
-    return follow_run(0.0, GROW_C_PER_NM, drift, profile_load_nm, 37u);
+    return follow_run(0.0, GROW_C_PER_NM, drift, profile_load_nm, 37u, true);
 }
 
 /* With the model's load coefficient (ripple_load_coeff_per_nm = c, the
@@ -984,18 +993,36 @@ static double drift_run(double drift, float profile_load_nm)
  * factor from the profile's load: on lines that all grow as 1 + c |T| the
  * RMS error after 3 s is within 1.3x that of the same joint whose lines do
  * not grow, filtered without a coefficient. */
-static double modelled_run(double c_model, double c_truth)
+static double modelled_run(double c_model, double c_truth, bool motor_line)
 {
-    return follow_run(c_model, c_truth, 1.0, 0.0f, 41u);
+    return follow_run(c_model, c_truth, 1.0, 0.0f, 41u, motor_line);
 }
 
 static void test_follow_takes_the_modelled_load_factor(void)
 {
-    const double plain = modelled_run(0.0, 0.0), grown = modelled_run(GROW_C_PER_NM, GROW_C_PER_NM);
+    const double plain = modelled_run(0.0, 0.0, true),
+                 grown = modelled_run(GROW_C_PER_NM, GROW_C_PER_NM, true);
     msg("model load coefficient %.2f on lines growing as it says: filtered RMS error %.4f N m; "
         "no coefficient on lines that do not grow %.4f", GROW_C_PER_NM, grown, plain);
     rel_measured("follow_modelled", "grown=%.4f plain=%.4f bound=1.3x", grown, plain);
     TEST_ASSERT_LESS_THAN_DOUBLE(1.3 * plain, grown);
+}
+
+/* The same with a profile of output lines only (what `hdsense analyze`
+ * replays while it fits them): no motor line to measure a growth against,
+ * the row takes the modelled factor alone, within 1.3x of the joint whose
+ * lines do not grow; the row held at 1 keeps the load's share (over 2x). */
+static void test_follow_takes_the_modelled_factor_without_motor_lines(void)
+{
+    const double plain = modelled_run(0.0, 0.0, false),
+                 grown = modelled_run(GROW_C_PER_NM, GROW_C_PER_NM, false),
+                 held = modelled_run(0.0, GROW_C_PER_NM, false);
+    msg("output lines only, model load coefficient %.2f: filtered RMS error %.4f N m; row held "
+        "at 1 %.4f; lines that do not grow %.4f", GROW_C_PER_NM, grown, held, plain);
+    rel_measured("follow_modelled_output_only", "grown=%.4f held=%.4f plain=%.4f bound=1.3x",
+                 grown, held, plain);
+    TEST_ASSERT_LESS_THAN_DOUBLE(1.3 * plain, grown);
+    TEST_ASSERT_GREATER_THAN_DOUBLE(2.0 * plain, held);
 }
 
 static void test_follow_takes_only_the_growth_the_load_explains(void)
@@ -1160,6 +1187,7 @@ int main(int argc, char **argv)
     RUN_TEST(test_follow_refuses_rows_beyond_the_envelope);
     RUN_TEST(test_follow_takes_only_the_growth_the_load_explains);
     RUN_TEST(test_follow_takes_the_modelled_load_factor);
+    RUN_TEST(test_follow_takes_the_modelled_factor_without_motor_lines);
     RUN_TEST(test_profiled_lines_hold_through_a_stop);
     RUN_TEST(test_profiled_reference_only_where_a_line_is_held);
     return UNITY_END();
