@@ -131,19 +131,19 @@ def test_offset_drift_is_found_and_removed(analyzed):
 
 def test_load_dependent_ripple_is_traced_to_its_line(analyzed):
     # loadripple.ini: every ripple line grows with |load| as (1 + 0.3 |T|).
-    # The residue sits around the modelled motor lines; the line's amplitude
-    # in the measured torque follows |load|, and the coefficient is
-    # identified and added (hd_kf ripple_load_coeff_per_nm).
+    # The motor lines' amplitude in the measured torque grows with the
+    # filter's slow torque (loadcoef.py, one regression per order, pooled):
+    # the coefficient is identified, significant on both folds, and added
+    # (hd_kf ripple_load_coeff_per_nm).
     r = analyzed("loadripple")
     found = [e for e in r["effects"] if e["kind"] == "motor_order"
              and e.get("action") == "load_scale"]
     assert found, r["effects"]
     e = found[0]
     assert e["added"], e
-    assert e["evidence"]["existing_block"] in (0, 1)      # motor order 2 or 4
     assert e["order_per_motor_rev"] in (2.0, 4.0)
-    assert e["evidence"]["band_ratio"] >= 30
-    assert e["evidence"]["line_amplitude_load_correlation"] >= 0.5
+    assert e["evidence"]["load_coefficient_t"] >= 5
+    assert sorted(p["order"] for p in e["evidence"]["per_order"]) == [2.0, 4.0]
     assert e["parameters"]["ripple_load_coeff_per_nm"] == pytest.approx(0.3, rel=0.25)
     assert r["model_after"]["ripple_load_coeff_per_nm"] == \
         e["parameters"]["ripple_load_coeff_per_nm"]
@@ -185,14 +185,22 @@ def test_a_line_growing_with_the_load_under_load_steps_is_profiled(analyzed):
     # loadsteps.ini: the output-order-1 line grows with the load as the motor
     # lines do (1 + 0.3 |T|: 0.5 -> 1.4 N m).  Once the load coefficient is
     # kept, the profile is fitted and judged with the growth the firmware's
-    # held output rows give it ((1 + c |T_ref|) / (1 + c T_c)), so a fixed
-    # angle profile at the record's load predicts the held-out fold; before,
-    # the line stayed in the output (0.72 N m below 2 Hz).
+    # held output rows give it ((1 + c |T_ref|) / (1 + c T_c)), and the
+    # replay's rows carry that growth too (a profile of output lines only:
+    # the modelled factor), so a fixed angle profile at the record's load
+    # predicts the held-out fold.  Measured: error 0.736 -> 0.073 N m (0.325
+    # while the replay's rows stayed at 1; the line in the output, 0.72 N m
+    # below 2 Hz, before the profile followed the load).  The order-1 line
+    # leads the profile; another order the fit keeps is a small remainder of
+    # the growth the rows miss (T_ref lags a step).
     r = analyzed("loadsteps")
-    prof = [e for e in added(r) if e.get("action") == "set_profile"]
-    assert [e["order_per_output_rev"] for e in prof] == [1.0], r["effects"]
-    assert r["error_rms_after_nm"] < 0.6 * r["error_rms_before_nm"]
-    assert r["error_slow_rms_after_nm"] < 0.6 * r["error_slow_rms_before_nm"]
+    assert any(e.get("action") == "set_profile" for e in added(r)), r["effects"]
+    lines = {ln["order"]: math.hypot(ln["a_nm"], ln["b_nm"])
+             for ln in r["profile"]["lines"] if ln["lock"] == "output"}
+    assert 1.0 in lines, lines
+    assert all(a < 0.1 * lines[1.0] for o, a in lines.items() if o != 1.0), lines
+    assert r["error_rms_after_nm"] < 0.2 * r["error_rms_before_nm"]
+    assert r["error_slow_rms_after_nm"] < 0.2 * r["error_slow_rms_before_nm"]
     _never_worse_out_of_sample(r)
 
 

@@ -15,7 +15,9 @@ drift, the angle profile, R, nyquist_fraction) must pass two tests in fold B:
         falls by at least LINE_DROP, and the filtered torque changes by no
         more than CHANGE_FACTOR x the line's rms (the block did not eat real
         torque);
-      - a load coefficient: the innovation falls by at least LOAD_GAIN;
+      - a load coefficient (loadcoef.py; tried with the output profile
+        refitted under it): the innovation falls by loadcoef.INNOV_GAIN, or
+        fold B's own fit of the coefficient agrees with it;
       - friction / inertia: the innovation falls by INNOV_GAIN and the model
         residual falls; J, b, Fc stay >= 0 (the firmware's model);
       - the angle profile (output-locked lines, geometry.py): with the
@@ -37,7 +39,7 @@ import math
 import numpy as np
 
 from .. import canproto, protocol
-from . import detect, detect_slow, geometry, replay as rp
+from . import detect, detect_slow, geometry, loadcoef, replay as rp
 from .cfilter import MAX_BLOCKS   # the filter's capacity, read from filter/hd_kf.h
 from .lineamp import (LINE_FIT_MAX_SAMPLES, line_amplitude, lines_left,  # noqa: F401
                       spectral_line_amplitude)
@@ -50,7 +52,6 @@ INNOV_GAIN = 0.002
 CHANGE_FACTOR = 2.0
 MAX_ROUNDS = 8
 RETUNE_FACTOR = 10.0
-LOAD_GAIN = 0.05
 PROFILE_GAIN = 0.01
 LINES_LEFT_TOL = 0.02
 def apply(model: Model, c: detect.Candidate) -> Model | None:
@@ -242,10 +243,10 @@ def judge(c, runs0, m0, runs1, m1, model0):
         return False, ev
     vb0, vb1 = rp.analysis_view(runs0, rp.HELD_OUT), rp.analysis_view(runs1, rp.HELD_OUT)
     if c.action == "load_scale":
-        if innov_change > -LOAD_GAIN:
-            ev["rejected_because"] = "the held-out innovation did not fall by 5 %"
-            return False, ev
-        return True, ev
+        ok, more = loadcoef.judge(c.params["ripple_load_coeff_per_nm"], innov_change, vb0,
+                                  loadcoef.motor_orders(model0))
+        ev.update(more)
+        return ok, ev
     if c.action == "set_profile":
         cur, new = profile_held_out(c, runs0, model0)
         ev.update({"held_out_slow_rms_current_profile_nm": cur,
@@ -374,14 +375,26 @@ class Session:
     def _trials(self, c):
         """A load coefficient removes what made the starting R large (ripple
         lines that move with the load and that the blocks then chased): it
-        is also tried with R back at the noise estimate."""
+        is also tried with R back at the noise estimate.  It comes with the
+        output profile refitted under it: the held rows grow the profile
+        from its load T_c once the model has c, so a profile fitted without
+        that growth is off by it."""
         first = apply(self.model, c)
         nz = self.noise_estimate_nm
-        if first is None or c.action != "load_scale" or not nz:
+        if first is None or c.action != "load_scale":
             return [first]
-        if self.model.r_nm2 <= 1.5 * max(nz, NOISE_FLOOR_NM) ** 2:
-            return [first]
-        return [first, apply(self.model.with_noise(nz), c)]
+        trials = [first]
+        if nz and self.model.r_nm2 > 1.5 * max(nz, NOISE_FLOOR_NM) ** 2:
+            trials.append(apply(self.model.with_noise(nz), c))
+        return [self._refit_profile(t) for t in trials]
+
+    def _refit_profile(self, model):
+        if not any(p.lock == "output" for p in model.profile):
+            return model
+        g = geometry.fit(profile_inputs(self.replay(model), model, rp.TRAIN))
+        if not g.get("verifiable") or not g["orders"]:
+            return model
+        return with_profile(model, g["orders"]) or model
 
     def loop(self):
         for rnd in range(1, MAX_ROUNDS + 1):
@@ -390,7 +403,12 @@ class Session:
                 break
             ctx = detect.build_context(view, self.data.ts_s, self.model.gear_ratio)
             lines = (detect.line_candidates(ctx, self.model)
-                     + detect.block_residue_candidates(ctx, self.model))
+                     + detect.block_residue_candidates(ctx, self.model)
+                     + detect.load_candidate(view, self.data.ts_s, self.model))
+            for c in lines:
+                if c.action == "load_scale":
+                    # tried again once the expected torque changed: T_ref with it
+                    c.key_override = ("load_scale", self.generation)
             prof, _ = profile_candidate(self.runs, self.model, self.generation)
             # Output-order readings of spectral peaks are evidence for the
             # profile fit, not blocks of their own.

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import spectra
+from . import loadcoef, spectra
 
 LINE_MIN_RATIO = 30.0       # peak power over the local floor (~15 dB)
 MIN_EXPLAINED = 0.002       # line must explain >= 0.2 % of residual variance
@@ -51,10 +51,6 @@ INTEGER_TOL = 0.03
 # (a repeated motion, a vibration): it is reported but not removed.
 FIXED_MIN_HZ = 20.0
 BAND_BINS = 4               # half-width of the band around an existing block
-# A residue whose envelope follows |torque| this closely is load-dependent
-# ripple: the model gets a load coefficient (hd_kf.h "Load-dependent
-# ripple") instead of a faster block.
-LOAD_CORRELATION_MIN = 0.5
 
 
 @dataclass
@@ -369,69 +365,61 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
               "existing_block": i,
               "note": "residue around a modelled line: its amplitude or phase moves faster "
                       "than the block follows"}
-        # Does the ripple amplitude follow the load?  Correlate the
-        # residue's envelope with |torque|.
+        # Evidence only: whether the residue's envelope follows |torque|.  A
+        # line that grows with the load is load_candidate's to find.
         win = max(8, int(round(0.1 / ctx.ts_s)))
-        env, _ = window_line_amplitude(ctx.signals, phases(ctx, kind, b.order), win, False)
-        _, load = window_line_amplitude([np.abs(t) for t in ctx.torque],
-                                        phases(ctx, kind, b.order), win, False)
+        env = window_line_amplitude(ctx.signals, phases(ctx, kind, b.order), win)
+        load = window_line_amplitude([np.abs(t) for t in ctx.torque],
+                                     phases(ctx, kind, b.order), win, amplitude=False)
         if env is not None and np.std(env) > 0 and np.std(load) > 0:
             ev["envelope_load_correlation"] = round(float(np.corrcoef(env, load)[0, 1]), 3)
-        # The residue is the block's lag, which follows load *changes*; the
-        # line itself, in the measured torque, shows whether its amplitude
-        # follows |load|.
-        action, params = "retune_block", {}
-        fit = load_coefficient(ctx, kind, b.order, win) if b.lock == "motor" else None
-        if fit is not None:
-            k, corr = fit
-            ev["line_amplitude_load_correlation"] = round(corr, 3)
-            if corr >= LOAD_CORRELATION_MIN:
-                action, params = "load_scale", {"ripple_load_coeff_per_nm": k}
-                ev["note"] = ("residue around a modelled line whose amplitude follows the "
-                              "load: load-dependent ripple amplitude")
-        out.append(Candidate(kind, b.order, amp, score=ratio, action=action, evidence=ev,
-                             params=params))
+        out.append(Candidate(kind, b.order, amp, score=ratio, action="retune_block",
+                             evidence=ev))
     return out
 
 
-def window_line_amplitude(signals, phases_, win, remove_mean):
-    """Amplitude of the line with the given phase in each window of win
-    samples (2 |mean(x e^-i phase)|, the window's mean removed first if asked)
-    and each window's mean, over all pieces with at least two windows:
-    (amplitudes, means) or (None, None)."""
-    amp, mean = [], []
+def window_line_amplitude(signals, phases_, win, amplitude=True):
+    """Per window of win samples, over all pieces with at least two
+    windows: the amplitude of the line with the given phase (2 |mean(x
+    e^-i phase)|), or with amplitude False the window's mean; None if no
+    piece has two windows."""
+    out = []
     for x, p_ in zip(signals, phases_):
         m = (len(x) // win) * win
         if m < 2 * win:
             continue
         xs = x[:m].reshape(-1, win)
+        if not amplitude:
+            out.append(xs.mean(1))
+            continue
         ps = p_[:m].reshape(-1, win)
-        dc = xs.mean(1, keepdims=True)
-        xc = xs - dc if remove_mean else xs
-        amp.append(2 * np.hypot((xc * np.cos(ps)).mean(1), (xc * np.sin(ps)).mean(1)))
-        mean.append(dc[:, 0])
-    if not amp:
-        return None, None
-    return np.concatenate(amp), np.concatenate(mean)
+        out.append(2 * np.hypot((xs * np.cos(ps)).mean(1), (xs * np.sin(ps)).mean(1)))
+    return np.concatenate(out) if out else None
 
 
-def load_coefficient(ctx: Context, kind: str, order: float, win: int):
-    """(k, correlation) of a line whose amplitude is A0 (1 + k |T|): the
-    line's amplitude in the measured torque, demodulated over windows of win
-    samples, against the window's mean |torque| (the ripple averages out of
-    the mean), fitted as A0 + A0 k |T|.  None when the load does not vary or
-    the fit gives no positive A0 and slope.  Motor-locked lines only: a
-    window holds several of their cycles."""
-    a, mean = window_line_amplitude(ctx.torque, phases(ctx, kind, order), win, True)
-    if a is None:
-        return None
-    l_ = np.abs(mean)
-    if not (np.std(l_) > 0 and np.std(a) > 0):
-        return None
-    slope, a0 = np.polyfit(l_, a, 1)
-    if not (a0 > 0 and slope > 0):
-        return None
-    return float(f"{slope / a0:.3g}"), float(np.corrcoef(a, l_)[0, 1])
+def load_candidate(view, ts_s: float, model) -> list[Candidate]:
+    """A load coefficient fitted on the measured torque against the
+    filter's own slow torque (loadcoef.py), proposed whether or not a block
+    leaves a residue: the firmware's blocks follow a line whose amplitude
+    moves slowly, and what the coefficient buys there is the fixed output
+    profile's growth with the load (the held rows follow the motor lines).
+    Once: the model has none yet and the estimate is significant."""
+    if model.ripple_load_coeff_per_nm > 0:
+        return []
+    f = loadcoef.fit_view(view, ts_s, loadcoef.motor_orders(model))
+    if f is None or not f.significant():
+        return []
+    ev = {"load_coefficient_t": round(f.t_stat, 1),
+          "load_coefficient_std_err_per_nm": float(f"{f.std_err_per_nm:.2g}"),
+          "load_ref_spread_nm": round(f.load_spread_nm, 3),
+          "per_order": [{"order": o, "amplitude_nm": round(a, 4), "coeff_per_nm": round(c, 4),
+                         "std_err_per_nm": float(f"{e:.2g}")} for o, a, c, e in f.per_order],
+          "note": "the motor lines' amplitude grows with the filter's slow torque: "
+                  "load-dependent ripple amplitude"}
+    lead = max(f.per_order, key=lambda p: p[1])
+    return [Candidate("motor_order", lead[0], lead[1], score=f.t_stat, action="load_scale",
+                      evidence=ev, params={"ripple_load_coeff_per_nm":
+                                           float(f"{f.coeff_per_nm:.3g}")})]
 
 
 def _angle_kind(motor_order, ratio):
