@@ -271,6 +271,11 @@ def profile_rows(c: Cases) -> list[list[str]]:
                  "scaled, held output row from the profile's load)",
                  f"filtered RMS error {m['grown']} N m; lines not growing, no coefficient: "
                  f"{m['plain']} N m", f"< {m['bound']} the latter's"])
+    m = c("follow_modelled_output_only")
+    rows.append(["the same with a profile of output lines only (no motor line to measure a "
+                 "growth against: the modelled factor alone)",
+                 f"filtered RMS error {m['grown']} N m; row held at 1: {m['held']} N m; lines "
+                 f"not growing: {m['plain']} N m", f"< {m['bound']} the latter's; held > 2x"])
     return rows
 
 
