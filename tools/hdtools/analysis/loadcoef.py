@@ -1,7 +1,7 @@
 """The load coefficient of the ripple, fitted on the measured torque.
 
 Harmonic-drive ripple grows with the transmitted torque: a line is
-A0 (1 + c |T|) (hd_kf.h, "Load-dependent ripple").  The firmware scales its
+A0 (1 + c |T|) (hd_kf.h, "measurement row").  The firmware scales its
 lines by 1 + c |T_ref|, T_ref its own slow torque (expected + offset), so c
 is fitted against the same T_ref, taken from the replay of the log.
 
@@ -20,8 +20,8 @@ inverse variance.
 
 The windowed envelope correlation this replaces saw |mean measured torque|,
 which carries the slow output-locked lines, and leaked neighbouring lines
-into windows of about one cycle: on random loaded joints it found a third
-of the coefficient (docs/design/analyze.md, "Load-dependent ripple").
+into windows of about one cycle: on random loaded joints it found a fraction
+of the coefficient (docs/decisions/load-coefficient-fit.md).
 """
 from __future__ import annotations
 
