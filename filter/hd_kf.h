@@ -63,8 +63,9 @@
  *     the bound is taken, HD_KF_STATUS_LOAD_BOUND, load_bound_count.
  *     output_row follows the target through a low-pass of
  *     HD_KF_OUTPUT_ROW_TAU_S; it is 1 with neither an imported motor line
- *     nor a model coefficient, and restarts at 1 at each import and reset.  The assumption: the output
- *     lines grow by the same factor as the motor lines (one strain path;
+ *     nor a model coefficient, and restarts at 1 at each import and reset.
+ *     The assumption: the output lines grow by the same factor as the motor
+ *     lines (one strain path;
  *     docs/design/filter.md, "Load-modulated output lines");
  *   - motion fraction m = min(1, |theta| / q_motion_ref_rad) for motor- and
  *     output-locked blocks (1 when q_motion_ref_rad is 0, and for fixed

@@ -82,3 +82,10 @@ def test_the_held_out_fold_replicates_only_the_same_coefficient():
     assert ok and ev["held_out_load_coefficient_per_nm"] == pytest.approx(0.08, rel=0.1)
     assert not loadcoef.replicated(0.16, view, ORDERS)[0]
     assert not loadcoef.replicated(0.08, [Run(*joint(0.0, seed=5))], ORDERS)[0]
+
+
+def test_the_rule_keeps_a_coefficient_the_innovation_or_fold_b_supports():
+    keep, ev = loadcoef.judge(0.08, -loadcoef.INNOV_GAIN - 0.01, [], ORDERS)
+    assert keep and ev == {}
+    keep, ev = loadcoef.judge(0.08, -loadcoef.INNOV_GAIN + 0.01, [], ORDERS)
+    assert not keep and "rejected_because" in ev       # nothing in fold B to replicate it

@@ -369,8 +369,7 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
         # line that grows with the load is load_candidate's to find.
         win = max(8, int(round(0.1 / ctx.ts_s)))
         env = window_line_amplitude(ctx.signals, phases(ctx, kind, b.order), win)
-        load = window_line_amplitude([np.abs(t) for t in ctx.torque],
-                                     phases(ctx, kind, b.order), win, amplitude=False)
+        load = window_means([np.abs(t) for t in ctx.torque], win)
         if env is not None and np.std(env) > 0 and np.std(load) > 0:
             ev["envelope_load_correlation"] = round(float(np.corrcoef(env, load)[0, 1]), 3)
         out.append(Candidate(kind, b.order, amp, score=ratio, action="retune_block",
@@ -378,22 +377,27 @@ def block_residue_candidates(ctx: Context, model) -> list[Candidate]:
     return out
 
 
-def window_line_amplitude(signals, phases_, win, amplitude=True):
-    """Per window of win samples, over all pieces with at least two
-    windows: the amplitude of the line with the given phase (2 |mean(x
-    e^-i phase)|), or with amplitude False the window's mean; None if no
-    piece has two windows."""
+def _windows(x, win):
+    """x cut into windows of win samples (n x win), or None under two."""
+    m = (len(x) // win) * win
+    return x[:m].reshape(-1, win) if m >= 2 * win else None
+
+
+def window_line_amplitude(signals, phases_, win):
+    """The amplitude of the line with the given phase (2 |mean(x e^-i
+    phase)|) in each window of win samples, over all pieces with at least
+    two windows; None if none has."""
     out = []
     for x, p_ in zip(signals, phases_):
-        m = (len(x) // win) * win
-        if m < 2 * win:
-            continue
-        xs = x[:m].reshape(-1, win)
-        if not amplitude:
-            out.append(xs.mean(1))
-            continue
-        ps = p_[:m].reshape(-1, win)
-        out.append(2 * np.hypot((xs * np.cos(ps)).mean(1), (xs * np.sin(ps)).mean(1)))
+        xs, ps = _windows(x, win), _windows(p_, win)
+        if xs is not None:
+            out.append(2 * np.hypot((xs * np.cos(ps)).mean(1), (xs * np.sin(ps)).mean(1)))
+    return np.concatenate(out) if out else None
+
+
+def window_means(signals, win):
+    """Each window's mean, over the same windows as window_line_amplitude."""
+    out = [xs.mean(1) for xs in (_windows(x, win) for x in signals) if xs is not None]
     return np.concatenate(out) if out else None
 
 
@@ -403,7 +407,8 @@ def load_candidate(view, ts_s: float, model) -> list[Candidate]:
     leaves a residue: the firmware's blocks follow a line whose amplitude
     moves slowly, and what the coefficient buys there is the fixed output
     profile's growth with the load (the held rows follow the motor lines).
-    Once: the model has none yet and the estimate is significant."""
+    Proposed while the model has none and the estimate is significant (the
+    session tries it again after each change of the expected torque)."""
     if model.ripple_load_coeff_per_nm > 0:
         return []
     f = loadcoef.fit_view(view, ts_s, loadcoef.motor_orders(model))

@@ -72,22 +72,23 @@ def fit(torque, motor_angle, load_ref, ts_s: float, orders) -> LoadFit | None:
     chunk = max(4 * w, int(round(CHUNK_S / ts_s)))
     p = 4 * len(orders)
     xtx, xty, yty, n = np.zeros((p, p)), np.zeros(p), 0.0, 0
-    loads = []
+    load_sum = load_sq = 0.0
     for y_all, th_all, l_all in zip(torque, motor_angle, load_ref):
         for i in range(0, len(y_all) - 2 * w + 1, chunk):
             y = np.asarray(y_all[i:i + chunk], float)
-            x = _columns(np.asarray(th_all[i:i + chunk], float),
-                         np.asarray(l_all[i:i + chunk], float), orders)
+            load = np.asarray(l_all[i:i + chunk], float)
+            x = _columns(np.asarray(th_all[i:i + chunk], float), load, orders)
             yh = y - uniform_filter1d(y, w, mode="nearest")
             xh = x - uniform_filter1d(x, w, axis=0, mode="nearest")
             xtx += xh.T @ xh
             xty += xh.T @ yh
             yty += float(yh @ yh)
             n += len(y)
-            loads.append(np.asarray(l_all[i:i + chunk], float))
-    if n <= 2 * p or not loads:
+            load_sum += float(load.sum())
+            load_sq += float(load @ load)
+    if n <= 2 * p:
         return None
-    spread = float(np.std(np.concatenate(loads)))
+    spread = math.sqrt(max(load_sq / n - (load_sum / n) ** 2, 0.0))
     if spread < MIN_LOAD_SPREAD_NM:
         return None
     try:
